@@ -1,0 +1,32 @@
+# The two commands of the README:
+#   make demo   set up .venv (first time) and run the demo on the built-in data
+#   make test   set up .venv (first time) and run the whole test suite
+# .ci/run calls `make test`.
+
+PYTHON ?= python3
+VENV := .venv
+PY := $(VENV)/bin/python
+STAMP := $(VENV)/.installed
+
+.PHONY: setup demo test bench clean
+
+setup: $(STAMP)
+
+$(STAMP): requirements.txt requirements-test.txt setup.py setup.cfg package.xml
+	$(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install --quiet --upgrade pip
+	$(PY) -m pip install --quiet -r requirements.txt -r requirements-test.txt
+	$(PY) -m pip install --quiet --no-deps --no-build-isolation -e .
+	touch $(STAMP)
+
+demo: setup
+	$(VENV)/bin/tracked_kinematics_demo
+
+test: setup
+	$(PY) -m pytest
+
+bench: setup
+	for script in benchmarks/bench_*.py; do $(PY) $$script || exit 1; done
+
+clean:
+	rm -rf $(VENV) build install log *.egg-info demo_output

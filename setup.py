@@ -1,0 +1,32 @@
+"""ament_python build of tracked_kinematics (colcon on a robot, pip in a venv)."""
+
+from glob import glob
+
+from setuptools import find_packages, setup
+
+package_name = 'tracked_kinematics'
+
+setup(
+    name=package_name,
+    version='0.1.0',
+    packages=find_packages(exclude=['test', 'test.*']),
+    data_files=[
+        ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
+        ('share/' + package_name, ['package.xml']),
+        ('share/' + package_name + '/config', glob('config/*.yaml')),
+        ('share/' + package_name + '/launch', glob('launch/*.py')),
+    ],
+    install_requires=['setuptools', 'numpy', 'scipy', 'pyyaml', 'rosbags'],
+    extras_require={'test': ['pytest', 'hypothesis']},
+    zip_safe=True,
+    maintainer='tracked_kinematics maintainers',
+    maintainer_email='maintainers@tracked-kinematics.invalid',
+    description='Slip-aware odometry, velocity control and ICR calibration for tracked robots.',
+    license='Apache-2.0',
+    python_requires='>=3.10',
+    entry_points={
+        'console_scripts': [
+            'tracked_kinematics_demo = tracked_kinematics.offline.demo:main',
+        ],
+    },
+)

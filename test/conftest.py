@@ -1,0 +1,18 @@
+"""Shared test setup: ROS graph isolation and hypothesis settings."""
+
+import os
+import random
+
+from hypothesis import settings
+
+# Isolate every test run's DDS traffic before anything imports rclpy: a domain id of our own
+# and no discovery beyond this machine. Subprocesses started by the tests inherit both.
+if 'TRACKED_KINEMATICS_TEST_DOMAIN' not in os.environ:
+    os.environ['TRACKED_KINEMATICS_TEST_DOMAIN'] = str(random.SystemRandom().randint(1, 101))
+os.environ['ROS_DOMAIN_ID'] = os.environ['TRACKED_KINEMATICS_TEST_DOMAIN']
+os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
+os.environ.pop('ROS_STATIC_PEERS', None)
+
+# Property tests are about correctness, not speed: no per-example deadline on a busy CI box.
+settings.register_profile('tracked', deadline=None, max_examples=200)
+settings.load_profile('tracked')

@@ -1,0 +1,90 @@
+"""The parameter table and the terrain YAML."""
+
+import os
+
+import pytest
+from tracked_kinematics.params import (
+    check_values, flatten, icr_from_values, nest, read_params_file, TERRAIN_DEFAULTS,
+    TERRAIN_PARAMS, values_from_icr, write_params_file)
+from tracked_kinematics.share import config_file
+import yaml
+
+
+def test_shipped_terrain_file_loads_with_interface_values():
+    values = read_params_file(config_file('auriga_alpha_hard_floor.yaml'))
+    icr = icr_from_values(values)
+    assert (icr.track_width, icr.y_left, icr.y_right, icr.x) == (0.42, 0.353, -0.425, 0.032)
+    assert (icr.scale_left, icr.scale_right) == (1.0072, 1.0275)
+    assert values['sprocket_radius'] == 0.1
+
+
+def test_defaults_are_valid_ideal_drive():
+    icr = icr_from_values({})
+    assert icr.chi == pytest.approx(1.0)
+    assert icr.eccentricity == pytest.approx(0.0)
+    assert set(TERRAIN_DEFAULTS) == {spec.name for spec in TERRAIN_PARAMS}
+
+
+@pytest.mark.parametrize('values, match', [
+    ({'icr.y_left': -0.5}, r'icr\.y_left .* must be greater than icr\.y_right'),
+    ({'icr.y_left': 0.1, 'icr.y_right': -0.1}, 'chi .* outside'),
+    ({'scale.left': 0.0}, r'scale\.left must be > 0'),
+    ({'sprocket_radius': -0.1}, 'sprocket_radius must be > 0'),
+    ({'icr.x': float('nan')}, r'icr\.x must be finite'),
+    ({'track_width': True}, 'track_width must be a number'),
+])
+def test_invalid_values_named_in_ros_terms(values, match):
+    with pytest.raises(ValueError, match=match):
+        icr_from_values(values)
+
+
+def test_check_values_ignores_unknown_names():
+    assert check_values(TERRAIN_PARAMS, {'terrain': 'grass', 'track_width': 0.5}) == []
+    assert check_values(TERRAIN_PARAMS, {'track_width': -1.0}) == [
+        'track_width must be > 0, got -1.0']
+
+
+def test_flatten_nest_round_trip():
+    tree = {'icr': {'y_left': 1.0, 'x': 0.0}, 'track_width': 0.4}
+    assert flatten(tree) == {'icr.y_left': 1.0, 'icr.x': 0.0, 'track_width': 0.4}
+    assert nest(flatten(tree)) == tree
+
+
+def test_write_then_read_round_trip(tmp_path):
+    icr = icr_from_values({'icr.y_left': 0.3, 'icr.y_right': -0.35, 'icr.x': 0.01})
+    out = tmp_path / 'terrain.yaml'
+    write_params_file(out, {**values_from_icr(icr, 0.12), 'terrain': 'turf'},
+                      comment='fitted by a test')
+    text = out.read_text()
+    assert text.startswith('# fitted by a test\n')
+    doc = yaml.safe_load(text)
+    assert doc['/**']['ros__parameters']['icr']['y_right'] == -0.35
+    assert icr_from_values(read_params_file(out)) == icr
+    assert oct(out.stat().st_mode & 0o777) != oct(0o600)
+    assert [p.name for p in tmp_path.iterdir()] == ['terrain.yaml']
+
+
+def test_write_failure_leaves_old_file(tmp_path):
+    out = tmp_path / 'terrain.yaml'
+    out.write_text('old')
+    with pytest.raises(yaml.representer.RepresenterError):
+        write_params_file(out, {'bad': object()})
+    assert out.read_text() == 'old'
+    assert os.listdir(tmp_path) == ['terrain.yaml']
+
+
+def test_node_section_overrides_wildcard(tmp_path):
+    path = tmp_path / 'p.yaml'
+    path.write_text('/**:\n  ros__parameters:\n    track_width: 0.5\n'
+                    'odometry_node:\n  ros__parameters:\n    track_width: 0.6\n'
+                    'other:\n  ros__parameters:\n    track_width: 0.7\n')
+    assert read_params_file(path)['track_width'] == 0.5
+    assert read_params_file(path, 'odometry_node')['track_width'] == 0.6
+
+
+@pytest.mark.parametrize('text', ['- a\n- b\n', 'x: [unclosed\n'])
+def test_bad_yaml_is_a_value_error(tmp_path, text):
+    path = tmp_path / 'p.yaml'
+    path.write_text(text)
+    with pytest.raises(ValueError, match='p.yaml'):
+        read_params_file(path)

@@ -1,0 +1,210 @@
+"""
+Tread-ICR kinematics of a tracked vehicle, in the ROS frame (x forward, y left).
+
+Martinez et al. (2005), sec. 3, write the kinematics in a frame with Y forward and X to the
+right. Everything here speaks REP-103 instead; the mapping of one tread ICR is
+
+    paper (x_ICR, y_ICR)  ->  ROS (x = y_ICR, y = -x_ICR)
+
+so ``y_left = -x_ICRl`` (> 0), ``y_right = -x_ICRr`` (< 0) and ``x = y_ICRv``.
+See ../shared/INTERFACE.md and the README for the derivation of every formula below.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, fields
+import math
+
+import numpy as np
+
+
+@dataclass(frozen=True, slots=True)
+class IcrParams:
+    """
+    Constant tread-ICR model of one vehicle on one terrain.
+
+    Attributes
+    ----------
+    track_width : float
+        Distance between the track centrelines, m (``L`` in Martinez, ``B`` in Fink & Stump).
+    y_left, y_right : float
+        Lateral coordinates of the left and right tread ICRs in base_link, m.
+        ``y_left > y_right``; ideal differential drive has ``+-track_width / 2``.
+    x : float
+        Longitudinal coordinate shared by both tread ICRs, m (+ ahead of base_link).
+    scale_left, scale_right : float
+        Encoder scale corrections: true track speed = scale * nominal speed
+        (``alpha_l``, ``alpha_r`` of Martinez eqs. 20-21).
+
+    Raises
+    ------
+    ValueError
+        On any non-finite value, ``track_width <= 0``, ``y_left <= y_right``, a steering
+        efficiency outside (0, 1] or a scale <= 0. The message names the offending value.
+
+    """
+
+    track_width: float
+    y_left: float
+    y_right: float
+    x: float = 0.0
+    scale_left: float = 1.0
+    scale_right: float = 1.0
+
+    def __post_init__(self):
+        for f in fields(self):
+            value = getattr(self, f.name)
+            try:
+                value = float(value)
+            except (TypeError, ValueError):
+                raise ValueError(f'{f.name} must be a number, got {value!r}') from None
+            if not math.isfinite(value):
+                raise ValueError(f'{f.name} must be finite, got {value!r}')
+            object.__setattr__(self, f.name, value)
+        if self.track_width <= 0.0:
+            raise ValueError(f'track_width must be > 0 m, got {self.track_width!r}')
+        if self.y_left <= self.y_right:
+            raise ValueError(
+                f'y_left ({self.y_left!r} m) must be greater than y_right ({self.y_right!r} m): '
+                'the left tread ICR lies to the left of the right one')
+        chi = self.chi
+        if not 0.0 < chi <= 1.0 + 1e-12:
+            raise ValueError(
+                f'steering efficiency chi = track_width / (y_left - y_right) = {chi:.4g} is '
+                f'outside (0, 1]: the tread ICRs ({self.y_left!r}, {self.y_right!r} m) must be '
+                f'at least track_width = {self.track_width!r} m apart')
+        for name in ('scale_left', 'scale_right'):
+            if getattr(self, name) <= 0.0:
+                raise ValueError(f'{name} must be > 0, got {getattr(self, name)!r}')
+
+    @property
+    def chi(self) -> float:
+        """Steering efficiency ``L / (y_left - y_right)``, Martinez eq. (12)."""
+        return self.track_width / (self.y_left - self.y_right)
+
+    @property
+    def eccentricity(self) -> float:
+        """Eccentricity ``-(y_left + y_right) / (y_left - y_right)``, Martinez eq. (13)."""
+        return -(self.y_left + self.y_right) / (self.y_left - self.y_right)
+
+    @classmethod
+    def ideal(cls, track_width: float) -> IcrParams:
+        """Ideal differential drive: ICRs on the track centrelines, no scale correction."""
+        return cls(track_width, 0.5 * track_width, -0.5 * track_width)
+
+    @classmethod
+    def symmetric(cls, track_width: float, chi: float) -> IcrParams:
+        """
+        Symmetric model of steering efficiency ``chi`` (Martinez sec. 4.2).
+
+        ``y_left = -y_right = track_width / (2 chi)``, from eq. (12) with ``e = 0``.
+        """
+        half = 0.5 * float(track_width) / float(chi)
+        return cls(track_width, half, -half)
+
+    @classmethod
+    def from_paper(cls, x_icr_left: float, x_icr_right: float, y_icr: float,
+                   track_width: float, alpha_left: float = 1.0,
+                   alpha_right: float = 1.0) -> IcrParams:
+        """
+        Convert the paper's coordinates (Y forward, X right) to ROS.
+
+        Parameters
+        ----------
+        x_icr_left, x_icr_right : float
+            ``x_ICRl`` (< 0) and ``x_ICRr`` (> 0) of Martinez et al., m.
+        y_icr : float
+            ``y_ICRv``, m.
+        track_width : float
+            ``L``, m.
+        alpha_left, alpha_right : float
+            Encoder corrections of Martinez eqs. (20)-(21).
+
+        """
+        return cls(track_width, -float(x_icr_left), -float(x_icr_right), float(y_icr),
+                   alpha_left, alpha_right)
+
+    def to_paper(self) -> dict[str, float]:
+        """Inverse of :meth:`from_paper`: the paper's symbols as a dict."""
+        return {'x_icr_left': -self.y_left, 'x_icr_right': -self.y_right,
+                'y_icr': self.x, 'L': self.track_width,
+                'alpha_left': self.scale_left, 'alpha_right': self.scale_right}
+
+
+def forward(v_left, v_right, icr: IcrParams):
+    """
+    Body twist from true track speeds through the tread ICRs.
+
+    Implements Martinez et al. (2005) eqs. (7)-(9), rewritten in the ROS frame::
+
+        w   = (V_r - V_l) / (y_left - y_right)
+        v_x = (V_r + V_l) / 2 + w (y_left + y_right) / 2
+        v_y = -w x
+
+    The map is linear, so it applies equally to speeds (m/s -> m/s, rad/s) and to
+    travelled distances over one step (m -> m, rad).
+
+    Parameters
+    ----------
+    v_left, v_right : array_like
+        True track speeds in m/s (after scale correction, see :func:`true_speeds`).
+    icr : IcrParams
+        Tread ICR coordinates in base_link.
+
+    Returns
+    -------
+    v_x, v_y, w : ndarray
+        Body twist in base_link: m/s, m/s, rad/s.
+
+    """
+    v_left = np.asarray(v_left, dtype=float)
+    v_right = np.asarray(v_right, dtype=float)
+    w = (v_right - v_left) / (icr.y_left - icr.y_right)
+    v_x = 0.5 * (v_right + v_left) + w * (0.5 * (icr.y_left + icr.y_right))
+    v_y = -icr.x * w
+    return v_x, v_y, w
+
+
+def inverse(v_x, w, icr: IcrParams):
+    """
+    Compute the true track speeds that produce a commanded body twist.
+
+    Implements Martinez et al. (2005) eqs. (10)-(11) in the ROS frame::
+
+        V_l = v_x - y_left  w
+        V_r = v_x - y_right w
+
+    The lateral velocity cannot be imposed (non-holonomic); the one the vehicle will show
+    is ``-x w`` (see :func:`forward`).
+
+    Parameters
+    ----------
+    v_x : array_like
+        Commanded forward velocity, m/s.
+    w : array_like
+        Commanded yaw rate, rad/s.
+    icr : IcrParams
+        Tread ICR coordinates in base_link.
+
+    Returns
+    -------
+    v_left, v_right : ndarray
+        True track speeds, m/s. Divide by the scales (:func:`nominal_speeds`) to get the
+        setpoint a track speed controller that trusts its encoders must be given.
+
+    """
+    v_x = np.asarray(v_x, dtype=float)
+    w = np.asarray(w, dtype=float)
+    return v_x - icr.y_left * w, v_x - icr.y_right * w
+
+
+def true_speeds(nominal_left, nominal_right, icr: IcrParams):
+    """Convert encoder (nominal) track speeds to true ones, Martinez eqs. (20)-(21)."""
+    return (np.asarray(nominal_left, dtype=float) * icr.scale_left,
+            np.asarray(nominal_right, dtype=float) * icr.scale_right)
+
+
+def nominal_speeds(true_left, true_right, icr: IcrParams):
+    """Convert true track speeds to encoder (nominal) ones: inverse of :func:`true_speeds`."""
+    return (np.asarray(true_left, dtype=float) / icr.scale_left,
+            np.asarray(true_right, dtype=float) / icr.scale_right)

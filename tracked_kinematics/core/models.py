@@ -1,0 +1,458 @@
+"""
+Motion models: measured track speeds -> body twist, with a parameter vector.
+
+One interface serves odometry, identification, online estimation and planning: a model is a
+function ``twist(p, v_left, v_right)`` of a parameter vector ``p`` and of the *measured*
+(nominal, encoder) track speeds, with its Jacobian with respect to ``p``. The identifier fits
+``p``; the estimator tracks it; odometry and planning integrate the twist.
+
+Models
+------
+``ideal``
+    Ideal differential drive (Fink & Stump, Table I, row 1). No parameter.
+``effective_wheel_base`` (alias ``symmetric``)
+    Fink & Stump, Table I, row 2: the turning rate scaled by ``alpha``. Identical to the
+    symmetric ICR model of Martinez sec. 4.2 with ``chi = alpha``.
+``icr``
+    Constant tread ICRs ``(y_left, y_right, x)``, Martinez eqs. (7)-(9).
+``icr_scales``
+    The same plus encoder scale corrections ``(scale_left, scale_right)``, Martinez
+    eqs. (20)-(21). This is the model the terrain YAML stores.
+``general_slip``
+    General kinematic slip, 9 parameters, Fink & Stump eq. (2).
+``adaptive_icr``
+    Tread ICRs that move with lateral acceleration and curvature, the EKF paper's eq. (11)
+    (reconstructed, see :class:`AdaptiveIcr`).
+
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+
+import numpy as np
+
+from .integration import integrate
+from .kinematics import IcrParams
+
+
+def _icr_twist(v_left, v_right, y_left, y_right, x):
+    """
+    Twist and its partial derivatives with respect to ``(y_left, y_right, x)``.
+
+    Martinez eqs. (7)-(9) in the ROS frame, in the compact form
+    ``v_x = (V_r y_left - V_l y_right) / (y_left - y_right)``.
+
+    Returns
+    -------
+    twist : ndarray, shape (..., 3)
+    d_twist_d_icr : ndarray, shape (..., 3, 3)
+        Rows ``(v_x, v_y, w)``, columns ``(y_left, y_right, x)``.
+    d_twist_d_speeds : ndarray, shape (..., 3, 2)
+        Rows ``(v_x, v_y, w)``, columns ``(V_l, V_r)``.
+
+    """
+    span = y_left - y_right
+    w = (v_right - v_left) / span
+    v_x = (v_right * y_left - v_left * y_right) / span
+    v_y = -x * w
+    twist = np.stack(np.broadcast_arrays(v_x, v_y, w), axis=-1)
+    dw_dyl = -w / span
+    dw_dyr = w / span
+    zero = np.zeros_like(w)
+    d_icr = np.stack([
+        np.stack(np.broadcast_arrays(-w * y_right / span, w * y_left / span, zero), -1),
+        np.stack(np.broadcast_arrays(-x * dw_dyl, -x * dw_dyr, -w), -1),
+        np.stack(np.broadcast_arrays(dw_dyl, dw_dyr, zero), -1),
+    ], axis=-2)
+    inv = 1.0 / span
+    d_speeds = np.stack([
+        np.stack(np.broadcast_arrays(-y_right * inv + zero, y_left * inv + zero), -1),
+        np.stack(np.broadcast_arrays(x * inv + zero, -x * inv + zero), -1),
+        np.stack(np.broadcast_arrays(-inv + zero, inv + zero), -1),
+    ], axis=-2)
+    return twist, d_icr, d_speeds
+
+
+class MotionModel(ABC):
+    """
+    Base of all motion models.
+
+    Parameters
+    ----------
+    track_width : float
+        Distance between the track centrelines, m (``B`` in Fink & Stump).
+
+    Attributes
+    ----------
+    name : str
+        Registry name (see :func:`make_model`).
+    param_names : tuple of str
+        Names of the entries of the parameter vector ``p``.
+    linear : bool
+        True when the twist is linear in the track speeds, so that body increments over a
+        step follow from the travelled distances alone, whatever the step's duration.
+
+    """
+
+    name = ''
+    param_names: tuple[str, ...] = ()
+    linear = True
+
+    def __init__(self, track_width: float):
+        track_width = float(track_width)
+        if not np.isfinite(track_width) or track_width <= 0.0:
+            raise ValueError(f'track_width must be a finite number > 0 m, got {track_width!r}')
+        self.track_width = track_width
+
+    @property
+    def n_params(self) -> int:
+        """Length of the parameter vector."""
+        return len(self.param_names)
+
+    @abstractmethod
+    def initial(self) -> np.ndarray:
+        """Parameter vector that makes this model ideal differential drive."""
+
+    @abstractmethod
+    def twist_and_jacobian(self, p, v_left, v_right):
+        """
+        Body twist and its Jacobian with respect to the parameters.
+
+        Parameters
+        ----------
+        p : array_like, shape (P,)
+            Parameter vector.
+        v_left, v_right : array_like, shape (N,) or scalar
+            Measured (nominal) track speeds, m/s.
+
+        Returns
+        -------
+        twist : ndarray, shape (N, 3)
+            ``(v_x, v_y, w)`` in base_link: m/s, m/s, rad/s.
+        jacobian : ndarray, shape (N, 3, P)
+            ``d twist / d p``.
+
+        """
+
+    def twist(self, p, v_left, v_right):
+        """
+        Body twist from measured track speeds.
+
+        Returns
+        -------
+        v_x, v_y, w : ndarray
+            m/s, m/s, rad/s, shaped like the broadcast of the speeds.
+
+        """
+        v_left, v_right = np.broadcast_arrays(np.asarray(v_left, float),
+                                              np.asarray(v_right, float))
+        twist, _ = self.twist_and_jacobian(p, v_left.ravel(), v_right.ravel())
+        shape = v_left.shape
+        return (twist[:, 0].reshape(shape), twist[:, 1].reshape(shape),
+                twist[:, 2].reshape(shape))
+
+    def increments(self, p, d_left, d_right, dt):
+        """
+        Body-frame increments ``(dx, dy, dtheta)`` over steps of measured track travel.
+
+        Parameters
+        ----------
+        p : array_like
+            Parameter vector.
+        d_left, d_right : array_like, shape (N,)
+            Measured (nominal) track travel over each step, m.
+        dt : array_like, shape (N,) or scalar
+            Step durations, s. Unused by linear models; for the others, a step with
+            ``dt <= 0`` contributes no motion.
+
+        """
+        if self.linear:
+            return self.twist(p, d_left, d_right)
+        dt = np.asarray(dt, dtype=float)
+        ok = dt > 0.0
+        safe_dt = np.where(ok, dt, 1.0)
+        v_x, v_y, w = self.twist(p, np.asarray(d_left) / safe_dt, np.asarray(d_right) / safe_dt)
+        scale = np.where(ok, dt, 0.0)
+        return v_x * scale, v_y * scale, w * scale
+
+    def integrate(self, p, d_left, d_right, dt, pose0=(0.0, 0.0, 0.0)):
+        """Poses after each step of measured track travel (see :func:`integration.integrate`)."""
+        return integrate(*self.increments(p, d_left, d_right, dt), pose0=pose0)
+
+    def as_icr(self, p) -> IcrParams | None:
+        """Return the constant-ICR terrain model equal to this one, or None if none is."""
+        return None
+
+    def __repr__(self):
+        return f'{type(self).__name__}(track_width={self.track_width!r})'
+
+
+class IdealDiffDrive(MotionModel):
+    """
+    Ideal differential drive, Fink & Stump Table I (row 1).
+
+    ``v_x = (V_l + V_r) / 2``, ``v_y = 0``, ``w = (V_r - V_l) / B``.
+    """
+
+    name = 'ideal'
+    param_names = ()
+
+    def initial(self):
+        return np.zeros(0)
+
+    def twist_and_jacobian(self, p, v_left, v_right):
+        v_left = np.atleast_1d(np.asarray(v_left, float))
+        v_right = np.atleast_1d(np.asarray(v_right, float))
+        v_x = 0.5 * (v_left + v_right)
+        w = (v_right - v_left) / self.track_width
+        twist = np.stack([v_x, np.zeros_like(v_x), w], axis=-1)
+        return twist, np.zeros(twist.shape + (0,))
+
+    def as_icr(self, p):
+        return IcrParams.ideal(self.track_width)
+
+
+class EffectiveWheelBase(MotionModel):
+    """
+    Effective wheel-base model, Fink & Stump Table I (row 2).
+
+    ``v_x = (V_l + V_r) / 2``, ``v_y = 0``, ``w = alpha (V_r - V_l) / B``. Equal to the
+    symmetric ICR model of Martinez sec. 4.2 with steering efficiency ``chi = alpha``
+    (ICRs at ``+-B / (2 alpha)``).
+    """
+
+    name = 'effective_wheel_base'
+    param_names = ('alpha',)
+
+    def initial(self):
+        return np.ones(1)
+
+    def twist_and_jacobian(self, p, v_left, v_right):
+        alpha = float(np.asarray(p, float)[0])
+        v_left = np.atleast_1d(np.asarray(v_left, float))
+        v_right = np.atleast_1d(np.asarray(v_right, float))
+        w_ideal = (v_right - v_left) / self.track_width
+        zero = np.zeros_like(w_ideal)
+        twist = np.stack([0.5 * (v_left + v_right), zero, alpha * w_ideal], axis=-1)
+        jac = np.stack([zero, zero, w_ideal], axis=-1)[..., None]
+        return twist, jac
+
+    def as_icr(self, p):
+        return IcrParams.symmetric(self.track_width, float(np.asarray(p, float)[0]))
+
+
+class ConstantIcr(MotionModel):
+    """
+    Constant tread ICRs, Martinez et al. (2005) eqs. (7)-(9), optionally with scales.
+
+    Parameters
+    ----------
+    track_width : float
+        m.
+    with_scales : bool
+        Also fit the encoder corrections ``scale_left``, ``scale_right`` (eqs. 20-21).
+    scales : tuple of float
+        Fixed scales used when ``with_scales`` is False.
+
+    """
+
+    linear = True
+
+    def __init__(self, track_width, with_scales=True, scales=(1.0, 1.0)):
+        super().__init__(track_width)
+        self.with_scales = bool(with_scales)
+        self.fixed_scales = (float(scales[0]), float(scales[1]))
+        self.name = 'icr_scales' if self.with_scales else 'icr'
+        self.param_names = ('y_left', 'y_right', 'x') + (
+            ('scale_left', 'scale_right') if self.with_scales else ())
+
+    def initial(self):
+        half = 0.5 * self.track_width
+        p = [half, -half, 0.0]
+        return np.array(p + [1.0, 1.0] if self.with_scales else p)
+
+    def from_icr(self, icr: IcrParams) -> np.ndarray:
+        """Parameter vector of an :class:`IcrParams`."""
+        p = [icr.y_left, icr.y_right, icr.x]
+        return np.array(p + [icr.scale_left, icr.scale_right] if self.with_scales else p)
+
+    def _scales(self, p):
+        return (p[3], p[4]) if self.with_scales else self.fixed_scales
+
+    def twist(self, p, v_left, v_right):
+        # The hot path of odometry over whole logs: no Jacobian.
+        p = np.asarray(p, float)
+        scale_left, scale_right = self._scales(p)
+        v_left = scale_left * np.asarray(v_left, float)
+        v_right = scale_right * np.asarray(v_right, float)
+        span = p[0] - p[1]
+        w = (v_right - v_left) / span
+        return (v_right * p[0] - v_left * p[1]) / span, -p[2] * w, w
+
+    def twist_and_jacobian(self, p, v_left, v_right):
+        p = np.asarray(p, float)
+        scale_left, scale_right = self._scales(p)
+        v_left = np.atleast_1d(np.asarray(v_left, float))
+        v_right = np.atleast_1d(np.asarray(v_right, float))
+        twist, d_icr, d_speeds = _icr_twist(scale_left * v_left, scale_right * v_right,
+                                            p[0], p[1], p[2])
+        if not self.with_scales:
+            return twist, d_icr
+        d_scales = d_speeds * np.stack([v_left, v_right], axis=-1)[..., None, :]
+        return twist, np.concatenate([d_icr, d_scales], axis=-1)
+
+    def as_icr(self, p):
+        p = np.asarray(p, float)
+        scale_left, scale_right = self._scales(p)
+        return IcrParams(self.track_width, p[0], p[1], p[2], scale_left, scale_right)
+
+
+class GeneralKinematicSlip(MotionModel):
+    """
+    General kinematic slip model, Fink & Stump (eq. 2 and Table I, row 3).
+
+    ``v = [v_x, 0, v_theta] + C(v_x, v_theta) alpha`` with the ideal ``v_x``, ``v_theta``
+    and the block-diagonal 3 x 9 matrix of rows::
+
+        c_x     = [v_x, |v_theta|, v_x |v_theta|]
+        c_y     = [v_x,  v_theta,  v_x  v_theta ]
+        c_theta = [v_x,  v_theta,  v_x  v_theta ]
+    """
+
+    name = 'general_slip'
+    param_names = tuple(f'alpha{i}' for i in range(1, 10))
+    linear = False
+
+    def initial(self):
+        return np.zeros(9)
+
+    def twist_and_jacobian(self, p, v_left, v_right):
+        p = np.asarray(p, float)
+        v_left = np.atleast_1d(np.asarray(v_left, float))
+        v_right = np.atleast_1d(np.asarray(v_right, float))
+        v_x = 0.5 * (v_left + v_right)
+        v_t = (v_right - v_left) / self.track_width
+        c_x = np.stack([v_x, np.abs(v_t), v_x * np.abs(v_t)], axis=-1)
+        c_yt = np.stack([v_x, v_t, v_x * v_t], axis=-1)
+        jac = np.zeros(v_x.shape + (3, 9))
+        jac[..., 0, 0:3] = c_x
+        jac[..., 1, 3:6] = c_yt
+        jac[..., 2, 6:9] = c_yt
+        twist = np.stack([v_x, np.zeros_like(v_x), v_t], axis=-1) + jac @ p
+        return twist, jac
+
+
+class AdaptiveIcr(MotionModel):
+    """
+    Tread ICRs parameterised over lateral acceleration and curvature (EKF paper, eq. 11).
+
+    The source text lost the equations; what survives says that the ICR locations are
+    functions of the absolute lateral acceleration and curvature, formed from the product
+    and the ratio of the track speeds, with a six-element parameter vector, and that on a
+    straight line they converge to ``-B/2``, ``B/2`` and 0. We therefore use, in the ROS
+    frame::
+
+        y_left  =  B/2 + p1 |a| + p2 |k|
+        y_right = -B/2 - p3 |a| - p4 |k|
+        x       =        p5 |a| + p6 |k|
+
+    with the nominal (ideal-drive) lateral acceleration and curvature::
+
+        a = v w = (V_r^2 - V_l^2) / (2 B)
+        k = w / v = 2 (V_r - V_l) / (B (V_r + V_l))
+
+    ``k`` is unbounded in a spin; we bound it by using ``max(|v|, |w| B / 2)`` as the
+    denominator, which leaves it exact whenever the tracks turn the same way and saturates
+    it at ``2 / B`` (one track stopped) when they counter-rotate. ``p1..p4`` and ``p6``
+    (m per unit) are >= 0 for physical slip; they are not constrained here. The ICR span
+    ``y_left - y_right`` is floored at ``B / 100`` so the twist stays finite for any ``p``.
+    """
+
+    name = 'adaptive_icr'
+    param_names = ('p1', 'p2', 'p3', 'p4', 'p5', 'p6')
+    linear = False
+
+    def initial(self):
+        return np.zeros(6)
+
+    def features(self, v_left, v_right):
+        """Absolute nominal lateral acceleration (m/s^2) and bounded curvature (1/m)."""
+        v_left = np.asarray(v_left, float)
+        v_right = np.asarray(v_right, float)
+        v = 0.5 * (v_left + v_right)
+        w = (v_right - v_left) / self.track_width
+        accel = np.abs(v * w)
+        denom = np.maximum(np.abs(v), 0.5 * self.track_width * np.abs(w))
+        curv = np.divide(np.abs(w), denom, out=np.zeros_like(w), where=denom > 0.0)
+        return accel, curv
+
+    def icr(self, p, v_left, v_right):
+        """ICR coordinates ``(y_left, y_right, x)`` at the given track speeds."""
+        p = np.asarray(p, float)
+        accel, curv = self.features(v_left, v_right)
+        half = 0.5 * self.track_width
+        return (half + p[0] * accel + p[1] * curv,
+                -half - p[2] * accel - p[3] * curv,
+                p[4] * accel + p[5] * curv)
+
+    def twist_and_jacobian(self, p, v_left, v_right):
+        v_left = np.atleast_1d(np.asarray(v_left, float))
+        v_right = np.atleast_1d(np.asarray(v_right, float))
+        accel, curv = self.features(v_left, v_right)
+        y_left, y_right, x = self.icr(p, v_left, v_right)
+        floor = 0.01 * self.track_width
+        span = y_left - y_right
+        clipped = span < floor
+        if np.any(clipped):
+            mid = 0.5 * (y_left + y_right)
+            y_left = np.where(clipped, mid + 0.5 * floor, y_left)
+            y_right = np.where(clipped, mid - 0.5 * floor, y_right)
+        twist, d_icr, _ = _icr_twist(v_left, v_right, y_left, y_right, x)
+        zero = np.zeros_like(accel)
+        # d(y_left, y_right, x) / dp, shape (N, 3, 6)
+        d_icr_dp = np.stack([
+            np.stack([accel, curv, zero, zero, zero, zero], -1),
+            np.stack([zero, zero, -accel, -curv, zero, zero], -1),
+            np.stack([zero, zero, zero, zero, accel, curv], -1),
+        ], axis=-2)
+        d_icr_dp[clipped, :2, :4] = 0.0
+        return twist, d_icr @ d_icr_dp
+
+
+_MODELS = {
+    'ideal': IdealDiffDrive,
+    'effective_wheel_base': EffectiveWheelBase,
+    'symmetric': EffectiveWheelBase,
+    'icr': lambda track_width: ConstantIcr(track_width, with_scales=False),
+    'icr_scales': lambda track_width: ConstantIcr(track_width, with_scales=True),
+    'general_slip': GeneralKinematicSlip,
+    'adaptive_icr': AdaptiveIcr,
+}
+
+MODEL_NAMES = tuple(_MODELS)
+
+
+def make_model(name: str, track_width: float) -> MotionModel:
+    """
+    Build a motion model by its registry name.
+
+    Parameters
+    ----------
+    name : str
+        One of :data:`MODEL_NAMES`.
+    track_width : float
+        m.
+
+    Raises
+    ------
+    ValueError
+        For an unknown name (the message lists the known ones).
+
+    """
+    try:
+        factory = _MODELS[name]
+    except KeyError:
+        raise ValueError(
+            f'unknown motion model {name!r}; choose one of {", ".join(MODEL_NAMES)}') from None
+    return factory(track_width)
