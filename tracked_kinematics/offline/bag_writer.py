@@ -1,0 +1,166 @@
+"""
+Write rosbags without ROS: rosbag2 (sqlite3 or mcap) and ROS 1 bags, through ``rosbags``.
+
+Used by the simulator to record synthetic runs and by the tests to make bags of a known
+vehicle. Messages are built from plain numbers with the typestore of the bag's ROS version,
+so the same calls write a Jazzy rosbag2 or a Noetic .bag.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+from rosbags.typesys import get_types_from_msg, get_typestore, Stores
+
+STORAGES = ('sqlite3', 'mcap', 'rosbag1')
+
+
+def _split_stamp(stamp_ns: int):
+    stamp_ns = int(stamp_ns)
+    return stamp_ns // 1_000_000_000, stamp_ns % 1_000_000_000
+
+
+class BagWriter:
+    """
+    Context manager that writes one bag.
+
+    Parameters
+    ----------
+    path : path-like
+        A rosbag2 directory (must not exist) or, for ``storage='rosbag1'``, a ``.bag`` file.
+    storage : {'sqlite3', 'mcap', 'rosbag1'}
+        Storage format.
+
+    Examples
+    --------
+    >>> with BagWriter('run1', 'mcap') as bag:                         # doctest: +SKIP
+    ...     bag.write('/joint_states', t_ns, bag.joint_state(t_ns, names, positions))
+
+    """
+
+    def __init__(self, path, storage: str = 'sqlite3'):
+        if storage not in STORAGES:
+            raise ValueError(f'storage must be one of {", ".join(STORAGES)}, got {storage!r}')
+        self.path = Path(path)
+        self.storage = storage
+        if storage == 'rosbag1':
+            from rosbags.rosbag1 import Writer
+            self.typestore = get_typestore(Stores.ROS1_NOETIC)
+            # Noetic's store has no tf2_msgs; its definition is one line.
+            self.typestore.register(get_types_from_msg(
+                'geometry_msgs/TransformStamped[] transforms', 'tf2_msgs/msg/TFMessage'))
+            self._writer = Writer(self.path)
+        else:
+            from rosbags.rosbag2 import StoragePlugin, Writer
+            self.typestore = get_typestore(Stores.ROS2_JAZZY)
+            plugin = StoragePlugin.MCAP if storage == 'mcap' else StoragePlugin.SQLITE3
+            self._writer = Writer(self.path, version=9, storage_plugin=plugin)
+        self._connections = {}
+        self._types = self.typestore.types
+
+    def __enter__(self):
+        self._writer.open()
+        return self
+
+    def __exit__(self, *exc):
+        self._writer.close()
+
+    def write(self, topic: str, stamp_ns: int, message) -> None:
+        """Write ``message`` on ``topic`` with receive time ``stamp_ns`` (ns)."""
+        msgtype = message.__msgtype__
+        connection = self._connections.get(topic)
+        if connection is None:
+            connection = self._writer.add_connection(topic, msgtype, typestore=self.typestore)
+            self._connections[topic] = connection
+        if self.storage == 'rosbag1':
+            data = self.typestore.serialize_ros1(message, msgtype)
+        else:
+            data = self.typestore.serialize_cdr(message, msgtype)
+        self._writer.write(connection, int(stamp_ns), data)
+
+    # Message builders -------------------------------------------------------------------
+
+    def header(self, stamp_ns: int, frame_id: str = ''):
+        """std_msgs/Header of the bag's ROS version."""
+        sec, nanosec = _split_stamp(stamp_ns)
+        stamp = self._types['builtin_interfaces/msg/Time'](sec=sec, nanosec=nanosec)
+        kwargs = {'seq': 0} if self.storage == 'rosbag1' else {}
+        return self._types['std_msgs/msg/Header'](stamp=stamp, frame_id=frame_id, **kwargs)
+
+    def joint_state(self, stamp_ns: int, names, positions=(), velocities=(), frame_id=''):
+        """sensor_msgs/JointState."""
+        return self._types['sensor_msgs/msg/JointState'](
+            header=self.header(stamp_ns, frame_id), name=list(names),
+            position=np.asarray(positions, dtype=np.float64),
+            velocity=np.asarray(velocities, dtype=np.float64),
+            effort=np.zeros(0, dtype=np.float64))
+
+    def pose(self, x: float, y: float, yaw: float, z: float = 0.0):
+        """geometry_msgs/Pose of a planar pose."""
+        types = self._types
+        return types['geometry_msgs/msg/Pose'](
+            position=types['geometry_msgs/msg/Point'](x=float(x), y=float(y), z=float(z)),
+            orientation=types['geometry_msgs/msg/Quaternion'](
+                x=0.0, y=0.0, z=math.sin(0.5 * yaw), w=math.cos(0.5 * yaw)))
+
+    def pose_stamped(self, stamp_ns: int, x: float, y: float, yaw: float, frame_id='map'):
+        """geometry_msgs/PoseStamped."""
+        return self._types['geometry_msgs/msg/PoseStamped'](
+            header=self.header(stamp_ns, frame_id), pose=self.pose(x, y, yaw))
+
+    def pose_with_covariance_stamped(self, stamp_ns: int, x, y, yaw, frame_id='map',
+                                     covariance=None):
+        """geometry_msgs/PoseWithCovarianceStamped."""
+        types = self._types
+        cov = np.zeros(36) if covariance is None else np.asarray(covariance, float).ravel()
+        return types['geometry_msgs/msg/PoseWithCovarianceStamped'](
+            header=self.header(stamp_ns, frame_id),
+            pose=types['geometry_msgs/msg/PoseWithCovariance'](
+                pose=self.pose(x, y, yaw), covariance=cov))
+
+    def odometry(self, stamp_ns: int, x, y, yaw, v_x=0.0, v_y=0.0, w=0.0,
+                 frame_id='odom', child_frame_id='base_link'):
+        """nav_msgs/Odometry with a planar pose and body twist."""
+        types = self._types
+        vec = types['geometry_msgs/msg/Vector3']
+        twist = types['geometry_msgs/msg/Twist'](linear=vec(x=float(v_x), y=float(v_y), z=0.0),
+                                                 angular=vec(x=0.0, y=0.0, z=float(w)))
+        return types['nav_msgs/msg/Odometry'](
+            header=self.header(stamp_ns, frame_id), child_frame_id=child_frame_id,
+            pose=types['geometry_msgs/msg/PoseWithCovariance'](
+                pose=self.pose(x, y, yaw), covariance=np.zeros(36)),
+            twist=types['geometry_msgs/msg/TwistWithCovariance'](
+                twist=twist, covariance=np.zeros(36)))
+
+    def tf_message(self, stamp_ns: int, parent: str, child: str, x, y, yaw):
+        """tf2_msgs/TFMessage with one planar transform."""
+        types = self._types
+        p = self.pose(x, y, yaw)
+        transform = types['geometry_msgs/msg/Transform'](
+            translation=types['geometry_msgs/msg/Vector3'](x=p.position.x, y=p.position.y,
+                                                           z=p.position.z),
+            rotation=p.orientation)
+        stamped = types['geometry_msgs/msg/TransformStamped'](
+            header=self.header(stamp_ns, parent), child_frame_id=child, transform=transform)
+        return types['tf2_msgs/msg/TFMessage'](transforms=[stamped])
+
+    def float64(self, value: float):
+        """std_msgs/Float64."""
+        return self._types['std_msgs/msg/Float64'](data=float(value))
+
+    def int32(self, value: int):
+        """std_msgs/Int32 (the value is wrapped into int32 range, as a counter would)."""
+        value = (int(value) + 2**31) % 2**32 - 2**31
+        return self._types['std_msgs/msg/Int32'](data=value)
+
+    def int64(self, value: int):
+        """std_msgs/Int64."""
+        return self._types['std_msgs/msg/Int64'](data=int(value))
+
+    def twist(self, v_x: float, w: float, v_y: float = 0.0):
+        """geometry_msgs/Twist (cmd_vel)."""
+        vec = self._types['geometry_msgs/msg/Vector3']
+        return self._types['geometry_msgs/msg/Twist'](
+            linear=vec(x=float(v_x), y=float(v_y), z=0.0), angular=vec(x=0.0, y=0.0, z=float(w)))

@@ -1,0 +1,151 @@
+"""
+Declare a node's parameters from a table of :class:`~tracked_kinematics.params.ParamSpec`.
+
+The same table gives ``ros2 param describe`` its text, checks the values at start, and
+answers runtime ``set_parameters`` requests: a change that fails a check, or the node's own
+cross-parameter validator, is refused with the reason and the old values stay in force.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterable, Mapping
+from typing import Any
+
+from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
+from rclpy.parameter import Parameter
+from tracked_kinematics.params import ParamSpec
+
+
+class ParameterError(ValueError):
+    """Invalid parameters at start: the node cannot run with them."""
+
+
+def _coerce(spec: ParamSpec, value):
+    """Bring a parameter value to the spec's type (ints are accepted for doubles)."""
+    if isinstance(spec.default, float) and isinstance(value, int) and not isinstance(value, bool):
+        return float(value)
+    if isinstance(spec.default, list):
+        return list(value)
+    return value
+
+
+def _type_matches(spec: ParamSpec, value) -> bool:
+    default = spec.default
+    if isinstance(default, bool):
+        return isinstance(value, bool)
+    if isinstance(default, float):
+        return isinstance(value, (int, float)) and not isinstance(value, bool)
+    if isinstance(default, int):
+        return isinstance(value, int) and not isinstance(value, bool)
+    if isinstance(default, str):
+        return isinstance(value, str)
+    if isinstance(default, list):
+        return isinstance(value, (list, tuple)) and all(isinstance(v, str) for v in value)
+    return True
+
+
+class ParameterTable:
+    """
+    The parameters of one node, declared from specs and kept valid.
+
+    Parameters
+    ----------
+    node : rclpy.node.Node
+        The node to declare on.
+    specs : iterable of ParamSpec
+        Its parameters.
+    validate : callable, optional
+        ``validate(values)`` raising ``ValueError`` for an invalid combination (for example
+        the ICR model as a whole); called at start and before every change.
+    on_change : callable, optional
+        ``on_change(values)`` called after a valid runtime change was accepted.
+
+    Raises
+    ------
+    ParameterError
+        When the values given at start (defaults, ``--params-file``, ``-p``) are invalid;
+        the message lists every problem.
+
+    """
+
+    def __init__(self, node, specs: Iterable[ParamSpec],
+                 validate: Callable[[Mapping[str, Any]], None] | None = None,
+                 on_change: Callable[[Mapping[str, Any]], None] | None = None):
+        self._node = node
+        self.specs = {spec.name: spec for spec in specs}
+        self._validate = validate
+        self._on_change = on_change
+        values = {}
+        problems = []
+        for spec in self.specs.values():
+            descriptor = ParameterDescriptor(
+                description=spec.full_description, read_only=spec.read_only,
+                dynamic_typing=isinstance(spec.default, float))
+            default = spec.default
+            if isinstance(default, list) and not default:
+                default = Parameter.Type.STRING_ARRAY
+            try:
+                value = node.declare_parameter(spec.name, default, descriptor).value
+            except Exception as err:  # noqa: BLE001 -- rclpy raises several types here
+                problems.append(f'{spec.name}: {err}')
+                continue
+            if value is None and isinstance(spec.default, list):
+                value = []
+            problem = self._check(spec, value)
+            if problem:
+                problems.append(problem)
+            else:
+                values[spec.name] = _coerce(spec, value)
+        if not problems and validate is not None:
+            try:
+                validate(values)
+            except ValueError as err:
+                problems.append(str(err))
+        if problems:
+            raise ParameterError('invalid parameters: ' + '; '.join(problems))
+        self.values: dict[str, Any] = values
+        self._pending: dict[str, Any] | None = None
+        node.add_on_set_parameters_callback(self._on_set)
+        node.add_post_set_parameters_callback(self._post_set)
+
+    @staticmethod
+    def _check(spec: ParamSpec, value) -> str | None:
+        if not _type_matches(spec, value):
+            return f'{spec.name} must be of the type of {spec.default!r}, got {value!r}'
+        return spec.validate(_coerce(spec, value))
+
+    def __getitem__(self, name: str):
+        """Return the current value of a parameter."""
+        return self.values[name]
+
+    def _on_set(self, params) -> SetParametersResult:
+        proposed = dict(self.values)
+        problems = []
+        for param in params:
+            spec = self.specs.get(param.name)
+            if spec is None:
+                continue
+            problem = self._check(spec, param.value)
+            if problem:
+                problems.append(problem)
+            else:
+                proposed[param.name] = _coerce(spec, param.value)
+        if not problems and self._validate is not None:
+            try:
+                self._validate(proposed)
+            except ValueError as err:
+                problems.append(str(err))
+        if problems:
+            self._pending = None
+            reason = '; '.join(problems)
+            self._node.get_logger().warn(f'refused parameter change: {reason}')
+            return SetParametersResult(successful=False, reason=reason)
+        self._pending = proposed
+        return SetParametersResult(successful=True)
+
+    def _post_set(self, params) -> None:
+        if self._pending is None:
+            return
+        self.values, self._pending = self._pending, None
+        if self._on_change is not None:
+            self._on_change(self.values)
