@@ -14,6 +14,7 @@ setup(
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml']),
         ('share/' + package_name + '/config', glob('config/*.yaml')),
+        ('share/' + package_name + '/config/vehicles', glob('config/vehicles/*.yaml')),
         ('share/' + package_name + '/launch', glob('launch/*.py')),
     ],
     install_requires=['setuptools', 'numpy', 'scipy', 'pyyaml', 'rosbags'],
@@ -27,6 +28,8 @@ setup(
     entry_points={
         'console_scripts': [
             'tracked_kinematics_demo = tracked_kinematics.offline.demo:main',
+            'simulate_bag = tracked_kinematics.offline.simulate:main',
+            'icr_map = tracked_kinematics.offline.icr_map:main',
         ],
     },
 )

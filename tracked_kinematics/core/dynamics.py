@@ -27,11 +27,11 @@ Model and assumptions (hard, flat, uniform soil at moderate speed, as in the pap
 - Stationary motion: the body twist ``(v_x, v_y, w)`` is constant, so eqs. (14)-(15) with the
   accelerations set to zero reduce to: the friction forces and their moment over both patches
   balance. No motion resistance (hard soil), no gyroscopic torques, no aerodynamic drag.
-- Optional load transfer (``com_height`` given): the steady-turn centripetal acceleration of
+- Optional load transfer (``com_height > 0``): the steady-turn centripetal acceleration of
   the centre of mass, ``a = w x v_G``, is kept in eq. (14) (``m a = sum F``) and its inertial
   moment at height ``com_height`` shifts the pressure towards the outer track (and the rear
   when ``a_x > 0``). The response then depends on the speed, not only on the ratio of the
-  track speeds. Without ``com_height`` the model is the paper's: no inertia at all.
+  track speeds. With ``com_height = 0`` the model is the paper's: no inertia at all.
 
 Without inertia the equations are homogeneous: scaling both track speeds by ``s > 0`` scales
 the twist by ``s``, and reversing both reverses it; mass and the common scale of the friction
@@ -79,9 +79,9 @@ class Vehicle:
         Centre of mass in base_link, m. The static pressure must stay >= 0 everywhere:
         ``|com_x| <= contact_length / 6`` for a linear distribution, and the centre of mass
         between the tracks.
-    com_height : float or None
-        Height of the centre of mass above the ground, m. None (default) is the paper's
-        model without inertia; a value adds centripetal force and load transfer in turns.
+    com_height : float
+        Height of the centre of mass above the ground, m. 0 (default) is the paper's model
+        without inertia; a height > 0 adds centripetal force and load transfer in turns.
     mu_x, mu_y : float
         Coulomb friction coefficients along and across the tracks (eq. 23, ROS axes).
     max_track_speed : float
@@ -264,7 +264,7 @@ class StationarySolver:
     Body twist at which the friction forces and moment over both contact patches balance.
 
     Martinez et al. (2005) eqs. (14)-(15) with zero accelerations (plus the centripetal term
-    when the vehicle has a ``com_height``), friction by eqs. (22)-(23) on the slip velocity
+    when the vehicle has a ``com_height > 0``), friction by eqs. (22)-(23) on the slip velocity
     of every cell. The three balance equations are solved with MINPACK's hybrid Powell method
     (``scipy.optimize.root``, ``method='hybr'``) and an analytic Jacobian, from the ideal
     differential-drive twist; on failure, again by continuation from a heavily regularised
@@ -329,7 +329,7 @@ class StationarySolver:
         -------
         r : ndarray, shape (N, 3)
             ``(F_x - m a_x, F_y - m a_y) / (mu_x m g)`` and ``M_z / (mu_x m g l)``, the moment
-            taken about the centre of mass (``a = 0`` without ``com_height``).
+            taken about the centre of mass (``a = 0`` when ``com_height = 0``).
         jac : ndarray, shape (N, 3, 3)
             ``d r / d twist``.
 
