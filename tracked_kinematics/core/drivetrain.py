@@ -1,0 +1,338 @@
+"""
+Drive-train response: commanded track speeds -> track speeds, Fink & Stump sec. III-B.
+
+Each track is an independent chain of three parts (Fink & Stump Fig. 2):
+
+1. input shaping: a command delay ``tau`` (``v_d(t) = v_c(t - tau)``), a speed limit and an
+   acceleration limit ``a_max`` (a rate limiter);
+2. a closed speed loop: either a PID controller (eq. 6) around a DC motor (eq. 7), whose
+   closed-loop transfer function is eq. (8), or, for users without motor data, a first-order
+   lag ``1 / (T s + 1)``, or nothing (the shaped command is the speed);
+3. the output is the track speed the encoders measure.
+
+The linear part is simulated exactly in discrete time: the rate limiter makes the shaped
+command piecewise linear between samples, and the first-order-hold discretisation
+(``scipy.signal.cont2discrete(..., method='foh')``) of a rational transfer function is exact
+for such inputs. The resulting difference equation runs in ``scipy.signal.lfilter`` (C),
+so the only Python loop is the rate limiter's, which is truly sequential.
+
+Commands are taken as sample-and-hold signals (a setpoint holds until the next one), so the
+delayed command at sample ``t_k`` is exactly the command sample in force at ``t_k - tau``.
+
+The API is meant to be reused by the identification of issue 8: every parameter is a plain
+attribute, :meth:`DriveTrain.simulate` maps commands to speeds for any candidate parameters,
+and :meth:`DriveTrain.transfer_function` exposes the linear part.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, fields
+import math
+
+import numpy as np
+from scipy import signal
+
+
+def _check_fields(obj, positive=(), non_negative=()):
+    for f in fields(obj):
+        value = getattr(obj, f.name)
+        try:
+            value = float(value)
+        except (TypeError, ValueError):
+            raise ValueError(f'{f.name} must be a number, got {value!r}') from None
+        if math.isnan(value):
+            raise ValueError(f'{f.name} must not be NaN')
+        object.__setattr__(obj, f.name, value)
+    for name in positive:
+        if not getattr(obj, name) > 0.0 or not math.isfinite(getattr(obj, name)):
+            raise ValueError(f'{name} must be a finite number > 0, got {getattr(obj, name)!r}')
+    for name in non_negative:
+        if not getattr(obj, name) >= 0.0 or not math.isfinite(getattr(obj, name)):
+            raise ValueError(f'{name} must be a finite number >= 0, got {getattr(obj, name)!r}')
+
+
+@dataclass(frozen=True, slots=True)
+class PidMotor:
+    """
+    PID speed loop around a DC motor, Fink & Stump eqs. (6)-(8).
+
+    ``C(s) = K_p + K_d s + K_i / s`` (eq. 6), ``M(s) = K / ((b + J s)(L s + R) + K^2)``
+    (eq. 7), closed loop ``C M / (1 + C M)`` (eq. 8). As in the paper the loop maps the
+    desired track speed to the track speed directly (any gearing and sprocket radius are
+    absorbed in the gains), so its steady-state gain is 1 whenever ``K_i > 0``.
+
+    Attributes
+    ----------
+    kp, ki, kd : float
+        Controller gains (``K_p``, ``K_i``, ``K_d``), >= 0.
+    inertia : float
+        Rotor moment of inertia ``J``, kg m^2.
+    damping : float
+        Viscous friction ``b``, N m s.
+    resistance : float
+        Armature resistance ``R``, Ohm.
+    inductance : float
+        Armature inductance ``L``, H.
+    motor_constant : float
+        Torque and back-EMF constant ``K``, N m / A = V s / rad.
+
+    """
+
+    kp: float
+    ki: float
+    kd: float
+    inertia: float
+    damping: float
+    resistance: float
+    inductance: float
+    motor_constant: float
+
+    def __post_init__(self):
+        _check_fields(self, positive=('inertia', 'resistance', 'inductance', 'motor_constant'),
+                      non_negative=('kp', 'ki', 'kd', 'damping'))
+        if self.kp == self.ki == self.kd == 0.0:
+            raise ValueError('at least one of kp, ki, kd must be > 0')
+        poles = np.roots(self.transfer_function()[1])
+        if np.any(poles.real >= 0.0):
+            raise ValueError(f'the closed speed loop is unstable (poles {np.round(poles, 4)})')
+
+    def transfer_function(self):
+        """
+        Closed-loop transfer function, eq. (8), as polynomial coefficients in ``s``.
+
+        ``C M / (1 + C M) = K (K_d s^2 + K_p s + K_i) / (J L s^3 + (J R + b L + K K_d) s^2
+        + (b R + K^2 + K K_p) s + K K_i)``, one order less when ``K_i = 0``.
+
+        Returns
+        -------
+        num, den : ndarray
+            Highest power first.
+
+        """
+        k, j, b = self.motor_constant, self.inertia, self.damping
+        r, ell = self.resistance, self.inductance
+        num = k * np.array([self.kd, self.kp, self.ki])
+        den = np.array([j * ell, j * r + b * ell + k * self.kd,
+                        b * r + k * k + k * self.kp, k * self.ki])
+        if self.ki == 0.0:
+            # No integrator: C(s) = K_p + K_d s, the common factor s cancels.
+            return num[:-1], den[:-1]
+        return num, den
+
+
+@dataclass(frozen=True, slots=True)
+class FirstOrderLag:
+    """
+    First-order lag ``1 / (T s + 1)``: the speed loop for users without motor data.
+
+    Attributes
+    ----------
+    time_constant : float
+        ``T``, s (> 0): the speed reaches 63 % of a step after ``T``.
+
+    """
+
+    time_constant: float
+
+    def __post_init__(self):
+        _check_fields(self, positive=('time_constant',))
+
+    def transfer_function(self):
+        """Return ``num, den`` of ``1 / (T s + 1)``, highest power first."""
+        return np.array([1.0]), np.array([self.time_constant, 1.0])
+
+
+@dataclass(frozen=True, slots=True)
+class DriveTrain:
+    """
+    Command delay, speed and acceleration limits, and speed loop of one track.
+
+    The same drive train is applied to both tracks (columns of the command array).
+
+    Attributes
+    ----------
+    delay : float
+        Command delay ``tau``, s (>= 0).
+    max_accel : float
+        Acceleration limit of the input shaping, m/s^2 (> 0; ``inf`` for none).
+    max_speed : float
+        Speed limit applied to the commands, m/s (> 0; ``inf`` for none).
+    loop : PidMotor, FirstOrderLag or None
+        Speed loop; None passes the shaped command through (an ideal drive).
+
+    Examples
+    --------
+    >>> drive = DriveTrain(delay=0.05, max_accel=2.0, loop=FirstOrderLag(0.1))
+    >>> speeds = drive.simulate(np.ones(300), dt=0.01)   # 3 s step to 1 m/s
+
+    """
+
+    delay: float = 0.0
+    max_accel: float = math.inf
+    max_speed: float = math.inf
+    loop: PidMotor | FirstOrderLag | None = None
+
+    def __post_init__(self):
+        for name in ('delay', 'max_accel', 'max_speed'):
+            value = getattr(self, name)
+            try:
+                value = float(value)
+            except (TypeError, ValueError):
+                raise ValueError(f'{name} must be a number, got {value!r}') from None
+            object.__setattr__(self, name, value)
+        if not (math.isfinite(self.delay) and self.delay >= 0.0):
+            raise ValueError(f'delay must be a finite number >= 0 s, got {self.delay!r}')
+        for name in ('max_accel', 'max_speed'):
+            if not getattr(self, name) > 0.0:
+                raise ValueError(f'{name} must be > 0 (inf for no limit), got '
+                                 f'{getattr(self, name)!r}')
+        if self.loop is not None and not isinstance(self.loop, (PidMotor, FirstOrderLag)):
+            raise ValueError(f'loop must be a PidMotor, a FirstOrderLag or None, got '
+                             f'{self.loop!r}')
+
+    @classmethod
+    def fink_stump_packbot(cls, max_speed: float = 2.0) -> DriveTrain:
+        """
+        Drive train identified on the Packbot, Fink & Stump Table II.
+
+        The table prints the delay as "0.049 ms"; the text (sec. IV-A) measures 0.049 s,
+        which is what we use.
+        """
+        return cls(delay=0.049, max_accel=5.5, max_speed=max_speed,
+                   loop=PidMotor(kp=56.49, ki=1.11, kd=2.77, inertia=0.059, damping=0.456,
+                                 resistance=0.254, inductance=0.253, motor_constant=0.0294))
+
+    def transfer_function(self):
+        """Continuous transfer function of the speed loop (``[1], [1]`` without one)."""
+        if self.loop is None:
+            return np.array([1.0]), np.array([1.0])
+        return self.loop.transfer_function()
+
+    @property
+    def dc_gain(self) -> float:
+        """Steady-state gain of the speed loop (1 with integral action or a lag)."""
+        num, den = self.transfer_function()
+        return float(num[-1] / den[-1])
+
+    def discretise(self, dt: float):
+        """
+        Exact discrete-time speed loop for piecewise-linear inputs (first-order hold).
+
+        Parameters
+        ----------
+        dt : float
+            Sample period, s.
+
+        Returns
+        -------
+        b, a : ndarray
+            Numerator and denominator for ``scipy.signal.lfilter``.
+
+        """
+        num, den = self.transfer_function()
+        numd, dend, _ = signal.cont2discrete((num, den), dt, method='foh')
+        return np.atleast_1d(np.squeeze(numd)), np.atleast_1d(dend)
+
+    def shape(self, commands, dt: float, initial=0.0) -> np.ndarray:
+        """
+        Input shaping: delay, speed limit and acceleration limit of the commands.
+
+        Parameters
+        ----------
+        commands : array_like, shape (N,) or (N, K)
+            Commanded speeds sampled every ``dt`` and held in between, m/s.
+        dt : float
+            Sample period, s.
+        initial : float or array_like, shape (K,)
+            Speed before the first sample (what the delay line holds at the start), m/s.
+
+        Returns
+        -------
+        ndarray, like ``commands``
+            Shaped speed demand at the samples (linear in between).
+
+        """
+        commands = np.asarray(commands, dtype=float)
+        dt = _check_dt(dt)
+        initial = np.broadcast_to(np.asarray(initial, float), commands.shape[1:])
+        lag = int(math.ceil(self.delay / dt - 1e-9))
+        if lag > 0:
+            head = np.broadcast_to(initial, (min(lag, len(commands)),) + commands.shape[1:])
+            commands = np.concatenate([head, commands[:len(commands) - lag]])
+        shaped = np.clip(commands, -self.max_speed, self.max_speed)
+        if math.isfinite(self.max_accel) and len(shaped):
+            start = np.clip(initial, -self.max_speed, self.max_speed)
+            columns = shaped.reshape(len(shaped), -1)
+            starts = np.broadcast_to(start, shaped.shape[1:]).reshape(-1)
+            limited = [_rate_limit(columns[:, j].tolist(), float(starts[j]), self.max_accel * dt)
+                       for j in range(columns.shape[1])]
+            shaped = np.stack(limited, axis=-1).reshape(shaped.shape)
+        return shaped
+
+    def respond(self, shaped, dt: float, initial=0.0) -> np.ndarray:
+        """
+        Speed loop response to a shaped demand (exact for a piecewise-linear demand).
+
+        Parameters
+        ----------
+        shaped : array_like, shape (N,) or (N, K)
+            Demand at the samples, m/s (from :meth:`shape`).
+        dt : float
+            Sample period, s.
+        initial : float or array_like, shape (K,)
+            Demand the loop was in steady state with before the first sample, m/s.
+
+        Returns
+        -------
+        ndarray, like ``shaped``
+            Track speeds at the samples, m/s.
+
+        """
+        shaped = np.asarray(shaped, dtype=float)
+        if self.loop is None or not len(shaped):
+            return shaped.copy()
+        b, a = self.discretise(_check_dt(dt))
+        zi_unit = signal.lfilter_zi(b, a)
+        initial = np.broadcast_to(np.asarray(initial, float), shaped.shape[1:])
+        zi = zi_unit.reshape((-1,) + (1,) * (shaped.ndim - 1)) * initial
+        out, _ = signal.lfilter(b, a, shaped, axis=0, zi=zi)
+        return out
+
+    def simulate(self, commands, dt: float, initial=0.0) -> np.ndarray:
+        """
+        Track speeds from commanded speeds: :meth:`shape`, then :meth:`respond`.
+
+        Parameters
+        ----------
+        commands : array_like, shape (N,) or (N, K)
+            Commanded speeds every ``dt`` (held in between), m/s.
+        dt : float
+            Sample period, s.
+        initial : float or array_like, shape (K,)
+            Speed in steady state before the start, m/s.
+
+        Returns
+        -------
+        ndarray, like ``commands``
+            Track speeds at the samples, m/s.
+
+        """
+        shaped = self.shape(commands, dt, initial)
+        start = np.clip(initial, -self.max_speed, self.max_speed)
+        return self.respond(shaped, dt, start)
+
+
+def _rate_limit(targets: list, value: float, step: float) -> list:
+    """Sequential rate limiter on plain floats (a numpy loop would be 30 times slower)."""
+    out = []
+    for target in targets:
+        value += min(max(target - value, -step), step)
+        out.append(value)
+    return out
+
+
+def _check_dt(dt) -> float:
+    dt = float(dt)
+    if not (math.isfinite(dt) and dt > 0.0):
+        raise ValueError(f'dt must be a finite number > 0 s, got {dt!r}')
+    return dt
