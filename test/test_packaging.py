@@ -39,7 +39,7 @@ def test_package_xml_is_format_3_ament_python():
 
 def test_console_scripts_resolve():
     scripts = console_scripts()
-    assert 'tracked_kinematics_demo' in scripts
+    assert {'tracked_kinematics_demo', 'simulate_bag', 'icr_map'} <= set(scripts)
     for name, target in scripts.items():
         module, func = target.split(':')
         assert callable(getattr(importlib.import_module(module), func)), name
@@ -61,6 +61,8 @@ def test_colcon_build_installs_ros2_run_layout(source_copy, tmp_path):
         assert os.access(prefix / 'lib' / 'tracked_kinematics' / name, os.X_OK), name
     assert (share / 'package.xml').is_file()
     assert (share / 'config' / 'auriga_alpha_hard_floor.yaml').is_file()
+    for vehicle in (ROOT / 'config' / 'vehicles').glob('*.yaml'):
+        assert (share / 'config' / 'vehicles' / vehicle.name).is_file()
     assert (prefix / 'share' / 'ament_index' / 'resource_index' / 'packages'
             / 'tracked_kinematics').is_file()
     for launch_file in (ROOT / 'launch').glob('*.py'):
@@ -73,6 +75,12 @@ def test_colcon_build_installs_ros2_run_layout(source_copy, tmp_path):
                          cwd=tmp_path, env=env, capture_output=True, text=True, timeout=120)
     assert run.returncode == 0, run.stderr
     assert f'terrain file: {share}/config/' in run.stdout
+    # A shipped vehicle by name, found in the install space's share/.
+    run = subprocess.run([str(prefix / 'lib' / 'tracked_kinematics' / 'icr_map'), 'packbot',
+                          '--n', '3'], cwd=tmp_path, env=env, capture_output=True, text=True,
+                         timeout=120)
+    assert run.returncode == 0, run.stderr
+    assert f'{share}/config/vehicles/packbot.yaml' in run.stdout
 
 
 @pytest.mark.slow
@@ -94,3 +102,4 @@ def test_pip_install_puts_scripts_on_path_and_data_in_share(source_copy, tmp_pat
     share = venv / 'share' / 'tracked_kinematics'
     assert (share / 'package.xml').is_file()
     assert (share / 'config' / 'auriga_alpha_hard_floor.yaml').is_file()
+    assert (share / 'config' / 'vehicles' / 'auriga_alpha.yaml').is_file()
