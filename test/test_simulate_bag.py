@@ -158,14 +158,15 @@ def test_same_seed_same_bag_content(tmp_path):
 def test_cli_writes_bag_and_prints_the_true_model(tmp_path, capsys):
     rc = simulate.main([str(tmp_path / 'cli'), '--vehicle', 'packbot', '--duration', '5',
                         '--mu-y', '0.9', '--terrain', 'rubber_mat', '--set',
-                        'centre_of_mass.y=0.01', '--storage', 'mcap', '--gt-rate', '20'])
+                        'centre_of_mass.y=0.01', '--storage', 'mcap', '--gt-rate', '20',
+                        '--gt-topic', '/mocap/pose', '--truth', str(tmp_path / 'true.yaml')])
     out = capsys.readouterr().out
     assert rc == 0, out
-    assert 'packbot on rubber_mat' in out and '/ground_truth/pose' in out and 'chi' in out
-    values = read_params_file(tmp_path / 'cli.truth.yaml')
+    assert 'packbot on rubber_mat' in out and '/mocap/pose' in out and 'chi' in out
+    values = read_params_file(tmp_path / 'true.yaml')
     assert values['terrain'] == 'rubber_mat'
     assert values['icr.y_left'] < -values['icr.y_right']  # mass on the left
-    assert len(read_bag(tmp_path / 'cli')['gt_t']) == 101
+    assert len(read_bag(tmp_path / 'cli', '/mocap/pose')['gt_t']) == 101
 
 
 @pytest.mark.parametrize('argv, message', [

@@ -295,10 +295,10 @@ def build_parser() -> argparse.ArgumentParser:
                          help='encoder (joint_states) and simulation rate, Hz')
     sensors.add_argument('--setpoint-rate', type=float, default=50.0,
                          help='rate of the track speed commands, Hz')
-    sensors.add_argument('--ticks-per-rev', type=float, default=None,
+    sensors.add_argument('--ticks-per-rev', type=float, default=argparse.SUPPRESS,
                          help='encoder ticks per sprocket revolution, 0 for none (overrides '
                               'the file)')
-    sensors.add_argument('--encoder-noise', type=float, default=None,
+    sensors.add_argument('--encoder-noise', type=float, default=argparse.SUPPRESS,
                          help='white noise on the joint velocities, rad/s (overrides the file)')
     sensors.add_argument('--gt-rate', type=float, default=10.0, help='ground-truth rate, Hz')
     sensors.add_argument('--gt-noise-xy', type=float, default=0.002,
@@ -308,11 +308,11 @@ def build_parser() -> argparse.ArgumentParser:
     output = parser.add_argument_group('output')
     output.add_argument('--ground-truth', choices=tuple(GROUND_TRUTH_TOPICS), default='pose',
                         help='ground truth as geometry_msgs/PoseStamped or nav_msgs/Odometry')
-    output.add_argument('--gt-topic', default=None,
+    output.add_argument('--gt-topic', default=argparse.SUPPRESS,
                         help='ground-truth topic (default /ground_truth/pose or '
                              '/ground_truth/odom)')
     output.add_argument('--storage', choices=STORAGES, default='sqlite3', help='bag format')
-    output.add_argument('--truth', default=None,
+    output.add_argument('--truth', default=argparse.SUPPRESS,
                         help='where to write the true ICR model (default OUT.truth.yaml)')
     return parser
 
@@ -326,8 +326,8 @@ def main(argv=None) -> int:
             manoeuvres=args.manoeuvres, duration=args.duration, seed=args.seed,
             rate=args.rate, setpoint_rate=args.setpoint_rate, gt_rate=args.gt_rate,
             gt_position_noise=args.gt_noise_xy, gt_yaw_noise=args.gt_noise_yaw,
-            ground_truth=args.ground_truth, ground_truth_topic=args.gt_topic,
-            storage=args.storage, truth=args.truth)
+            ground_truth=args.ground_truth, ground_truth_topic=getattr(args, 'gt_topic', None),
+            storage=args.storage, truth=getattr(args, 'truth', None))
     except (OSError, ValueError, RuntimeError) as err:
         print(f'{PROG}: {err}', file=sys.stderr)
         return 2

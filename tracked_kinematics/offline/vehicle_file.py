@@ -304,13 +304,14 @@ def add_vehicle_arguments(parser, positional: bool = False) -> None:
         parser.add_argument('vehicle', nargs='?', default='auriga_alpha', help=help_vehicle)
     else:
         parser.add_argument('--vehicle', default='auriga_alpha', help=help_vehicle)
-    parser.add_argument('--mu-x', type=float, default=None,
+    parser.add_argument('--mu-x', type=float, default=argparse.SUPPRESS,
                         help='friction coefficient along the tracks (overrides the file)')
-    parser.add_argument('--mu-y', type=float, default=None,
+    parser.add_argument('--mu-y', type=float, default=argparse.SUPPRESS,
                         help='friction coefficient across the tracks (overrides the file)')
-    parser.add_argument('--terrain', default=None, help='terrain name written to the outputs')
-    parser.add_argument('--set', action='append', type=parse_key_value, default=[],
-                        metavar='KEY=VALUE',
+    parser.add_argument('--terrain', default=argparse.SUPPRESS,
+                        help='terrain name written to the outputs (overrides the file)')
+    parser.add_argument('--set', action='append', type=parse_key_value,
+                        default=argparse.SUPPRESS, metavar='KEY=VALUE',
                         help='override any vehicle parameter, e.g. --set centre_of_mass.z=0.4 '
                              '(repeatable)')
 
@@ -323,7 +324,7 @@ _FLAG_PARAMS = (('mu_x', 'friction.mu_x'), ('mu_y', 'friction.mu_y'),
 
 def overrides_from_args(args) -> dict:
     """Vehicle parameter overrides given on a command line (``--set`` and the shortcuts)."""
-    overrides = dict(args.set)
+    overrides = dict(getattr(args, 'set', ()))
     for flag, key in _FLAG_PARAMS:
         value = getattr(args, flag, None)
         if value is not None:
