@@ -132,7 +132,7 @@ def test_truth_yaml_is_a_valid_terrain_file_that_explains_the_bag(auriga_bag):
 
 
 @pytest.mark.parametrize('storage, name, ground_truth', [
-    ('mcap', 'run', 'odometry'), ('rosbag1', 'run.bag', 'pose')])
+    ('mcap', 'run', 'odometry'), ('rosbag1', 'new/dir/run.bag', 'pose')])
 def test_other_storages_and_odometry_ground_truth(tmp_path, storage, name, ground_truth):
     result = simulate_bag(tmp_path / name, 'packbot', manoeuvres='sweep', duration=10.0,
                           storage=storage, ground_truth=ground_truth, seed=1)
@@ -141,7 +141,7 @@ def test_other_storages_and_odometry_ground_truth(tmp_path, storage, name, groun
     expected = 'nav_msgs/msg/Odometry' if ground_truth == 'odometry' else \
         'geometry_msgs/msg/PoseStamped'
     assert data['types'][topic] == expected
-    assert result.truth == tmp_path / 'run.truth.yaml'
+    assert result.truth == (tmp_path / name).with_name('run.truth.yaml')
     np.testing.assert_allclose(data['gt'][-1, :2], result.run.gt_pose[-1, :2], atol=1e-12)
     assert np.ptp(data['gt'][:, 0]) > 1.0  # the sweep drove
 

@@ -170,6 +170,7 @@ def simulate_bag(output: str | os.PathLike, vehicle: str | os.PathLike = 'auriga
     ----------
     output : path-like
         Bag to create (must not exist): a rosbag2 directory, or ``X.bag`` for rosbag1.
+        Missing parent directories are created.
     vehicle : str or path-like
         Vehicle file, or a shipped vehicle's name (``auriga_alpha``, ``packbot``).
     overrides : mapping, optional
@@ -235,6 +236,7 @@ def simulate_bag(output: str | os.PathLike, vehicle: str | os.PathLike = 'auriga
     table = table if table is not None else TwistTable(veh)
     run = simulate(robot, cmd[held], dt, table,
                    GroundTruth(gt_rate, gt_position_noise, gt_yaw_noise), rng)
+    output.parent.mkdir(parents=True, exist_ok=True)
     counts = write_run(output, run, storage, setpoint_rate, ground_truth, ground_truth_topic)
     icr = robot.true_icr()
     truth = Path(truth) if truth is not None else truth_path(output)
