@@ -26,29 +26,13 @@ and :meth:`DriveTrain.transfer_function` exposes the linear part.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 import math
 
 import numpy as np
 from scipy import signal
 
-
-def _check_fields(obj, positive=(), non_negative=()):
-    for f in fields(obj):
-        value = getattr(obj, f.name)
-        try:
-            value = float(value)
-        except (TypeError, ValueError):
-            raise ValueError(f'{f.name} must be a number, got {value!r}') from None
-        if math.isnan(value):
-            raise ValueError(f'{f.name} must not be NaN')
-        object.__setattr__(obj, f.name, value)
-    for name in positive:
-        if not getattr(obj, name) > 0.0 or not math.isfinite(getattr(obj, name)):
-            raise ValueError(f'{name} must be a finite number > 0, got {getattr(obj, name)!r}')
-    for name in non_negative:
-        if not getattr(obj, name) >= 0.0 or not math.isfinite(getattr(obj, name)):
-            raise ValueError(f'{name} must be a finite number >= 0, got {getattr(obj, name)!r}')
+from ._checks import require_numbers
 
 
 @dataclass(frozen=True, slots=True)
@@ -88,8 +72,8 @@ class PidMotor:
     motor_constant: float
 
     def __post_init__(self):
-        _check_fields(self, positive=('inertia', 'resistance', 'inductance', 'motor_constant'),
-                      non_negative=('kp', 'ki', 'kd', 'damping'))
+        require_numbers(self, positive=('inertia', 'resistance', 'inductance', 'motor_constant'),
+                        non_negative=('kp', 'ki', 'kd', 'damping'))
         if self.kp == self.ki == self.kd == 0.0:
             raise ValueError('at least one of kp, ki, kd must be > 0')
         poles = np.roots(self.transfer_function()[1])
@@ -135,7 +119,7 @@ class FirstOrderLag:
     time_constant: float
 
     def __post_init__(self):
-        _check_fields(self, positive=('time_constant',))
+        require_numbers(self, positive=('time_constant',))
 
     def transfer_function(self):
         """Return ``num, den`` of ``1 / (T s + 1)``, highest power first."""
@@ -173,19 +157,8 @@ class DriveTrain:
     loop: PidMotor | FirstOrderLag | None = None
 
     def __post_init__(self):
-        for name in ('delay', 'max_accel', 'max_speed'):
-            value = getattr(self, name)
-            try:
-                value = float(value)
-            except (TypeError, ValueError):
-                raise ValueError(f'{name} must be a number, got {value!r}') from None
-            object.__setattr__(self, name, value)
-        if not (math.isfinite(self.delay) and self.delay >= 0.0):
-            raise ValueError(f'delay must be a finite number >= 0 s, got {self.delay!r}')
-        for name in ('max_accel', 'max_speed'):
-            if not getattr(self, name) > 0.0:
-                raise ValueError(f'{name} must be > 0 (inf for no limit), got '
-                                 f'{getattr(self, name)!r}')
+        require_numbers(self, non_negative=('delay',), positive=('max_accel', 'max_speed'),
+                        unbounded=('max_accel', 'max_speed'))
         if self.loop is not None and not isinstance(self.loop, (PidMotor, FirstOrderLag)):
             raise ValueError(f'loop must be a PidMotor, a FirstOrderLag or None, got '
                              f'{self.loop!r}')

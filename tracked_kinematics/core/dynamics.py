@@ -44,12 +44,12 @@ The tread ICRs follow from the twist by Martinez eqs. (3)-(6), in ROS axes::
 
 from __future__ import annotations
 
-from dataclasses import dataclass, fields
-import math
+from dataclasses import dataclass
 
 import numpy as np
 from scipy import optimize
 
+from ._checks import require_numbers
 from .kinematics import IcrParams
 
 GRAVITY = 9.81
@@ -109,23 +109,10 @@ class Vehicle:
     name: str = ''
 
     def __post_init__(self):
-        for f in fields(self):
-            value = getattr(self, f.name)
-            if f.name == 'name':
-                continue
-            try:
-                value = float(value)
-            except (TypeError, ValueError):
-                raise ValueError(f'{f.name} must be a number, got {value!r}') from None
-            if not math.isfinite(value):
-                raise ValueError(f'{f.name} must be finite, got {value!r}')
-            object.__setattr__(self, f.name, value)
-        for name in ('track_width', 'contact_length', 'contact_width', 'mass', 'mu_x', 'mu_y',
-                     'max_track_speed'):
-            if getattr(self, name) <= 0.0:
-                raise ValueError(f'{name} must be > 0, got {getattr(self, name)!r}')
-        if self.com_height < 0.0:
-            raise ValueError(f'com_height must be >= 0 m, got {self.com_height!r}')
+        require_numbers(self, finite=('com_x', 'com_y'),
+                        positive=('track_width', 'contact_length', 'contact_width', 'mass',
+                                  'mu_x', 'mu_y', 'max_track_speed'),
+                        non_negative=('com_height',))
         if self.contact_width >= self.track_width:
             raise ValueError(
                 f'contact_width ({self.contact_width!r} m) must be smaller than track_width '

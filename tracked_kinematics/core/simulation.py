@@ -33,6 +33,7 @@ import math
 import numpy as np
 from scipy.interpolate import CubicSpline, RectBivariateSpline
 
+from ._checks import require_numbers
 from .drivetrain import DriveTrain
 from .dynamics import averaged_icr, icr_map, StationarySolver, Vehicle
 from .integration import arc_chord, integrate_twist
@@ -61,7 +62,7 @@ class TwistTable:
 
     """
 
-    def __init__(self, vehicle: Vehicle, n_angles: int = 144, n_speeds: int = 6,
+    def __init__(self, vehicle: Vehicle, n_angles: int = 144, n_speeds: int = 8,
                  solver: StationarySolver | None = None):
         if n_angles < 8:
             raise ValueError(f'n_angles must be >= 8, got {n_angles}')
@@ -163,8 +164,9 @@ class Encoders:
     velocity_noise: float = 0.0
 
     def __post_init__(self):
-        _require(self, positive=('sprocket_radius', 'scale_left', 'scale_right'),
-                 non_negative=('ticks_per_revolution', 'position_noise', 'velocity_noise'))
+        require_numbers(self, positive=('sprocket_radius', 'scale_left', 'scale_right'),
+                        non_negative=('ticks_per_revolution', 'position_noise',
+                                      'velocity_noise'))
 
 
 @dataclass(frozen=True, slots=True)
@@ -188,7 +190,7 @@ class GroundTruth:
     yaw_noise: float = 0.0
 
     def __post_init__(self):
-        _require(self, positive=('rate',), non_negative=('position_noise', 'yaw_noise'))
+        require_numbers(self, positive=('rate',), non_negative=('position_noise', 'yaw_noise'))
 
 
 @dataclass(frozen=True)
@@ -394,19 +396,3 @@ def _poses_at(times, t, pose, twist):
     out = np.column_stack([pose[k, 0] + c * cx - s * cy, pose[k, 1] + s * cx + c * cy,
                            th0 + tw[:, 2] * tau])
     return times, out
-
-
-def _require(obj, positive=(), non_negative=()):
-    for name in positive + non_negative:
-        value = getattr(obj, name)
-        try:
-            value = float(value)
-        except (TypeError, ValueError):
-            raise ValueError(f'{name} must be a number, got {value!r}') from None
-        if not math.isfinite(value):
-            raise ValueError(f'{name} must be finite, got {value!r}')
-        if name in positive and value <= 0.0:
-            raise ValueError(f'{name} must be > 0, got {value!r}')
-        if name in non_negative and value < 0.0:
-            raise ValueError(f'{name} must be >= 0, got {value!r}')
-        object.__setattr__(obj, name, value)
