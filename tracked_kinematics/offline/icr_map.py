@@ -19,7 +19,7 @@ import numpy as np
 from tracked_kinematics.core.dynamics import averaged_icr, icr_map, IcrMap, StationarySolver
 from tracked_kinematics.core.kinematics import IcrParams
 from tracked_kinematics.offline.vehicle_file import (
-    add_vehicle_arguments, load_vehicle, overrides_from_args, VehicleFile)
+    add_vehicle_arguments, fixed, load_vehicle, overrides_from_args, VehicleFile)
 from tracked_kinematics.params import values_from_icr, write_params_file
 
 PROG = 'icr_map'
@@ -51,11 +51,6 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def _fmt(value: float, digits: int = 3) -> str:
-    """Fixed-point text without a negative zero."""
-    return f'{round(value, digits) + 0.0:.{digits}f}'
-
-
 def summary(spec: VehicleFile, the_map: IcrMap, icr: IcrParams, seconds: float) -> str:
     """Format the table printed on stdout."""
     veh = spec.robot.vehicle
@@ -76,14 +71,14 @@ def summary(spec: VehicleFile, the_map: IcrMap, icr: IcrParams, seconds: float) 
                               ('icr.y_right', the_map.y_right, icr.y_right),
                               ('icr.x', the_map.x, icr.x)):
         vals = arr[valid]
-        lines.append(f'{label:<16}' + ''.join(f'{_fmt(v, 4):>9}' for v in (
+        lines.append(f'{label:<16}' + ''.join(f'{fixed(v, 4):>9}' for v in (
             vals.min(), vals.mean(), vals.max(), value)))
     paper = icr.to_paper()
     lines += [
         '',
-        f'averaged model: chi = {_fmt(icr.chi)}, e = {_fmt(icr.eccentricity)}',
-        f'paper symbols:  x_ICRl = {_fmt(paper["x_icr_left"], 4)} m, x_ICRr = '
-        f'{_fmt(paper["x_icr_right"], 4)} m, y_ICRv = {_fmt(paper["y_icr"], 4)} m',
+        f'averaged model: chi = {fixed(icr.chi)}, e = {fixed(icr.eccentricity)}',
+        f'paper symbols:  x_ICRl = {fixed(paper["x_icr_left"], 4)} m, x_ICRr = '
+        f'{fixed(paper["x_icr_right"], 4)} m, y_ICRv = {fixed(paper["y_icr"], 4)} m',
     ]
     return '\n'.join(lines)
 
@@ -127,7 +122,7 @@ def plot(path, spec: VehicleFile, the_map: IcrMap, icr: IcrParams) -> None:
                 label='ICR$_r$ (map)')
     top.plot([icr.y_left, icr.y_right], [icr.x, icr.x], 'k-', lw=1)
     top.plot([icr.y_left, icr.y_right], [icr.x, icr.x], 'kD', ms=8,
-             label=f'averaged: chi {_fmt(icr.chi)}, e {_fmt(icr.eccentricity)}')
+             label=f'averaged: chi {fixed(icr.chi)}, e {fixed(icr.eccentricity)}')
     top.plot([veh.com_y], [veh.com_x], 'k+', ms=14, mew=2, label='centre of mass')
     top.plot([half, -half], [0.0, 0.0], 'o', mfc='none', mec='0.3', ms=8,
              label='ideal contact points')

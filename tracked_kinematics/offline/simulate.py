@@ -25,18 +25,20 @@ import sys
 from typing import Any
 
 import numpy as np
+from rosbags.rosbag1 import WriterError as Rosbag1WriterError
+from rosbags.rosbag2 import WriterError as Rosbag2WriterError
 from tracked_kinematics.core.kinematics import IcrParams
 from tracked_kinematics.core.manoeuvres import manoeuvre, MANOEUVRES
 from tracked_kinematics.core.simulation import GroundTruth, Run, simulate, TwistTable
 from tracked_kinematics.offline.bag_writer import BagWriter, STORAGES
 from tracked_kinematics.offline.vehicle_file import (
-    add_vehicle_arguments, load_vehicle, overrides_from_args, VehicleFile)
+    add_vehicle_arguments, fixed, load_vehicle, overrides_from_args, VehicleFile)
 from tracked_kinematics.params import values_from_icr, write_params_file
 
 PROG = 'simulate_bag'
 JOINTS = ('left_sprocket_joint', 'right_sprocket_joint')
 START_NS = 1_700_000_000 * 1_000_000_000
-"""Stamp of the first sample (fixed, so that runs are reproducible byte for byte)."""
+"""Stamp of the first sample (fixed, so that the same seed gives the same messages)."""
 GROUND_TRUTH_TOPICS = {'pose': '/ground_truth/pose', 'odometry': '/ground_truth/odom'}
 
 
@@ -330,7 +332,7 @@ def main(argv=None) -> int:
             gt_position_noise=args.gt_noise_xy, gt_yaw_noise=args.gt_noise_yaw,
             ground_truth=args.ground_truth, ground_truth_topic=getattr(args, 'gt_topic', None),
             storage=args.storage, truth=getattr(args, 'truth', None))
-    except (OSError, ValueError, RuntimeError) as err:
+    except (OSError, ValueError, RuntimeError, Rosbag1WriterError, Rosbag2WriterError) as err:
         print(f'{PROG}: {err}', file=sys.stderr)
         return 2
     run, icr = result.run, result.truth_icr
@@ -342,9 +344,9 @@ def main(argv=None) -> int:
     for topic, count in result.messages.items():
         print(f'  {topic:<26}{count:>8} messages')
     print(f'true model   {result.truth}')
-    print(f'  icr.y_left {icr.y_left:.4f}  icr.y_right {icr.y_right:.4f}  icr.x {icr.x:.4f} m'
-          f'  scale {icr.scale_left:.4f} / {icr.scale_right:.4f}')
-    print(f'  chi {icr.chi:.3f}  e {icr.eccentricity:.3f}')
+    print(f'  icr.y_left {fixed(icr.y_left, 4)}  icr.y_right {fixed(icr.y_right, 4)}  '
+          f'icr.x {fixed(icr.x, 4)} m  scale {icr.scale_left:.4f} / {icr.scale_right:.4f}')
+    print(f'  chi {fixed(icr.chi)}  e {fixed(icr.eccentricity)}')
     return 0
 
 

@@ -276,6 +276,11 @@ def load_vehicle(name_or_path: str | os.PathLike,
 # Command-line helpers shared by simulate_bag and icr_map ------------------------------------
 
 
+def fixed(value: float, digits: int = 3) -> str:
+    """Format a number in fixed point without a negative zero (``-0.000``)."""
+    return f'{round(float(value), digits) + 0.0:.{digits}f}'
+
+
 def parse_key_value(text: str):
     """Parse ``KEY=VALUE`` (the value as YAML: numbers, strings, booleans)."""
     key, sep, value = text.partition('=')
