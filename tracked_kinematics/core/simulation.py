@@ -36,7 +36,7 @@ from scipy.interpolate import CubicSpline, RectBivariateSpline
 from ._checks import require_numbers
 from .drivetrain import DriveTrain
 from .dynamics import averaged_icr, icr_map, StationarySolver, Vehicle
-from .integration import arc_chord, integrate_twist
+from .integration import arc_chord, compose, integrate_twist, wrap_angle
 from .kinematics import IcrParams
 
 
@@ -371,14 +371,14 @@ def simulate(robot: Robot, commands, dt: float, table: TwistTable | None = None,
     if enc.velocity_noise > 0:
         velocity = velocity + rng.normal(0.0, enc.velocity_noise, size=velocity.shape)
 
-    gt_t, gt_true = _poses_at(np.arange(0.0, t[-1] + 1e-9, 1.0 / ground_truth.rate),
-                              t, pose, twist)
+    gt_t = np.arange(0.0, t[-1] + 1e-9, 1.0 / ground_truth.rate)
+    gt_true = _poses_at(gt_t, t, pose, twist)
     gt_noisy = gt_true.copy()
     if ground_truth.position_noise > 0:
         gt_noisy[:, :2] += rng.normal(0.0, ground_truth.position_noise, size=(len(gt_t), 2))
     if ground_truth.yaw_noise > 0:
         gt_noisy[:, 2] += rng.normal(0.0, ground_truth.yaw_noise, size=len(gt_t))
-    gt_noisy[:, 2] = (gt_noisy[:, 2] + np.pi) % (2.0 * np.pi) - np.pi
+    gt_noisy[:, 2] = wrap_angle(gt_noisy[:, 2])
     return Run(t=t, commands=commands, nominal=nominal, true_speeds=true_speeds, twist=twist,
                pose=pose, joint_position=angle, joint_velocity=velocity, gt_t=gt_t,
                gt_pose=gt_noisy, gt_pose_true=gt_true)
@@ -390,9 +390,5 @@ def _poses_at(times, t, pose, twist):
     k = np.clip(np.floor(times / dt + 1e-9).astype(int), 0, len(t) - 1)
     tau = times - t[k]
     tw = np.vstack([twist, np.zeros((1, 3))])[k]
-    cx, cy = arc_chord(tw[:, 0] * tau, tw[:, 1] * tau, tw[:, 2] * tau)
-    th0 = pose[k, 2]
-    c, s = np.cos(th0), np.sin(th0)
-    out = np.column_stack([pose[k, 0] + c * cx - s * cy, pose[k, 1] + s * cx + c * cy,
-                           th0 + tw[:, 2] * tau])
-    return times, out
+    chord_x, chord_y = arc_chord(tw[:, 0] * tau, tw[:, 1] * tau, tw[:, 2] * tau)
+    return np.column_stack(compose(*pose[k].T, chord_x, chord_y, tw[:, 2] * tau))
