@@ -146,6 +146,25 @@ def test_other_storages_and_odometry_ground_truth(tmp_path, storage, name, groun
     assert np.ptp(data['gt'][:, 0]) > 1.0  # the sweep drove
 
 
+def test_setpoints_are_the_commands_the_drive_train_got(tmp_path):
+    # 30 Hz does not divide 100 Hz: each setpoint is stamped where its hold starts.
+    result = simulate_bag(tmp_path / 'sp', 'packbot', duration=4.0, setpoint_rate=30.0,
+                          gt_rate=5.0, seed=2)
+    with AnyReader([result.bag]) as reader:
+        conns = [c for c in reader.connections if c.topic == '/left_track/setpoint']
+        setpoints = [(stamp, reader.deserialize(raw, c.msgtype).data)
+                     for c, stamp, raw in reader.messages(connections=conns)]
+    assert len(setpoints) == 121
+    stamps = np.array([s for s, _ in setpoints]) - simulate.START_NS
+    values = np.array([v for _, v in setpoints])
+    k = np.round(stamps / 1e7).astype(int)
+    # The recorded value is the command in force from that sample until the next setpoint.
+    bounds = np.r_[k, len(result.run.t)]
+    for j in range(len(k)):
+        np.testing.assert_array_equal(result.run.commands[bounds[j]:bounds[j + 1], 0], values[j])
+    np.testing.assert_allclose(stamps / 1e9, np.ceil(np.arange(121) / 0.3 - 1e-9) / 100)
+
+
 def test_same_seed_same_bag_content(tmp_path):
     one = read_bag(simulate_bag(tmp_path / 'a', 'packbot', duration=5.0, seed=9).bag)
     two = read_bag(simulate_bag(tmp_path / 'b', 'packbot', duration=5.0, seed=9).bag)

@@ -96,8 +96,8 @@ def write_run(path: str | os.PathLike, run: Run, storage: str = 'sqlite3',
     storage : {'sqlite3', 'mcap', 'rosbag1'}
         Bag format.
     setpoint_rate : float, optional
-        Rate of the setpoint messages, Hz (default: one per encoder sample). The commands
-        of the run should be held at this rate (:func:`simulate_bag` makes them so).
+        Rate at which the run's commands were held, Hz: one setpoint message per hold, stamped
+        at the encoder sample where it takes effect (default: one per encoder sample).
     ground_truth : {'pose', 'odometry'}
         geometry_msgs/PoseStamped or nav_msgs/Odometry (with the true body twist).
     ground_truth_topic : str, optional
@@ -120,8 +120,13 @@ def write_run(path: str | os.PathLike, run: Run, storage: str = 'sqlite3',
                          f'got {ground_truth!r}')
     gt_topic = ground_truth_topic or GROUND_TRUTH_TOPICS[ground_truth]
     dt = float(run.t[1] - run.t[0])
-    stride = 1 if setpoint_rate is None else max(1, int(round(1.0 / (setpoint_rate * dt))))
-    setpoint_idx = np.arange(0, len(run.t), stride)
+    if setpoint_rate is None:
+        setpoint_idx = np.arange(len(run.t))
+    else:
+        # Setpoint j takes effect at the first encoder sample of its hold (see simulate_bag).
+        first = np.ceil(np.arange(int(run.t[-1] * setpoint_rate + 1e-9) + 1)
+                        / (setpoint_rate * dt) - 1e-9).astype(int)
+        setpoint_idx = np.unique(first[first < len(run.t)])
     stamps = [start_ns + np.round(run.t * 1e9).astype(np.int64),
               start_ns + np.round(run.t[setpoint_idx] * 1e9).astype(np.int64),
               start_ns + np.round(run.gt_t * 1e9).astype(np.int64)]
@@ -233,7 +238,7 @@ def simulate_bag(output: str | os.PathLike, vehicle: str | os.PathLike = 'auriga
     cmd = manoeuvre(manoeuvres, duration, 1.0 / setpoint_rate, veh.track_width,
                     veh.max_track_speed, rng)
     n = max(2, int(round(duration * rate)) + 1)
-    held = np.minimum(np.floor(np.arange(n) * dt * setpoint_rate + 1e-9).astype(int),
+    held = np.minimum(np.floor(np.arange(n) * (dt * setpoint_rate) + 1e-9).astype(int),
                       len(cmd) - 1)
     table = table if table is not None else TwistTable(veh)
     run = simulate(robot, cmd[held], dt, table,
