@@ -16,7 +16,7 @@ setup(
         ('share/' + package_name + '/config', glob('config/*.yaml')),
         ('share/' + package_name + '/launch', glob('launch/*.py')),
     ],
-    install_requires=['setuptools', 'numpy', 'scipy', 'pyyaml', 'rosbags'],
+    install_requires=['setuptools', 'numpy', 'scipy', 'pyyaml', 'rosbags', 'matplotlib', 'tqdm'],
     extras_require={'test': ['pytest', 'hypothesis']},
     zip_safe=True,
     maintainer='tracked_kinematics maintainers',
@@ -27,6 +27,7 @@ setup(
     entry_points={
         'console_scripts': [
             'tracked_kinematics_demo = tracked_kinematics.offline.demo:main',
+            'identify_icr = tracked_kinematics.offline.identify_cli:main',
         ],
     },
 )
