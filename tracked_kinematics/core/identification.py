@@ -1067,9 +1067,13 @@ def spin_in_place(recordings, track_width: float, scales=(1.0, 1.0), min_angle: 
         d_right = np.diff(rec.right) * scales[1]
         spin = (d_left * d_right < 0) & (np.abs(d_left + d_right)
                                          <= balance * np.abs(d_right - d_left))
-        edges = np.diff(np.concatenate([[0], spin.astype(np.int8), [0]]))
+        # Runs of spinning one way: +1 left, -1 right, 0 not spinning.
+        direction = np.where(spin, np.sign(d_right - d_left), 0).astype(np.int8)
+        change = np.flatnonzero(np.diff(np.concatenate([[0], direction, [0]])))
         yaw = np.unwrap(rec.gt_yaw)
-        for first, last in zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)):
+        for first, last in zip(change[:-1], change[1:]):
+            if direction[first] == 0:
+                continue
             t0, t1 = rec.enc_t[first], rec.enc_t[last]
             lo, hi = np.searchsorted(rec.gt_t, [t0, t1 + 1e-12])
             if hi - lo < 2:

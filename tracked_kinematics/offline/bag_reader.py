@@ -25,6 +25,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 import math
 from pathlib import Path
+import struct
 
 import numpy as np
 from rosbags.highlevel import AnyReader
@@ -118,6 +119,12 @@ class _Columns:
         self._data[self.n] = row
         self.n += 1
 
+    def extend(self, rows) -> None:
+        while self.n + len(rows) > len(self._data):
+            self._data = np.concatenate([self._data, np.empty_like(self._data)])
+        self._data[self.n:self.n + len(rows)] = rows
+        self.n += len(rows)
+
     @property
     def array(self) -> np.ndarray:
         return self._data[:self.n]
@@ -205,16 +212,106 @@ def _connections(reader: AnyReader, path: Path, topic: str, allowed, what: str):
     return conns
 
 
+@dataclass(frozen=True)
+class _Layout:
+    """
+    Byte layout of a serialised JointState whose frame id and joint names repeat.
+
+    Drivers publish the same joints in every message, so all messages of a topic have the
+    same length and the numbers sit at the same offsets: they can be read for many messages
+    at once with numpy instead of deserialising each. ``checks`` are the byte ranges (frame
+    id, joint names, array lengths) that must repeat for a message to share the layout.
+    """
+
+    length: int
+    stamp: int
+    checks: tuple
+    position: int | None
+    velocity: int | None
+    count: int
+
+    @classmethod
+    def of(cls, raw, ros2: bool):
+        """Parse the layout of one serialised JointState (None if not little-endian CDR)."""
+        raw = bytes(raw)
+        if ros2 and raw[:2] != b'\x00\x01':
+            return None
+        base = 4 if ros2 else 0
+        pos = base
+        checks = []
+
+        def counted(item_size=1, item_align=1):
+            # A length-prefixed field: returns its length, records its bytes as a check.
+            nonlocal pos
+            if ros2:
+                pos += -(pos - base) % 4
+            start = pos
+            (n,) = struct.unpack_from('<I', raw, pos)
+            pos += 4
+            if ros2 and n and item_align > 1:
+                pos += -(pos - base) % item_align
+            data_at = pos
+            pos += n * item_size
+            checks.append((start, raw[start:data_at if item_size == 8 else pos]))
+            return n, data_at
+
+        stamp = base + (0 if ros2 else 4)
+        pos = stamp + 8
+        counted()                                  # frame_id
+        names, _ = counted(item_size=0)            # the name sequence's length
+        for _ in range(names):
+            counted()
+        arrays = [counted(8, 8) for _ in range(3)]  # position, velocity, effort
+        if pos != len(raw):
+            return None
+        (n_pos, at_pos), (n_vel, at_vel) = arrays[0], arrays[1]
+        return cls(len(raw), stamp, tuple(checks), at_pos if n_pos == names else None,
+                   at_vel if n_vel == names else None, names)
+
+    def matches(self, raw) -> bool:
+        """Whether a serialised message has this layout."""
+        return len(raw) == self.length and all(raw[o:o + len(b)] == b for o, b in self.checks)
+
+    def decode(self, raws, receive_ns, ref_ns, left, right) -> np.ndarray:
+        """Rows ``(t, pos_l, pos_r, vel_l, vel_r)`` of many messages, as :class:`_JointStates`."""
+        rows = np.frombuffer(b''.join(raws), dtype=np.uint8).reshape(-1, self.length)
+
+        def column(offset, dtype, width=1):
+            size = np.dtype(dtype).itemsize * width
+            return np.ascontiguousarray(rows[:, offset:offset + size]).view(dtype).reshape(
+                len(rows), width)
+
+        sec = column(self.stamp, '<i4')[:, 0].astype(np.int64)
+        nanosec = column(self.stamp + 4, '<u4')[:, 0].astype(np.int64)
+        stamp = sec * 1_000_000_000 + nanosec
+        stamp = np.where(stamp > 0, stamp, np.asarray(receive_ns, dtype=np.int64)) - ref_ns
+        out = np.full((len(rows), 5), np.nan)
+        out[:, 0] = stamp
+        for offset, first in ((self.position, 1), (self.velocity, 3)):
+            if offset is not None:
+                values = column(offset, '<f8', self.count)
+                out[:, first] = values[:, left].mean(axis=1)
+                out[:, first + 1] = values[:, right].mean(axis=1)
+        return out
+
+
 class _JointStates:
     """JointState messages -> time, per-side mean position and velocity."""
 
-    def __init__(self, source: EncoderSource, path: Path, ref_ns: int):
+    BATCH = 20_000
+
+    def __init__(self, source: EncoderSource, path: Path, ref_ns: int, ros2: bool):
         self.source = source
         self.path = path
         self.ref_ns = ref_ns
+        self.ros2 = ros2
         self.columns = _Columns(5)
         self.names_seen: set[str] = set()
         self._index_cache: dict[tuple, tuple | None] = {}
+        self._layout = None
+        self._layout_indices = None
+        self._batch = []
+        self._batch_ns = []
 
     def _indices(self, names):
         key = tuple(names)
@@ -229,24 +326,54 @@ class _JointStates:
             self._index_cache[key] = found
         return self._index_cache[key]
 
-    def add(self, msg, receive_ns: int) -> None:
+    def add_raw(self, raw, receive_ns, deserialize) -> None:
+        """Take one serialised message: batched when it has the known layout."""
+        if self._layout and self._layout.matches(raw):
+            self._batch.append(raw)
+            self._batch_ns.append(receive_ns)
+            if len(self._batch) == self.BATCH:
+                self.flush()
+            return
+        msg = deserialize(raw)
+        row = self._row(msg, receive_ns)
+        if row is None:
+            return
+        self.columns.append(row)
+        if self._layout is None:
+            layout = _Layout.of(raw, self.ros2)
+            indices = self._indices(msg.name)
+            if layout is not None:
+                decoded = layout.decode([bytes(raw)], [receive_ns], self.ref_ns, *indices)[0]
+                if np.allclose(decoded, row, equal_nan=True, rtol=1e-12, atol=0.0):
+                    self._layout, self._layout_indices = layout, indices
+            if self._layout is None:
+                self._layout = False   # never try again: every message goes the slow way
+
+    def flush(self) -> None:
+        """Decode the batched messages."""
+        if self._batch:
+            self.columns.extend(self._layout.decode(self._batch, self._batch_ns, self.ref_ns,
+                                                    *self._layout_indices))
+            self._batch, self._batch_ns = [], []
+
+    def _row(self, msg, receive_ns):
         indices = self._indices(msg.name)
         if indices is None:
-            return
+            return None
         left, right = indices
         n = len(msg.name)
-        pos = msg.position if len(msg.position) == n else None
-        vel = msg.velocity if len(msg.velocity) == n else None
         nan = float('nan')
-        self.columns.append((
-            _stamp(msg.header, receive_ns, self.ref_ns),
-            float(np.mean(pos[left])) if pos is not None else nan,
-            float(np.mean(pos[right])) if pos is not None else nan,
-            float(np.mean(vel[left])) if vel is not None else nan,
-            float(np.mean(vel[right])) if vel is not None else nan))
+        row = [_stamp(msg.header, receive_ns, self.ref_ns), nan, nan, nan, nan]
+        for values, first in ((msg.position, 1), (msg.velocity, 3)):
+            if len(values) == n:
+                row[first] = sum(float(values[i]) for i in left) / len(left)
+                row[first + 1] = sum(float(values[i]) for i in right) / len(right)
+        return row
 
     def travel(self):
         """Return the times (ns) and cumulative nominal travel of each side (m)."""
+        if self._layout:
+            self.flush()
         data = _sort_unique(self.columns.array)
         if len(data) == 0:
             src = self.source
@@ -402,7 +529,7 @@ def read_bag(path, encoders: EncoderSource, ground_truth: GroundTruthSource,
 def _read(reader, path, encoders, ground_truth, progress) -> Recording:
     ref_ns = reader.start_time
     if encoders.mode == 'joint_states':
-        enc = _JointStates(encoders, path, ref_ns)
+        enc = _JointStates(encoders, path, ref_ns, reader.is2)
         enc_conns = _connections(reader, path, encoders.topic, ('sensor_msgs/msg/JointState',),
                                  'encoders')
     else:
@@ -419,13 +546,14 @@ def _read(reader, path, encoders, ground_truth, progress) -> Recording:
     bar = _Progress(sum(c.msgcount for c in conns), path.name, progress)
     try:
         for conn, receive_ns, raw in reader.messages(connections=conns):
-            msg = reader.deserialize(raw, conn.msgtype)
             if id(conn) in gt_ids:
-                gt.add(conn.msgtype, msg, receive_ns)
+                gt.add(conn.msgtype, reader.deserialize(raw, conn.msgtype), receive_ns)
             elif encoders.mode == 'joint_states':
-                enc.add(msg, receive_ns)
+                enc.add_raw(raw, receive_ns,
+                            lambda data, t=conn.msgtype: reader.deserialize(data, t))
             else:
-                enc.add(conn.topic, conn.msgtype, msg, receive_ns)
+                enc.add(conn.topic, conn.msgtype, reader.deserialize(raw, conn.msgtype),
+                        receive_ns)
             bar.step()
     finally:
         bar.close()
