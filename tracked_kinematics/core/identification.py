@@ -577,6 +577,14 @@ def initial_guess(model: MotionModel, segments: Segments) -> np.ndarray:
         half = 0.5 * model.track_width / chi
         p[names.index('y_left')] = half
         p[names.index('y_right')] = -half
+    if 'p2' in names and len(segments.dt):
+        # Adaptive ICRs: the curvature terms put them where the efficiency guess does, at the
+        # median curvature of the turning steps.
+        _, curv = model.features(segments.d_left / segments.dt, segments.d_right / segments.dt)
+        turning = curv[curv > 1e-3]
+        if len(turning):
+            outward = 0.5 * model.track_width * (1.0 / chi - 1.0) / float(np.median(turning))
+            p[names.index('p2')] = p[names.index('p4')] = outward
     return p
 
 
@@ -1219,9 +1227,10 @@ def identify(recordings, model: str = 'icr_scales', track_width: float = 0.42, *
        (both tracks travel less than ``min_travel``): they carry no information and would
        shrink the robust scale.
     2. Check the excitation for ``model`` (:func:`check_excitation`).
-    3. Hold out time blocks (:class:`HoldOut`), fit every model of ``compare`` on the rest
-       and measure each on the held-out segments and on held-out windows of ``window`` s.
-    4. Fit ``model`` on all moving segments, starting from ``base`` when given.
+    3. Fit ``model`` on all moving segments, starting from ``base`` when given.
+    4. Hold out time blocks (:class:`HoldOut`), fit every model of ``compare`` on the rest
+       with the heading weight of step 3 (one round of robust least squares each) and
+       measure each on the held-out segments and on held-out windows of ``window`` s.
 
     Parameters
     ----------
@@ -1269,34 +1278,13 @@ def identify(recordings, model: str = 'icr_scales', track_width: float = 0.42, *
             return None
         return m.from_icr(base)
 
-    options = {'method': method, 'heading_weight': heading_weight, 'loss': loss,
-               'max_nfev': max_nfev}
+    options = {'method': method, 'loss': loss, 'max_nfev': max_nfev}
     started = time.perf_counter()
-    held = HoldOut.choose(segments, holdout, holdout_block) if holdout > 0 else None
-    evaluations = []
-    if held is not None:
-        train = segments.select(held.outside(segments))
-        test = segments.select(held.inside(segments))
-        windows = build_segments(recordings, window)
-        windows = windows.select(held.inside(windows) & (windows.travel >= min_travel))
-        for name in compare:
-            evaluation = ModelEvaluation(name)
-            m = build_model(name, track_width, scales)
-            try:
-                if m.n_params:
-                    evaluation.fit = fit(m, train, p0=start_of(m), check=False, **options)
-                    p = evaluation.fit.p
-                else:
-                    p = m.initial()
-                evaluation.segments = ErrorStats.of(*prediction_errors(m, p, test))
-                evaluation.windows = ErrorStats.of(*prediction_errors(m, p, windows))
-            except IdentificationError as err:
-                evaluation.error = str(err)
-            evaluations.append(evaluation)
-    seconds['holdout'] = time.perf_counter() - started
-
-    started = time.perf_counter()
-    result = fit(target, segments, p0=start_of(target), **options)
+    result = fit(target, segments, p0=start_of(target), heading_weight=heading_weight,
+                 **options)
+    # Every other fit weighs heading as this one does (its loss scale is its own: a worse
+    # model has larger residuals, which are not outliers).
+    options['heading_weight'] = result.heading_weight
     try:
         icr, source = result.icr, target.name
         if icr is None:
@@ -1312,5 +1300,30 @@ def identify(recordings, model: str = 'icr_scales', track_width: float = 0.42, *
             raise
         raise FitError(f'the fit gave an invalid ICR model: {err}') from None
     seconds['fit'] = time.perf_counter() - started
+
+    started = time.perf_counter()
+    held = HoldOut.choose(segments, holdout, holdout_block) if holdout > 0 else None
+    evaluations = []
+    if held is not None:
+        train = segments.select(held.outside(segments))
+        test = segments.select(held.inside(segments))
+        windows = build_segments(recordings, window)
+        windows = windows.select(held.inside(windows) & (windows.travel >= min_travel))
+        for name in compare:
+            evaluation = ModelEvaluation(name)
+            m = build_model(name, track_width, scales)
+            try:
+                if m.n_params:
+                    evaluation.fit = fit(m, train, p0=start_of(m), check=False, rounds=1,
+                                         **options)
+                    p = evaluation.fit.p
+                else:
+                    p = m.initial()
+                evaluation.segments = ErrorStats.of(*prediction_errors(m, p, test))
+                evaluation.windows = ErrorStats.of(*prediction_errors(m, p, windows))
+            except IdentificationError as err:
+                evaluation.error = str(err)
+            evaluations.append(evaluation)
+    seconds['holdout'] = time.perf_counter() - started
     return Identification(result, icr, source, excitation, held, evaluations, segment_length,
                           window, seconds)

@@ -435,15 +435,16 @@ class AdaptiveIcr(MotionModel):
         accel, curv = self.features(v_left, v_right)
         y_left, y_right, x, clipped = self._floored_icr(p, v_left, v_right)
         twist, d_icr, _ = _icr_twist(v_left, v_right, y_left, y_right, x)
-        zero = np.zeros_like(accel)
-        # d(y_left, y_right, x) / dp, shape (N, 3, 6)
-        d_icr_dp = np.stack([
-            np.stack([accel, curv, zero, zero, zero, zero], -1),
-            np.stack([zero, zero, -accel, -curv, zero, zero], -1),
-            np.stack([zero, zero, zero, zero, accel, curv], -1),
-        ], axis=-2)
-        d_icr_dp[clipped, :2, :4] = 0.0
-        return twist, d_icr @ d_icr_dp
+        # Chain rule through d(y_left, y_right, x) / dp, which is sparse: y_left depends on
+        # p1, p2 (times |a|, |k|), y_right on p3, p4 (times -|a|, -|k|), x on p5, p6. Where
+        # the span floor acted, y_left and y_right no longer depend on p.
+        free = (~clipped).astype(float)[..., None]
+        accel, curv = accel[..., None], curv[..., None]
+        jac = np.empty(twist.shape + (6,))
+        for i, factor in enumerate((d_icr[..., 0] * free, -d_icr[..., 1] * free, d_icr[..., 2])):
+            jac[..., 2 * i] = factor * accel
+            jac[..., 2 * i + 1] = factor * curv
+        return twist, jac
 
 
 _MODELS = {
