@@ -63,11 +63,10 @@ def main():
     weight, scale = lsq.heading_weight, lsq.f_scale
     for name in ('icr', 'icr_scales'):
         m = ident.build_model(name, B)
-        t_lsq, r_lsq = best_of(1, lambda: ident.fit(m, segments, heading_weight=weight,
-                                                     f_scale=scale, check=False))
-        t_de, r_de = best_of(1, lambda: ident.fit(m, segments, method='de',
-                                                   heading_weight=weight, f_scale=scale,
-                                                   check=False, rounds=1))
+        same_cost = {'heading_weight': weight, 'f_scale': scale, 'check': False}
+        t_lsq, r_lsq = best_of(1, lambda: ident.fit(m, segments, **same_cost))
+        t_de, r_de = best_of(1, lambda: ident.fit(m, segments, method='de', rounds=1,
+                                                  **same_cost))
         print(f'bench_identify: {name}: least squares {t_lsq:.2f} s cost {r_lsq.cost:.6g} '
               f'({r_lsq.nfev} evaluations) | differential evolution {t_de:.2f} s cost '
               f'{r_de.cost:.6g} ({r_de.nfev} evaluations)')
@@ -80,7 +79,8 @@ def main():
         write_bag(bag, rec, 'mcap', gt_noise=(0.003, 0.003))
         size = sum(f.stat().st_size for f in bag.iterdir()) / 1e6
         print(f'bench_identify: wrote a one-hour bag ({len(rec.enc_t)} JointState + '
-              f'{len(rec.gt_t)} PoseStamped, {size:.0f} MB) in {time.perf_counter() - start:.0f} s')
+              f'{len(rec.gt_t)} PoseStamped, {size:.0f} MB) in '
+              f'{time.perf_counter() - start:.0f} s')
         command = [str(Path(sys.executable).parent / 'identify_icr'), str(bag),
                    '--ground-truth-topic', '/mocap/pose', '--output', str(Path(tmp) / 'out.yaml'),
                    '--sprocket-radius', '0.1', '--track-width', str(B)]
