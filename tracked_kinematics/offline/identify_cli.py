@@ -127,10 +127,10 @@ def build_parser() -> argparse.ArgumentParser:
                      'spin-in-place runs (Martinez eq. 16) and write the symmetric model')
     fit.add_argument('--segment-length', type=_non_negative, default=1.0, metavar='SECONDS',
                      help='segment duration; 0 cuts at every ground-truth sample')
-    fit.add_argument('--heading-weight', type=_heading_weight, default=None,
+    fit.add_argument('--heading-weight', type=_heading_weight, default=1.0,
                      metavar='M_PER_RAD|auto',
                      help='lambda of the cost: metres that 1 rad of heading error counts as; '
-                     'auto balances the noise of both (default auto)')
+                     'auto balances the noise of position and heading residuals')
     fit.add_argument('--loss', choices=ident.LOSSES, default='soft_l1',
                      help='robust loss against ground-truth glitches')
     fit.add_argument('--min-travel', type=_non_negative, default=0.01, metavar='M',
