@@ -35,7 +35,7 @@ _SIDE_TOPICS = {'track_speeds': ('/left_track/speed', '/right_track/speed'),
                 'encoder_ticks': ('/left_track/ticks', '/right_track/ticks')}
 
 EPILOG = """examples:
-  identify_icr run1 run2.mcap/ --ground-truth-topic /mocap/pose --output hard_floor.yaml \\
+  identify_icr run1/ run2/ --ground-truth-topic /mocap/pose --output hard_floor.yaml \\
       --sprocket-radius 0.1 --track-width 0.42 --report fit.json --plot fit.png
   identify_icr calib.bag --ground-truth-topic /tf --ground-truth-parent-frame map \\
       --params base.yaml --model general_slip --output grass.yaml --terrain grass
@@ -72,11 +72,24 @@ def _heading_weight(text: str):
     return None if text == 'auto' else _positive(text)
 
 
+class _HelpFormatter(argparse.RawDescriptionHelpFormatter,
+                     argparse.ArgumentDefaultsHelpFormatter):
+    """Show defaults, except the empty ones; keep the examples' lines."""
+
+    def __init__(self, prog):
+        super().__init__(prog, width=96)
+
+    def _get_help_string(self, action):
+        if action.default in (None, False, '') or action.required:
+            return action.help
+        return super()._get_help_string(action)
+
+
 def build_parser() -> argparse.ArgumentParser:
     """Return the command line of identify_icr."""
     parser = argparse.ArgumentParser(
-        prog=PROG, description=__doc__.split('\n\n')[1].replace('\n', ' '), epilog=EPILOG,
-        formatter_class=lambda prog: argparse.ArgumentDefaultsHelpFormatter(prog, width=96))
+        prog=PROG, description=__doc__.split('\n\n')[1], epilog=EPILOG,
+        formatter_class=_HelpFormatter)
     parser.add_argument('bags', nargs='+', metavar='BAG',
                         help='rosbag2 directories (sqlite3, mcap) or ROS 1 .bag files')
     parser.add_argument('--ground-truth-topic', required=True, metavar='TOPIC',
@@ -89,9 +102,9 @@ def build_parser() -> argparse.ArgumentParser:
                      help='kind of encoder messages, as odometry_node input_mode')
     enc.add_argument('--encoder-topic', default='/joint_states',
                      help='sensor_msgs/JointState topic (joint_states)')
-    enc.add_argument('--left-joints', type=_names, default=('left_sprocket_joint',),
+    enc.add_argument('--left-joints', type=_names, default='left_sprocket_joint',
                      metavar='A,B', help='joints of the left track, averaged')
-    enc.add_argument('--right-joints', type=_names, default=('right_sprocket_joint',),
+    enc.add_argument('--right-joints', type=_names, default='right_sprocket_joint',
                      metavar='C,D', help='joints of the right track, averaged')
     enc.add_argument('--left-topic', default=None,
                      help='left track topic: std_msgs/Float64 m/s (track_speeds) or Int32/Int64 '
@@ -144,7 +157,8 @@ def build_parser() -> argparse.ArgumentParser:
                     help='duration of a time block')
     ev.add_argument('--window', type=_positive, default=10.0, metavar='SECONDS',
                     help='duration of the held-out evaluation windows')
-    ev.add_argument('--compare', type=_names, default=ident.COMPARE_MODELS, metavar='M1,M2',
+    ev.add_argument('--compare', type=_names, default=','.join(ident.COMPARE_MODELS),
+                    metavar='M1,M2',
                     help='models compared on the held-out blocks')
     out = parser.add_argument_group('output')
     out.add_argument('--terrain', default=None, metavar='NAME',
