@@ -401,8 +401,9 @@ class _JointStates:
 class _SideStream:
     """Per-side Float64 speeds or Int32/Int64 tick counters -> cumulative travel."""
 
-    def __init__(self, source: EncoderSource, ref_ns: int):
+    def __init__(self, source: EncoderSource, path: Path, ref_ns: int):
         self.source = source
+        self.path = path
         self.ref_ns = ref_ns
         self.columns = {source.left_topic: _Columns(2), source.right_topic: _Columns(2)}
         self.bits = {}
@@ -416,6 +417,8 @@ class _SideStream:
 
     def _side(self, topic):
         data = self.columns[topic].array
+        if len(data) < 2:
+            raise BagError(f'{self.path}: fewer than two messages on {topic}')
         order = np.argsort(data[:, 0], kind='stable')
         t = data[order, 0]
         values = data[order, 1]
@@ -434,8 +437,6 @@ class _SideStream:
         """Return common times (ns) and the cumulative nominal travel of each side (m)."""
         (t_l, c_l), (t_r, c_r) = (self._side(self.source.left_topic),
                                   self._side(self.source.right_topic))
-        if len(t_l) < 2 or len(t_r) < 2:
-            raise BagError('fewer than two samples on a track topic')
         lo, hi = max(t_l[0], t_r[0]), min(t_l[-1], t_r[-1])
         t = np.union1d(t_l, t_r)
         t = t[(t >= lo) & (t <= hi)]
@@ -533,7 +534,7 @@ def _read(reader, path, encoders, ground_truth, progress) -> Recording:
         enc_conns = _connections(reader, path, encoders.topic, ('sensor_msgs/msg/JointState',),
                                  'encoders')
     else:
-        enc = _SideStream(encoders, ref_ns)
+        enc = _SideStream(encoders, path, ref_ns)
         allowed = (('std_msgs/msg/Float64',) if encoders.mode == 'track_speeds'
                    else tuple(_TICK_BITS))
         enc_conns = [c for topic in encoders.topics()
