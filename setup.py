@@ -17,7 +17,7 @@ setup(
         ('share/' + package_name + '/config/vehicles', glob('config/vehicles/*.yaml')),
         ('share/' + package_name + '/launch', glob('launch/*.py')),
     ],
-    install_requires=['setuptools', 'numpy', 'scipy', 'pyyaml', 'rosbags'],
+    install_requires=['setuptools', 'numpy', 'scipy', 'pyyaml', 'rosbags', 'matplotlib', 'tqdm'],
     extras_require={'test': ['pytest', 'hypothesis']},
     zip_safe=True,
     maintainer='tracked_kinematics maintainers',
@@ -28,6 +28,7 @@ setup(
     entry_points={
         'console_scripts': [
             'tracked_kinematics_demo = tracked_kinematics.offline.demo:main',
+            'identify_icr = tracked_kinematics.offline.identify_cli:main',
             'simulate_bag = tracked_kinematics.offline.simulate:main',
             'icr_map = tracked_kinematics.offline.icr_map:main',
         ],

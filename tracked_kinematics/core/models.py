@@ -342,6 +342,19 @@ class GeneralKinematicSlip(MotionModel):
         twist = np.stack([v_x, np.zeros_like(v_x), v_t], axis=-1) + jac @ p
         return twist, jac
 
+    def twist(self, p, v_left, v_right):
+        # Prediction over whole logs (identification): no Jacobian.
+        p = np.asarray(p, float)
+        v_left = np.asarray(v_left, float)
+        v_right = np.asarray(v_right, float)
+        v_x = 0.5 * (v_left + v_right)
+        v_t = (v_right - v_left) / self.track_width
+        v_xt = v_x * v_t
+        abs_t = np.abs(v_t)
+        return (v_x + p[0] * v_x + p[1] * abs_t + p[2] * v_x * abs_t,
+                p[3] * v_x + p[4] * v_t + p[5] * v_xt,
+                v_t + p[6] * v_x + p[7] * v_t + p[8] * v_xt)
+
 
 class AdaptiveIcr(MotionModel):
     """
@@ -396,28 +409,42 @@ class AdaptiveIcr(MotionModel):
                 -half - p[2] * accel - p[3] * curv,
                 p[4] * accel + p[5] * curv)
 
-    def twist_and_jacobian(self, p, v_left, v_right):
-        v_left = np.atleast_1d(np.asarray(v_left, float))
-        v_right = np.atleast_1d(np.asarray(v_right, float))
-        accel, curv = self.features(v_left, v_right)
+    def _floored_icr(self, p, v_left, v_right):
+        """Return the ICRs with their span floored at ``B / 100``, and where it acted."""
         y_left, y_right, x = self.icr(p, v_left, v_right)
         floor = 0.01 * self.track_width
-        span = y_left - y_right
-        clipped = span < floor
+        clipped = (y_left - y_right) < floor
         if np.any(clipped):
             mid = 0.5 * (y_left + y_right)
             y_left = np.where(clipped, mid + 0.5 * floor, y_left)
             y_right = np.where(clipped, mid - 0.5 * floor, y_right)
+        return y_left, y_right, x, clipped
+
+    def twist(self, p, v_left, v_right):
+        # Prediction over whole logs (identification): no Jacobian.
+        v_left = np.asarray(v_left, float)
+        v_right = np.asarray(v_right, float)
+        y_left, y_right, x, _ = self._floored_icr(p, v_left, v_right)
+        span = y_left - y_right
+        w = (v_right - v_left) / span
+        return (v_right * y_left - v_left * y_right) / span, -x * w, w
+
+    def twist_and_jacobian(self, p, v_left, v_right):
+        v_left = np.atleast_1d(np.asarray(v_left, float))
+        v_right = np.atleast_1d(np.asarray(v_right, float))
+        accel, curv = self.features(v_left, v_right)
+        y_left, y_right, x, clipped = self._floored_icr(p, v_left, v_right)
         twist, d_icr, _ = _icr_twist(v_left, v_right, y_left, y_right, x)
-        zero = np.zeros_like(accel)
-        # d(y_left, y_right, x) / dp, shape (N, 3, 6)
-        d_icr_dp = np.stack([
-            np.stack([accel, curv, zero, zero, zero, zero], -1),
-            np.stack([zero, zero, -accel, -curv, zero, zero], -1),
-            np.stack([zero, zero, zero, zero, accel, curv], -1),
-        ], axis=-2)
-        d_icr_dp[clipped, :2, :4] = 0.0
-        return twist, d_icr @ d_icr_dp
+        # Chain rule through d(y_left, y_right, x) / dp, which is sparse: y_left depends on
+        # p1, p2 (times |a|, |k|), y_right on p3, p4 (times -|a|, -|k|), x on p5, p6. Where
+        # the span floor acted, y_left and y_right no longer depend on p.
+        free = (~clipped).astype(float)[..., None]
+        accel, curv = accel[..., None], curv[..., None]
+        jac = np.empty(twist.shape + (6,))
+        for i, factor in enumerate((d_icr[..., 0] * free, -d_icr[..., 1] * free, d_icr[..., 2])):
+            jac[..., 2 * i] = factor * accel
+            jac[..., 2 * i + 1] = factor * curv
+        return twist, jac
 
 
 _MODELS = {
