@@ -27,6 +27,7 @@ setup(
     entry_points={
         'console_scripts': [
             'tracked_kinematics_demo = tracked_kinematics.offline.demo:main',
+            'cmd_vel_translator = tracked_kinematics.ros.cmd_vel_translator:main',
         ],
     },
 )
