@@ -1,6 +1,7 @@
 """cmd_vel_translator on a real rclpy graph: every behaviour of issue 5 but the launch file."""
 
 import math
+import threading
 
 from geometry_msgs.msg import Twist, TwistStamped
 import numpy as np
@@ -300,3 +301,41 @@ def test_console_script_exits_2_on_invalid_parameters(tmp_path, args, reason):
     assert script.wait(30.0) == 2
     fatal = [line for line in script.output.splitlines() if 'FATAL' in line]
     assert len(fatal) == 1 and reason in fatal[0], script.output
+
+
+def test_simulated_time_paused_holds_setpoints(graph, executor):
+    from rosgraph_msgs.msg import Clock
+    _, probe = graph(use_sim_time=True, cmd_timeout=0.1)
+    clock = probe.node.create_publisher(Clock, '/clock', 10)
+
+    def tick(seconds):
+        msg = Clock()
+        msg.clock.sec = seconds
+        clock.publish(msg)
+
+    tick(100)
+    target = track_setpoints(0.3, 0.0, icr_from_values({}))
+    assert drive(executor, probe, 0.3, 0.0, reaches(target))
+    # The simulation is paused: however long it stays so in wall time, the command is not
+    # stale (15 publishes = 0.3 s of wall time = 3 timeouts).
+    probe.clear()
+    assert spin_until(executor, lambda: len(probe.setpoints()) >= 15, TIMEOUT)
+    assert probe.latest() == pytest.approx(target)
+    # Simulated time moves on by more than cmd_timeout: stop.
+    assert spin_until(executor, lambda: tick(101) or probe.latest() == (0.0, 0.0), TIMEOUT)
+
+
+def test_publisher_thread_ends_with_node_and_context(ros_context, executor):
+    def publisher_threads():
+        return [t for t in threading.enumerate() if t.name == 'setpoint_publisher']
+
+    node = CmdVelTranslator(context=ros_context)
+    assert len(publisher_threads()) == 1
+    node.destroy_node()
+    assert publisher_threads() == []
+    CmdVelTranslator(context=ros_context)
+    ros_context.try_shutdown()  # e.g. Ctrl-C: the thread stops without destroy_node
+    thread, = publisher_threads() or [None]
+    if thread is not None:
+        thread.join(TIMEOUT)
+    assert publisher_threads() == []

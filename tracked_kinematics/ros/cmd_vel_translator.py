@@ -17,15 +17,23 @@ Topics
 
 Time
 ----
-Everything runs on the node's clock (``use_sim_time`` works). A command is in force from
-its *arrival*, also in stamped mode: the header stamp says when the sender made it, but on a
-robot whose clocks disagree a stamp-based age would stop a healthy stream or keep a dead one.
+Ramps and the command timeout run on the node's clock (``use_sim_time`` works: a paused
+simulation holds the setpoints). A command is in force from its *arrival*, also in stamped
+mode: the header stamp says when the sender made it, but on a robot whose clocks disagree a
+stamp-based age would stop a healthy stream or keep a dead one.
+
+The fixed-rate publishing runs in a thread of its own, paced on the steady clock, not in an
+rclpy timer: each wake-up of rclpy's Python executor costs about a millisecond of CPU, which
+at 50 Hz alone is several per cent of a core; the thread costs a tenth of that. The executor
+only handles what arrives (commands, parameter requests). A lock keeps the two apart.
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping
 import math
+import threading
+import time
 from typing import Any
 
 from geometry_msgs.msg import Twist, TwistStamped
@@ -131,11 +139,14 @@ class CmdVelTranslator(Node):
                                       on_change=self._on_change)
         icr, limits = model_from_values(self._params.values)
         self._limiter = CommandLimiter(icr, limits, self._params['cmd_timeout'])
+        self._lock = threading.Lock()  # the limiter is shared by the executor and publisher
         self._radius = self._params['sprocket_radius']
         self._t0 = self.get_clock().now().nanoseconds
         self._was_stale = True
         self._lateral_noted = False
 
+        self._left_msg, self._right_msg = Float64(), Float64()  # reused: fewer allocations
+        self._joint_msg = Float64MultiArray()
         self._left_pub = self.create_publisher(Float64, 'left_track/setpoint', 10)
         self._right_pub = self.create_publisher(Float64, 'right_track/setpoint', 10)
         joint_topic = self._params['joint_velocity_topic']
@@ -144,13 +155,17 @@ class CmdVelTranslator(Node):
         self._stamped = self._params['use_stamped']
         self.create_subscription(TwistStamped if self._stamped else Twist, 'cmd_vel',
                                  self._on_command, 10)
-        self._rate = self._params['rate']
-        self._timer = self.create_timer(1.0 / self._rate, self._publish)
+        self._period = 1.0 / self._params['rate']
+        self._stop = threading.Event()
+        self.context.on_shutdown(self._stop.set)
+        self._publisher_thread = threading.Thread(target=self._publish_loop,
+                                                  name='setpoint_publisher', daemon=True)
+        self._publisher_thread.start()
 
         self.get_logger().info(
             f'ICR model chi = {icr.chi:.3f}, e = {icr.eccentricity:.3f}, scales '
             f'({icr.scale_left:g}, {icr.scale_right:g}); publishing setpoints at '
-            f'{self._rate:g} Hz, cmd_timeout {self._limiter.timeout:g} s, limits: '
+            f'{1.0 / self._period:g} Hz, cmd_timeout {self._limiter.timeout:g} s, limits: '
             f'{_describe_limits(limits)}'
             + (f'; sprocket speeds (rad/s) on {self._joint_pub.topic_name}'
                if self._joint_pub else ''))
@@ -173,35 +188,62 @@ class CmdVelTranslator(Node):
             self.get_logger().warning(
                 'cmd_vel has a lateral velocity (linear.y); a tracked vehicle cannot be '
                 'commanded sideways, so linear.y is ignored (this note is shown once)')
-        self._limiter.command(lin.x, ang.z, self._now())
+        with self._lock:
+            self._limiter.command(lin.x, ang.z, self._now())
+
+    def _publish_loop(self) -> None:
+        """Publish every period of the steady clock until the node or its context stops."""
+        due = time.monotonic()
+        while not self._stop.wait(max(0.0, due - time.monotonic())):
+            try:
+                self._publish()
+            except Exception as err:  # noqa: BLE001 -- keep the stream alive, say why
+                if self._stop.is_set() or not self.context.ok():
+                    return
+                self.get_logger().error(f'publishing setpoints failed: {err!r}',
+                                        throttle_duration_sec=1.0)
+            due += self._period
+            now = time.monotonic()
+            if due < now - self._period:  # fell behind (stalled): no burst to catch up
+                due = now
 
     def _publish(self) -> None:
         t = self._now()
-        left, right = self._limiter.update(t, max_dt=2.0 / self._rate)
-        stale = self._limiter.is_stale(t)
+        # A stall of this process must not turn into a jump: ramp over at most two periods.
+        # (With simulated time a stall stops the clock too, so there is nothing to guard.)
+        max_dt = math.inf if self.get_clock().ros_time_is_active else 2.0 * self._period
+        with self._lock:
+            left, right = self._limiter.update(t, max_dt=max_dt)
+            stale = self._limiter.is_stale(t)
         if stale and not self._was_stale:
             self.get_logger().debug('no cmd_vel for cmd_timeout: ramping to zero')
         self._was_stale = stale
-        self._left_pub.publish(Float64(data=left))
-        self._right_pub.publish(Float64(data=right))
+        self._left_msg.data, self._right_msg.data = left, right
+        self._left_pub.publish(self._left_msg)
+        self._right_pub.publish(self._right_msg)
         if self._joint_pub is not None:
-            self._joint_pub.publish(
-                Float64MultiArray(data=[left / self._radius, right / self._radius]))
+            self._joint_msg.data = [left / self._radius, right / self._radius]
+            self._joint_pub.publish(self._joint_msg)
 
     def _on_change(self, values: Mapping[str, Any]) -> None:
         icr, limits = model_from_values(values)
-        self._limiter.icr = icr
-        self._limiter.limits = limits
-        self._limiter.timeout = values['cmd_timeout']
-        self._radius = values['sprocket_radius']
-        if values['rate'] != self._rate:
-            self._rate = values['rate']
-            self.destroy_timer(self._timer)
-            self._timer = self.create_timer(1.0 / self._rate, self._publish)
+        with self._lock:
+            self._limiter.icr = icr
+            self._limiter.limits = limits
+            self._limiter.timeout = values['cmd_timeout']
+            self._radius = values['sprocket_radius']
+            self._period = 1.0 / values['rate']
         self.get_logger().info(
             f'parameters changed: chi = {icr.chi:.3f}, e = {icr.eccentricity:.3f}, '
-            f'{self._rate:g} Hz, cmd_timeout {self._limiter.timeout:g} s, limits: '
+            f'{values["rate"]:g} Hz, cmd_timeout {values["cmd_timeout"]:g} s, limits: '
             f'{_describe_limits(limits)}')
+
+    def destroy_node(self):
+        """Stop the publishing thread, then destroy the node."""
+        self._stop.set()
+        if self._publisher_thread.is_alive():
+            self._publisher_thread.join()
+        super().destroy_node()
 
 
 def main(args=None):
