@@ -127,7 +127,7 @@ def test_round_trip_at_rest_then_commanded(graph, executor):
     start = node.get_clock().now().nanoseconds
     assert spin_until(executor, lambda: len(probe.setpoints()) >= 20, TIMEOUT)
     elapsed = (node.get_clock().now().nanoseconds - start) * 1e-9
-    assert 19 / 100.0 * 0.7 < elapsed < 21 / 100.0 * 2.0
+    assert 19 / 100.0 * 0.7 < elapsed < 21 / 100.0 * 3.0  # not faster; slower only if starved
 
 
 def test_timeout_ramps_to_zero(graph, executor):
@@ -267,7 +267,8 @@ def test_runtime_parameters_validated_and_applied(graph, executor):
     probe.clear()
     start = node.get_clock().now().nanoseconds
     assert spin_until(executor, lambda: len(probe.setpoints()) >= 40, TIMEOUT)
-    assert (node.get_clock().now().nanoseconds - start) * 1e-9 < 40 / 200.0 * 2.5
+    # 0.2 s at 200 Hz; 0.8 s at the old 50 Hz.
+    assert (node.get_clock().now().nanoseconds - start) * 1e-9 < 40 / 200.0 * 3.0
 
 
 def test_console_script_with_terrain_params_file(ros_context, executor, tmp_path):

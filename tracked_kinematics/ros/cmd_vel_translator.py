@@ -23,9 +23,10 @@ mode: the header stamp says when the sender made it, but on a robot whose clocks
 stamp-based age would stop a healthy stream or keep a dead one.
 
 The fixed-rate publishing runs in a thread of its own, paced on the steady clock, not in an
-rclpy timer: each wake-up of rclpy's Python executor costs about a millisecond of CPU, which
-at 50 Hz alone is several per cent of a core; the thread costs a tenth of that. The executor
-only handles what arrives (commands, parameter requests). A lock keeps the two apart.
+rclpy timer: each wake-up of rclpy's Python executor cost most of a millisecond of CPU on
+the 2-core test machine, several per cent of a core at 50 Hz; the thread costs a fraction
+of that. The executor only handles what arrives (commands, parameter requests). A lock
+keeps the two apart.
 """
 
 from __future__ import annotations
