@@ -28,6 +28,7 @@ setup(
     entry_points={
         'console_scripts': [
             'tracked_kinematics_demo = tracked_kinematics.offline.demo:main',
+            'cmd_vel_translator = tracked_kinematics.ros.cmd_vel_translator:main',
             'identify_icr = tracked_kinematics.offline.identify_cli:main',
             'simulate_bag = tracked_kinematics.offline.simulate:main',
             'icr_map = tracked_kinematics.offline.icr_map:main',
