@@ -7,7 +7,7 @@ import pytest
 
 from tracked_kinematics.core.covariance import (
     arc_step, body_jacobian, full_matrix, propagate, ros_covariance, TrackNoise,
-    travel_jacobian, twist_covariance, UNOBSERVED_VARIANCE)
+    twist_covariance, UNOBSERVED_VARIANCE)
 from tracked_kinematics.core.integration import arc_chord, compose
 from tracked_kinematics.core.kinematics import forward, IcrParams, true_speeds
 from tracked_kinematics.core.odometry import Odometry
