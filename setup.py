@@ -27,6 +27,7 @@ setup(
     entry_points={
         'console_scripts': [
             'tracked_kinematics_demo = tracked_kinematics.offline.demo:main',
+            'odometry_node = tracked_kinematics.ros.odometry_node:main',
         ],
     },
 )
