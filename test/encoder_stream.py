@@ -33,19 +33,21 @@ class Driver:
     (``taken()`` grew), publishing it again if best-effort delivery lost it.
     """
 
-    def __init__(self, ros_context, executor, taken, namespace=''):
-        from rclpy.node import Node
-        self.node = Node('encoder_driver', namespace=namespace, context=ros_context)
+    def __init__(self, ros_context, executor, taken, namespace='', node=None):
+        if node is None:
+            from rclpy.node import Node
+            node = Node('encoder_driver', namespace=namespace, context=ros_context)
+            executor.add_node(node)
+        self.node = node
         self.executor = executor
-        executor.add_node(self.node)
         self.taken = taken
         self.publishers = {}
 
-    def publisher(self, msg_type, topic):
+    def publisher(self, msg_type, topic, timeout=5.0):
         """Return a publisher on ``topic``, waiting until the node under test matched it."""
         if topic not in self.publishers:
             pub = self.node.create_publisher(msg_type, topic, 10)
-            assert spin_until(self.executor, lambda: pub.get_subscription_count() > 0)
+            assert spin_until(self.executor, lambda: pub.get_subscription_count() > 0, timeout)
             self.publishers[topic] = pub
         return self.publishers[topic]
 

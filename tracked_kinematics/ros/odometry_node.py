@@ -112,7 +112,7 @@ class OdometryNode(Node):
         self._broadcaster = None
         self._transform = None
         self._tf_warned = False
-        self._last_publish_s = None
+        self._last_publish_ns = None
         self._apply(values)
         self.encoder = EncoderInput(self, values, self._on_step)
         self.create_service(Trigger, '~/reset', self._on_reset)
@@ -134,7 +134,7 @@ class OdometryNode(Node):
         if hasattr(self, 'encoder'):
             self.encoder.configure(values)
         rate = values['publish_rate']
-        self._min_period_s = 1.0 / rate if rate > 0.0 else 0.0
+        self._min_period_ns = round(1e9 / rate) if rate > 0.0 else 0
         self._msg.header.frame_id = values['odom_frame']
         self._msg.child_frame_id = values['base_frame']
         self._setup_tf(values['publish_tf'])
@@ -167,14 +167,18 @@ class OdometryNode(Node):
                 f'encoder step rejected (travel {d_left!r}, {d_right!r} m over {dt!r} s gives '
                 'a non-finite pose): skipped', throttle_duration_sec=WARN_PERIOD)
             return
-        last = self._last_publish_s
-        if (self._min_period_s and last is not None
-                and 0.0 <= stamp_s - last < self._min_period_s):
+        # Rate cap by message time, in integer nanoseconds so that it is exact; a stamp
+        # before the last published one (time went back) publishes at once.
+        stamp = self.encoder.stamp
+        stamp_ns = stamp.sec * 1_000_000_000 + stamp.nanosec
+        last = self._last_publish_ns
+        if (self._min_period_ns and last is not None
+                and 0 <= stamp_ns - last < self._min_period_ns):
             return
-        if self._publish():
-            self._last_publish_s = stamp_s
+        if self._publish(stamp):
+            self._last_publish_ns = stamp_ns
 
-    def _publish(self) -> bool:
+    def _publish(self, stamp) -> bool:
         odometry = self.odometry
         x, y, theta = odometry.pose
         twist, twist_covariance = odometry.take_twist()
@@ -183,7 +187,6 @@ class OdometryNode(Node):
                 f'non-finite twist {twist} not published', throttle_duration_sec=WARN_PERIOD)
             return False
         msg = self._msg
-        stamp = self.encoder.stamp
         msg.header.stamp = stamp
         pose = msg.pose.pose
         pose.position.x = x
@@ -207,7 +210,7 @@ class OdometryNode(Node):
 
     def _on_reset(self, request, response):
         self.odometry.reset()
-        self._last_publish_s = None
+        self._last_publish_ns = None
         response.success = True
         response.message = 'odometry reset: pose (0, 0, 0), covariance zero'
         self.get_logger().info(response.message)
