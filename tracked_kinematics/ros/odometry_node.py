@@ -20,13 +20,13 @@ from nav_msgs.msg import Odometry as OdometryMsg
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from std_srvs.srv import Trigger
-from tracked_kinematics.core.covariance import ros_covariance, TrackNoise
-from tracked_kinematics.core.integration import wrap_angle
+from tracked_kinematics.core.covariance import TrackNoise
 from tracked_kinematics.core.odometry import Odometry
 from tracked_kinematics.params import icr_from_values, non_negative, ParamSpec, TERRAIN_PARAMS
 from tracked_kinematics.ros.encoder_input import (
     check_encoder_values, ENCODER_INPUT_PARAMS, EncoderInput, WARN_PERIOD)
 from tracked_kinematics.ros.main import run
+from tracked_kinematics.ros.odometry_message import OdometrySerializer
 from tracked_kinematics.ros.parameters import ParameterTable
 
 NODE_NAME = 'odometry_node'
@@ -106,9 +106,7 @@ class OdometryNode(Node):
         self.odometry = Odometry(icr_from_values(values), _noise(values))
         self._publisher = self.create_publisher(
             OdometryMsg, 'odom', QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE))
-        self._msg = OdometryMsg()
-        self._pose_covariance = ros_covariance((0.0,) * 6)
-        self._twist_covariance = ros_covariance((0.0,) * 6)
+        self._serializer = None
         self._broadcaster = None
         self._transform = None
         self._tf_warned = False
@@ -135,8 +133,9 @@ class OdometryNode(Node):
             self.encoder.configure(values)
         rate = values['publish_rate']
         self._min_period_ns = round(1e9 / rate) if rate > 0.0 else 0
-        self._msg.header.frame_id = values['odom_frame']
-        self._msg.child_frame_id = values['base_frame']
+        frames = (values['odom_frame'], values['base_frame'])
+        if self._serializer is None or self._serializer.frames != frames:
+            self._serializer = OdometrySerializer(*frames)
         self._setup_tf(values['publish_tf'])
         if self._transform is not None:
             self._transform.header.frame_id = values['odom_frame']
@@ -186,25 +185,21 @@ class OdometryNode(Node):
             self.get_logger().warning(
                 f'non-finite twist {twist} not published', throttle_duration_sec=WARN_PERIOD)
             return False
-        msg = self._msg
-        msg.header.stamp = stamp
-        pose = msg.pose.pose
-        pose.position.x = x
-        pose.position.y = y
-        half = 0.5 * float(wrap_angle(theta))
-        pose.orientation.z = math.sin(half)
-        pose.orientation.w = math.cos(half)
-        msg.pose.covariance = ros_covariance(odometry.covariance_upper, self._pose_covariance)
-        velocity = msg.twist.twist
-        velocity.linear.x, velocity.linear.y, velocity.angular.z = twist
-        msg.twist.covariance = ros_covariance(twist_covariance, self._twist_covariance)
-        self._publisher.publish(msg)
+        # The yaw as a quaternion with w >= 0 (theta itself is continuous, not wrapped).
+        qz = math.sin(0.5 * theta)
+        qw = math.cos(0.5 * theta)
+        if qw < 0.0:
+            qz, qw = -qz, -qw
+        self._publisher.publish(self._serializer.serialize(
+            stamp.sec, stamp.nanosec, x, y, qz, qw, odometry.covariance_upper, twist,
+            twist_covariance))
         if self._broadcaster is not None:
             transform = self._transform
             transform.header.stamp = stamp
             transform.transform.translation.x = x
             transform.transform.translation.y = y
-            transform.transform.rotation = pose.orientation
+            transform.transform.rotation.z = qz
+            transform.transform.rotation.w = qw
             self._broadcaster.sendTransform(transform)
         return True
 
