@@ -10,12 +10,14 @@ reads only the header stamp, so that it stays lighter than either node.
 
 - flood: JointState as fast as the node takes them, with a window of at most three
   messages in flight (the node's sensor-data subscription keeps five, so none is dropped
-  for lack of room); the figure is messages handled per second.
+  for lack of room); the figures are messages handled per second and the node process's
+  CPU time per message (/proc), which other load on the machine disturbs less.
 - 1 kHz: JointState paced at 1000 Hz; the figures are the median and the 99th percentile
   of the latency from the input's header.stamp (wall clock at publishing) to the receipt of
   the output here, an upper bound of stamp-to-publish.
 
-Goal (issue 4): odometry_node >= 80 % of the ceiling's rate, p99 < 2 ms at 1 kHz.
+Goal (issue 4): odometry_node >= 80 % of the ceiling's rate, p99 < 2 ms at 1 kHz. The
+figures depend on the load of the machine: the load average is printed with them.
 Usage: ``python benchmarks/bench_odometry_node.py [--count N] [--seconds S]``.
 """
 

@@ -4,13 +4,14 @@ import math
 import sys
 import types
 
-from encoder_stream import Driver, joint_state, Stderr
+from encoder_stream import Driver, joint_state, stamp, Stderr
 from nav_msgs.msg import Odometry as OdometryMsg
 import numpy as np
 import pytest
 from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from ros_helpers import ConsoleScript, spin_until
+from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Float64, Int32
 from std_srvs.srv import Trigger
 from tracked_kinematics.core.covariance import ros_covariance, TrackNoise, UNOBSERVED_VARIANCE
@@ -269,6 +270,24 @@ def test_track_speeds_mode(graph):
     v_x = forward(*true_speeds(0.5, 0.5, AURIGA), AURIGA)[0]
     assert msg.twist.twist.linear.x == pytest.approx(float(v_x), rel=1e-9)
     assert msg.pose.pose.position.x > 0.0
+
+
+def test_track_speeds_follow_sim_time(graph):
+    g = graph({'input_mode': 'track_speeds', 'use_sim_time': True}, namespace='sim')
+    clock = g.driver.node.create_publisher(Clock, '/clock', 10)
+    assert spin_until(g.executor, lambda: clock.get_subscription_count() > 0)
+    for now in (100.0, 100.5):
+        clock.publish(Clock(clock=stamp(now)))
+        assert spin_until(g.executor, lambda: g.node.get_clock().now().nanoseconds
+                          == int(now * 1e9))
+        g.send(Float64(data=0.4), 'left_track/speed')
+        g.send(Float64(data=0.4), 'right_track/speed')
+    assert spin_until(g.executor, lambda: len(g.odom) == 1)
+    msg = g.odom[0]
+    assert (msg.header.stamp.sec, msg.header.stamp.nanosec) == (100, 500_000_000)
+    d = np.array([0.2])  # 0.4 m/s nominal for 0.5 s of sim time
+    x, y, _ = integrate(*forward(*true_speeds(d, d, AURIGA), AURIGA))
+    assert msg.pose.pose.position.x == pytest.approx(x[0], rel=1e-9)
 
 
 def test_encoder_ticks_mode_wraps(graph):

@@ -111,6 +111,7 @@ class OdometryNode(Node):
         self._transform = None
         self._tf_warned = False
         self._last_publish_ns = None
+        self.encoder = None
         self._apply(values)
         self.encoder = EncoderInput(self, values, self._on_step)
         self.create_service(Trigger, '~/reset', self._on_reset)
@@ -129,7 +130,7 @@ class OdometryNode(Node):
     def _apply(self, values: Mapping[str, Any]) -> None:
         """Take (new) parameter values into use from the next encoder step on."""
         self.odometry.set_model(icr_from_values(values), _noise(values))
-        if hasattr(self, 'encoder'):
+        if self.encoder is not None:
             self.encoder.configure(values)
         rate = values['publish_rate']
         self._min_period_ns = round(1e9 / rate) if rate > 0.0 else 0
