@@ -293,6 +293,7 @@ def test_track_speeds_follow_sim_time(graph):
 def test_encoder_ticks_mode_wraps(graph):
     g = graph({'input_mode': 'encoder_ticks', 'ticks_per_revolution': 1000.0},
               namespace='ticks')
+    assert '1591.55 ticks per metre' in g.node.encoder.describe()  # 1000 / (2 pi 0.1 m)
     top = 2**31 - 1
     for left, right in [(top - 499, top - 499), (-top + 499, -top + 499)]:  # +1000 ticks
         g.send(Int32(data=left), 'left_track/ticks')

@@ -178,18 +178,13 @@ class EncoderInput:
             self._factor = 2.0 * math.pi * radius / values['ticks_per_revolution']
 
     def describe(self) -> str:
-        """One line for the start-up log: mode, topics, joints."""
+        """Return one line for the start-up log: mode, topics, joints or ticks."""
         text = f'input {self.mode} on {", ".join(self.topics)}'
         if self.mode == 'joint_states':
             text += f' (left {self._joints[0]}, right {self._joints[1]})'
         elif self.mode == 'encoder_ticks':
-            text += f' ({2.0 * math.pi / self._factor:.6g} ticks per metre)'
+            text += f' ({1.0 / self._factor:.6g} ticks per metre)'
         return text
-
-    def restart(self) -> None:
-        """Forget the baseline: the next sample starts afresh."""
-        self.tracker.reset()
-        self._pending = [None, None]
 
     # --- joint_states ---------------------------------------------------------------------
 
