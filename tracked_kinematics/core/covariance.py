@@ -277,14 +277,13 @@ def full_matrix(upper) -> np.ndarray:
     return np.array([[xx, xy, xt], [xy, yy, yt], [xt, yt, tt]])
 
 
-# Flat indices in a row-major ROS 6 x 6 covariance ((x, y, z, roll, pitch, yaw), or the
-# twist's (v_x, v_y, v_z, w_x, w_y, w_z)) of the planar upper-triangle entries, each listed
-# with its mirror.
-_ROS_INDEX = np.array([0, 1, 6, 5, 30, 7, 11, 31, 35])
-_UPPER_TO_ROS = (0, 1, 1, 2, 2, 3, 4, 4, 5)
+# Where the planar upper triangle (xx, xy, xt, yy, yt, tt) goes in a row-major ROS 6 x 6
+# covariance ((x, y, z, roll, pitch, yaw), or the twist's (v_x, v_y, v_z, w_x, w_y, w_z)):
+# pairs (flat index, index in the upper triangle), each entry with its mirror.
+ROS_LAYOUT = ((0, 0), (1, 1), (5, 2), (6, 1), (7, 3), (11, 4), (30, 2), (31, 4), (35, 5))
 
 
-def ros_covariance(upper, out=None) -> np.ndarray:
+def ros_covariance(upper) -> np.ndarray:
     """
     Embed a planar covariance of ``(x, y, yaw)`` (or ``(v_x, v_y, w)``) in a ROS 6 x 6 one.
 
@@ -295,9 +294,6 @@ def ros_covariance(upper, out=None) -> np.ndarray:
     ----------
     upper : tuple of float, 6
         Upper triangle ``(xx, xy, xt, yy, yt, tt)``.
-    out : ndarray, shape (36,), optional
-        Array to fill in place (its other entries must already hold the layout, as after
-        an earlier call); a new one when omitted.
 
     Returns
     -------
@@ -305,8 +301,8 @@ def ros_covariance(upper, out=None) -> np.ndarray:
         Row-major, as the ``covariance`` fields of geometry_msgs carry it.
 
     """
-    if out is None:
-        out = np.zeros(36)
-        out[[14, 21, 28]] = UNOBSERVED_VARIANCE
-    out[_ROS_INDEX] = [upper[i] for i in _UPPER_TO_ROS]
+    out = np.zeros(36)
+    out[[14, 21, 28]] = UNOBSERVED_VARIANCE
+    for flat, index in ROS_LAYOUT:
+        out[flat] = upper[index]
     return out

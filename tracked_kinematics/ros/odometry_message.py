@@ -16,15 +16,12 @@ import struct
 
 from nav_msgs.msg import Odometry
 from rclpy.serialization import serialize_message
-from tracked_kinematics.core.covariance import ros_covariance
+from tracked_kinematics.core.covariance import ros_covariance, ROS_LAYOUT
 
 # Native byte order, as rclpy serialises (the CDR header records it).
 _DOUBLE = struct.Struct('=d')
 _PAIR = struct.Struct('=dd')
 _STAMP = struct.Struct('=iI')
-# Row-major flat indices of the planar entries in a ROS 6 x 6 covariance, with the index
-# of each in the upper triangle (xx, xy, xt, yy, yt, tt).
-_COVARIANCE = ((0, 0), (1, 1), (5, 2), (6, 1), (7, 3), (11, 4), (30, 2), (31, 4), (35, 5))
 
 
 class OdometrySerializer:
@@ -83,8 +80,8 @@ class OdometrySerializer:
         self._orientation = offsets['qz']       # orientation.z, orientation.w
         self._linear = offsets['vx']            # twist.linear.x, twist.linear.y
         self._angular = offsets['wz']           # twist.angular.z
-        self._pose_cov = tuple((offsets['pose_cov'] + 8 * i, j) for i, j in _COVARIANCE)
-        self._twist_cov = tuple((offsets['twist_cov'] + 8 * i, j) for i, j in _COVARIANCE)
+        self._pose_cov = tuple((offsets['pose_cov'] + 8 * i, j) for i, j in ROS_LAYOUT)
+        self._twist_cov = tuple((offsets['twist_cov'] + 8 * i, j) for i, j in ROS_LAYOUT)
         self._buffer = bytearray(data)
         for offset in (self._position, self._orientation, self._linear):
             _PAIR.pack_into(self._buffer, offset, 0.0, 0.0)
