@@ -28,6 +28,7 @@ setup(
     entry_points={
         'console_scripts': [
             'tracked_kinematics_demo = tracked_kinematics.offline.demo:main',
+            'odometry_node = tracked_kinematics.ros.odometry_node:main',
             'cmd_vel_translator = tracked_kinematics.ros.cmd_vel_translator:main',
             'identify_icr = tracked_kinematics.offline.identify_cli:main',
             'simulate_bag = tracked_kinematics.offline.simulate:main',

@@ -1,0 +1,153 @@
+"""
+Odometry as a small state machine: nominal track travel in, pose, twist and covariance out.
+
+Each step takes the measured (nominal, encoder) travel of the two tracks and the step's
+duration, corrects the travel by the scales (Martinez eqs. 20-21), maps it to body
+increments through the tread ICRs (eqs. 7-9), moves the pose along the exact arc (the step
+of :func:`.integration.integrate`) and propagates the covariance (:mod:`.covariance`).
+Nothing here knows about ROS: the node feeds it numbers and copies the numbers out. One
+step costs a few microseconds in plain Python floats, which is what a node handling one
+encoder message at a time needs.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .covariance import (
+    arc_step, body_jacobian, full_matrix, propagate, TrackNoise, travel_jacobian,
+    twist_covariance)
+from .kinematics import IcrParams
+
+_ZERO_COVARIANCE = (0.0,) * 6
+
+
+class Odometry:
+    """
+    Dead reckoning of a tracked vehicle through its tread ICRs.
+
+    Parameters
+    ----------
+    icr : IcrParams
+        Kinematic model (ICRs and scales).
+    noise : TrackNoise, optional
+        Track travel noise for the covariance; default ``TrackNoise()``.
+
+    Attributes
+    ----------
+    pose : tuple of float
+        ``(x, y, theta)`` in the odometry frame: m, m, rad. ``theta`` is continuous (not
+        wrapped).
+    covariance_upper : tuple of float
+        Upper triangle ``(xx, xy, xt, yy, yt, tt)`` of the pose covariance.
+    steps : int
+        Steps integrated since the start or the last :meth:`reset`.
+
+    """
+
+    def __init__(self, icr: IcrParams, noise: TrackNoise | None = None):
+        self.set_model(icr, noise if noise is not None else TrackNoise())
+        self.reset()
+
+    def set_model(self, icr: IcrParams, noise: TrackNoise | None = None) -> None:
+        """Use another kinematic model (and noise) from the next step on; keep the pose."""
+        self.icr = icr
+        if noise is not None:
+            self.noise = noise
+        self._body = body_jacobian(icr)
+
+    def reset(self) -> None:
+        """Return the pose to zero with zero covariance, and restart the twist window."""
+        self.pose = (0.0, 0.0, 0.0)
+        self.covariance_upper = _ZERO_COVARIANCE
+        self.steps = 0
+        self._clear_window()
+
+    def _clear_window(self) -> None:
+        # Sums over the steps since the twist was last taken: nominal travel of each
+        # track, distance each travelled (sum of |travel|), samples, duration.
+        self._window = [0.0, 0.0, 0.0, 0.0, 0, 0.0]
+
+    @property
+    def covariance(self) -> np.ndarray:
+        """Covariance of ``(x, y, theta)``, 3 x 3, symmetric positive semi-definite."""
+        return full_matrix(self.covariance_upper)
+
+    def update(self, d_left: float, d_right: float, dt: float) -> bool:
+        """
+        Integrate one step of nominal track travel.
+
+        Parameters
+        ----------
+        d_left, d_right : float
+            Measured (nominal) travel of each track over the step, m.
+        dt : float
+            Duration of the step, s (> 0).
+
+        Returns
+        -------
+        bool
+            False, with the state unchanged, when the input or the result is not finite,
+            or ``dt <= 0``.
+
+        """
+        if not (math.isfinite(d_left) and math.isfinite(d_right) and math.isfinite(dt)
+                and dt > 0.0):
+            return False
+        (b0l, b0r), (b1l, b1r), (b2l, b2r) = self._body
+        x, y, theta = self.pose
+        dx = b0l * d_left + b0r * d_right
+        dy = b1l * d_left + b1r * d_right
+        dtheta = b2l * d_left + b2r * d_right
+        if not (math.isfinite(dx) and math.isfinite(dy) and math.isfinite(dtheta)):
+            return False
+        delta_x, delta_y, m = arc_step(theta, dx, dy, dtheta)
+        var_left, var_right = self.noise.travel_variances(d_left, d_right)
+        covariance = propagate(self.covariance_upper, delta_x, delta_y,
+                               travel_jacobian(m, self._body), var_left, var_right)
+        pose = (x + delta_x, y + delta_y, theta + dtheta)
+        if not all(map(math.isfinite, pose + covariance)):
+            return False
+        self.pose = pose
+        self.covariance_upper = covariance
+        self.steps += 1
+        window = self._window
+        window[0] += d_left
+        window[1] += d_right
+        window[2] += abs(d_left)
+        window[3] += abs(d_right)
+        window[4] += 1
+        window[5] += dt
+        return True
+
+    def take_twist(self):
+        """
+        Mean body twist over the steps since the last call, and its covariance.
+
+        The kinematics are linear in the travel, so the mean twist over a window is the
+        twist of the summed travel divided by the window's duration; its covariance is
+        ``B Q B^T / T^2`` with the travel variances of the same noise model summed over
+        the window's samples. The window then restarts.
+
+        Returns
+        -------
+        twist : tuple of float
+            ``(v_x, v_y, w)`` in base_link: m/s, m/s, rad/s; zeros for an empty window.
+        covariance_upper : tuple of float
+            Upper triangle of its covariance (:func:`.covariance.twist_covariance`); an
+            empty window gives that of one still sample over one second (the floor).
+
+        """
+        d_left, d_right, abs_left, abs_right, samples, duration = self._window
+        self._clear_window()
+        if samples == 0:
+            samples, duration = 1, 1.0
+        var_left, var_right = self.noise.travel_variances(abs_left, abs_right, samples)
+        (b0l, b0r), (b1l, b1r), (b2l, b2r) = self._body
+        v_left = d_left / duration
+        v_right = d_right / duration
+        twist = (b0l * v_left + b0r * v_right, b1l * v_left + b1r * v_right,
+                 b2l * v_left + b2r * v_right)
+        return twist, twist_covariance(self._body, var_left, var_right, duration)

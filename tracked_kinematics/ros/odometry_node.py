@@ -1,0 +1,228 @@
+"""
+odometry_node: track encoders to nav_msgs/Odometry through the tread-ICR kinematics.
+
+A thin adapter. :class:`~tracked_kinematics.ros.encoder_input.EncoderInput` turns encoder
+messages into steps of nominal track travel; :class:`~tracked_kinematics.core.odometry.
+Odometry` integrates them and propagates the covariance; this node copies the numbers into
+``odom`` (and the odom -> base_link transform) and answers ``~/reset``. Contract:
+../shared/INTERFACE.md, section ``odometry_node``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+import gc
+import math
+import sys
+from typing import Any
+
+from geometry_msgs.msg import TransformStamped
+from nav_msgs.msg import Odometry as OdometryMsg
+from rclpy.node import Node
+from rclpy.qos import QoSProfile, ReliabilityPolicy
+from std_srvs.srv import Trigger
+from tracked_kinematics.core.covariance import TrackNoise
+from tracked_kinematics.core.odometry import Odometry
+from tracked_kinematics.params import icr_from_values, non_negative, ParamSpec, TERRAIN_PARAMS
+from tracked_kinematics.ros.encoder_input import (
+    check_encoder_values, ENCODER_INPUT_PARAMS, EncoderInput, WARN_PERIOD)
+from tracked_kinematics.ros.main import run
+from tracked_kinematics.ros.odometry_message import OdometrySerializer
+from tracked_kinematics.ros.parameters import ParameterTable
+
+NODE_NAME = 'odometry_node'
+
+
+def _frame(value):
+    return None if value.strip() and value.strip() == value else (
+        f'must be a frame id without blanks, got {value!r}')
+
+
+_DEFAULT_NOISE = TrackNoise()
+
+ODOMETRY_PARAMS: tuple[ParamSpec, ...] = (
+    ParamSpec('odom_frame', 'odom', 'Frame of the published pose (header.frame_id)',
+              check=_frame),
+    ParamSpec('base_frame', 'base_link', 'Frame of the vehicle (child_frame_id)',
+              check=_frame),
+    ParamSpec('publish_tf', True, 'Also broadcast the odom_frame -> base_frame transform'),
+    ParamSpec('publish_rate', 0.0,
+              'Highest rate of odom messages, by message time; 0 publishes on every encoder '
+              'step', 'Hz', non_negative),
+    ParamSpec('covariance.k_left', _DEFAULT_NOISE.k_left,
+              'Variance of the left track travel per metre travelled', 'm^2/m', non_negative),
+    ParamSpec('covariance.k_right', _DEFAULT_NOISE.k_right,
+              'Variance of the right track travel per metre travelled', 'm^2/m',
+              non_negative),
+    ParamSpec('covariance.floor', _DEFAULT_NOISE.floor,
+              'Variance added to each track travel per encoder sample', 'm^2', non_negative),
+)
+
+PARAMS = TERRAIN_PARAMS + ENCODER_INPUT_PARAMS + ODOMETRY_PARAMS
+
+
+def _noise(values: Mapping[str, Any]) -> TrackNoise:
+    return TrackNoise(values['covariance.k_left'], values['covariance.k_right'],
+                      values['covariance.floor'])
+
+
+def validate(values: Mapping[str, Any]) -> None:
+    """
+    Check the node's parameters as a whole.
+
+    Raises
+    ------
+    ValueError
+        For an invalid kinematic model (``y_left <= y_right``, chi outside (0, 1], ...),
+        a joint on both sides, or equal frames; the message names the parameters.
+
+    """
+    icr_from_values(values)
+    check_encoder_values(values)
+    if values['odom_frame'] == values['base_frame']:
+        raise ValueError(f'odom_frame and base_frame must differ, both are '
+                         f'{values["odom_frame"]!r}')
+
+
+class OdometryNode(Node):
+    """
+    Odometry of a tracked vehicle from its track encoders.
+
+    Parameters
+    ----------
+    **kwargs
+        Passed to :class:`rclpy.node.Node` (``context``, ``parameter_overrides``, ...).
+
+    Raises
+    ------
+    tracked_kinematics.ros.parameters.ParameterError
+        When the parameters given at start are invalid.
+
+    """
+
+    def __init__(self, **kwargs):
+        super().__init__(NODE_NAME, **kwargs)
+        self.params = ParameterTable(self, PARAMS, validate=validate, on_change=self._apply)
+        values = self.params.values
+        self.odometry = Odometry(icr_from_values(values), _noise(values))
+        self._publisher = self.create_publisher(
+            OdometryMsg, 'odom', QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE))
+        self._serializer = None
+        self._broadcaster = None
+        self._transform = None
+        self._tf_warned = False
+        self._last_publish_ns = None
+        self.encoder = None
+        self._apply(values)
+        self.encoder = EncoderInput(self, values, self._on_step)
+        self.create_service(Trigger, '~/reset', self._on_reset)
+        icr = self.odometry.icr
+        self.get_logger().info(
+            f'ICR model: chi {icr.chi:.3f}, e {icr.eccentricity:.3f} (icr.y_left '
+            f'{icr.y_left:g} m, icr.y_right {icr.y_right:g} m, icr.x {icr.x:g} m, '
+            f'track_width {icr.track_width:g} m), scales {icr.scale_left:g} / '
+            f'{icr.scale_right:g}, sprocket_radius {values["sprocket_radius"]:g} m; '
+            f'{self.encoder.describe()}; publishing {self._publisher.topic_name} '
+            f'({values["odom_frame"]} -> {values["base_frame"]}) '
+            + (f'at up to {values["publish_rate"]:g} Hz' if values['publish_rate'] > 0
+               else 'at the input rate')
+            + ('' if self._broadcaster is None else ' with TF'))
+
+    def _apply(self, values: Mapping[str, Any]) -> None:
+        """Take (new) parameter values into use from the next encoder step on."""
+        self.odometry.set_model(icr_from_values(values), _noise(values))
+        if self.encoder is not None:
+            self.encoder.configure(values)
+        rate = values['publish_rate']
+        self._min_period_ns = round(1e9 / rate) if rate > 0.0 else 0
+        frames = (values['odom_frame'], values['base_frame'])
+        if self._serializer is None or self._serializer.frames != frames:
+            self._serializer = OdometrySerializer(*frames)
+        self._setup_tf(values['publish_tf'])
+        if self._transform is not None:
+            self._transform.header.frame_id = values['odom_frame']
+            self._transform.child_frame_id = values['base_frame']
+
+    def _setup_tf(self, enabled: bool) -> None:
+        if not enabled:
+            self._broadcaster = None
+            return
+        if self._broadcaster is not None:
+            return
+        try:
+            from tf2_ros import TransformBroadcaster
+        except ImportError as err:
+            if not self._tf_warned:
+                self._tf_warned = True
+                self.get_logger().warning(
+                    f'publish_tf is true but tf2_ros cannot be imported ({err}): no '
+                    'odom -> base_link transform will be broadcast. Install tf2_ros '
+                    '(ros-jazzy-tf2-ros) or set publish_tf to false.')
+            return
+        self._broadcaster = TransformBroadcaster(self)
+        self._transform = TransformStamped()
+
+    def _on_step(self, stamp_s: float, d_left: float, d_right: float, dt: float) -> None:
+        if not self.odometry.update(d_left, d_right, dt):
+            self.get_logger().warning(
+                f'encoder step rejected (travel {d_left!r}, {d_right!r} m over {dt!r} s gives '
+                'a non-finite pose): skipped', throttle_duration_sec=WARN_PERIOD)
+            return
+        # Rate cap by message time, in integer nanoseconds so that it is exact; a stamp
+        # before the last published one (time went back) publishes at once.
+        stamp = self.encoder.stamp
+        stamp_ns = stamp.sec * 1_000_000_000 + stamp.nanosec
+        last = self._last_publish_ns
+        if (self._min_period_ns and last is not None
+                and 0 <= stamp_ns - last < self._min_period_ns):
+            return
+        if self._publish(stamp):
+            self._last_publish_ns = stamp_ns
+
+    def _publish(self, stamp) -> bool:
+        odometry = self.odometry
+        x, y, theta = odometry.pose
+        twist, twist_covariance = odometry.take_twist()
+        if not all(map(math.isfinite, twist + twist_covariance)):
+            self.get_logger().warning(
+                f'non-finite twist {twist} not published', throttle_duration_sec=WARN_PERIOD)
+            return False
+        # The yaw as a quaternion with w >= 0 (theta itself is continuous, not wrapped).
+        qz = math.sin(0.5 * theta)
+        qw = math.cos(0.5 * theta)
+        if qw < 0.0:
+            qz, qw = -qz, -qw
+        self._publisher.publish(self._serializer.serialize(
+            stamp.sec, stamp.nanosec, x, y, qz, qw, odometry.covariance_upper, twist,
+            twist_covariance))
+        if self._broadcaster is not None:
+            transform = self._transform
+            transform.header.stamp = stamp
+            transform.transform.translation.x = x
+            transform.transform.translation.y = y
+            transform.transform.rotation.z = qz
+            transform.transform.rotation.w = qw
+            self._broadcaster.sendTransform(transform)
+        return True
+
+    def _on_reset(self, request, response):
+        self.odometry.reset()
+        self._last_publish_ns = None
+        response.success = True
+        response.message = 'odometry reset: pose (0, 0, 0), covariance zero'
+        self.get_logger().info(response.message)
+        return response
+
+
+def _long_lived_node() -> OdometryNode:
+    node = OdometryNode()
+    # Everything built so far (modules, messages' type support, the node) lives as long as
+    # the process: take it out of the garbage collector's full passes, which otherwise stall
+    # the callbacks for milliseconds now and then.
+    gc.freeze()
+    return node
+
+
+def main(args=None):
+    """Run odometry_node (console script ``odometry_node``)."""
+    sys.exit(run(_long_lived_node, NODE_NAME, args))
