@@ -62,4 +62,3 @@ def test_builds_launch_description():  # pragma: no cover - needs a ROS install
     spec.loader.exec_module(module)
     description = module.generate_launch_description()
     assert len(description.entities) == 4
-
