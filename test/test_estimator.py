@@ -279,3 +279,18 @@ def test_window_jacobian_matches_finite_differences():
 def test_model_icr_of_models_without_icrs_is_a_clear_error():
     with pytest.raises(TypeError, match='no tread ICRs'):
         model_icr(GeneralKinematicSlip(0.5), np.zeros(9), 1.0, 1.0)
+
+
+def test_pose_now_dead_reckons_from_the_latest_pose():
+    est, drive = _converged_estimator()
+    t, pose = drive.advance(0.1)
+    est.add_pose(t, *pose)
+    assert est.pose_now() == pytest.approx((t, *pose))
+    t, pose = drive.advance(0.3)
+    now = est.pose_now()
+    assert now[0] == pytest.approx(t)
+    np.testing.assert_allclose(now[1:], pose, atol=1e-3)
+    heading = SlipEstimator(AdaptiveIcr(0.5))
+    heading.add_step(0.01, 0.01, 0.01, 0.01)
+    heading.add_heading(0.01, 0.0)
+    assert heading.pose_now() is None

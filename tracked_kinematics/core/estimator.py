@@ -283,6 +283,11 @@ class SlipEstimator:
         """Process a heading-only measurement (rad), e.g. an IMU while RTK GPS is out."""
         return self._receive(t, (math.nan, math.nan, yaw), True)
 
+    def configure(self, config: EstimatorConfig) -> None:
+        """Use new noise, window and gate settings from the next measurement on."""
+        self.config = config
+        self._log.span = config.max_window + 1.0
+
     def reset(self, p0=None) -> None:
         """Forget the anchor and restart from ``p0`` (default: the initial parameters)."""
         self.p = (self._p0 if p0 is None else np.asarray(p0, float)).copy()
@@ -312,6 +317,30 @@ class SlipEstimator:
             return IcrParams(self.model.track_width, y_left, y_right, x, *scales)
         except ValueError:
             return None
+
+    def pose_now(self):
+        """
+        Return the latest accepted pose advanced by the encoder travel since, or None.
+
+        Returns
+        -------
+        tuple or None
+            ``(t, x, y, yaw)`` at the time of the latest encoder step, in the pose source's
+            frame, dead-reckoned with the current estimate; None before the first full pose
+            (or with heading-only measurements).
+
+        """
+        if not self._history or self._heading_only:
+            return None
+        t_a, x, y, yaw = self._history[-1]
+        t_b = self._log.end
+        if t_b <= t_a:
+            return t_a, x, y, yaw
+        d_left, d_right, dt, _ = self._log.window(t_a, t_b)
+        if len(dt) == 0:
+            return t_a, x, y, yaw
+        xs, ys, yaws = self.model.integrate(self.p, d_left, d_right, dt, pose0=(x, y, yaw))
+        return t_b, float(xs[-1]), float(ys[-1]), float(yaws[-1])
 
     @property
     def std(self) -> np.ndarray:

@@ -1,0 +1,443 @@
+"""
+icr_estimator: online ICR estimation (EKF) and short-horizon prediction, as a node.
+
+A thin adapter around :class:`~tracked_kinematics.core.estimator.SlipEstimator` and
+:mod:`~tracked_kinematics.core.prediction`. It reads the track encoders exactly as
+``odometry_node`` does (:class:`~tracked_kinematics.ros.encoder_input.EncoderInput`, same
+parameters) and a pose source (nav_msgs/Odometry, geometry_msgs/PoseStamped or
+PoseWithCovarianceStamped, or sensor_msgs/Imu for heading only), and publishes
+
+* ``icr_estimate`` (std_msgs/Float64MultiArray): ``[y_left, y_right, x, chi, e]`` (m, m, m,
+  -, -) of the current estimate, at the current track speeds;
+* ``predicted_path`` (nav_msgs/Path): the next ``prediction.horizon`` seconds from the
+  current pose, holding the current track speeds or following the latest ``cmd_vel``
+  through the drive-train model;
+
+and, when ``push_to`` names nodes, sets their ``icr.*`` parameters (``odometry_node``,
+``cmd_vel_translator``) through their ``set_parameters_atomically`` services.
+"""
+
+from __future__ import annotations
+
+from collections import Counter
+from collections.abc import Mapping
+import math
+import sys
+from typing import Any
+
+from builtin_interfaces.msg import Time
+from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped, Twist
+from nav_msgs.msg import Odometry, Path
+from rcl_interfaces.msg import Parameter as ParameterMsg, ParameterType
+from rcl_interfaces.srv import SetParametersAtomically
+from rclpy.node import Node
+from rclpy.qos import qos_profile_sensor_data
+from sensor_msgs.msg import Imu
+from std_msgs.msg import Float64MultiArray, MultiArrayDimension
+from std_srvs.srv import Trigger
+from tracked_kinematics.core.drivetrain import DriveTrain, FirstOrderLag
+from tracked_kinematics.core.estimator import EstimatorConfig, SlipEstimator
+from tracked_kinematics.core.models import AdaptiveIcr, ConstantIcr
+from tracked_kinematics.core.prediction import (
+    commands_from_twist, hold_speeds, predict_from_commands, predict_path)
+from tracked_kinematics.params import (
+    icr_from_values, non_negative, ParamSpec, positive, TERRAIN_PARAMS)
+from tracked_kinematics.ros.encoder_input import (
+    check_encoder_values, ENCODER_INPUT_PARAMS, EncoderInput, WARN_PERIOD)
+from tracked_kinematics.ros.main import run
+from tracked_kinematics.ros.parameters import ParameterTable
+
+NODE_NAME = 'icr_estimator'
+
+POSE_TYPES = {
+    'odometry': Odometry, 'pose_stamped': PoseStamped,
+    'pose_with_covariance': PoseWithCovarianceStamped, 'imu': Imu,
+}
+MODELS = ('icr', 'adaptive_icr')
+SOURCES = ('speeds', 'cmd_vel')
+ICR_LAYOUT = ('y_left', 'y_right', 'x', 'chi', 'e')
+
+
+def _one_of(choices):
+    def check(value):
+        return None if value in choices else f'must be one of {", ".join(choices)}, got {value!r}'
+    return check
+
+
+def _probability(value):
+    return positive(value) or (None if value < 1.0 else f'must be < 1, got {value!r}')
+
+
+def _names(value):
+    return None if all(name.strip() for name in value) else f'has an empty name: {value!r}'
+
+
+_DEFAULTS = EstimatorConfig()
+
+ESTIMATOR_PARAMS: tuple[ParamSpec, ...] = (
+    ParamSpec('model', 'icr',
+              'Slip model estimated: icr (constant tread ICRs, what odometry_node uses) or '
+              'adaptive_icr (ICRs over lateral acceleration and curvature, EKF paper eq. 11)',
+              check=_one_of(MODELS), read_only=True),
+    ParamSpec('pose_topic', 'pose', 'Pose measurements topic', read_only=True),
+    ParamSpec('pose_type', 'odometry',
+              'Message type on pose_topic: odometry, pose_stamped, pose_with_covariance, or '
+              'imu (heading only)', check=_one_of(tuple(POSE_TYPES)), read_only=True),
+    ParamSpec('heading_only', False,
+              'Use only the heading of the pose messages (e.g. while RTK GPS is out)'),
+    ParamSpec('pose_std_xy', _DEFAULTS.pose_std_xy,
+              'Standard deviation of each measured position coordinate', 'm', positive),
+    ParamSpec('pose_std_yaw', _DEFAULTS.pose_std_yaw,
+              'Standard deviation of each measured heading', 'rad', positive),
+    ParamSpec('travel_std', _DEFAULTS.travel_std,
+              'Model and encoder error per metre travelled in a window', 'm/m', non_negative),
+    ParamSpec('process_std', _DEFAULTS.process_std,
+              'Random-walk standard deviation of the parameters per sqrt(second): larger '
+              'follows terrain changes faster', '1/sqrt(s)', non_negative),
+    ParamSpec('initial_std', _DEFAULTS.initial_std,
+              'Standard deviation of the initial parameters', '', positive),
+    ParamSpec('window', _DEFAULTS.window,
+              'Each pose is compared with the accepted pose this much older', 's', positive),
+    ParamSpec('min_window', _DEFAULTS.min_window, 'Shortest window', 's', non_negative),
+    ParamSpec('max_window', _DEFAULTS.max_window,
+              'Poses older than this are forgotten (outages restart the window)', 's',
+              positive),
+    ParamSpec('gate_probability', _DEFAULTS.gate_probability,
+              'Chi-square probability of the innovation gate against pose jumps', '',
+              _probability),
+    ParamSpec('max_outliers', _DEFAULTS.max_outliers,
+              'Consecutive refused windows after which the filter re-anchors', '',
+              positive),
+    ParamSpec('publish_rate', 10.0, 'Rate of icr_estimate and predicted_path', 'Hz',
+              positive),
+    ParamSpec('prediction.horizon', 2.0, 'Length of predicted_path (0: not published)', 's',
+              non_negative),
+    ParamSpec('prediction.dt', 0.05, 'Step of predicted_path', 's', positive),
+    ParamSpec('prediction.source', 'speeds',
+              'Future track speeds: speeds (hold the current ones) or cmd_vel (the latest '
+              'command through the inverse kinematics and the drive-train model)',
+              check=_one_of(SOURCES), read_only=True),
+    ParamSpec('drivetrain.delay', 0.0, 'Command delay of the drive train', 's', non_negative),
+    ParamSpec('drivetrain.max_accel', 0.0,
+              'Acceleration limit of the drive train; 0 = none', 'm/s^2', non_negative),
+    ParamSpec('drivetrain.time_constant', 0.0,
+              'Time constant of the speed loop (first-order lag); 0 = none', 's',
+              non_negative),
+    ParamSpec('push_to', [],
+              'Nodes whose icr.* parameters are set to the estimate (e.g. odometry_node, '
+              'cmd_vel_translator)', check=_names),
+    ParamSpec('push_period', 1.0, 'Shortest time between two pushes', 's', positive),
+    ParamSpec('push_min_change', 0.01,
+              'Push only when an ICR coordinate moved by more than this', 'm', non_negative),
+)
+
+PARAMS = TERRAIN_PARAMS + ENCODER_INPUT_PARAMS + ESTIMATOR_PARAMS
+
+
+def validate(values: Mapping[str, Any]) -> None:
+    """
+    Check the node's parameters as a whole.
+
+    Raises
+    ------
+    ValueError
+        For an invalid initial ICR model, encoder setup or estimator windows.
+
+    """
+    icr_from_values(values)
+    check_encoder_values(values)
+    _config(values)
+    if values['max_outliers'] != int(values['max_outliers']):
+        raise ValueError(f'max_outliers must be a whole number, got {values["max_outliers"]}')
+
+
+def _config(values: Mapping[str, Any]) -> EstimatorConfig:
+    return EstimatorConfig(
+        pose_std_xy=values['pose_std_xy'], pose_std_yaw=values['pose_std_yaw'],
+        travel_std=values['travel_std'], process_std=values['process_std'],
+        initial_std=values['initial_std'], window=values['window'],
+        min_window=values['min_window'], max_window=values['max_window'],
+        gate_probability=values['gate_probability'],
+        max_outliers=int(values['max_outliers']))
+
+
+def _drivetrain(values: Mapping[str, Any]) -> DriveTrain:
+    accel = values['drivetrain.max_accel']
+    lag = values['drivetrain.time_constant']
+    return DriveTrain(delay=values['drivetrain.delay'], max_accel=accel or math.inf,
+                      loop=FirstOrderLag(lag) if lag > 0.0 else None)
+
+
+def _yaw(q) -> float:
+    return math.atan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z))
+
+
+def _seconds(stamp) -> float:
+    return stamp.sec + 1e-9 * stamp.nanosec
+
+
+def _stamp(seconds: float) -> Time:
+    sec = math.floor(seconds)
+    return Time(sec=int(sec), nanosec=min(999_999_999, int(round((seconds - sec) * 1e9))))
+
+
+class IcrEstimatorNode(Node):
+    """
+    Online ICR estimation and motion prediction for a tracked vehicle.
+
+    Parameters
+    ----------
+    **kwargs
+        Passed to :class:`rclpy.node.Node` (``context``, ``parameter_overrides``, ...).
+
+    Raises
+    ------
+    tracked_kinematics.ros.parameters.ParameterError
+        When the parameters given at start are invalid.
+
+    """
+
+    def __init__(self, **kwargs):
+        super().__init__(NODE_NAME, **kwargs)
+        self.params = ParameterTable(self, PARAMS, validate=validate, on_change=self._apply)
+        values = self.params.values
+        icr = icr_from_values(values)
+        self._scales = (icr.scale_left, icr.scale_right)
+        if values['model'] == 'icr':
+            model = ConstantIcr(icr.track_width, with_scales=False)
+            p0 = model.from_icr(icr)
+        else:
+            model = AdaptiveIcr(icr.track_width)
+            p0 = None
+        self.estimator = SlipEstimator(model, p0, _config(values))
+        self.counts: Counter = Counter()
+        self._logged: dict[str, int] = {}
+        self._frame = ''
+        self._last_pose_t = None
+        self._command = None
+        self._pushed = None
+        self._push_clients = {}
+        self._last_push_ns = None
+        self._drivetrain = _drivetrain(values)
+        self._apply(values)
+        self.encoder = EncoderInput(self, values, self._on_step)
+        pose_type = POSE_TYPES[values['pose_type']]
+        self._pose_sub = self.create_subscription(
+            pose_type, values['pose_topic'], self._on_pose, qos_profile_sensor_data)
+        if values['prediction.source'] == 'cmd_vel':
+            self.create_subscription(Twist, 'cmd_vel', self._on_cmd_vel, 10)
+        self._icr_pub = self.create_publisher(Float64MultiArray, 'icr_estimate', 10)
+        self._path_pub = self.create_publisher(Path, 'predicted_path', 10)
+        self._timer = self.create_timer(1.0 / values['publish_rate'], self._on_timer)
+        self.create_service(Trigger, '~/reset', self._on_reset)
+        self.get_logger().info(
+            f'estimating {model.name} ({", ".join(model.param_names)}) from '
+            f'{self._pose_sub.topic_name} ({values["pose_type"]}'
+            + (', heading only' if self._heading_only else '') + f') and '
+            f'{self.encoder.describe()}; publishing {self._icr_pub.topic_name} and '
+            f'{self._path_pub.topic_name} at {values["publish_rate"]:g} Hz'
+            + (f', pushing to {", ".join(values["push_to"])}' if values['push_to'] else ''))
+
+    @property
+    def _heading_only(self) -> bool:
+        return self.params['heading_only'] or self.params['pose_type'] == 'imu'
+
+    def _apply(self, values: Mapping[str, Any]) -> None:
+        """Take (new) parameter values into use."""
+        self.estimator.configure(_config(values))
+        self._drivetrain = _drivetrain(values)
+        icr = icr_from_values(values)
+        self._scales = (icr.scale_left, icr.scale_right)
+        if getattr(self, 'encoder', None) is not None:
+            self.encoder.configure(values)
+        if getattr(self, '_timer', None) is not None:
+            self._timer.timer_period_ns = round(1e9 / values['publish_rate'])
+
+    # --- inputs -------------------------------------------------------------------------
+
+    def _on_step(self, stamp_s: float, d_left: float, d_right: float, dt: float) -> None:
+        outcome = self.estimator.add_step(stamp_s, self._scales[0] * d_left,
+                                          self._scales[1] * d_right, dt)
+        if outcome is not None:
+            self._report(outcome)
+
+    def _on_pose(self, msg) -> None:
+        self.counts['received'] += 1
+        t = _seconds(msg.header.stamp)
+        if t == 0.0:
+            self.counts['zero_stamp'] += 1
+            self.get_logger().warning('pose message with a zero stamp: skipped',
+                                      throttle_duration_sec=WARN_PERIOD)
+            return
+        if isinstance(msg, Imu):
+            yaw = _yaw(msg.orientation)
+            position = None
+        else:
+            pose = msg.pose if isinstance(msg, PoseStamped) else msg.pose.pose
+            yaw = _yaw(pose.orientation)
+            position = (pose.position.x, pose.position.y)
+        self._frame = msg.header.frame_id
+        if position is None or self._heading_only:
+            outcome = self.estimator.add_heading(t, yaw)
+        else:
+            outcome = self.estimator.add_pose(t, position[0], position[1], yaw)
+        self._report(outcome)
+
+    def _report(self, outcome) -> None:
+        """Count an outcome; log refusals, at most once per WARN_PERIOD for each kind."""
+        self.counts[outcome.status] += 1
+        if not (outcome.refused or outcome.status in ('anchored', 'gap')):
+            return
+        now = self.get_clock().now().nanoseconds
+        last = self._logged.get(outcome.status)
+        if last is not None and now - last < WARN_PERIOD * 1e9:
+            return
+        self._logged[outcome.status] = now
+        if outcome.refused:
+            self.get_logger().warning(
+                f'pose measurement refused ({outcome.status}): {outcome.reason}')
+        else:
+            self.get_logger().info(outcome.reason)
+
+    def _on_cmd_vel(self, msg) -> None:
+        command = (msg.linear.x, msg.angular.z)
+        if not all(map(math.isfinite, command)):
+            self.get_logger().warning(f'non-finite cmd_vel {command}: ignored',
+                                      throttle_duration_sec=WARN_PERIOD)
+            return
+        self._command = command
+
+    def _on_reset(self, request, response):
+        self.estimator.reset()
+        self._pushed = None
+        response.success = True
+        response.message = 'ICR estimate reset to the initial parameters'
+        self.get_logger().info(response.message)
+        return response
+
+    # --- outputs ------------------------------------------------------------------------
+
+    def _on_timer(self) -> None:
+        icr = self._current_icr()
+        if icr is not None:
+            self._publish_icr(icr)
+        if self.params['prediction.horizon'] > 0.0:
+            self._publish_path()
+        if self.params['push_to'] and icr is not None:
+            self._push(icr)
+
+    def _current_icr(self):
+        try:
+            y_left, y_right, x = self.estimator.icr()
+        except ValueError:
+            return None
+        if not all(map(math.isfinite, (y_left, y_right, x))) or y_left <= y_right:
+            return None
+        return y_left, y_right, x
+
+    def _publish_icr(self, icr) -> None:
+        y_left, y_right, x = icr
+        span = y_left - y_right
+        msg = Float64MultiArray()
+        msg.layout.dim = [MultiArrayDimension(label=','.join(ICR_LAYOUT), size=5, stride=5)]
+        msg.data = [y_left, y_right, x, self.estimator.model.track_width / span,
+                    -(y_left + y_right) / span]
+        self._icr_pub.publish(msg)
+
+    def _publish_path(self) -> None:
+        now = self.estimator.pose_now()
+        if now is None:
+            return
+        t0, x, y, yaw = now
+        values = self.params.values
+        horizon, dt = values['prediction.horizon'], values['prediction.dt']
+        est = self.estimator
+        try:
+            if values['prediction.source'] == 'cmd_vel' and self._command is not None:
+                icr = est.icr_params(scales=self._scales)
+                if icr is None:
+                    return
+                left, right = commands_from_twist(*self._command, icr, horizon, dt)
+                # Nominal setpoints back to true speeds: the estimator works in true speeds.
+                pred = predict_from_commands(est.model, est.p, self._drivetrain,
+                                             self._scales[0] * left, self._scales[1] * right,
+                                             dt, speeds0=est.last_speeds, pose0=(x, y, yaw))
+            else:
+                left, right = hold_speeds(*est.last_speeds, horizon, dt)
+                pred = predict_path(est.model, est.p, left, right, dt, pose0=(x, y, yaw))
+        except ValueError as err:
+            self.get_logger().warning(f'no prediction: {err}', throttle_duration_sec=WARN_PERIOD)
+            return
+        if not pred.poses.size or not bool(
+                all(map(math.isfinite, pred.poses.ravel().tolist()))):
+            self.get_logger().warning('non-finite prediction not published',
+                                      throttle_duration_sec=WARN_PERIOD)
+            return
+        path = Path()
+        path.header.stamp = _stamp(t0)
+        path.header.frame_id = self._frame
+        for t, (px, py, pyaw) in zip(pred.t, pred.poses.tolist()):
+            pose = PoseStamped()
+            pose.header.stamp = _stamp(t0 + float(t))
+            pose.header.frame_id = self._frame
+            pose.pose.position.x = px
+            pose.pose.position.y = py
+            pose.pose.orientation.z = math.sin(0.5 * pyaw)
+            pose.pose.orientation.w = math.cos(0.5 * pyaw)
+            path.poses.append(pose)
+        self._path_pub.publish(path)
+
+    def _push(self, icr) -> None:
+        y_left, y_right, x = icr
+        values = self.params.values
+        if self.estimator.model.track_width / (y_left - y_right) > 1.0:
+            return  # chi > 1 is not a physical terrain; the nodes would refuse it
+        if isinstance(self.estimator.model, AdaptiveIcr):
+            v_left, v_right = self.estimator.last_speeds
+            if abs(v_right - v_left) < 0.05 * max(abs(v_left), abs(v_right), 0.1):
+                return  # straight: the ICRs are not observable, keep the last pushed ones
+        now_ns = self.get_clock().now().nanoseconds
+        if (self._last_push_ns is not None
+                and now_ns - self._last_push_ns < values['push_period'] * 1e9):
+            return
+        if self._pushed is not None and max(
+                abs(a - b) for a, b in zip(icr, self._pushed)) <= values['push_min_change']:
+            return
+        request = SetParametersAtomically.Request()
+        for name, value in zip(('icr.y_left', 'icr.y_right', 'icr.x'), icr):
+            param = ParameterMsg(name=name)
+            param.value.type = ParameterType.PARAMETER_DOUBLE
+            param.value.double_value = float(value)
+            request.parameters.append(param)
+        self._last_push_ns = now_ns
+        for target in values['push_to']:
+            client = self._push_clients.get(target)
+            if client is None:
+                client = self.create_client(
+                    SetParametersAtomically, f'/{target.strip("/")}/set_parameters_atomically')
+                self._push_clients[target] = client
+            if not client.service_is_ready():
+                self.get_logger().warning(f'cannot push the ICRs: {client.srv_name} is not '
+                                          'available', throttle_duration_sec=WARN_PERIOD)
+                continue
+            future = client.call_async(request)
+            future.add_done_callback(
+                lambda f, target=target, icr=icr: self._pushed_to(target, icr, f))
+
+    def _pushed_to(self, target, icr, future) -> None:
+        result = future.result()
+        if result is None or not result.result.successful:
+            reason = 'no answer' if result is None else result.result.reason
+            self.get_logger().warning(f'{target} refused the ICRs {icr}: {reason}',
+                                      throttle_duration_sec=WARN_PERIOD)
+            return
+        self._pushed = icr
+        self.counts['pushed'] += 1
+        self.get_logger().info(
+            f'pushed icr.y_left {icr[0]:.3f}, icr.y_right {icr[1]:.3f}, icr.x {icr[2]:.3f} m '
+            f'to {target}', throttle_duration_sec=WARN_PERIOD)
+
+
+def main(args=None):
+    """Run icr_estimator (console script ``icr_estimator``)."""
+    sys.exit(run(IcrEstimatorNode, NODE_NAME, args))
