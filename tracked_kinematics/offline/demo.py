@@ -236,7 +236,7 @@ def print_table(results, out) -> tuple[float, float]:
 
     """
     print(f'   {"":<18}{"":>16}  {"ideal differential drive":^26}  '
-          f'{"identified ICRs":^26}', file=out)
+          f'{"identified ICRs":^26}'.rstrip(), file=out)
     print(f'   {"path":<18}{"dist (m)":>8}{"time (s)":>9}  {"pos (m)":>8}{"head (deg)":>11}'
           f'{"% dist":>8}  {"pos (m)":>8}{"head (deg)":>11}{"% dist":>8}', file=out)
 
