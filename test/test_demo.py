@@ -161,6 +161,12 @@ def test_unwritable_output_is_a_one_line_error(tmp_path, capsys):
     assert str(blocker / 'out') in _one_line_error(capsys)
 
 
+def test_terrain_name_must_be_a_file_name(tmp_path, capsys):
+    assert demo.main(['--terrain', '../up', '--output', str(tmp_path / 'o')]) == 2
+    assert "'../up'" in _one_line_error(capsys)
+    assert not (tmp_path / 'o').exists()
+
+
 def test_foreign_directory_is_left_alone(tmp_path, capsys):
     (tmp_path / 'thesis.tex').write_text('keep me\n')
     assert demo.main(['--output', str(tmp_path)] + SHORT) == 2

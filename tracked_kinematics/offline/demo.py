@@ -360,8 +360,11 @@ def run(args, out) -> int:
         spec = load_vehicle(args.vehicle, overrides)
     except (OSError, ValueError) as err:
         raise DemoError(str(err)) from None
+    terrain = str(spec.terrain)
+    if not terrain or Path(terrain).name != terrain or terrain.startswith('.'):
+        raise DemoError(f'the terrain name {terrain!r} must be a plain file name (it names '
+                        'the terrain YAML)')
     prepare_output(directory)
-    terrain = spec.terrain
     veh, enc = spec.robot.vehicle, spec.robot.encoders
     print(f'{PROG}: {spec.name} on {terrain} ({spec.path}), seed {args.seed}; '
           f'outputs in {directory}/', file=out)
@@ -445,6 +448,9 @@ def main(argv=None) -> int:
     except (DemoError, BagError, Rosbag2WriterError, OSError, ValueError, RuntimeError) as err:
         print(f'{PROG}: error: {" ".join(str(err).split())}', file=sys.stderr)
         return 2
+    except KeyboardInterrupt:
+        print(f'{PROG}: interrupted', file=sys.stderr)
+        return 130
 
 
 if __name__ == '__main__':
