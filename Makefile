@@ -1,5 +1,5 @@
 # The two commands of the README:
-#   make demo   set up .venv (first time) and run the demo on the built-in data
+#   make demo   set up .venv (first time), then simulate, identify_icr and compare odometry
 #   make test   set up .venv (first time) and run the whole test suite
 # .ci/run calls `make test`.
 

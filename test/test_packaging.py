@@ -71,10 +71,11 @@ def test_colcon_build_installs_ros2_run_layout(source_copy, tmp_path):
     # ament index, as it would on a robot.
     site = next(prefix.glob('lib/python3*/site-packages'))
     env = {**os.environ, 'PYTHONPATH': str(site), 'AMENT_PREFIX_PATH': str(prefix)}
-    run = subprocess.run([str(prefix / 'lib' / 'tracked_kinematics' / 'tracked_kinematics_demo')],
+    run = subprocess.run([str(prefix / 'lib' / 'tracked_kinematics' / 'tracked_kinematics_demo'),
+                          '--duration', '90', '--paths', '1', '--path-duration', '20'],
                          cwd=tmp_path, env=env, capture_output=True, text=True, timeout=120)
     assert run.returncode == 0, run.stderr
-    assert f'terrain file: {share}/config/' in run.stdout
+    assert f'({share}/config/vehicles/auriga_alpha.yaml)' in run.stdout
     # A shipped vehicle by name, found in the install space's share/.
     run = subprocess.run([str(prefix / 'lib' / 'tracked_kinematics' / 'icr_map'), 'packbot',
                           '--n', '3'], cwd=tmp_path, env=env, capture_output=True, text=True,
