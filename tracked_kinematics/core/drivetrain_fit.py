@@ -378,7 +378,8 @@ def fit_drivetrain(data: DriveData | Sequence[DriveData], loop: str = 'first_ord
     if dt is None:
         periods = [np.median(np.diff(np.unique(np.asarray(r.speed_t, float))))
                    for r in recordings if len(np.unique(np.asarray(r.speed_t, float))) > 1]
-        dt = float(np.clip(min(periods), 0.002, 0.02)) if periods else 0.01
+        # Rounded to the microsecond: stamps jitter, and the delay is a multiple of dt.
+        dt = round(float(np.clip(min(periods), 0.002, 0.02)), 6) if periods else 0.01
     if not (math.isfinite(dt) and dt > 0):
         raise ValueError(f'dt must be a finite number > 0 s, got {dt!r}')
     max_lag = int(math.ceil(max_delay / dt - 1e-9))
