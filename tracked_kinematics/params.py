@@ -233,6 +233,7 @@ def values_from_drivetrain(drive: DriveTrain) -> dict[str, Any]:
         values['drivetrain.loop'] = 'ideal'
     return values
 
+
 # IcrParams field -> ROS parameter name, to speak ROS in error messages.
 _FIELD_TO_PARAM = {
     'track_width': 'track_width', 'y_left': 'icr.y_left', 'y_right': 'icr.y_right',

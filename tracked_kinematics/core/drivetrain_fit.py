@@ -242,7 +242,7 @@ def resample(data: DriveData, dt: float, max_gap: float) -> list[Segment]:
 
 
 def _rate_steps(shaped: np.ndarray, step: float) -> np.ndarray:
-    """Samples where a rate limiter of ``step`` per sample is what shaped the demand."""
+    """Mark the samples where a rate limiter of ``step`` per sample shaped the demand."""
     return np.abs(np.diff(shaped, axis=0)) >= step * (1.0 - 1e-9)
 
 

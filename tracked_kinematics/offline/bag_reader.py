@@ -398,7 +398,6 @@ class _JointStates:
         return t, *(np.concatenate([[0.0], np.cumsum(travel_from_velocities(v, seconds, radius))])
                     for v in (vel_l, vel_r))
 
-
     def velocities(self):
         """Return times (ns) and nominal track speeds (m/s) from the joint velocities, or None."""
         if self._layout:

@@ -111,7 +111,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _base(args):
-    """Base terrain values, the sprocket radius and the base drive train (or None)."""
+    """Read the base terrain values, the sprocket radius and the base drive train (or None)."""
     base_values = read_params_file(args.params) if args.params else {}
     radius = args.sprocket_radius
     if radius is None:
@@ -141,7 +141,7 @@ def _encoders(args, radius) -> EncoderSource:
 
 
 def _yaml_values(base_values, result, radius, extras):
-    """Base values without old drive-train keys, the fitted model, and the fit's record."""
+    """Merge base values without old drive-train keys, the fitted model and the fit's record."""
     values = {k: v for k, v in base_values.items()
               if not k.startswith(('drivetrain.', 'drivetrain_fit.'))}
     values['sprocket_radius'] = radius

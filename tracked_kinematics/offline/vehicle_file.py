@@ -32,11 +32,12 @@ from typing import Any
 
 from tracked_kinematics.core.dynamics import Vehicle
 from tracked_kinematics.core.simulation import Encoders, Robot
-from tracked_kinematics.params import (check_values, DRIVETRAIN_PARAMS, drivetrain_from_values,
+from tracked_kinematics.params import (check_values, drivetrain_from_values, DRIVETRAIN_PARAMS,
                                        finite, non_negative, ParamSpec, positive,
                                        read_params_file)
 from tracked_kinematics.share import share_dir
 import yaml
+
 
 def _text(value) -> str | None:
     return None if isinstance(value, str) else f'must be a string, got {value!r}'
@@ -187,7 +188,8 @@ def robot_from_values(values: Mapping[str, Any]) -> Robot:
 _FIELD_NAMES = {
     'com_x': 'centre_of_mass.x', 'com_y': 'centre_of_mass.y', 'com_height': 'centre_of_mass.z',
     'mu_x': 'friction.mu_x', 'mu_y': 'friction.mu_y',
-    'ticks_per_revolution': 'encoders.ticks_per_revolution', 'sprocket_radius': 'encoders.sprocket_radius', 'scale_left': 'encoders.scale.left',
+    'ticks_per_revolution': 'encoders.ticks_per_revolution',
+    'sprocket_radius': 'encoders.sprocket_radius', 'scale_left': 'encoders.scale.left',
     'scale_right': 'encoders.scale.right',
 }
 
