@@ -167,8 +167,8 @@ def _print_table(result, recordings, out):
     for name, value in result.parameters.items():
         error = result.standard_errors.get(name, math.nan)
         shown = 'none' if math.isinf(value) else f'{value:.4f}'
-        err = '' if not math.isfinite(error) else f'{error:.4f}'
-        print(f'{name:<16}{shown:>12}{err:>14}  {_UNITS.get(name, "")}', file=out)
+        err = '' if not math.isfinite(error) else f'{error:.2g}'
+        print(f'{name:<16}{shown:>12}{err:>14}  {_UNITS.get(name, "")}'.rstrip(), file=out)
     if math.isinf(result.drivetrain.max_accel):
         print(f'acceleration limit: never binds (commands change at up to '
               f'{result.max_command_accel:.2f} m/s^2); written as 0 = none', file=out)
