@@ -32,6 +32,7 @@ setup(
             'cmd_vel_translator = tracked_kinematics.ros.cmd_vel_translator:main',
             'identify_icr = tracked_kinematics.offline.identify_cli:main',
             'simulate_bag = tracked_kinematics.offline.simulate:main',
+            'identify_drivetrain = tracked_kinematics.offline.identify_drivetrain_cli:main',
             'icr_map = tracked_kinematics.offline.icr_map:main',
             'icr_estimator = tracked_kinematics.ros.icr_estimator:main',
         ],

@@ -15,6 +15,10 @@ The terrain YAML (../shared/INTERFACE.md)::
         sprocket_radius: 0.1
         icr: {y_left: 0.353, y_right: -0.425, x: 0.032}
         scale: {left: 1.0072, right: 1.0275}
+        drivetrain: {loop: first_order, delay: 0.03, max_accel: 1.5, time_constant: 0.15}
+
+The ``drivetrain.*`` keys (:data:`DRIVETRAIN_PARAMS`, optional) describe the response of the
+tracks to their setpoints (Fink & Stump sec. III-B); vehicle files use the same keys.
 """
 
 from __future__ import annotations
@@ -27,6 +31,8 @@ import re
 import tempfile
 from typing import Any
 
+from tracked_kinematics.core.drivetrain import DriveTrain, FirstOrderLag, PidMotor
+from tracked_kinematics.core.drivetrain_fit import LOOP_KINDS
 from tracked_kinematics.core.kinematics import IcrParams
 import yaml
 
@@ -112,6 +118,121 @@ TERRAIN_PARAMS: tuple[ParamSpec, ...] = (
 )
 
 TERRAIN_DEFAULTS: dict[str, Any] = {spec.name: spec.default for spec in TERRAIN_PARAMS}
+
+
+def _loop_name(value) -> str | None:
+    """Check: one of the drive-train loop kinds."""
+    return None if value in LOOP_KINDS else (f'must be one of {", ".join(LOOP_KINDS)}, got '
+                                             f'{value!r}')
+
+
+DRIVETRAIN_PARAMS: tuple[ParamSpec, ...] = (
+    ParamSpec('drivetrain.loop', 'first_order',
+              'Speed loop: ideal, first_order (time_constant) or pid_dc_motor (pid, motor)', '',
+              _loop_name),
+    ParamSpec('drivetrain.delay', 0.0, 'Command delay', 's', non_negative),
+    ParamSpec('drivetrain.max_accel', 0.0, 'Acceleration limit of the input shaping; 0 = none',
+              'm/s^2', non_negative),
+    ParamSpec('drivetrain.time_constant', 0.1, 'Time constant of the first-order loop', 's',
+              positive),
+    ParamSpec('drivetrain.pid.kp', 56.49, 'Proportional gain K_p (Fink & Stump eq. 6)', '',
+              non_negative),
+    ParamSpec('drivetrain.pid.ki', 1.11, 'Integral gain K_i', '', non_negative),
+    ParamSpec('drivetrain.pid.kd', 2.77, 'Derivative gain K_d', '', non_negative),
+    ParamSpec('drivetrain.motor.inertia', 0.059, 'Rotor inertia J (Fink & Stump eq. 7)',
+              'kg m^2', positive),
+    ParamSpec('drivetrain.motor.damping', 0.456, 'Viscous friction b', 'N m s', non_negative),
+    ParamSpec('drivetrain.motor.resistance', 0.254, 'Armature resistance R', 'Ohm', positive),
+    ParamSpec('drivetrain.motor.inductance', 0.253, 'Armature inductance L', 'H', positive),
+    ParamSpec('drivetrain.motor.constant', 0.0294, 'Torque / back-EMF constant K', 'N m/A',
+              positive),
+)
+
+DRIVETRAIN_DEFAULTS: dict[str, Any] = {spec.name: spec.default for spec in DRIVETRAIN_PARAMS}
+
+_DRIVE_FIELDS = {'time_constant': 'drivetrain.time_constant', 'delay': 'drivetrain.delay',
+                 'max_accel': 'drivetrain.max_accel', 'kp': 'drivetrain.pid.kp',
+                 'ki': 'drivetrain.pid.ki', 'kd': 'drivetrain.pid.kd',
+                 'inertia': 'drivetrain.motor.inertia', 'damping': 'drivetrain.motor.damping',
+                 'resistance': 'drivetrain.motor.resistance',
+                 'inductance': 'drivetrain.motor.inductance',
+                 'motor_constant': 'drivetrain.motor.constant'}
+_DRIVE_RE = re.compile(r'^(' + '|'.join(_DRIVE_FIELDS) + r')\b')
+
+
+def drivetrain_from_values(values: Mapping[str, Any], max_speed: float = math.inf) -> DriveTrain:
+    """
+    Build and validate the drive-train model from ``drivetrain.*`` parameter values.
+
+    Parameters
+    ----------
+    values : mapping
+        Dotted parameter names to values; missing ``drivetrain.*`` ones take their defaults,
+        other names are ignored.
+    max_speed : float
+        Speed limit of the commands, m/s (a vehicle's ``max_track_speed``).
+
+    Returns
+    -------
+    DriveTrain
+
+    Raises
+    ------
+    ValueError
+        With every problem found, in ROS parameter names (also an unstable PID loop).
+
+    """
+    v = {**DRIVETRAIN_DEFAULTS,
+         **{k: val for k, val in values.items() if k in DRIVETRAIN_DEFAULTS}}
+    problems = check_values(DRIVETRAIN_PARAMS, v)
+    if problems:
+        raise ValueError('; '.join(problems))
+    try:
+        loop = None
+        if v['drivetrain.loop'] == 'first_order':
+            loop = FirstOrderLag(v['drivetrain.time_constant'])
+        elif v['drivetrain.loop'] == 'pid_dc_motor':
+            loop = PidMotor(
+                kp=v['drivetrain.pid.kp'], ki=v['drivetrain.pid.ki'], kd=v['drivetrain.pid.kd'],
+                inertia=v['drivetrain.motor.inertia'], damping=v['drivetrain.motor.damping'],
+                resistance=v['drivetrain.motor.resistance'],
+                inductance=v['drivetrain.motor.inductance'],
+                motor_constant=v['drivetrain.motor.constant'])
+        accel = v['drivetrain.max_accel']
+        return DriveTrain(delay=v['drivetrain.delay'],
+                          max_accel=accel if accel > 0 else math.inf, max_speed=max_speed,
+                          loop=loop)
+    except ValueError as err:
+        message = _DRIVE_RE.sub(lambda m: _DRIVE_FIELDS[m.group(1)], str(err))
+        if 'unstable' in message or 'at least one of' in message:
+            message = f'drivetrain.pid: {message}'
+        raise ValueError(message) from None
+
+
+def values_from_drivetrain(drive: DriveTrain) -> dict[str, Any]:
+    """
+    Return the ``drivetrain.*`` parameter values of a drive-train model.
+
+    The inverse of :func:`drivetrain_from_values` (the speed limit is a vehicle parameter and
+    is not written); no acceleration limit is written as 0.
+    """
+    values: dict[str, Any] = {
+        'drivetrain.delay': float(drive.delay),
+        'drivetrain.max_accel': float(drive.max_accel) if math.isfinite(drive.max_accel)
+        else 0.0}
+    loop = drive.loop
+    if isinstance(loop, FirstOrderLag):
+        values['drivetrain.loop'] = 'first_order'
+        values['drivetrain.time_constant'] = float(loop.time_constant)
+    elif isinstance(loop, PidMotor):
+        values['drivetrain.loop'] = 'pid_dc_motor'
+        values.update({_DRIVE_FIELDS[name]: float(getattr(loop, name)) for name in (
+            'kp', 'ki', 'kd', 'inertia', 'damping', 'resistance', 'inductance',
+            'motor_constant')})
+    else:
+        values['drivetrain.loop'] = 'ideal'
+    return values
+
 
 # IcrParams field -> ROS parameter name, to speak ROS in error messages.
 _FIELD_TO_PARAM = {

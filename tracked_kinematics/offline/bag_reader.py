@@ -29,6 +29,7 @@ import struct
 
 import numpy as np
 from rosbags.highlevel import AnyReader
+from tracked_kinematics.core.drivetrain_fit import DriveData
 from tracked_kinematics.core.encoders import (
     counter_increments, travel_from_ticks, travel_from_velocities)
 from tracked_kinematics.core.identification import Recording
@@ -397,6 +398,20 @@ class _JointStates:
         return t, *(np.concatenate([[0.0], np.cumsum(travel_from_velocities(v, seconds, radius))])
                     for v in (vel_l, vel_r))
 
+    def velocities(self):
+        """Return times (ns) and nominal track speeds (m/s) from the joint velocities, or None."""
+        if self._layout:
+            self.flush()
+        data = _sort_unique(self.columns.array)
+        if len(data) == 0:
+            self.travel()   # raises the missing-joint error
+        t, _, _, vel_l, vel_r = data.T
+        ok = np.isfinite(vel_l) & np.isfinite(vel_r)
+        if np.count_nonzero(ok) < 2 or np.count_nonzero(ok) < 0.5 * len(t):
+            return None
+        radius = self.source.sprocket_radius
+        return t[ok], vel_l[ok] * radius, vel_r[ok] * radius
+
 
 class _SideStream:
     """Per-side Float64 speeds or Int32/Int64 tick counters -> cumulative travel."""
@@ -569,3 +584,103 @@ def read_bags(paths, encoders: EncoderSource, ground_truth: GroundTruthSource,
               progress: bool = False) -> list[Recording]:
     """Read several bags, one :class:`Recording` each (see :func:`read_bag`)."""
     return [read_bag(p, encoders, ground_truth, progress) for p in paths]
+
+
+SETPOINT_TOPICS = ('/left_track/setpoint', '/right_track/setpoint')
+
+
+def read_drive_bag(path, encoders: EncoderSource, setpoint_topics=SETPOINT_TOPICS,
+                   progress: bool = False) -> DriveData:
+    """
+    Read the commanded and measured track speeds of one bag, to identify its drive train.
+
+    Commands: std_msgs/Float64 setpoints per side (m/s of nominal track speed, as
+    cmd_vel_translator publishes them), timed by the bag's receive time. Measured speeds:
+    the joint velocities times the sprocket radius when the JointStates carry them, else
+    the encoder travel differentiated between samples (stamped at the midpoints).
+
+    Parameters
+    ----------
+    path : path-like
+        rosbag2 directory or ROS 1 ``.bag`` file.
+    encoders : EncoderSource
+        Where the track encoders are.
+    setpoint_topics : pair of str
+        Left and right setpoint topics.
+    progress : bool
+        Show a progress bar on stderr.
+
+    Returns
+    -------
+    DriveData
+        Times in seconds from the bag's start.
+
+    Raises
+    ------
+    BagError
+        For a missing or unreadable bag, a missing topic or joint, or too few messages.
+
+    """
+    path = Path(path)
+    try:
+        reader = _open(path)
+        with reader:
+            return _read_drive(reader, path, encoders, tuple(setpoint_topics), progress)
+    except BagError:
+        raise
+    except Exception as err:  # noqa: BLE001 -- rosbags and sqlite raise many kinds
+        detail = ' '.join(str(err).split()) or type(err).__name__
+        raise BagError(f'cannot read bag {path}: {detail} (truncated or corrupt?)') from None
+
+
+def _read_drive(reader, path, encoders, setpoint_topics, progress) -> DriveData:
+    ref_ns = reader.start_time
+    if encoders.mode == 'joint_states':
+        enc = _JointStates(encoders, path, ref_ns, reader.is2)
+        enc_conns = _connections(reader, path, encoders.topic, ('sensor_msgs/msg/JointState',),
+                                 'encoders')
+    else:
+        enc = _SideStream(encoders, path, ref_ns)
+        allowed = (('std_msgs/msg/Float64',) if encoders.mode == 'track_speeds'
+                   else tuple(_TICK_BITS))
+        enc_conns = [c for topic in encoders.topics()
+                     for c in _connections(reader, path, topic, allowed, 'encoders')]
+    sp_conns = [c for topic in setpoint_topics
+                for c in _connections(reader, path, topic, ('std_msgs/msg/Float64',),
+                                      'setpoints')]
+    sides = {topic: _Columns(2) for topic in setpoint_topics}
+    sp_ids = {id(c) for c in sp_conns}
+    conns = enc_conns + [c for c in sp_conns if c not in enc_conns]
+    bar = _Progress(sum(c.msgcount for c in conns), path.name, progress)
+    try:
+        for conn, receive_ns, raw in reader.messages(connections=conns):
+            if id(conn) in sp_ids:
+                msg = reader.deserialize(raw, conn.msgtype)
+                sides[conn.topic].append((float(receive_ns - ref_ns), float(msg.data)))
+            elif encoders.mode == 'joint_states':
+                enc.add_raw(raw, receive_ns,
+                            lambda data, t=conn.msgtype: reader.deserialize(data, t))
+            else:
+                enc.add(conn.topic, conn.msgtype, reader.deserialize(raw, conn.msgtype),
+                        receive_ns)
+            bar.step()
+    finally:
+        bar.close()
+    speeds = enc.velocities() if encoders.mode == 'joint_states' else None
+    if speeds is None:
+        t, left, right = enc.travel()
+        dt = np.diff(t) * 1e-9
+        if not np.all(dt > 0) or len(t) < 2:
+            raise BagError(f'{path}: fewer than two encoder samples')
+        speeds = (0.5 * (t[1:] + t[:-1]), np.diff(left) / dt, np.diff(right) / dt)
+    speed_t, v_left, v_right = speeds
+    # Setpoints of both sides on the union of their stamps, each held until its next one.
+    data = [_sort_unique(sides[topic].array) for topic in setpoint_topics]
+    for topic, side in zip(setpoint_topics, data):
+        if len(side) < 2:
+            raise BagError(f'{path}: fewer than two messages on {topic}')
+    command_t = np.union1d(data[0][:, 0], data[1][:, 0])
+    command_t = command_t[command_t >= max(data[0][0, 0], data[1][0, 0])]
+    held = [side[np.searchsorted(side[:, 0], command_t, side='right') - 1, 1] for side in data]
+    return DriveData(command_t * 1e-9, np.column_stack(held), np.asarray(speed_t) * 1e-9,
+                     np.column_stack([v_left, v_right]), name=str(path))

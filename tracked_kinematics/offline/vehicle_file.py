@@ -26,24 +26,17 @@ from __future__ import annotations
 import argparse
 from collections.abc import Mapping
 from dataclasses import dataclass
-import math
 import os
 from pathlib import Path
 from typing import Any
 
-from tracked_kinematics.core.drivetrain import DriveTrain, FirstOrderLag, PidMotor
 from tracked_kinematics.core.dynamics import Vehicle
 from tracked_kinematics.core.simulation import Encoders, Robot
-from tracked_kinematics.params import (check_values, finite, non_negative, ParamSpec, positive,
+from tracked_kinematics.params import (check_values, drivetrain_from_values, DRIVETRAIN_PARAMS,
+                                       finite, non_negative, ParamSpec, positive,
                                        read_params_file)
 from tracked_kinematics.share import share_dir
 import yaml
-
-LOOPS = ('ideal', 'first_order', 'pid_dc_motor')
-
-
-def _loop_name(value) -> str | None:
-    return None if value in LOOPS else f'must be one of {", ".join(LOOPS)}, got {value!r}'
 
 
 def _text(value) -> str | None:
@@ -71,25 +64,7 @@ VEHICLE_PARAMS: tuple[ParamSpec, ...] = (
               positive),
     ParamSpec('friction.mu_y', 0.75, 'Coulomb friction coefficient across the tracks', '',
               positive),
-    ParamSpec('drivetrain.loop', 'first_order',
-              'Speed loop: ideal, first_order (time_constant) or pid_dc_motor (pid, motor)', '',
-              _loop_name),
-    ParamSpec('drivetrain.delay', 0.0, 'Command delay', 's', non_negative),
-    ParamSpec('drivetrain.max_accel', 0.0, 'Acceleration limit of the input shaping; 0 = none',
-              'm/s^2', non_negative),
-    ParamSpec('drivetrain.time_constant', 0.1, 'Time constant of the first-order loop', 's',
-              positive),
-    ParamSpec('drivetrain.pid.kp', 56.49, 'Proportional gain K_p (Fink & Stump eq. 6)', '',
-              non_negative),
-    ParamSpec('drivetrain.pid.ki', 1.11, 'Integral gain K_i', '', non_negative),
-    ParamSpec('drivetrain.pid.kd', 2.77, 'Derivative gain K_d', '', non_negative),
-    ParamSpec('drivetrain.motor.inertia', 0.059, 'Rotor inertia J (Fink & Stump eq. 7)',
-              'kg m^2', positive),
-    ParamSpec('drivetrain.motor.damping', 0.456, 'Viscous friction b', 'N m s', non_negative),
-    ParamSpec('drivetrain.motor.resistance', 0.254, 'Armature resistance R', 'Ohm', positive),
-    ParamSpec('drivetrain.motor.inductance', 0.253, 'Armature inductance L', 'H', positive),
-    ParamSpec('drivetrain.motor.constant', 0.0294, 'Torque / back-EMF constant K', 'N m/A',
-              positive),
+    *DRIVETRAIN_PARAMS,
     ParamSpec('encoders.sprocket_radius', 0.1,
               'Nominal sprocket radius: joint angle x radius = nominal track travel', 'm',
               positive),
@@ -198,20 +173,7 @@ def robot_from_values(values: Mapping[str, Any]) -> Robot:
             com_y=v['centre_of_mass.y'], com_height=v['centre_of_mass.z'],
             mu_x=v['friction.mu_x'], mu_y=v['friction.mu_y'],
             max_track_speed=v['max_track_speed'], name=v['name'])
-        loop = None
-        if v['drivetrain.loop'] == 'first_order':
-            loop = FirstOrderLag(v['drivetrain.time_constant'])
-        elif v['drivetrain.loop'] == 'pid_dc_motor':
-            loop = PidMotor(
-                kp=v['drivetrain.pid.kp'], ki=v['drivetrain.pid.ki'], kd=v['drivetrain.pid.kd'],
-                inertia=v['drivetrain.motor.inertia'], damping=v['drivetrain.motor.damping'],
-                resistance=v['drivetrain.motor.resistance'],
-                inductance=v['drivetrain.motor.inductance'],
-                motor_constant=v['drivetrain.motor.constant'])
-        accel = v['drivetrain.max_accel']
-        drivetrain = DriveTrain(delay=v['drivetrain.delay'],
-                                max_accel=accel if accel > 0 else math.inf,
-                                max_speed=v['max_track_speed'], loop=loop)
+        drivetrain = drivetrain_from_values(v, max_speed=v['max_track_speed'])
         encoders = Encoders(
             sprocket_radius=v['encoders.sprocket_radius'],
             ticks_per_revolution=v['encoders.ticks_per_revolution'],
@@ -225,8 +187,8 @@ def robot_from_values(values: Mapping[str, Any]) -> Robot:
 
 _FIELD_NAMES = {
     'com_x': 'centre_of_mass.x', 'com_y': 'centre_of_mass.y', 'com_height': 'centre_of_mass.z',
-    'mu_x': 'friction.mu_x', 'mu_y': 'friction.mu_y', 'time_constant': 'drivetrain.time_constant',
-    'delay': 'drivetrain.delay', 'ticks_per_revolution': 'encoders.ticks_per_revolution',
+    'mu_x': 'friction.mu_x', 'mu_y': 'friction.mu_y',
+    'ticks_per_revolution': 'encoders.ticks_per_revolution',
     'sprocket_radius': 'encoders.sprocket_radius', 'scale_left': 'encoders.scale.left',
     'scale_right': 'encoders.scale.right',
 }
