@@ -7,9 +7,9 @@ acceleration limit and the speed loop of Fink & Stump sec. III-B, and writes the
 ``drivetrain.*`` parameters of a terrain file, so that a motion prediction can start from
 the commands instead of the measured speeds.
 
-Exit status: 0 success; 2 bad input (missing bag, topic or joint; unreadable bag; invalid
-option; too little data or commands that hardly change); 4 the fit failed (best delay at the
-search bound, no convergence).
+Exit status, as identify_icr: 0 success; 2 bad input (missing bag, topic or joint;
+unreadable bag; invalid option); 3 too little data, or commands that hardly change; 4 the fit
+failed (best delay at the search bound, no convergence).
 """
 
 from __future__ import annotations
@@ -32,7 +32,7 @@ from tracked_kinematics.params import (
     write_params_file)
 
 PROG = 'identify_drivetrain'
-EXIT_INPUT, EXIT_FIT = 2, 4
+EXIT_INPUT, EXIT_EXCITATION, EXIT_FIT = 2, 3, 4
 _SIDE_TOPICS = {'track_speeds': ('/left_track/speed', '/right_track/speed'),
                 'encoder_ticks': ('/left_track/ticks', '/right_track/ticks')}
 _UNITS = {'delay': 's', 'max_accel': 'm/s^2', 'time_constant': 's', 'kp': '', 'ki': '',
@@ -269,8 +269,10 @@ def main(argv=None) -> int:
 
     try:
         return _run(args, sys.stdout)
-    except (BagError, UsageError, ExcitationError) as err:
+    except (BagError, UsageError) as err:
         return fail(EXIT_INPUT, err)
+    except ExcitationError as err:
+        return fail(EXIT_EXCITATION, err)
     except IdentificationError as err:
         return fail(EXIT_FIT, err)
     except (OSError, ValueError) as err:

@@ -35,13 +35,13 @@ from rclpy.qos import qos_profile_sensor_data
 from sensor_msgs.msg import Imu
 from std_msgs.msg import Float64MultiArray, MultiArrayDimension
 from std_srvs.srv import Trigger
-from tracked_kinematics.core.drivetrain import DriveTrain, FirstOrderLag
 from tracked_kinematics.core.estimator import EstimatorConfig, SlipEstimator
 from tracked_kinematics.core.models import AdaptiveIcr, ConstantIcr
 from tracked_kinematics.core.prediction import (
     commands_from_twist, hold_speeds, predict_from_commands, predict_path)
 from tracked_kinematics.params import (
-    icr_from_values, non_negative, ParamSpec, positive, TERRAIN_PARAMS)
+    DRIVETRAIN_PARAMS, drivetrain_from_values, icr_from_values, non_negative, ParamSpec,
+    positive, TERRAIN_PARAMS)
 from tracked_kinematics.ros.encoder_input import (
     check_encoder_values, ENCODER_INPUT_PARAMS, EncoderInput, WARN_PERIOD)
 from tracked_kinematics.ros.main import run
@@ -117,12 +117,6 @@ ESTIMATOR_PARAMS: tuple[ParamSpec, ...] = (
               'Future track speeds: speeds (hold the current ones) or cmd_vel (the latest '
               'command through the inverse kinematics and the drive-train model)',
               check=_one_of(SOURCES), read_only=True),
-    ParamSpec('drivetrain.delay', 0.0, 'Command delay of the drive train', 's', non_negative),
-    ParamSpec('drivetrain.max_accel', 0.0,
-              'Acceleration limit of the drive train; 0 = none', 'm/s^2', non_negative),
-    ParamSpec('drivetrain.time_constant', 0.0,
-              'Time constant of the speed loop (first-order lag); 0 = none', 's',
-              non_negative),
     ParamSpec('push_to', [],
               'Nodes whose icr.* parameters are set to the estimate (e.g. odometry_node, '
               'cmd_vel_translator)', check=_names),
@@ -131,7 +125,7 @@ ESTIMATOR_PARAMS: tuple[ParamSpec, ...] = (
               'Push only when an ICR coordinate moved by more than this', 'm', non_negative),
 )
 
-PARAMS = TERRAIN_PARAMS + ENCODER_INPUT_PARAMS + ESTIMATOR_PARAMS
+PARAMS = TERRAIN_PARAMS + DRIVETRAIN_PARAMS + ENCODER_INPUT_PARAMS + ESTIMATOR_PARAMS
 
 
 def validate(values: Mapping[str, Any]) -> None:
@@ -145,6 +139,7 @@ def validate(values: Mapping[str, Any]) -> None:
 
     """
     icr_from_values(values)
+    drivetrain_from_values(values)
     check_encoder_values(values)
     _config(values)
     if values['max_outliers'] != int(values['max_outliers']):
@@ -159,13 +154,6 @@ def _config(values: Mapping[str, Any]) -> EstimatorConfig:
         min_window=values['min_window'], max_window=values['max_window'],
         gate_probability=values['gate_probability'],
         max_outliers=int(values['max_outliers']))
-
-
-def _drivetrain(values: Mapping[str, Any]) -> DriveTrain:
-    accel = values['drivetrain.max_accel']
-    lag = values['drivetrain.time_constant']
-    return DriveTrain(delay=values['drivetrain.delay'], max_accel=accel or math.inf,
-                      loop=FirstOrderLag(lag) if lag > 0.0 else None)
 
 
 def _yaw(q) -> float:
@@ -218,7 +206,7 @@ class IcrEstimatorNode(Node):
         self._pushed = None
         self._push_clients = {}
         self._last_push_ns = None
-        self._drivetrain = _drivetrain(values)
+        self._drivetrain = drivetrain_from_values(values)
         self._apply(values)
         self.encoder = EncoderInput(self, values, self._on_step)
         pose_type = POSE_TYPES[values['pose_type']]
@@ -245,7 +233,7 @@ class IcrEstimatorNode(Node):
     def _apply(self, values: Mapping[str, Any]) -> None:
         """Take (new) parameter values into use."""
         self.estimator.configure(_config(values))
-        self._drivetrain = _drivetrain(values)
+        self._drivetrain = drivetrain_from_values(values)
         icr = icr_from_values(values)
         self._scales = (icr.scale_left, icr.scale_right)
         if getattr(self, 'encoder', None) is not None:
