@@ -40,7 +40,7 @@ from tracked_kinematics.core.models import AdaptiveIcr, ConstantIcr
 from tracked_kinematics.core.prediction import (
     commands_from_twist, hold_speeds, predict_from_commands, predict_path)
 from tracked_kinematics.params import (
-    DRIVETRAIN_PARAMS, drivetrain_from_values, icr_from_values, non_negative, ParamSpec,
+    drivetrain_from_values, DRIVETRAIN_PARAMS, icr_from_values, non_negative, ParamSpec,
     positive, TERRAIN_PARAMS)
 from tracked_kinematics.ros.encoder_input import (
     check_encoder_values, ENCODER_INPUT_PARAMS, EncoderInput, WARN_PERIOD)
