@@ -33,6 +33,7 @@ setup(
             'identify_icr = tracked_kinematics.offline.identify_cli:main',
             'simulate_bag = tracked_kinematics.offline.simulate:main',
             'icr_map = tracked_kinematics.offline.icr_map:main',
+            'plan_trajectory = tracked_kinematics.offline.plan_cli:main',
         ],
     },
 )

@@ -160,7 +160,7 @@ class Reference:
 
     @property
     def goal(self) -> np.ndarray:
-        """Final pose of the desired path."""
+        """Return the final pose of the desired path."""
         return self.path[-1].copy()
 
     def tracks(self, track_width: float) -> np.ndarray:
@@ -325,6 +325,20 @@ def path_deviation(path, ref_path) -> np.ndarray:
     return np.sqrt(np.maximum(d2.min(axis=1), 0.0))
 
 
+def _within(z, matrix, bound):
+    """
+    Scale knots into the limits ``matrix z <= bound``, which COBYLA meets only to ``catol``.
+
+    Every limit is symmetric about rest (``bound > 0``), so shrinking toward rest keeps all
+    of them; the returned knots never exceed any limit.
+    """
+    load = matrix @ z
+    over = load > bound
+    if not np.any(over):
+        return z
+    return z * float(np.min(bound[over] / load[over]))
+
+
 def reach(speed: float, accel: float, horizon: float) -> float:
     """Longest travel of a track that starts and ends at rest within ``horizon``, m."""
     if math.isinf(accel):
@@ -380,6 +394,7 @@ class Planner:
         if not (math.isfinite(settle) and settle >= 0.0):
             raise ValueError(f'settle must be a finite number >= 0 s, got {settle!r}')
         self.dt, self.knot_spacing = float(dt), float(knot_spacing)
+        self.smoothing = 1e-4
         self.settle_steps = int(round(settle / dt))
         self.max_speed = min(self.limits.max_track_speed, drivetrain.max_speed)
         self.max_accel = min(self.limits.max_track_accel, drivetrain.max_accel)
@@ -424,7 +439,7 @@ class Planner:
         n = int(round(horizon / self.dt))
         m = max(2, int(math.ceil(horizon / self.knot_spacing - 1e-9)))
         t = np.arange(n) * self.dt
-        knot_t = np.linspace(0.0, n * self.dt, m + 1)
+        knot_t = np.linspace(0.0, (n - 1) * self.dt, m + 1)   # the last command is a knot
         eye = np.eye(m + 1)
         interp = np.stack([np.interp(t, knot_t, eye[j]) for j in range(m + 1)], axis=1)
         return n, m, interp[:, 1:m], knot_t[1] - knot_t[0]
@@ -470,7 +485,7 @@ class Planner:
         res = optimize.minimize(cost, z0, method='COBYLA', constraints=[cons, *extra],
                                 options={'rhobeg': 0.1, 'tol': 1e-4, 'maxiter': maxiter,
                                          'catol': 1e-9})
-        return res
+        return _within(res.x, matrix, bound)
 
     def _commands(self, z, interp, free):
         knots = z.reshape(2, free).T * self.max_speed
@@ -532,6 +547,17 @@ class Planner:
         track_reach = reach(self.max_speed, self.max_accel, n * self.dt)
         max_distance = track_reach * float(np.max(np.abs(v_fwd)))
         max_turn = track_reach * float(np.max(np.abs(w_spin)))
+        # Twist limits act on the translator's model; carry them over to the planning model
+        # by the ratio of the two models' speed per track speed.
+        lim, icr = self.limits, self.command_icr
+        cmd_v, _, _ = forward(icr.scale_left, icr.scale_right, icr)
+        _, _, cmd_w = forward(-icr.scale_left, icr.scale_right, icr)
+        max_distance = min(max_distance, reach(
+            lim.max_linear_velocity, lim.max_linear_acceleration, n * self.dt)
+            * float(np.max(np.abs(v_fwd))) / abs(float(cmd_v)))
+        max_turn = min(max_turn, reach(
+            lim.max_angular_velocity, lim.max_angular_acceleration, n * self.dt)
+            * float(np.max(np.abs(w_spin))) / abs(float(cmd_w)))
         empty = np.zeros((n, 2))
         if distance > max_distance + tol_pos or abs(dth) > max_turn + tol_yaw:
             what = (f'{distance:.2f} m away, at most {max_distance:.2f} m'
@@ -544,7 +570,7 @@ class Planner:
             return self._failed(empty, goal, start, msg, started)
         z0 = self._guess(dx, dy, dth, n, m, free)
         matrix, bound = self._constraints(m, h)
-        mu = 1e-4
+        mu = self.smoothing
         count = [0]
 
         def cost(z):
@@ -556,8 +582,8 @@ class Planner:
                                     axis=0) ** 2)
             return float(ex * ex + ey * ey + (heading_weight * eth) ** 2 + mu * smooth)
 
-        res = self._optimise(cost, z0, matrix, bound, maxiter)
-        return self._finish(res.x, interp, free, goal, start, tol_pos, tol_yaw, count[0],
+        z = self._optimise(cost, z0, matrix, bound, maxiter)
+        return self._finish(z, interp, free, goal, start, tol_pos, tol_yaw, count[0],
                             started, None)
 
     def follow(self, ref: Reference, start=(0.0, 0.0, 0.0), tolerance=(0.05, 0.05),
@@ -604,7 +630,7 @@ class Planner:
         free = m - 1
         # Initial guess: the ideal-drive inputs, sampled at the knots, scaled into the limits.
         ideal = ref.tracks(self.model.track_width)
-        knot_t = np.linspace(0.0, n * self.dt, m + 1)[1:m]
+        knot_t = np.linspace(0.0, (n - 1) * self.dt, m + 1)[1:m]
         t_ref = (np.arange(len(ideal)) + 0.5) * ref.dt
         z0 = np.concatenate([np.interp(knot_t, t_ref, ideal[:, k]) for k in (0, 1)])
         z0 /= self.max_speed
@@ -631,15 +657,15 @@ class Planner:
         # The final-pose condition of eq. (10), as inequalities within half the tolerance.
         goal_cons = {'type': 'ineq', 'fun': lambda z: np.array(
             [0.5 * tol_pos - predicted(z)[1], 0.5 * tol_yaw - predicted(z)[2]])}
-        res = self._optimise(cost, z0, matrix, bound, maxiter, extra=[goal_cons])
-        return self._finish(res.x, interp, free, goal, start, tol_pos, tol_yaw, count[0],
+        z = self._optimise(cost, z0, matrix, bound, maxiter, extra=[goal_cons])
+        return self._finish(z, interp, free, goal, start, tol_pos, tol_yaw, count[0],
                             started, ref_path)
 
     # Helpers ------------------------------------------------------------------------------
 
     def _guess(self, dx, dy, dth, n, m, free):
         """Start of the search: one arc through the goal position, or a spin in place."""
-        horizon = n * self.dt
+        horizon = (n - 1) * self.dt
         knot_t = np.linspace(0.0, horizon, m + 1)[1:m]
         ramp = max(self.max_speed / self.max_accel if math.isfinite(self.max_accel) else 0.0,
                    self.knot_spacing)
@@ -709,4 +735,3 @@ class Planner:
             raise ValueError(f'horizon must be a finite number >= {2 * self.knot_spacing:g} s '
                              f'(two knots), got {horizon!r}')
         return horizon
-
