@@ -35,6 +35,7 @@ setup(
             'identify_drivetrain = tracked_kinematics.offline.identify_drivetrain_cli:main',
             'icr_map = tracked_kinematics.offline.icr_map:main',
             'icr_estimator = tracked_kinematics.ros.icr_estimator:main',
+            'plan_trajectory = tracked_kinematics.offline.plan_cli:main',
         ],
     },
 )

@@ -27,6 +27,7 @@ and :meth:`DriveTrain.transfer_function` exposes the linear part.
 from __future__ import annotations
 
 from dataclasses import dataclass
+import functools
 import math
 
 import numpy as np
@@ -203,8 +204,7 @@ class DriveTrain:
 
         """
         num, den = self.transfer_function()
-        numd, dend, _ = signal.cont2discrete((num, den), dt, method='foh')
-        return np.atleast_1d(np.squeeze(numd)), np.atleast_1d(dend)
+        return _foh(tuple(num), tuple(den), float(dt))
 
     def shape(self, commands, dt: float, initial=0.0) -> np.ndarray:
         """
@@ -293,6 +293,21 @@ class DriveTrain:
         shaped = self.shape(commands, dt, initial)
         start = np.clip(initial, -self.max_speed, self.max_speed)
         return self.respond(shaped, dt, start)
+
+
+@functools.lru_cache(maxsize=64)
+def _foh(num: tuple, den: tuple, dt: float):
+    """
+    Discretise by first-order hold, cached.
+
+    A planner simulates one drive train thousands of times, and the matrix exponential
+    costs more than the simulation itself.
+    """
+    numd, dend, _ = signal.cont2discrete((np.array(num), np.array(den)), dt, method='foh')
+    numd, dend = np.atleast_1d(np.squeeze(numd)), np.atleast_1d(dend)
+    numd.flags.writeable = False
+    dend.flags.writeable = False
+    return numd, dend
 
 
 def _rate_limit(targets: list, value: float, step: float) -> list:
