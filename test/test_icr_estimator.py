@@ -250,3 +250,27 @@ def test_pose_stamped_type_is_accepted(ros_context, executor, capfd, scenario):
     assert g.node.counts['updated'] > 10
     g.wait_outputs()
     assert g.paths[-1].header.frame_id == 'odom_gps'
+
+
+def test_runtime_parameters_and_reset(ros_context, executor, capfd, scenario):
+    from rclpy.parameter import Parameter as P
+    from std_srvs.srv import Trigger
+    g = Graph(ros_context, executor, capfd)
+    g.feed(scenario, until=4.0)
+    assert g.node.estimator.updates > 10
+    before = g.node.estimator.p.copy()
+    result = g.node.set_parameters_atomically([P('icr.y_left', value=1.5),
+                                               P('icr.y_right', value=-1.5),
+                                               P('publish_rate', value=5.0)])
+    assert result.successful
+    np.testing.assert_array_equal(g.node.estimator.p, before)  # the estimate is kept
+    assert g.node._timer.timer_period_ns == 200_000_000
+    assert not g.node.set_parameters([P('window', value=100.0)])[0].successful
+    client = g.encoders.node.create_client(Trigger, '/icr_estimator/reset')
+    assert client.wait_for_service(timeout_sec=5.0)
+    future = client.call_async(Trigger.Request())
+    assert spin_until(executor, future.done)
+    assert future.result().success
+    np.testing.assert_allclose(g.node.estimator.p, [1.5, -1.5, 0.0])
+    assert g.node.set_parameters([P('track_width', value=2.0)])[0].successful
+    assert g.node.estimator.model.track_width == 2.0

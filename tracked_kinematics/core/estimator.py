@@ -288,6 +288,13 @@ class SlipEstimator:
         self.config = config
         self._log.span = config.max_window + 1.0
 
+    def set_initial(self, p0) -> None:
+        """Set the parameters :meth:`reset` returns to (the estimate itself is kept)."""
+        p0 = np.asarray(p0, dtype=float)
+        if p0.shape != self._p0.shape or not np.all(np.isfinite(p0)):
+            raise ValueError(f'p0 must be {len(self._p0)} finite numbers, got {p0!r}')
+        self._p0 = p0.copy()
+
     def reset(self, p0=None) -> None:
         """Forget the anchor and restart from ``p0`` (default: the initial parameters)."""
         self.p = (self._p0 if p0 is None else np.asarray(p0, float)).copy()

@@ -189,24 +189,16 @@ class IcrEstimatorNode(Node):
         super().__init__(NODE_NAME, **kwargs)
         self.params = ParameterTable(self, PARAMS, validate=validate, on_change=self._apply)
         values = self.params.values
-        icr = icr_from_values(values)
-        self._scales = (icr.scale_left, icr.scale_right)
-        if values['model'] == 'icr':
-            model = ConstantIcr(icr.track_width, with_scales=False)
-            p0 = model.from_icr(icr)
-        else:
-            model = AdaptiveIcr(icr.track_width)
-            p0 = None
-        self.estimator = SlipEstimator(model, p0, _config(values))
+        self.encoder = None
+        self._timer = None
+        self.estimator = self._build_estimator(values)
         self.counts: Counter = Counter()
         self._logged: dict[str, int] = {}
         self._frame = ''
-        self._last_pose_t = None
         self._command = None
         self._pushed = None
         self._push_clients = {}
         self._last_push_ns = None
-        self._drivetrain = drivetrain_from_values(values)
         self._apply(values)
         self.encoder = EncoderInput(self, values, self._on_step)
         pose_type = POSE_TYPES[values['pose_type']]
@@ -218,6 +210,7 @@ class IcrEstimatorNode(Node):
         self._path_pub = self.create_publisher(Path, 'predicted_path', 10)
         self._timer = self.create_timer(1.0 / values['publish_rate'], self._on_timer)
         self.create_service(Trigger, '~/reset', self._on_reset)
+        model = self.estimator.model
         self.get_logger().info(
             f'estimating {model.name} ({", ".join(model.param_names)}) from '
             f'{self._pose_sub.topic_name} ({values["pose_type"]}'
@@ -230,15 +223,36 @@ class IcrEstimatorNode(Node):
     def _heading_only(self) -> bool:
         return self.params['heading_only'] or self.params['pose_type'] == 'imu'
 
+    @staticmethod
+    def _build_estimator(values: Mapping[str, Any]) -> SlipEstimator:
+        """Return a filter starting from the terrain file's ICRs (``model: icr``) or ideal."""
+        icr = icr_from_values(values)
+        if values['model'] == 'icr':
+            model = ConstantIcr(icr.track_width, with_scales=False)
+            return SlipEstimator(model, model.from_icr(icr), _config(values))
+        return SlipEstimator(AdaptiveIcr(icr.track_width), None, _config(values))
+
     def _apply(self, values: Mapping[str, Any]) -> None:
-        """Take (new) parameter values into use."""
-        self.estimator.configure(_config(values))
-        self._drivetrain = drivetrain_from_values(values)
+        """
+        Take (new) parameter values into use.
+
+        A new ``track_width`` restarts the estimate; new ``icr.*`` values are the start
+        values of the next ``~/reset``; the rest applies from the next measurement.
+        """
         icr = icr_from_values(values)
         self._scales = (icr.scale_left, icr.scale_right)
-        if getattr(self, 'encoder', None) is not None:
+        self._drivetrain = drivetrain_from_values(values)
+        if icr.track_width != self.estimator.model.track_width:
+            self.estimator = self._build_estimator(values)
+            self.get_logger().info(f'track_width is now {icr.track_width:g} m: estimate '
+                                   'restarted from the icr.* values')
+        else:
+            self.estimator.configure(_config(values))
+            if isinstance(self.estimator.model, ConstantIcr):
+                self.estimator.set_initial(self.estimator.model.from_icr(icr))
+        if self.encoder is not None:
             self.encoder.configure(values)
-        if getattr(self, '_timer', None) is not None:
+        if self._timer is not None:
             self._timer.timer_period_ns = round(1e9 / values['publish_rate'])
 
     # --- inputs -------------------------------------------------------------------------
