@@ -516,6 +516,32 @@ class _GroundTruth:
         return t, x, y, np.angle(np.exp(1j * yaw))
 
 
+def _guarded(path: Path, read, *args):
+    """Open a bag and ``read(reader, path, *args)`` it; any reader failure is a BagError."""
+    try:
+        reader = _open(path)
+        with reader:
+            return read(reader, path, *args)
+    except BagError:
+        raise
+    except Exception as err:  # noqa: BLE001 -- rosbags and sqlite raise many kinds
+        detail = ' '.join(str(err).split()) or type(err).__name__
+        raise BagError(f'cannot read bag {path}: {detail} (truncated or corrupt?)') from None
+
+
+def _encoder_stream(reader, path, encoders, ref_ns):
+    """Return the decoder of the encoder messages and the bag connections it reads."""
+    if encoders.mode == 'joint_states':
+        enc = _JointStates(encoders, path, ref_ns, reader.is2)
+        return enc, _connections(reader, path, encoders.topic, ('sensor_msgs/msg/JointState',),
+                                 'encoders')
+    enc = _SideStream(encoders, path, ref_ns)
+    allowed = (('std_msgs/msg/Float64',) if encoders.mode == 'track_speeds'
+               else tuple(_TICK_BITS))
+    return enc, [c for topic in encoders.topics()
+                 for c in _connections(reader, path, topic, allowed, 'encoders')]
+
+
 def read_bag(path, encoders: EncoderSource, ground_truth: GroundTruthSource,
              progress: bool = False) -> Recording:
     """
@@ -530,30 +556,12 @@ def read_bag(path, encoders: EncoderSource, ground_truth: GroundTruthSource,
         samples; the message is one line.
 
     """
-    path = Path(path)
-    try:
-        reader = _open(path)
-        with reader:
-            return _read(reader, path, encoders, ground_truth, progress)
-    except BagError:
-        raise
-    except Exception as err:  # noqa: BLE001 -- rosbags and sqlite raise many kinds
-        detail = ' '.join(str(err).split()) or type(err).__name__
-        raise BagError(f'cannot read bag {path}: {detail} (truncated or corrupt?)') from None
+    return _guarded(Path(path), _read, encoders, ground_truth, progress)
 
 
 def _read(reader, path, encoders, ground_truth, progress) -> Recording:
     ref_ns = reader.start_time
-    if encoders.mode == 'joint_states':
-        enc = _JointStates(encoders, path, ref_ns, reader.is2)
-        enc_conns = _connections(reader, path, encoders.topic, ('sensor_msgs/msg/JointState',),
-                                 'encoders')
-    else:
-        enc = _SideStream(encoders, path, ref_ns)
-        allowed = (('std_msgs/msg/Float64',) if encoders.mode == 'track_speeds'
-                   else tuple(_TICK_BITS))
-        enc_conns = [c for topic in encoders.topics()
-                     for c in _connections(reader, path, topic, allowed, 'encoders')]
+    enc, enc_conns = _encoder_stream(reader, path, encoders, ref_ns)
     gt = _GroundTruth(ground_truth, path, ref_ns)
     gt_conns = _connections(reader, path, ground_truth.topic, GROUND_TRUTH_TYPES,
                             'ground truth')
@@ -621,30 +629,12 @@ def read_drive_bag(path, encoders: EncoderSource, setpoint_topics=SETPOINT_TOPIC
         For a missing or unreadable bag, a missing topic or joint, or too few messages.
 
     """
-    path = Path(path)
-    try:
-        reader = _open(path)
-        with reader:
-            return _read_drive(reader, path, encoders, tuple(setpoint_topics), progress)
-    except BagError:
-        raise
-    except Exception as err:  # noqa: BLE001 -- rosbags and sqlite raise many kinds
-        detail = ' '.join(str(err).split()) or type(err).__name__
-        raise BagError(f'cannot read bag {path}: {detail} (truncated or corrupt?)') from None
+    return _guarded(Path(path), _read_drive, encoders, tuple(setpoint_topics), progress)
 
 
 def _read_drive(reader, path, encoders, setpoint_topics, progress) -> DriveData:
     ref_ns = reader.start_time
-    if encoders.mode == 'joint_states':
-        enc = _JointStates(encoders, path, ref_ns, reader.is2)
-        enc_conns = _connections(reader, path, encoders.topic, ('sensor_msgs/msg/JointState',),
-                                 'encoders')
-    else:
-        enc = _SideStream(encoders, path, ref_ns)
-        allowed = (('std_msgs/msg/Float64',) if encoders.mode == 'track_speeds'
-                   else tuple(_TICK_BITS))
-        enc_conns = [c for topic in encoders.topics()
-                     for c in _connections(reader, path, topic, allowed, 'encoders')]
+    enc, enc_conns = _encoder_stream(reader, path, encoders, ref_ns)
     sp_conns = [c for topic in setpoint_topics
                 for c in _connections(reader, path, topic, ('std_msgs/msg/Float64',),
                                       'setpoints')]

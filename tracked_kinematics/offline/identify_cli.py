@@ -15,24 +15,22 @@ from __future__ import annotations
 
 import argparse
 from datetime import datetime, timezone
-import json
 import math
 from pathlib import Path
 import sys
 
-import numpy as np
 from tracked_kinematics.core import identification as ident
 from tracked_kinematics.core.kinematics import IcrParams
-from tracked_kinematics.offline.bag_reader import (
-    BagError, ENCODER_INPUTS, EncoderSource, GroundTruthSource, read_bags)
+from tracked_kinematics.offline.bag_reader import BagError, GroundTruthSource, read_bags
+from tracked_kinematics.offline.cli_common import (
+    add_encoder_arguments, encoder_source, HelpFormatter, names, non_negative, positive,
+    UsageError, write_report)
 from tracked_kinematics.params import (
     icr_from_values, read_params_file, TERRAIN_DEFAULTS, values_from_icr, write_params_file)
 
 PROG = 'identify_icr'
 MODEL_CHOICES = ('symmetric',) + ident.FIT_MODELS
 EXIT_INPUT, EXIT_EXCITATION, EXIT_FIT = 2, 3, 4
-_SIDE_TOPICS = {'track_speeds': ('/left_track/speed', '/right_track/speed'),
-                'encoder_ticks': ('/left_track/ticks', '/right_track/ticks')}
 
 EPILOG = """examples:
   identify_icr run1/ run2/ --ground-truth-topic /mocap/pose --output hard_floor.yaml \\
@@ -43,53 +41,15 @@ EPILOG = """examples:
 """
 
 
-class UsageError(ValueError):
-    """An invalid option value (exit status 2)."""
-
-
-def _names(text: str) -> tuple[str, ...]:
-    names = tuple(n.strip() for n in text.split(',') if n.strip())
-    if not names:
-        raise argparse.ArgumentTypeError('expected comma-separated names')
-    return names
-
-
-def _positive(text: str) -> float:
-    value = float(text)
-    if not math.isfinite(value) or value <= 0:
-        raise argparse.ArgumentTypeError(f'must be a finite number > 0, got {text}')
-    return value
-
-
-def _non_negative(text: str) -> float:
-    value = float(text)
-    if not math.isfinite(value) or value < 0:
-        raise argparse.ArgumentTypeError(f'must be a finite number >= 0, got {text}')
-    return value
-
-
 def _heading_weight(text: str):
-    return None if text == 'auto' else _positive(text)
-
-
-class _HelpFormatter(argparse.RawDescriptionHelpFormatter,
-                     argparse.ArgumentDefaultsHelpFormatter):
-    """Show defaults, except the empty ones; keep the examples' lines."""
-
-    def __init__(self, prog):
-        super().__init__(prog, width=96)
-
-    def _get_help_string(self, action):
-        if action.default in (None, False, '') or action.required:
-            return action.help
-        return super()._get_help_string(action)
+    return None if text == 'auto' else positive(text)
 
 
 def build_parser() -> argparse.ArgumentParser:
     """Return the command line of identify_icr."""
     parser = argparse.ArgumentParser(
         prog=PROG, description=__doc__.split('\n\n')[1], epilog=EPILOG,
-        formatter_class=_HelpFormatter)
+        formatter_class=HelpFormatter)
     parser.add_argument('bags', nargs='+', metavar='BAG',
                         help='rosbag2 directories (sqlite3, mcap) or ROS 1 .bag files')
     parser.add_argument('--ground-truth-topic', required=True, metavar='TOPIC',
@@ -98,25 +58,12 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument('--output', '-o', required=True, metavar='OUT.yaml',
                         help='terrain parameter file to write (ready for --params-file)')
     enc = parser.add_argument_group('encoders')
-    enc.add_argument('--encoder-input', choices=ENCODER_INPUTS, default='joint_states',
-                     help='kind of encoder messages, as odometry_node input_mode')
-    enc.add_argument('--encoder-topic', default='/joint_states',
-                     help='sensor_msgs/JointState topic (joint_states)')
-    enc.add_argument('--left-joints', type=_names, default='left_sprocket_joint',
-                     metavar='A,B', help='joints of the left track, averaged')
-    enc.add_argument('--right-joints', type=_names, default='right_sprocket_joint',
-                     metavar='C,D', help='joints of the right track, averaged')
-    enc.add_argument('--left-topic', default=None,
-                     help='left track topic: std_msgs/Float64 m/s (track_speeds) or Int32/Int64 '
-                     'counter (encoder_ticks); default /left_track/speed or /left_track/ticks')
-    enc.add_argument('--right-topic', default=None, help='right track topic, likewise')
-    enc.add_argument('--ticks-per-revolution', type=_positive, default=4096.0,
-                     help='encoder ticks per sprocket revolution (encoder_ticks)')
+    add_encoder_arguments(enc)
     veh = parser.add_argument_group('vehicle')
-    veh.add_argument('--sprocket-radius', type=_positive, default=None, metavar='R',
+    veh.add_argument('--sprocket-radius', type=positive, default=None, metavar='R',
                      help='m; default from --params, else '
                      f'{TERRAIN_DEFAULTS["sprocket_radius"]}')
-    veh.add_argument('--track-width', type=_positive, default=None, metavar='L',
+    veh.add_argument('--track-width', type=positive, default=None, metavar='L',
                      help=f'm; default from --params, else {TERRAIN_DEFAULTS["track_width"]}')
     veh.add_argument('--params', default=None, metavar='BASE.yaml',
                      help='terrain file to start from: vehicle values, starting point, fixed '
@@ -138,7 +85,7 @@ def build_parser() -> argparse.ArgumentParser:
     fit.add_argument('--spin-in-place', action='store_true',
                      help='instead of fitting segments, measure the steering efficiency of the '
                      'spin-in-place runs (Martinez eq. 16) and write the symmetric model')
-    fit.add_argument('--segment-length', type=_non_negative, default=1.0, metavar='SECONDS',
+    fit.add_argument('--segment-length', type=non_negative, default=1.0, metavar='SECONDS',
                      help='segment duration; 0 cuts at every ground-truth sample')
     fit.add_argument('--heading-weight', type=_heading_weight, default=1.0,
                      metavar='M_PER_RAD|auto',
@@ -146,18 +93,18 @@ def build_parser() -> argparse.ArgumentParser:
                      'auto balances the noise of position and heading residuals')
     fit.add_argument('--loss', choices=ident.LOSSES, default='soft_l1',
                      help='robust loss against ground-truth glitches')
-    fit.add_argument('--min-travel', type=_non_negative, default=0.01, metavar='M',
+    fit.add_argument('--min-travel', type=non_negative, default=0.01, metavar='M',
                      help='segments whose tracks travel less are stationary and left out')
     fit.add_argument('--max-nfev', type=int, default=None, metavar='N',
                      help='evaluation budget of one optimisation round')
     ev = parser.add_argument_group('evaluation')
     ev.add_argument('--holdout', type=float, default=0.2, metavar='FRACTION',
                     help='fraction of time blocks held out to compare the models (0: none)')
-    ev.add_argument('--holdout-block', type=_positive, default=30.0, metavar='SECONDS',
+    ev.add_argument('--holdout-block', type=positive, default=30.0, metavar='SECONDS',
                     help='duration of a time block')
-    ev.add_argument('--window', type=_positive, default=10.0, metavar='SECONDS',
+    ev.add_argument('--window', type=positive, default=10.0, metavar='SECONDS',
                     help='duration of the held-out evaluation windows')
-    ev.add_argument('--compare', type=_names, default=','.join(ident.COMPARE_MODELS),
+    ev.add_argument('--compare', type=names, default=','.join(ident.COMPARE_MODELS),
                     metavar='M1,M2',
                     help='models compared on the held-out blocks')
     out = parser.add_argument_group('output')
@@ -200,15 +147,7 @@ def _vehicle(args):
 
 
 def _sources(args, radius):
-    left, right = _SIDE_TOPICS.get(args.encoder_input, ('', ''))
-    both = set(args.left_joints) & set(args.right_joints)
-    if both:
-        raise UsageError(f'--left-joints and --right-joints both list {", ".join(sorted(both))}')
-    encoders = EncoderSource(
-        mode=args.encoder_input, topic=args.encoder_topic, left_joints=tuple(args.left_joints),
-        right_joints=tuple(args.right_joints), left_topic=args.left_topic or left,
-        right_topic=args.right_topic or right, sprocket_radius=radius,
-        ticks_per_revolution=args.ticks_per_revolution)
+    encoders = encoder_source(args, radius)
     ground_truth = GroundTruthSource(
         topic=args.ground_truth_topic, parent_frame=args.ground_truth_parent_frame,
         child_frame=args.ground_truth_child_frame, offset=tuple(args.ground_truth_offset))
@@ -336,12 +275,6 @@ def _print_table(result, recordings, out):
               f'{better:>14}', file=out)
 
 
-def _write_report(path, report):
-    text = json.dumps(report, indent=2, default=lambda o: o.tolist()
-                      if isinstance(o, np.ndarray) else float(o))
-    Path(path).write_text(text + '\n', encoding='utf-8')
-
-
 # Main ----------------------------------------------------------------------------------
 
 
@@ -408,7 +341,7 @@ def _run(args, out) -> int:
                     f'{args.model} parameters are under identification.parameters.')
     write_params_file(args.output, values, comment=comment)
     if args.report:
-        _write_report(args.report, report)
+        write_report(args.report, report)
     if args.plot and not args.spin_in_place:
         from tracked_kinematics.offline.identify_plot import plot_identification
         plot_identification(args.plot, recordings, result)

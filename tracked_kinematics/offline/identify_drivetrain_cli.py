@@ -23,18 +23,16 @@ import sys
 import numpy as np
 from tracked_kinematics.core import drivetrain_fit as dfit
 from tracked_kinematics.core.identification import ExcitationError, IdentificationError
-from tracked_kinematics.offline.bag_reader import (
-    BagError, ENCODER_INPUTS, EncoderSource, read_drive_bag, SETPOINT_TOPICS)
-from tracked_kinematics.offline.identify_cli import (
-    _HelpFormatter, _names, _non_negative, _positive, _write_report)
+from tracked_kinematics.offline.bag_reader import BagError, read_drive_bag, SETPOINT_TOPICS
+from tracked_kinematics.offline.cli_common import (
+    add_encoder_arguments, encoder_source, HelpFormatter, names, non_negative, positive,
+    UsageError, write_report)
 from tracked_kinematics.params import (
     drivetrain_from_values, read_params_file, TERRAIN_DEFAULTS, values_from_drivetrain,
     write_params_file)
 
 PROG = 'identify_drivetrain'
 EXIT_INPUT, EXIT_EXCITATION, EXIT_FIT = 2, 3, 4
-_SIDE_TOPICS = {'track_speeds': ('/left_track/speed', '/right_track/speed'),
-                'encoder_ticks': ('/left_track/ticks', '/right_track/ticks')}
 _UNITS = {'delay': 's', 'max_accel': 'm/s^2', 'time_constant': 's', 'kp': '', 'ki': '',
           'kd': ''}
 
@@ -46,22 +44,18 @@ EPILOG = """examples:
 """
 
 
-class UsageError(ValueError):
-    """An invalid option value (exit status 2)."""
-
-
 def _topic_pair(text: str) -> tuple[str, str]:
-    names = _names(text)
-    if len(names) != 2:
+    topics = names(text)
+    if len(topics) != 2:
         raise argparse.ArgumentTypeError(f'expected LEFT,RIGHT topics, got {text!r}')
-    return names
+    return topics
 
 
 def build_parser() -> argparse.ArgumentParser:
     """Return the command line of identify_drivetrain."""
     parser = argparse.ArgumentParser(
         prog=PROG, description=__doc__.split('\n\n')[1], epilog=EPILOG,
-        formatter_class=_HelpFormatter)
+        formatter_class=HelpFormatter)
     parser.add_argument('bags', nargs='+', metavar='BAG',
                         help='rosbag2 directories (sqlite3, mcap) or ROS 1 .bag files')
     parser.add_argument('--output', '-o', required=True, metavar='OUT.yaml',
@@ -70,21 +64,8 @@ def build_parser() -> argparse.ArgumentParser:
                         metavar='LEFT,RIGHT',
                         help='std_msgs/Float64 commanded track speeds, m/s')
     enc = parser.add_argument_group('encoders (measured speeds)')
-    enc.add_argument('--encoder-input', choices=ENCODER_INPUTS, default='joint_states',
-                     help='kind of encoder messages, as odometry_node input_mode')
-    enc.add_argument('--encoder-topic', default='/joint_states',
-                     help='sensor_msgs/JointState topic (joint_states)')
-    enc.add_argument('--left-joints', type=_names, default='left_sprocket_joint',
-                     metavar='A,B', help='joints of the left track, averaged')
-    enc.add_argument('--right-joints', type=_names, default='right_sprocket_joint',
-                     metavar='C,D', help='joints of the right track, averaged')
-    enc.add_argument('--left-topic', default=None,
-                     help='left track topic: std_msgs/Float64 m/s (track_speeds) or Int32/Int64 '
-                     'counter (encoder_ticks); default /left_track/speed or /left_track/ticks')
-    enc.add_argument('--right-topic', default=None, help='right track topic, likewise')
-    enc.add_argument('--ticks-per-revolution', type=_positive, default=4096.0,
-                     help='encoder ticks per sprocket revolution (encoder_ticks)')
-    enc.add_argument('--sprocket-radius', type=_positive, default=None, metavar='R',
+    add_encoder_arguments(enc)
+    enc.add_argument('--sprocket-radius', type=positive, default=None, metavar='R',
                      help='m; default from --params, else '
                      f'{TERRAIN_DEFAULTS["sprocket_radius"]}')
     fit = parser.add_argument_group('fit')
@@ -95,12 +76,12 @@ def build_parser() -> argparse.ArgumentParser:
     fit.add_argument('--loop', choices=dfit.LOOP_KINDS, default='first_order',
                      help='speed loop to fit: first-order lag, PID gains around the fixed DC '
                      'motor of eq. (8), or none')
-    fit.add_argument('--dt', type=_positive, default=None, metavar='SECONDS',
+    fit.add_argument('--dt', type=positive, default=None, metavar='SECONDS',
                      help='grid period and delay resolution (default: the encoder period, '
                      'within 0.002-0.02 s)')
-    fit.add_argument('--max-delay', type=_non_negative, default=0.5, metavar='SECONDS',
+    fit.add_argument('--max-delay', type=non_negative, default=0.5, metavar='SECONDS',
                      help='largest command delay searched')
-    fit.add_argument('--max-gap', type=_non_negative, default=0.5, metavar='SECONDS',
+    fit.add_argument('--max-gap', type=non_negative, default=0.5, metavar='SECONDS',
                      help='longer gaps in either stream cut the data into segments')
     out = parser.add_argument_group('output')
     out.add_argument('--report', default=None, metavar='OUT.json',
@@ -126,18 +107,6 @@ def _base(args):
         except ValueError as err:
             raise UsageError(f'{args.params}: {err}') from None
     return base_values, float(radius), base
-
-
-def _encoders(args, radius) -> EncoderSource:
-    left, right = _SIDE_TOPICS.get(args.encoder_input, ('', ''))
-    both = set(args.left_joints) & set(args.right_joints)
-    if both:
-        raise UsageError(f'--left-joints and --right-joints both list {", ".join(sorted(both))}')
-    return EncoderSource(
-        mode=args.encoder_input, topic=args.encoder_topic, left_joints=tuple(args.left_joints),
-        right_joints=tuple(args.right_joints), left_topic=args.left_topic or left,
-        right_topic=args.right_topic or right, sprocket_radius=radius,
-        ticks_per_revolution=args.ticks_per_revolution)
 
 
 def _yaml_values(base_values, result, radius, extras):
@@ -220,7 +189,7 @@ def _plot(path, result):
 
 def _run(args, out) -> int:
     base_values, radius, base = _base(args)
-    encoders = _encoders(args, radius)
+    encoders = encoder_source(args, radius)
     progress = sys.stderr.isatty()
     recordings = [read_drive_bag(b, encoders, args.setpoint_topics, progress)
                   for b in args.bags]
@@ -239,7 +208,7 @@ def _run(args, out) -> int:
         f'Terrain parameters with the drive train written by {PROG} (tracked_kinematics) on '
         f'{date}.\nLoad with: --ros-args --params-file THIS_FILE'))
     if args.report:
-        _write_report(args.report, {
+        write_report(args.report, {
             'tool': PROG, 'date': date, 'bags': bags, 'sprocket_radius': radius,
             'loop': result.loop, 'parameters': result.parameters,
             'standard_errors': result.standard_errors, 'fixed': result.fixed,
