@@ -542,6 +542,14 @@ def _encoder_stream(reader, path, encoders, ref_ns):
                  for c in _connections(reader, path, topic, allowed, 'encoders')]
 
 
+def _feed(enc, reader, conn, receive_ns, raw) -> None:
+    """Pass one encoder message to its decoder (JointStates decode their columns lazily)."""
+    if isinstance(enc, _JointStates):
+        enc.add_raw(raw, receive_ns, lambda data, t=conn.msgtype: reader.deserialize(data, t))
+    else:
+        enc.add(conn.topic, conn.msgtype, reader.deserialize(raw, conn.msgtype), receive_ns)
+
+
 def read_bag(path, encoders: EncoderSource, ground_truth: GroundTruthSource,
              progress: bool = False) -> Recording:
     """
@@ -572,12 +580,8 @@ def _read(reader, path, encoders, ground_truth, progress) -> Recording:
         for conn, receive_ns, raw in reader.messages(connections=conns):
             if id(conn) in gt_ids:
                 gt.add(conn.msgtype, reader.deserialize(raw, conn.msgtype), receive_ns)
-            elif encoders.mode == 'joint_states':
-                enc.add_raw(raw, receive_ns,
-                            lambda data, t=conn.msgtype: reader.deserialize(data, t))
             else:
-                enc.add(conn.topic, conn.msgtype, reader.deserialize(raw, conn.msgtype),
-                        receive_ns)
+                _feed(enc, reader, conn, receive_ns, raw)
             bar.step()
     finally:
         bar.close()
@@ -647,12 +651,8 @@ def _read_drive(reader, path, encoders, setpoint_topics, progress) -> DriveData:
             if id(conn) in sp_ids:
                 msg = reader.deserialize(raw, conn.msgtype)
                 sides[conn.topic].append((float(receive_ns - ref_ns), float(msg.data)))
-            elif encoders.mode == 'joint_states':
-                enc.add_raw(raw, receive_ns,
-                            lambda data, t=conn.msgtype: reader.deserialize(data, t))
             else:
-                enc.add(conn.topic, conn.msgtype, reader.deserialize(raw, conn.msgtype),
-                        receive_ns)
+                _feed(enc, reader, conn, receive_ns, raw)
             bar.step()
     finally:
         bar.close()

@@ -6,9 +6,14 @@ import argparse
 import json
 import math
 from pathlib import Path
+import sys
 
 import numpy as np
-from tracked_kinematics.offline.bag_reader import ENCODER_INPUTS, EncoderSource
+from tracked_kinematics.core.identification import ExcitationError, IdentificationError
+from tracked_kinematics.offline.bag_reader import BagError, ENCODER_INPUTS, EncoderSource
+
+EXIT_INPUT, EXIT_EXCITATION, EXIT_FIT = 2, 3, 4
+"""Exit statuses of the identification tools: bad input, too little excitation, failed fit."""
 
 SIDE_TOPICS = {'track_speeds': ('/left_track/speed', '/right_track/speed'),
                'encoder_ticks': ('/left_track/ticks', '/right_track/ticks')}
@@ -107,3 +112,28 @@ def write_report(path, report) -> None:
     text = json.dumps(report, indent=2, default=lambda o: o.tolist()
                       if isinstance(o, np.ndarray) else float(o))
     Path(path).write_text(text + '\n', encoding='utf-8')
+
+
+def run_main(prog: str, run, args) -> int:
+    """
+    Run ``run(args, sys.stdout)`` and map failures to one stderr line and an exit status.
+
+    :data:`EXIT_INPUT` for a bag, option or file problem, :data:`EXIT_EXCITATION` for too
+    little excitation, :data:`EXIT_FIT` for a fit that failed, 130 for Ctrl-C.
+    """
+    def fail(status, err):
+        print(f'{prog}: error: {" ".join(str(err).split())}', file=sys.stderr)
+        return status
+
+    try:
+        return run(args, sys.stdout)
+    except (BagError, UsageError) as err:
+        return fail(EXIT_INPUT, err)
+    except ExcitationError as err:
+        return fail(EXIT_EXCITATION, err)
+    except IdentificationError as err:
+        return fail(EXIT_FIT, err)
+    except (OSError, ValueError) as err:
+        return fail(EXIT_INPUT, err)
+    except KeyboardInterrupt:
+        return fail(130, 'interrupted')

@@ -21,16 +21,15 @@ import sys
 
 from tracked_kinematics.core import identification as ident
 from tracked_kinematics.core.kinematics import IcrParams
-from tracked_kinematics.offline.bag_reader import BagError, GroundTruthSource, read_bags
+from tracked_kinematics.offline.bag_reader import GroundTruthSource, read_bags
 from tracked_kinematics.offline.cli_common import (
     add_encoder_arguments, encoder_source, HelpFormatter, names, non_negative, positive,
-    UsageError, write_report)
+    run_main, UsageError, write_report)
 from tracked_kinematics.params import (
     icr_from_values, read_params_file, TERRAIN_DEFAULTS, values_from_icr, write_params_file)
 
 PROG = 'identify_icr'
 MODEL_CHOICES = ('symmetric',) + ident.FIT_MODELS
-EXIT_INPUT, EXIT_EXCITATION, EXIT_FIT = 2, 3, 4
 
 EPILOG = """examples:
   identify_icr run1/ run2/ --ground-truth-topic /mocap/pose --output hard_floor.yaml \\
@@ -352,24 +351,7 @@ def _run(args, out) -> int:
 
 def main(argv=None) -> int:
     """Run identify_icr; return the exit status (see the module docstring)."""
-    args = build_parser().parse_args(argv)
-
-    def fail(status, err):
-        print(f'{PROG}: error: {" ".join(str(err).split())}', file=sys.stderr)
-        return status
-
-    try:
-        return _run(args, sys.stdout)
-    except (BagError, UsageError) as err:
-        return fail(EXIT_INPUT, err)
-    except ident.ExcitationError as err:
-        return fail(EXIT_EXCITATION, err)
-    except ident.IdentificationError as err:
-        return fail(EXIT_FIT, err)
-    except (OSError, ValueError) as err:
-        return fail(EXIT_INPUT, err)
-    except KeyboardInterrupt:
-        return fail(130, 'interrupted')
+    return run_main(PROG, _run, build_parser().parse_args(argv))
 
 
 if __name__ == '__main__':

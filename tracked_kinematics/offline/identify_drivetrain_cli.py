@@ -22,17 +22,16 @@ import sys
 
 import numpy as np
 from tracked_kinematics.core import drivetrain_fit as dfit
-from tracked_kinematics.core.identification import ExcitationError, IdentificationError
-from tracked_kinematics.offline.bag_reader import BagError, read_drive_bag, SETPOINT_TOPICS
+from tracked_kinematics.core.identification import IdentificationError
+from tracked_kinematics.offline.bag_reader import read_drive_bag, SETPOINT_TOPICS
 from tracked_kinematics.offline.cli_common import (
     add_encoder_arguments, encoder_source, HelpFormatter, names, non_negative, positive,
-    UsageError, write_report)
+    run_main, UsageError, write_report)
 from tracked_kinematics.params import (
     drivetrain_from_values, read_params_file, TERRAIN_DEFAULTS, values_from_drivetrain,
     write_params_file)
 
 PROG = 'identify_drivetrain'
-EXIT_INPUT, EXIT_EXCITATION, EXIT_FIT = 2, 3, 4
 _UNITS = {'delay': 's', 'max_accel': 'm/s^2', 'time_constant': 's', 'kp': '', 'ki': '',
           'kd': ''}
 
@@ -230,24 +229,7 @@ def _run(args, out) -> int:
 
 def main(argv=None) -> int:
     """Run identify_drivetrain; return the exit status (see the module docstring)."""
-    args = build_parser().parse_args(argv)
-
-    def fail(status, err):
-        print(f'{PROG}: error: {" ".join(str(err).split())}', file=sys.stderr)
-        return status
-
-    try:
-        return _run(args, sys.stdout)
-    except (BagError, UsageError) as err:
-        return fail(EXIT_INPUT, err)
-    except ExcitationError as err:
-        return fail(EXIT_EXCITATION, err)
-    except IdentificationError as err:
-        return fail(EXIT_FIT, err)
-    except (OSError, ValueError) as err:
-        return fail(EXIT_INPUT, err)
-    except KeyboardInterrupt:
-        return fail(130, 'interrupted')
+    return run_main(PROG, _run, build_parser().parse_args(argv))
 
 
 if __name__ == '__main__':
