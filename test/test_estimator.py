@@ -294,3 +294,19 @@ def test_pose_now_dead_reckons_from_the_latest_pose():
     heading.add_step(0.01, 0.01, 0.01, 0.01)
     heading.add_heading(0.01, 0.0)
     assert heading.pose_now() is None
+
+
+def test_time_going_back_restarts_the_windows_not_the_estimate():
+    # A looped bag or a reset simulation: encoder and pose times jump back. The filter must
+    # not refuse every later pose as stale, nor learn from windows that span the jump.
+    est, drive = _converged_estimator()
+    p = est.p.copy()
+    drive.t = 0.0
+    statuses = []
+    for _ in range(5):
+        t, pose = drive.advance(0.1)
+        statuses.append(est.add_pose(t, *pose).status)
+    assert statuses[0] == 'anchored'
+    assert statuses[1:] == ['updated'] * 4
+    np.testing.assert_allclose(est.p, p, atol=0.02)
+    assert est.add_pose(-20.0, 0.0, 0.0, 0.0).status == 'anchored'

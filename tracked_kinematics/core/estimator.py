@@ -267,6 +267,11 @@ class SlipEstimator:
         values = (t, d_left, d_right, dt)
         if not all(math.isfinite(v) for v in values) or dt <= 0.0:
             raise ValueError(f'encoder step must be finite with dt > 0, got {values!r}')
+        if t < self._log.end - 1e-9:
+            # Time went back (simulation reset, bag loop): the past no longer matches.
+            self._log.steps.clear()
+            self._history.clear()
+            self._pending = None
         self._log.append(float(t), float(d_left), float(d_right), float(dt))
         self.last_speeds = (d_left / dt, d_right / dt)
         if self._pending is not None and self._pending[0] <= self._log.end:
@@ -362,8 +367,11 @@ class SlipEstimator:
         if not math.isfinite(t) or not all(math.isfinite(v) for v in measured):
             return Outcome('non_finite', f'non-finite pose measurement {pose!r} at t={t!r}')
         if self._history and t <= self._history[-1][0]:
-            return Outcome('stale', f'pose stamp {t:.3f} s is not after the previous one '
-                                    f'({self._history[-1][0]:.3f} s)')
+            if t >= self._history[-1][0] - self.config.max_window:
+                return Outcome('stale', f'pose stamp {t:.3f} s is not after the previous '
+                                        f'one ({self._history[-1][0]:.3f} s)')
+            # Far in the past: the pose source's clock was reset; so are the windows.
+            self._history.clear()
         if self._history and heading_only != self._heading_only:
             # A switch between full poses and headings: the windows do not compare.
             self._history.clear()
