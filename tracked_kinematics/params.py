@@ -31,8 +31,7 @@ import re
 import tempfile
 from typing import Any
 
-from tracked_kinematics.core.drivetrain import DriveTrain, FirstOrderLag, PidMotor
-from tracked_kinematics.core.drivetrain_fit import LOOP_KINDS
+from tracked_kinematics.core.drivetrain import DriveTrain, FirstOrderLag, LOOP_KINDS, PidMotor
 from tracked_kinematics.core.kinematics import IcrParams
 import yaml
 

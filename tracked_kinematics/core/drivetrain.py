@@ -36,6 +36,10 @@ from scipy import signal
 from ._checks import require_numbers
 
 
+LOOP_KINDS = ('first_order', 'pid_dc_motor', 'ideal')
+"""Names of the speed loops in parameter files: FirstOrderLag, PidMotor, none."""
+
+
 @dataclass(frozen=True, slots=True)
 class PidMotor:
     """

@@ -44,10 +44,9 @@ import time
 import numpy as np
 from scipy.optimize import least_squares
 
-from .drivetrain import DriveTrain, FirstOrderLag, PidMotor
+from .drivetrain import DriveTrain, FirstOrderLag, LOOP_KINDS, PidMotor
 from .identification import ExcitationError, FitError
 
-LOOP_KINDS = ('first_order', 'pid_dc_motor', 'ideal')
 MIN_SECONDS = 2.0
 """Least duration of usable data (after the delay search window of each segment), s."""
 MIN_COMMAND_STD = 0.02
