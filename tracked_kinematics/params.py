@@ -55,6 +55,15 @@ def non_negative(value) -> str | None:
     return finite(value) or (None if value >= 0 else f'must be >= 0, got {value!r}')
 
 
+def one_of(choices) -> Callable[[Any], str | None]:
+    """Return a check: a value among ``choices``."""
+    choices = tuple(choices)
+
+    def check(value) -> str | None:
+        return None if value in choices else f'must be one of {", ".join(choices)}, got {value!r}'
+    return check
+
+
 @dataclass(frozen=True)
 class ParamSpec:
     """
@@ -119,16 +128,10 @@ TERRAIN_PARAMS: tuple[ParamSpec, ...] = (
 TERRAIN_DEFAULTS: dict[str, Any] = {spec.name: spec.default for spec in TERRAIN_PARAMS}
 
 
-def _loop_name(value) -> str | None:
-    """Check: one of the drive-train loop kinds."""
-    return None if value in LOOP_KINDS else (f'must be one of {", ".join(LOOP_KINDS)}, got '
-                                             f'{value!r}')
-
-
 DRIVETRAIN_PARAMS: tuple[ParamSpec, ...] = (
     ParamSpec('drivetrain.loop', 'first_order',
               'Speed loop: ideal, first_order (time_constant) or pid_dc_motor (pid, motor)', '',
-              _loop_name),
+              one_of(LOOP_KINDS)),
     ParamSpec('drivetrain.delay', 0.0, 'Command delay', 's', non_negative),
     ParamSpec('drivetrain.max_accel', 0.0, 'Acceleration limit of the input shaping; 0 = none',
               'm/s^2', non_negative),

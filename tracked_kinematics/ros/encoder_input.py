@@ -36,19 +36,13 @@ from rclpy.qos import qos_profile_sensor_data
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64, Int32, Int64
 from tracked_kinematics.core.encoders import IncrementTracker, Status
-from tracked_kinematics.params import ParamSpec, positive
+from tracked_kinematics.params import one_of, ParamSpec, positive
 
 INPUT_MODES = ('joint_states', 'track_speeds', 'encoder_ticks')
 TICKS_TYPES = {'int32': (Int32, 32), 'int64': (Int64, 64)}
 
 # Seconds between two warnings about the same kind of bad input.
 WARN_PERIOD = 5.0
-
-
-def _one_of(choices):
-    def check(value):
-        return None if value in choices else f'must be one of {", ".join(choices)}, got {value!r}'
-    return check
 
 
 def _joint_list(value):
@@ -63,13 +57,13 @@ ENCODER_INPUT_PARAMS: tuple[ParamSpec, ...] = (
     ParamSpec('input_mode', 'joint_states',
               'Encoder input: joint_states (sensor_msgs/JointState), track_speeds '
               '(std_msgs/Float64 per side, m/s) or encoder_ticks (std_msgs/Int32|Int64 per '
-              'side)', check=_one_of(INPUT_MODES), read_only=True),
+              'side)', check=one_of(INPUT_MODES), read_only=True),
     ParamSpec('left_joints', ['left_sprocket_joint'],
               'JointState joints of the left track, averaged', check=_joint_list),
     ParamSpec('right_joints', ['right_sprocket_joint'],
               'JointState joints of the right track, averaged', check=_joint_list),
     ParamSpec('ticks_type', 'int32', 'Message type of the tick counters: int32 or int64',
-              check=_one_of(tuple(TICKS_TYPES)), read_only=True),
+              check=one_of(TICKS_TYPES), read_only=True),
     ParamSpec('ticks_per_revolution', 4096.0,
               'Encoder ticks per sprocket revolution (after any gearing)', 'ticks/rev',
               positive),

@@ -40,8 +40,8 @@ from tracked_kinematics.core.models import AdaptiveIcr, ConstantIcr
 from tracked_kinematics.core.prediction import (
     commands_from_twist, hold_speeds, predict_from_commands, predict_path)
 from tracked_kinematics.params import (
-    drivetrain_from_values, DRIVETRAIN_PARAMS, icr_from_values, non_negative, ParamSpec,
-    positive, TERRAIN_PARAMS)
+    drivetrain_from_values, DRIVETRAIN_PARAMS, icr_from_values, non_negative, one_of,
+    ParamSpec, positive, TERRAIN_PARAMS)
 from tracked_kinematics.ros.encoder_input import (
     check_encoder_values, ENCODER_INPUT_PARAMS, EncoderInput, WARN_PERIOD)
 from tracked_kinematics.ros.main import run
@@ -58,12 +58,6 @@ SOURCES = ('speeds', 'cmd_vel')
 ICR_LAYOUT = ('y_left', 'y_right', 'x', 'chi', 'e')
 
 
-def _one_of(choices):
-    def check(value):
-        return None if value in choices else f'must be one of {", ".join(choices)}, got {value!r}'
-    return check
-
-
 def _probability(value):
     return positive(value) or (None if value < 1.0 else f'must be < 1, got {value!r}')
 
@@ -78,11 +72,11 @@ ESTIMATOR_PARAMS: tuple[ParamSpec, ...] = (
     ParamSpec('model', 'icr',
               'Slip model estimated: icr (constant tread ICRs, what odometry_node uses) or '
               'adaptive_icr (ICRs over lateral acceleration and curvature, EKF paper eq. 11)',
-              check=_one_of(MODELS), read_only=True),
+              check=one_of(MODELS), read_only=True),
     ParamSpec('pose_topic', 'pose', 'Pose measurements topic', read_only=True),
     ParamSpec('pose_type', 'odometry',
               'Message type on pose_topic: odometry, pose_stamped, pose_with_covariance, or '
-              'imu (heading only)', check=_one_of(tuple(POSE_TYPES)), read_only=True),
+              'imu (heading only)', check=one_of(POSE_TYPES), read_only=True),
     ParamSpec('heading_only', False,
               'Use only the heading of the pose messages (e.g. while RTK GPS is out)'),
     ParamSpec('pose_std_xy', _DEFAULTS.pose_std_xy,
@@ -116,7 +110,7 @@ ESTIMATOR_PARAMS: tuple[ParamSpec, ...] = (
     ParamSpec('prediction.source', 'speeds',
               'Future track speeds: speeds (hold the current ones) or cmd_vel (the latest '
               'command through the inverse kinematics and the drive-train model)',
-              check=_one_of(SOURCES), read_only=True),
+              check=one_of(SOURCES), read_only=True),
     ParamSpec('push_to', [],
               'Nodes whose icr.* parameters are set to the estimate (e.g. odometry_node, '
               'cmd_vel_translator)', check=_names),
