@@ -40,6 +40,7 @@ from tracked_kinematics.core.simulation import TwistTable
 from tracked_kinematics.offline import identify_cli
 from tracked_kinematics.offline.bag_reader import (
     BagError, EncoderSource, GroundTruthSource, read_bag)
+from tracked_kinematics.offline.cli_common import positive
 from tracked_kinematics.offline.simulate import GROUND_TRUTH_TOPICS, JOINTS, simulate_bag
 from tracked_kinematics.offline.vehicle_file import (
     add_vehicle_arguments, fixed, load_vehicle, overrides_from_args)
@@ -302,13 +303,6 @@ def plot_paths(path: Path, results, title: str) -> None:
 # Command line ----------------------------------------------------------------------------
 
 
-def _positive(text: str) -> float:
-    value = float(text)
-    if not (math.isfinite(value) and value > 0):
-        raise argparse.ArgumentTypeError(f'must be a finite number > 0, got {text}')
-    return value
-
-
 def _count(text: str) -> int:
     value = int(text)
     if not 1 <= value <= 10:
@@ -332,10 +326,10 @@ def build_parser() -> argparse.ArgumentParser:
                         help='directory for every output (a rerun replaces its outputs)')
     parser.add_argument('--seed', type=int, default=0,
                         help='seed of the calibration drive; held-out path k uses seed + k')
-    parser.add_argument('--duration', type=_positive, default=180.0, metavar='SECONDS',
+    parser.add_argument('--duration', type=positive, default=180.0, metavar='SECONDS',
                         help='length of the calibration drive')
     parser.add_argument('--paths', type=_count, default=4, help='number of held-out paths')
-    parser.add_argument('--path-duration', type=_positive, default=60.0, metavar='SECONDS',
+    parser.add_argument('--path-duration', type=positive, default=60.0, metavar='SECONDS',
                         help='length of each held-out path')
     parser.add_argument('--storage', choices=('mcap', 'sqlite3'), default='mcap',
                         help='rosbag2 storage of the bags')

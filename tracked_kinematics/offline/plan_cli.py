@@ -34,6 +34,7 @@ from tracked_kinematics.core.planning import (
     CANONICAL, canonical, path_deviation, Plan, Planner, Reference)
 from tracked_kinematics.core.simulation import GroundTruth, Robot, simulate, TwistTable
 from tracked_kinematics.offline.bag_writer import BagWriter
+from tracked_kinematics.offline.cli_common import positive, UsageError
 from tracked_kinematics.offline.vehicle_file import load_vehicle
 from tracked_kinematics.params import icr_from_values, read_params_file
 
@@ -47,10 +48,6 @@ _LIMIT_PARAMS = {'max_track_speed': 'max_track_speed', 'max_track_accel': 'max_t
                  'linear.x.max_acceleration': 'max_linear_acceleration',
                  'angular.z.max_velocity': 'max_angular_velocity',
                  'angular.z.max_acceleration': 'max_angular_acceleration'}
-
-
-class UsageError(ValueError):
-    """Bad input: one line, exit status 2."""
 
 
 # Models --------------------------------------------------------------------------------
@@ -280,16 +277,6 @@ def print_plan(plan: Plan, icr: IcrParams, out=sys.stdout) -> None:
 # Command line --------------------------------------------------------------------------
 
 
-def _positive(text):
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f'expected a number, got {text!r}') from None
-    if not (math.isfinite(value) and value > 0.0):
-        raise argparse.ArgumentTypeError(f'expected a finite number > 0, got {text!r}')
-    return value
-
-
 def _finite(text):
     try:
         value = float(text)
@@ -336,21 +323,21 @@ def build_parser() -> argparse.ArgumentParser:
                         help='vehicle YAML or shipped name (auriga_alpha, packbot): drive '
                              'train, and the dynamic simulator of --plot (default '
                              'auriga_alpha)')
-    parser.add_argument('--horizon', type=_positive, default=None,
+    parser.add_argument('--horizon', type=positive, default=None,
                         help='time to the goal, s (default 3 s + distance / half the max '
                              'track speed; canonical: its own duration)')
-    parser.add_argument('--speed', type=_positive, default=None,
+    parser.add_argument('--speed', type=positive, default=None,
                         help='travelling speed of a canonical trajectory, m/s (default half '
                              'the max track speed: 1 m/s on the packbot as in Table V)')
-    parser.add_argument('--max-track-speed', type=_positive, default=None,
+    parser.add_argument('--max-track-speed', type=positive, default=None,
                         help="largest track setpoint, m/s (default: the terrain file's "
                              "max_track_speed, else the vehicle's)")
-    parser.add_argument('--max-track-accel', type=_positive, default=None,
+    parser.add_argument('--max-track-accel', type=positive, default=None,
                         help='largest track setpoint change, m/s^2 (default: the terrain '
                              "file's max_track_accel, else the vehicle's)")
-    parser.add_argument('--dt', type=_positive, default=0.02,
+    parser.add_argument('--dt', type=positive, default=0.02,
                         help='command period, s (default 0.02: the translator at 50 Hz)')
-    parser.add_argument('--tolerance', nargs=2, type=_positive, default=(0.05, 0.05),
+    parser.add_argument('--tolerance', nargs=2, type=positive, default=(0.05, 0.05),
                         metavar=('METRES', 'RADIANS'),
                         help='final pose tolerance of a successful plan (default 0.05 0.05)')
     parser.add_argument('--csv', help='write the setpoints, cmd_vel and planned poses here')
