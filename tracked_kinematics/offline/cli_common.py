@@ -32,12 +32,16 @@ def names(text: str) -> tuple[str, ...]:
     return found
 
 
-def positive(text: str) -> float:
-    """Argument type: a finite number > 0."""
+def _number(text: str) -> float:
     try:
-        value = float(text)
+        return float(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f'expected a number, got {text!r}') from None
+
+
+def positive(text: str) -> float:
+    """Argument type: a finite number > 0."""
+    value = _number(text)
     if not math.isfinite(value) or value <= 0:
         raise argparse.ArgumentTypeError(f'must be a finite number > 0, got {text}')
     return value
@@ -45,10 +49,7 @@ def positive(text: str) -> float:
 
 def non_negative(text: str) -> float:
     """Argument type: a finite number >= 0."""
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f'expected a number, got {text!r}') from None
+    value = _number(text)
     if not math.isfinite(value) or value < 0:
         raise argparse.ArgumentTypeError(f'must be a finite number >= 0, got {text}')
     return value

@@ -26,7 +26,8 @@ from tracked_kinematics.offline.cli_common import (
     add_encoder_arguments, encoder_source, HelpFormatter, names, non_negative, positive,
     run_main, UsageError, write_report)
 from tracked_kinematics.params import (
-    icr_from_values, read_params_file, TERRAIN_DEFAULTS, values_from_icr, write_params_file)
+    icr_from_values, positive as check_positive, read_params_file, TERRAIN_DEFAULTS,
+    values_from_icr, write_params_file)
 
 PROG = 'identify_icr'
 MODEL_CHOICES = ('symmetric',) + ident.FIT_MODELS
@@ -139,8 +140,7 @@ def _vehicle(args):
                              merged['scale.left'], merged['scale.right'])
     for name in ('track_width', 'sprocket_radius'):
         value = merged[name]
-        if isinstance(value, bool) or not isinstance(value, (int, float)) \
-                or not math.isfinite(value) or value <= 0:
+        if check_positive(value):
             raise UsageError(f'{name} must be a finite number > 0, got {value!r}')
     return base_values, base, float(merged['track_width']), float(merged['sprocket_radius'])
 

@@ -28,8 +28,8 @@ from tracked_kinematics.offline.cli_common import (
     add_encoder_arguments, encoder_source, HelpFormatter, names, non_negative, positive,
     run_main, UsageError, write_report)
 from tracked_kinematics.params import (
-    drivetrain_from_values, read_params_file, TERRAIN_DEFAULTS, values_from_drivetrain,
-    write_params_file)
+    drivetrain_from_values, positive as check_positive, read_params_file, TERRAIN_DEFAULTS,
+    values_from_drivetrain, write_params_file)
 
 PROG = 'identify_drivetrain'
 _UNITS = {'delay': 's', 'max_accel': 'm/s^2', 'time_constant': 's', 'kp': '', 'ki': '',
@@ -96,8 +96,7 @@ def _base(args):
     radius = args.sprocket_radius
     if radius is None:
         radius = base_values.get('sprocket_radius', TERRAIN_DEFAULTS['sprocket_radius'])
-    if isinstance(radius, bool) or not isinstance(radius, (int, float)) \
-            or not math.isfinite(radius) or radius <= 0:
+    if check_positive(radius):
         raise UsageError(f'sprocket_radius must be a finite number > 0, got {radius!r}')
     base = None
     if any(k.startswith('drivetrain.') for k in base_values):
