@@ -23,6 +23,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT / 'test'))
 
+from timing import best_of  # noqa: E402
 from tracked_kinematics.core import identification as ident  # noqa: E402
 from tracked_kinematics.core.models import ConstantIcr  # noqa: E402
 from vehicle_sim import AURIGA, B, simulate, write_bag  # noqa: E402
@@ -41,21 +42,11 @@ def paper_sized():
     return segments.select(segments.travel >= 0.01)
 
 
-def best_of(n, func):
-    """Best wall time of ``n`` runs and the last result."""
-    times = []
-    for _ in range(n):
-        start = time.perf_counter()
-        result = func()
-        times.append(time.perf_counter() - start)
-    return min(times), result
-
-
 def main():
     """Run the three benchmarks and print their figures."""
     segments = paper_sized()
     model = ident.build_model('icr_scales', B)
-    seconds, lsq = best_of(5, lambda: ident.fit(model, segments))
+    seconds, lsq = best_of(lambda: ident.fit(model, segments), 5)
     print(f'bench_identify: paper size ({len(segments)} segments of 0.27 s, '
           f'{len(segments.dt)} encoder steps): icr_scales least squares {seconds:.3f} s '
           f'[goal < 0.5 s], {lsq.nfev} evaluations; chi {lsq.icr.chi:.4f} (true 0.5398)')
@@ -64,9 +55,9 @@ def main():
     for name in ('icr', 'icr_scales'):
         m = ident.build_model(name, B)
         same_cost = {'heading_weight': weight, 'f_scale': scale, 'check': False}
-        t_lsq, r_lsq = best_of(1, lambda: ident.fit(m, segments, **same_cost))
-        t_de, r_de = best_of(1, lambda: ident.fit(m, segments, method='de', rounds=1,
-                                                  **same_cost))
+        t_lsq, r_lsq = best_of(lambda: ident.fit(m, segments, **same_cost), 1)
+        t_de, r_de = best_of(lambda: ident.fit(m, segments, method='de', rounds=1,
+                                               **same_cost), 1)
         print(f'bench_identify: {name}: least squares {t_lsq:.2f} s cost {r_lsq.cost:.6g} '
               f'({r_lsq.nfev} evaluations) | differential evolution {t_de:.2f} s cost '
               f'{r_de.cost:.6g} ({r_de.nfev} evaluations)')

@@ -9,23 +9,12 @@ Benchmark: trajectory generation (issue 9). Prints the figures; goals in bracket
    pose error and max path deviation per model (``plan_trajectory --compare``).
 """
 
-import time
-
 import numpy as np
+from timing import best_of
 from tracked_kinematics.core.planning import CANONICAL, canonical, Planner
 from tracked_kinematics.core.simulation import TwistTable
 from tracked_kinematics.offline.plan_cli import compare, identify_on_sweep, limits_from
 from tracked_kinematics.offline.vehicle_file import load_vehicle
-
-
-def best_of(n, func):
-    """Best wall time of ``n`` runs and the last result."""
-    times = []
-    for _ in range(n):
-        start = time.perf_counter()
-        result = func()
-        times.append(time.perf_counter() - start)
-    return min(times), result
 
 
 def main():
@@ -43,7 +32,7 @@ def main():
         cells = []
         for name in CANONICAL:
             ref = canonical(name, speed=1.0)
-            seconds, plan = best_of(3, lambda: planner.follow(ref))
+            seconds, plan = best_of(lambda: planner.follow(ref), 3)
             worst = max(worst, seconds)
             cells.append(f'{seconds:>7.2f} s{"" if plan.success else "!":<3}')
         print(f'{short:<10}' + ''.join(cells))
@@ -52,7 +41,7 @@ def main():
     goals = [((2.0, 1.0, 0.5), 4.0), ((-1.0, 0.5, 0.0), 4.0), ((0.0, 0.0, 1.5), 3.0),
              ((4.0, -2.0, -1.0), 5.0)]
     for goal, horizon in goals:
-        seconds, plan = best_of(3, lambda: planner.plan_to(goal, horizon))
+        seconds, plan = best_of(lambda: planner.plan_to(goal, horizon), 3)
         print(f'plan_to {goal} in {horizon:g} s: {seconds:.2f} s, {plan.nfev} predictions, '
               f'{"ok" if plan.success else "FAILED"} ({plan.position_error * 100:.1f} cm)')
     print('Table VI on the simulated packbot (executed with the dynamic model):')

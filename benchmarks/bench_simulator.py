@@ -12,9 +12,9 @@ Goal (issue 7): the simulator's share of the demo takes a few seconds.
 
 from dataclasses import replace
 import tempfile
-import time
 
 import numpy as np
+from timing import best_of
 
 from tracked_kinematics.core.dynamics import icr_map
 from tracked_kinematics.core.manoeuvres import manoeuvre
@@ -25,16 +25,6 @@ from tracked_kinematics.offline.vehicle_file import load_vehicle
 REPEATS = 3
 
 
-def best_of(func, repeats=REPEATS):
-    """Smallest wall time of ``repeats`` calls, and the last result."""
-    times = []
-    for _ in range(repeats):
-        start = time.perf_counter()
-        result = func()
-        times.append(time.perf_counter() - start)
-    return min(times), result
-
-
 def main():
     """Time every stage and print the figures."""
     auriga = load_vehicle('auriga_alpha').robot
@@ -43,18 +33,19 @@ def main():
                 'auriga_alpha (quasi-static)': replace(auriga.vehicle, com_height=0.0),
                 'packbot (load transfer)': packbot.vehicle}
     for label, vehicle in vehicles.items():
-        seconds, the_map = best_of(lambda v=vehicle: icr_map(v, 21))
+        seconds, the_map = best_of(lambda v=vehicle: icr_map(v, 21), REPEATS)
         print(f'bench_simulator: ICR map 21 x 21, {label}: {seconds:.3f} s '
               f'({the_map.failed} failed)')
 
-    table_s, table = best_of(lambda: TwistTable(auriga.vehicle))
+    table_s, table = best_of(lambda: TwistTable(auriga.vehicle), REPEATS)
     print(f'bench_simulator: twist table (144 directions x 8 speeds), auriga_alpha: '
           f'{table_s:.3f} s')
     dt = 0.01
     for duration in (180.0, 3600.0):
         commands = manoeuvre('mixed', duration, dt, 0.42, 1.0, np.random.default_rng(0))
         sim_s, run = best_of(lambda c=commands: simulate(
-            auriga, c, dt, table, GroundTruth(10.0, 0.002, 0.002), np.random.default_rng(0)))
+            auriga, c, dt, table, GroundTruth(10.0, 0.002, 0.002), np.random.default_rng(0)),
+            REPEATS)
         print(f'bench_simulator: simulate {duration:.0f} s at 100 Hz: {sim_s:.3f} s '
               f'({duration / sim_s:,.0f} simulated s per wall s)')
 
@@ -64,13 +55,14 @@ def main():
         for storage in ('sqlite3', 'mcap', 'rosbag1'):
             paths = iter(f'{tmp}/{storage}{k}' + ('.bag' if storage == 'rosbag1' else '')
                          for k in range(REPEATS))
-            seconds, counts = best_of(lambda s=storage: write_run(next(paths), run, s, 50.0))
+            seconds, counts = best_of(lambda s=storage: write_run(next(paths), run, s, 50.0),
+                                      REPEATS)
             total = sum(counts.values())
             print(f'bench_simulator: write bag ({storage}), 60 s of data, {total} messages: '
                   f'{seconds:.2f} s ({total / seconds:,.0f} messages/s)')
         names = iter(f'{tmp}/demo{k}' for k in range(REPEATS))
         seconds, result = best_of(lambda: simulate_bag(next(names), 'auriga_alpha',
-                                                       duration=180.0))
+                                                       duration=180.0), REPEATS)
         print(f'bench_simulator: simulate_bag auriga_alpha, 180 s mixed, end to end: '
               f'{seconds:.2f} s ({sum(result.messages.values())} messages); goal: a few s')
 
