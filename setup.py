@@ -27,15 +27,16 @@ setup(
     python_requires='>=3.10',
     entry_points={
         'console_scripts': [
-            'tracked_kinematics_demo = tracked_kinematics.offline.demo:main',
+            'tracked_kinematics_demo ='
+            ' tracked_kinematics.offline.cli.tracked_kinematics_demo:main',
             'odometry_node = tracked_kinematics.ros.odometry_node:main',
             'cmd_vel_translator = tracked_kinematics.ros.cmd_vel_translator:main',
-            'identify_icr = tracked_kinematics.offline.identify_cli:main',
-            'simulate_bag = tracked_kinematics.offline.simulate:main',
-            'identify_drivetrain = tracked_kinematics.offline.identify_drivetrain_cli:main',
-            'icr_map = tracked_kinematics.offline.icr_map:main',
+            'identify_icr = tracked_kinematics.offline.cli.identify_icr:main',
+            'simulate_bag = tracked_kinematics.offline.cli.simulate_bag:main',
+            'identify_drivetrain = tracked_kinematics.offline.cli.identify_drivetrain:main',
+            'icr_map = tracked_kinematics.offline.cli.icr_map:main',
             'icr_estimator = tracked_kinematics.ros.icr_estimator:main',
-            'plan_trajectory = tracked_kinematics.offline.plan_cli:main',
+            'plan_trajectory = tracked_kinematics.offline.cli.plan_trajectory:main',
         ],
     },
 )

@@ -16,10 +16,10 @@ import time
 
 import numpy as np
 
-from tracked_kinematics.core.drivetrain_fit import DriveData, fit_drivetrain
-from tracked_kinematics.core.manoeuvres import manoeuvre
-from tracked_kinematics.offline import identify_drivetrain_cli as cli
-from tracked_kinematics.offline.simulate import simulate_bag
+from tracked_kinematics.core.identify.drivetrain import DriveData, fit_drivetrain
+from tracked_kinematics.core.sim.manoeuvres import manoeuvre
+from tracked_kinematics.offline.cli import identify_drivetrain as cli
+from tracked_kinematics.offline.cli.simulate_bag import simulate_bag
 from tracked_kinematics.offline.vehicle_file import load_vehicle
 
 RATE, SETPOINT_RATE, NOISE = 100.0, 50.0, 0.001

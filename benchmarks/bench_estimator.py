@@ -16,8 +16,8 @@ import time
 
 import numpy as np
 
-from tracked_kinematics.core import ekf_scenarios as sc
-from tracked_kinematics.core.estimator import SlipEstimator
+from tracked_kinematics.core.estimate import scenarios as sc
+from tracked_kinematics.core.estimate.ekf import SlipEstimator
 from tracked_kinematics.core.models import AdaptiveIcr
 from tracked_kinematics.core.prediction import hold_speeds, predict_path
 

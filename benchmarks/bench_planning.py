@@ -11,9 +11,9 @@ Benchmark: trajectory generation (issue 9). Prints the figures; goals in bracket
 
 import numpy as np
 from timing import best_of
-from tracked_kinematics.core.planning import CANONICAL, canonical, Planner
-from tracked_kinematics.core.simulation import TwistTable
-from tracked_kinematics.offline.plan_cli import compare, identify_on_sweep, limits_from
+from tracked_kinematics.core.plan import CANONICAL, canonical, Planner
+from tracked_kinematics.core.sim.simulation import TwistTable
+from tracked_kinematics.offline.cli.plan_trajectory import compare, identify_on_sweep, limits_from
 from tracked_kinematics.offline.vehicle_file import load_vehicle
 
 

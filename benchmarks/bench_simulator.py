@@ -16,10 +16,10 @@ import tempfile
 import numpy as np
 from timing import best_of
 
-from tracked_kinematics.core.dynamics import icr_map
-from tracked_kinematics.core.manoeuvres import manoeuvre
-from tracked_kinematics.core.simulation import GroundTruth, simulate, TwistTable
-from tracked_kinematics.offline.simulate import simulate_bag, write_run
+from tracked_kinematics.core.sim.dynamics import icr_map
+from tracked_kinematics.core.sim.manoeuvres import manoeuvre
+from tracked_kinematics.core.sim.simulation import GroundTruth, simulate, TwistTable
+from tracked_kinematics.offline.cli.simulate_bag import simulate_bag, write_run
 from tracked_kinematics.offline.vehicle_file import load_vehicle
 
 REPEATS = 3

@@ -30,8 +30,8 @@ import os
 from pathlib import Path
 from typing import Any
 
-from tracked_kinematics.core.dynamics import Vehicle
-from tracked_kinematics.core.simulation import Encoders, Robot
+from tracked_kinematics.core.sim.dynamics import Vehicle
+from tracked_kinematics.core.sim.simulation import Encoders, Robot
 from tracked_kinematics.params import (check_values, drivetrain_from_values, DRIVETRAIN_PARAMS,
                                        finite, non_negative, ParamSpec, positive,
                                        read_params_file)

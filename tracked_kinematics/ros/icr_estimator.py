@@ -1,7 +1,7 @@
 """
 icr_estimator: online ICR estimation (EKF) and short-horizon prediction, as a node.
 
-A thin adapter around :class:`~tracked_kinematics.core.estimator.SlipEstimator` and
+A thin adapter around :class:`~tracked_kinematics.core.estimate.ekf.SlipEstimator` and
 :mod:`~tracked_kinematics.core.prediction`. It reads the track encoders exactly as
 ``odometry_node`` does (:class:`~tracked_kinematics.ros.encoder_input.EncoderInput`, same
 parameters) and a pose source (nav_msgs/Odometry, geometry_msgs/PoseStamped or
@@ -35,7 +35,7 @@ from rclpy.qos import qos_profile_sensor_data
 from sensor_msgs.msg import Imu
 from std_msgs.msg import Float64MultiArray, MultiArrayDimension
 from std_srvs.srv import Trigger
-from tracked_kinematics.core.estimator import EstimatorConfig, SlipEstimator
+from tracked_kinematics.core.estimate.ekf import EstimatorConfig, SlipEstimator
 from tracked_kinematics.core.models import AdaptiveIcr, ConstantIcr
 from tracked_kinematics.core.prediction import (
     commands_from_twist, hold_speeds, predict_from_commands, predict_path)

@@ -1,0 +1,167 @@
+"""identify_icr end to end: bags of a known vehicle in, a terrain file that ROS loads out."""
+
+import json
+from pathlib import Path
+import re
+import subprocess
+import sys
+
+from helpers.vehicle_sim import AURIGA, B, simulate, write_bag
+import numpy as np
+import pytest
+from tracked_kinematics.core.models import ConstantIcr, EffectiveWheelBase
+from tracked_kinematics.offline.cli import identify_icr
+from tracked_kinematics.params import read_params_file, TERRAIN_PARAMS
+
+BIN = Path(sys.executable).parent
+ARGS = ['--ground-truth-topic', '/mocap/pose', '--sprocket-radius', '0.1', '--track-width',
+        str(B)]
+
+
+@pytest.fixture(scope='module')
+def bag(tmp_path_factory):
+    """Two minutes of the Auriga-alpha, mcap, ground truth with 2 mm / 0.1 deg noise."""
+    rec = simulate(ConstantIcr(B), np.array(AURIGA), duration=120.0, enc_rate=50.0, seed=11,
+                   gt_phase=0.003)
+    path = tmp_path_factory.mktemp('bags') / 'calibration'
+    write_bag(path, rec, 'mcap', gt_noise=(0.002, np.radians(0.1)))
+    return path
+
+
+def run(argv, capsys):
+    status = identify_icr.main([str(a) for a in argv])
+    out, err = capsys.readouterr()
+    return status, out, err.strip()
+
+
+def test_console_script_writes_yaml_report_and_plot(bag, tmp_path):
+    out, report, plot = tmp_path / 'floor.yaml', tmp_path / 'fit.json', tmp_path / 'fit.png'
+    result = subprocess.run(
+        [str(BIN / 'identify_icr'), str(bag), *ARGS, '--output', str(out), '--report',
+         str(report), '--plot', str(plot), '--terrain', 'hard_floor', '--holdout-block', '20'],
+        capture_output=True, text=True, timeout=120)
+    assert result.returncode == 0, result.stderr
+    assert result.stderr == ''   # no progress bar when stderr is not a terminal
+    assert 'hold-out' in result.stdout and 'icr_scales' in result.stdout
+    values = read_params_file(out)
+    # 2 mm / 0.1 deg ground-truth noise, two minutes: within 5 mm and 0.5 %.
+    np.testing.assert_allclose([values['icr.y_left'], values['icr.y_right'], values['icr.x']],
+                               AURIGA[:3], atol=5e-3)
+    np.testing.assert_allclose([values['scale.left'], values['scale.right']], AURIGA[3:],
+                               rtol=5e-3)
+    assert values['terrain'] == 'hard_floor'
+    assert values['identification.model'] == 'icr_scales'
+    assert values['identification.bags'] == [str(bag.resolve())]
+    assert out.read_text().startswith('# Terrain parameters written by identify_icr')
+    doc = json.loads(report.read_text())
+    assert doc['icr']['chi'] == pytest.approx(0.540, abs=0.01)
+    models = doc['holdout']['models']
+    assert set(models) == {'ideal', 'effective_wheel_base', 'icr', 'icr_scales',
+                           'general_slip', 'adaptive_icr'}
+    assert models['icr_scales']['improvement_pct']['windows']['position'] > 50
+    assert doc['fit']['standard_errors']['y_left'] < 5e-3
+    assert plot.read_bytes()[:8] == b'\x89PNG\r\n\x1a\n'
+
+
+@pytest.mark.ros
+def test_written_yaml_loads_with_params_file(bag, tmp_path, capsys):
+    out = tmp_path / 'floor.yaml'
+    assert run([bag, *ARGS, '--output', out, '--holdout', '0'], capsys)[0] == 0
+    import rclpy
+    from rclpy.node import Node
+    from tracked_kinematics.ros.parameters import ParameterTable
+    context = rclpy.Context()
+    rclpy.init(args=['--ros-args', '--params-file', str(out)], context=context)
+    try:
+        node = Node('odometry_node', context=context)
+        table = ParameterTable(node, TERRAIN_PARAMS)
+        written = read_params_file(out)
+        for name in ('track_width', 'icr.y_left', 'icr.y_right', 'icr.x', 'scale.left'):
+            assert table[name] == pytest.approx(written[name])
+        node.destroy_node()
+    finally:
+        rclpy.try_shutdown(context=context)
+
+
+def test_general_slip_writes_icr_keys_from_the_icr_fit(bag, tmp_path, capsys):
+    out = tmp_path / 'gs.yaml'
+    status, stdout, err = run([bag, *ARGS, '--output', out, '--model', 'general_slip',
+                               '--holdout', '0'], capsys)
+    assert status == 0, err
+    values = read_params_file(out)
+    assert values['identification.model'] == 'general_slip'
+    assert values['identification.icr_source'] == 'icr_scales'
+    assert 'identification.parameters.alpha9' in values
+    assert values['icr.y_left'] == pytest.approx(AURIGA[0], abs=5e-3)
+    assert 'the general_slip parameters are under identification.parameters' in out.read_text()
+
+
+def test_spin_in_place_mode(tmp_path, capsys):
+    rec = simulate(EffectiveWheelBase(B), [0.526], duration=40.0, enc_rate=50.0, seed=2,
+                   legs=('spin',))
+    path = tmp_path / 'spins.bag'
+    write_bag(path, rec, 'rosbag1', ground_truth='tf')
+    out = tmp_path / 'sym.yaml'
+    status, stdout, err = run([path, '--ground-truth-topic', '/tf', '--track-width', B,
+                               '--spin-in-place', '--output', out], capsys)
+    assert status == 0, err
+    assert 'chi = 0.5260' in stdout
+    values = read_params_file(out)
+    assert values['icr.y_left'] == pytest.approx(0.399, abs=5e-4)
+    assert values['icr.y_left'] == pytest.approx(-values['icr.y_right'])
+
+
+def one_line_error(err, status, expected_status, pattern):
+    assert status == expected_status
+    assert '\n' not in err and err.startswith('identify_icr: error: ')
+    assert re.search(pattern, err), err
+
+
+@pytest.mark.parametrize('extra, status, pattern', [
+    (['--ground-truth-topic', '/vicon'], 2, r'no topic /vicon .*topics present: /joint_states'),
+    (['--left-joints', 'left_wheel,left_idler'], 2,
+     r'joint left_wheel, left_idler not in /joint_states; joint names present: '
+     r'left_sprocket_joint, right_sprocket_joint'),
+    (['--max-nfev', '1'], 4, r'the icr_scales fit did not converge'),
+    (['--track-width', '-1'], 2, r'argument --track-width: must be a finite number > 0'),
+])
+def test_error_paths_leave_no_file(bag, tmp_path, capsys, extra, status, pattern):
+    out = tmp_path / 'out.yaml'
+    out.write_text('old: contents\n')
+    if extra[0] == '--track-width':
+        with pytest.raises(SystemExit) as exc:
+            identify_icr.main([str(bag), *ARGS, '--output', str(out), *extra])
+        got, err = exc.value.code, capsys.readouterr().err.strip().splitlines()[-1]
+        assert got == status and re.search(pattern, err)
+    else:
+        got, _, err = run([bag, *ARGS, '--output', out, *extra], capsys)
+        one_line_error(err, got, status, pattern)
+    assert out.read_text() == 'old: contents\n'
+    assert [p.name for p in tmp_path.iterdir()] == ['out.yaml']
+
+
+def test_missing_bag(tmp_path, capsys):
+    status, _, err = run([tmp_path / 'nope', *ARGS, '--output', tmp_path / 'o.yaml'], capsys)
+    one_line_error(err, status, 2, r'bag not found: .*nope')
+    assert not (tmp_path / 'o.yaml').exists()
+
+
+def test_corrupt_bag(tmp_path, capsys):
+    bad = tmp_path / 'broken.bag'
+    bad.write_bytes(b'\x00' * 100)
+    status, _, err = run([bad, *ARGS, '--output', tmp_path / 'o.yaml'], capsys)
+    one_line_error(err, status, 2, r'cannot read bag .*broken.bag')
+
+
+@pytest.mark.parametrize('legs, pattern', [
+    (('straight',), r'too little turning to identify icr.y_left, icr.y_right, icr.x'),
+    (('spin',), r'too little straight driving to identify scale.left, scale.right'),
+])
+def test_too_little_excitation(tmp_path, capsys, legs, pattern):
+    rec = simulate(ConstantIcr(B), np.array(AURIGA), duration=30.0, enc_rate=50.0, seed=3,
+                   legs=legs)
+    path = tmp_path / 'run'
+    write_bag(path, rec, 'sqlite3')
+    status, _, err = run([path, *ARGS, '--output', tmp_path / 'o.yaml'], capsys)
+    one_line_error(err, status, 3, pattern)
+    assert not (tmp_path / 'o.yaml').exists()

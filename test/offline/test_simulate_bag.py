@@ -1,0 +1,240 @@
+"""simulate_bag and icr_map: vehicle files, bags that rosbags reads back, the true model."""
+
+from pathlib import Path
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from rosbags.highlevel import AnyReader
+from tracked_kinematics.core.integration import relative_pose
+from tracked_kinematics.core.models import ConstantIcr, IdealDiffDrive
+from tracked_kinematics.offline.cli import icr_map, simulate_bag as simulate_cli
+from tracked_kinematics.offline.cli.simulate_bag import simulate_bag, truth_path
+from tracked_kinematics.offline.vehicle_file import load_vehicle, shipped_vehicles
+from tracked_kinematics.params import icr_from_values, read_params_file
+
+BIN = Path(sys.executable).parent
+
+
+def read_bag(path, ground_truth_topic='/ground_truth/pose'):
+    """Topics and types, joint states, setpoints and ground truth (header stamps in ns)."""
+    out = {'js_t': [], 'js_pos': [], 'js_vel': [], 'sp': [], 'gt_t': [], 'gt': [],
+           'stamps': []}
+    with AnyReader([Path(path)]) as reader:
+        out['types'] = {c.topic: c.msgtype for c in reader.connections}
+        for conn, stamp, raw in reader.messages():
+            out['stamps'].append(stamp)
+            msg = reader.deserialize(raw, conn.msgtype)
+            if conn.topic == '/joint_states':
+                out['names'] = list(msg.name)
+                out['js_t'].append(msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec)
+                out['js_pos'].append(np.array(msg.position))
+                out['js_vel'].append(np.array(msg.velocity))
+            elif conn.topic.endswith('/setpoint'):
+                out['sp'].append((conn.topic, msg.data))
+            elif conn.topic == ground_truth_topic:
+                pose = msg.pose.pose if hasattr(msg.pose, 'pose') else msg.pose
+                out['gt_t'].append(msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec)
+                out['gt'].append((pose.position.x, pose.position.y,
+                                  2.0 * np.arctan2(pose.orientation.z, pose.orientation.w)))
+                out['gt_frame'] = msg.header.frame_id
+    for key in ('js_t', 'js_pos', 'js_vel', 'gt_t', 'gt', 'stamps'):
+        out[key] = np.array(out[key])
+    return out
+
+
+@pytest.fixture(scope='module')
+def auriga_bag(tmp_path_factory):
+    path = tmp_path_factory.mktemp('sim') / 'auriga'
+    return simulate_bag(path, 'auriga_alpha', duration=60.0, seed=4)
+
+
+def test_shipped_vehicles_hold_the_papers_numbers():
+    assert {'auriga_alpha', 'packbot'} <= set(shipped_vehicles())
+    auriga = load_vehicle('auriga_alpha').robot
+    # Martinez sec. 5.1: 258 kg, L 0.42 m, 0.7 x 0.15 m contact, 1 m/s; centre of mass
+    # (-0.015, 0.04) m in the paper's frame (X right, Y forward) -> ROS (0.04, 0.015).
+    veh = auriga.vehicle
+    assert (veh.mass, veh.track_width, veh.contact_length, veh.contact_width) == (
+        258.0, 0.42, 0.7, 0.15)
+    assert (veh.com_x, veh.com_y, veh.max_track_speed) == (0.04, 0.015, 1.0)
+    assert (auriga.encoders.scale_left, auriga.encoders.scale_right) == (1.0072, 1.0275)
+    packbot = load_vehicle('packbot').robot
+    # Fink & Stump: 18 kg, 2 m/s, drive train of Table II.
+    assert (packbot.vehicle.mass, packbot.vehicle.max_track_speed) == (18.0, 2.0)
+    assert packbot.drivetrain.delay == 0.049 and packbot.drivetrain.max_accel == 5.5
+    assert packbot.drivetrain.loop.kp == 56.49
+
+
+def test_vehicle_file_errors_name_the_parameter(tmp_path):
+    with pytest.raises(ValueError, match='unknown vehicle parameter.*frictoin.mu_x'):
+        load_vehicle('packbot', {'frictoin.mu_x': 1.0})
+    with pytest.raises(ValueError, match='friction.mu_y must be > 0'):
+        load_vehicle('packbot', {'friction.mu_y': 0.0})
+    with pytest.raises(ValueError, match='centre_of_mass.x = 0.3 m'):
+        load_vehicle('packbot', {'centre_of_mass.x': 0.3})
+    with pytest.raises(ValueError, match='drivetrain.loop must be one of'):
+        load_vehicle('packbot', {'drivetrain.loop': 'magic'})
+    with pytest.raises(FileNotFoundError, match='auriga_alpha, packbot'):
+        load_vehicle('tank')
+    bad = tmp_path / 'bad.yaml'
+    bad.write_text('track_width: [1, 2\n')
+    with pytest.raises(ValueError, match='bad.yaml: not valid YAML'):
+        load_vehicle(bad)
+
+
+def test_bag_holds_the_interface_topics(auriga_bag):
+    data = read_bag(auriga_bag.bag)
+    assert data['types'] == {
+        '/joint_states': 'sensor_msgs/msg/JointState',
+        '/left_track/setpoint': 'std_msgs/msg/Float64',
+        '/right_track/setpoint': 'std_msgs/msg/Float64',
+        '/ground_truth/pose': 'geometry_msgs/msg/PoseStamped'}
+    assert data['names'] == ['left_sprocket_joint', 'right_sprocket_joint']
+    assert data['gt_frame'] == 'map'
+    # 100 Hz encoders, 50 Hz setpoints per side, 10 Hz ground truth over 60 s.
+    assert len(data['js_t']) == 6001 and len(data['gt_t']) == 601
+    assert sum(1 for topic, _ in data['sp'] if topic == '/left_track/setpoint') == 3001
+    assert auriga_bag.messages['/joint_states'] == 6001
+    assert np.all(np.diff(data['stamps']) >= 0)  # written in time order
+    assert np.all(np.diff(data['js_t']) == 10_000_000)
+    # Joint velocities are sprocket rad/s: radius 0.1 m, the Auriga's 1 m/s at most.
+    assert np.max(np.abs(data['js_vel'])) < 10.5
+    assert np.all(np.isfinite(data['js_pos'])) and np.all(np.isfinite(data['gt']))
+
+
+def test_truth_yaml_is_a_valid_terrain_file_that_explains_the_bag(auriga_bag):
+    assert auriga_bag.truth == truth_path(auriga_bag.bag)
+    values = read_params_file(auriga_bag.truth)
+    icr = icr_from_values(values)
+    assert icr == auriga_bag.truth_icr
+    assert (icr.scale_left, icr.scale_right) == (1.0072, 1.0275)
+    assert values['vehicle'] == 'auriga_alpha' and values['simulation.seed'] == 4
+    assert values['run_fit.y_left'] > 0.21
+    # Odometry on the bag's encoders through the true model vs ideal differential drive,
+    # compared with the ground truth over 1 s windows.
+    data = read_bag(auriga_bag.bag)
+    travel = np.diff(data['js_pos'], axis=0) * values['sprocket_radius']
+    errors = {}
+    for name, model, p in (('truth', ConstantIcr(0.42), ConstantIcr(0.42).from_icr(icr)),
+                           ('ideal', IdealDiffDrive(0.42), ())):
+        x, y, th = (np.r_[0.0, a] for a in model.integrate(p, *travel.T, 0.01))
+        k = np.searchsorted(data['js_t'], data['gt_t'])
+        a, b = k[:-10:10], k[10::10]
+        gt = data['gt']
+        i = np.arange(0, len(gt) - 10, 10)
+        true_d = relative_pose(*gt[i].T, *gt[i + 10].T)
+        odo_d = relative_pose(x[a], y[a], th[a], x[b], y[b], th[b])
+        errors[name] = np.mean(np.hypot(true_d[0] - odo_d[0], true_d[1] - odo_d[1]))
+    assert errors['truth'] < 0.01
+    assert errors['ideal'] > 3 * errors['truth']
+
+
+@pytest.mark.parametrize('storage, name, ground_truth', [
+    ('mcap', 'run', 'odometry'), ('rosbag1', 'new/dir/run.bag', 'pose')])
+def test_other_storages_and_odometry_ground_truth(tmp_path, storage, name, ground_truth):
+    result = simulate_bag(tmp_path / name, 'packbot', manoeuvres='sweep', duration=10.0,
+                          storage=storage, ground_truth=ground_truth, seed=1)
+    topic = '/ground_truth/odom' if ground_truth == 'odometry' else '/ground_truth/pose'
+    data = read_bag(result.bag, topic)
+    expected = 'nav_msgs/msg/Odometry' if ground_truth == 'odometry' else \
+        'geometry_msgs/msg/PoseStamped'
+    assert data['types'][topic] == expected
+    assert result.truth == (tmp_path / name).with_name('run.truth.yaml')
+    np.testing.assert_allclose(data['gt'][-1, :2], result.run.gt_pose[-1, :2], atol=1e-12)
+    assert np.ptp(data['gt'][:, 0]) > 1.0  # the sweep drove
+
+
+def test_setpoints_are_the_commands_the_drive_train_got(tmp_path):
+    # 30 Hz does not divide 100 Hz: each setpoint is stamped where its hold starts.
+    result = simulate_bag(tmp_path / 'sp', 'packbot', duration=4.0, setpoint_rate=30.0,
+                          gt_rate=5.0, seed=2)
+    with AnyReader([result.bag]) as reader:
+        conns = [c for c in reader.connections if c.topic == '/left_track/setpoint']
+        setpoints = [(stamp, reader.deserialize(raw, c.msgtype).data)
+                     for c, stamp, raw in reader.messages(connections=conns)]
+    assert len(setpoints) == 121
+    stamps = np.array([s for s, _ in setpoints]) - simulate_cli.START_NS
+    values = np.array([v for _, v in setpoints])
+    k = np.round(stamps / 1e7).astype(int)
+    # The recorded value is the command in force from that sample until the next setpoint.
+    bounds = np.r_[k, len(result.run.t)]
+    for j in range(len(k)):
+        np.testing.assert_array_equal(result.run.commands[bounds[j]:bounds[j + 1], 0], values[j])
+    np.testing.assert_allclose(stamps / 1e9, np.ceil(np.arange(121) / 0.3 - 1e-9) / 100)
+
+
+def test_same_seed_same_bag_content(tmp_path):
+    one = read_bag(simulate_bag(tmp_path / 'a', 'packbot', duration=5.0, seed=9).bag)
+    two = read_bag(simulate_bag(tmp_path / 'b', 'packbot', duration=5.0, seed=9).bag)
+    three = read_bag(simulate_bag(tmp_path / 'c', 'packbot', duration=5.0, seed=8).bag)
+    np.testing.assert_array_equal(one['js_pos'], two['js_pos'])
+    np.testing.assert_array_equal(one['gt'], two['gt'])
+    assert not np.array_equal(one['js_pos'], three['js_pos'])
+
+
+def test_cli_writes_bag_and_prints_the_true_model(tmp_path, capsys):
+    rc = simulate_cli.main([str(tmp_path / 'cli'), '--vehicle', 'packbot', '--duration', '5',
+                            '--mu-y', '0.9', '--terrain', 'rubber_mat', '--set',
+                            'centre_of_mass.y=0.01', '--storage', 'mcap', '--gt-rate', '20',
+                            '--gt-topic', '/mocap/pose', '--truth', str(tmp_path / 'true.yaml')])
+    out = capsys.readouterr().out
+    assert rc == 0, out
+    assert 'packbot on rubber_mat' in out and '/mocap/pose' in out and 'chi' in out
+    values = read_params_file(tmp_path / 'true.yaml')
+    assert values['terrain'] == 'rubber_mat'
+    assert values['icr.y_left'] < -values['icr.y_right']  # mass on the left
+    assert len(read_bag(tmp_path / 'cli', '/mocap/pose')['gt_t']) == 101
+
+
+@pytest.mark.parametrize('argv, message', [
+    (['--vehicle', 'tank'], 'no vehicle file'),
+    (['--set', 'mass=-3'], 'mass must be > 0'),
+    (['--storage', 'rosbag1'], 'needs a .bag file name'),
+    (['--setpoint-rate', '200'], 'must not exceed the encoder rate'),
+    (['--duration', '0'], 'duration must be'),
+])
+def test_cli_errors_are_one_line(tmp_path, capsys, argv, message):
+    assert simulate_cli.main([str(tmp_path / 'out')] + argv) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith('simulate_bag: ') and '\n' not in err and message in err
+
+
+def test_cli_refuses_to_overwrite(tmp_path, capsys):
+    (tmp_path / 'out').mkdir()
+    assert simulate_cli.main([str(tmp_path / 'out'), '--duration', '1']) == 2
+    assert 'already exists' in capsys.readouterr().err
+
+
+def test_console_scripts_run(tmp_path):
+    sim = subprocess.run([str(BIN / 'simulate_bag'), 'bag', '--vehicle', 'packbot',
+                          '--duration', '3'], cwd=tmp_path, capture_output=True, text=True,
+                         timeout=120)
+    assert sim.returncode == 0, sim.stderr
+    assert (tmp_path / 'bag' / 'metadata.yaml').is_file()
+    assert (tmp_path / 'bag.truth.yaml').is_file()
+    plot = subprocess.run([str(BIN / 'icr_map'), 'packbot', '--n', '7', '--plot', 'map.png'],
+                          cwd=tmp_path, capture_output=True, text=True, timeout=120)
+    assert plot.returncode == 0, plot.stderr
+    assert 'averaged model: chi =' in plot.stdout
+    assert (tmp_path / 'map.png').read_bytes()[:8] == b'\x89PNG\r\n\x1a\n'
+
+
+def test_icr_map_outputs(tmp_path, capsys):
+    rc = icr_map.main(['auriga_alpha', '--n', '11', '--csv', str(tmp_path / 'map.csv'),
+                       '--output', str(tmp_path / 'avg.yaml'), '--set', 'centre_of_mass.z=0'])
+    out = capsys.readouterr().out
+    assert rc == 0
+    assert '11 x 11 pairs' in out and 'x_ICRl' in out
+    icr = icr_from_values(read_params_file(tmp_path / 'avg.yaml'))
+    assert icr.chi == pytest.approx(0.515, abs=0.01)
+    rows = (tmp_path / 'map.csv').read_text().splitlines()
+    assert rows[0].startswith('v_left,v_right') and len(rows) == 1 + 11 * 11
+
+
+def test_icr_map_errors(capsys):
+    assert icr_map.main(['tank']) == 2
+    assert capsys.readouterr().err.startswith('icr_map: no vehicle file')
+    assert icr_map.main(['packbot', '--n', '1']) == 2
+    assert '--n must be >= 2' in capsys.readouterr().err

@@ -1,0 +1,276 @@
+"""icr_estimator on real topics: estimation, prediction, bad poses, pushing, console script."""
+
+import math
+
+from geometry_msgs.msg import PoseStamped
+from helpers.encoder_stream import Driver, joint_state, stamp, Stderr
+from helpers.ros_helpers import ConsoleScript, spin_until
+from nav_msgs.msg import Odometry, Path
+import numpy as np
+import pytest
+from rclpy.parameter import Parameter
+from sensor_msgs.msg import Imu
+from std_msgs.msg import Float64MultiArray
+from tracked_kinematics.core.estimate import scenarios
+from tracked_kinematics.ros.icr_estimator import IcrEstimatorNode
+from tracked_kinematics.ros.odometry_node import OdometryNode
+from tracked_kinematics.ros.parameters import ParameterError
+
+pytestmark = pytest.mark.ros
+
+RADIUS = 0.1
+HALF = 0.5 * scenarios.PAPER_TRACK_WIDTH
+BASE = {'track_width': scenarios.PAPER_TRACK_WIDTH, 'sprocket_radius': RADIUS,
+        'icr.y_left': HALF, 'icr.y_right': -HALF, 'icr.x': 0.0,
+        'left_joints': ['left'], 'right_joints': ['right'], 'publish_rate': 20.0}
+
+
+def _quaternion(msg_orientation, yaw):
+    msg_orientation.z = math.sin(0.5 * yaw)
+    msg_orientation.w = math.cos(0.5 * yaw)
+
+
+def odometry_pose(t, x, y, yaw, frame='map'):
+    msg = Odometry()
+    msg.header.stamp = stamp(t)
+    msg.header.frame_id = frame
+    msg.pose.pose.position.x = float(x)
+    msg.pose.pose.position.y = float(y)
+    _quaternion(msg.pose.pose.orientation, yaw)
+    return msg
+
+
+def imu_heading(t, yaw):
+    msg = Imu()
+    msg.header.stamp = stamp(t)
+    _quaternion(msg.orientation, yaw)
+    return msg
+
+
+class Graph:
+    """An in-process icr_estimator fed by a driver node that records its outputs."""
+
+    def __init__(self, ros_context, executor, capfd, overrides=None, pose_type=Odometry):
+        values = {**BASE, **(overrides or {})}
+        self.node = IcrEstimatorNode(
+            context=ros_context,
+            parameter_overrides=[Parameter(k, value=v) for k, v in values.items()])
+        executor.add_node(self.node)
+        self.executor = executor
+        self.stderr = Stderr(capfd)
+        self.encoders = Driver(ros_context, executor, lambda: self.node.encoder.received)
+        self.poses = Driver(ros_context, executor, lambda: self.node.counts['received'],
+                            node=self.encoders.node)
+        self.pose_type = pose_type
+        self.icr, self.paths = [], []
+        self.encoders.node.create_subscription(Float64MultiArray, 'icr_estimate',
+                                               self.icr.append, 10)
+        self.encoders.node.create_subscription(Path, 'predicted_path', self.paths.append, 10)
+
+    def feed(self, scenario, until=math.inf, heading_only=False):
+        """Send a scenario's encoders (as joint angles) and poses in time order."""
+        angle_left = np.cumsum(scenario.enc_left) / RADIUS
+        angle_right = np.cumsum(scenario.enc_right) / RADIUS
+        k = 0
+        for t, pose in zip(scenario.pose_t, scenario.poses):
+            if t > until:
+                break
+            while k < len(scenario.enc_t) and scenario.enc_t[k] <= t + 1e-9:
+                assert self.encoders.send(joint_state(
+                    scenario.enc_t[k] + 100.0, [angle_left[k], angle_right[k]],
+                    names=('left', 'right')))
+                k += 1
+            msg = imu_heading(t + 100.0, pose[2]) if heading_only else odometry_pose(
+                t + 100.0, *pose)
+            assert self.poses.send(msg, 'pose')
+
+    def wait_outputs(self, path=True):
+        icr, paths = len(self.icr), len(self.paths)
+        assert spin_until(self.executor,
+                          lambda: len(self.icr) > icr and (len(self.paths) > paths or not path))
+
+
+@pytest.fixture
+def graph(ros_context, executor, capfd):
+    def make(overrides=None):
+        return Graph(ros_context, executor, capfd, overrides)
+    return make
+
+
+@pytest.fixture(scope='module')
+def scenario():
+    return scenarios.abrupt_change(seed=4, encoder_rate=50.0, pose_rate=10.0, duration=7.0)
+
+
+def test_estimates_the_icrs_and_predicts_the_path(graph, scenario):
+    g = graph()
+    g.feed(scenario)
+    g.wait_outputs()
+    y_left, y_right, x, chi, e = g.icr[-1].data
+    assert g.icr[-1].layout.dim[0].label == 'y_left,y_right,x,chi,e'
+    np.testing.assert_allclose([y_left, y_right, x], [2.23, -2.23, 0.5], atol=0.15)
+    assert chi == pytest.approx(scenarios.PAPER_TRACK_WIDTH / (y_left - y_right))
+    assert e == pytest.approx(-(y_left + y_right) / (y_left - y_right))
+    assert g.node.counts['updated'] > 50
+    path = g.paths[-1]
+    assert path.header.frame_id == 'map'
+    assert len(path.poses) == 41  # 2 s in steps of 0.05 s, plus the start
+    # The path starts at the latest pose and follows the true arc for 2 s.
+    start = np.array([path.poses[0].pose.position.x, path.poses[0].pose.position.y])
+    end = np.array([path.poses[-1].pose.position.x, path.poses[-1].pose.position.y])
+    t_end = scenario.pose_t[-1]
+    assert np.linalg.norm(start - scenario.truth_at(t_end)[:2]) < 0.1
+    travelled = 2.0 * 1.5  # mean track speed 1.5 m/s
+    assert 0.8 * travelled < np.linalg.norm(end - start) < travelled
+    stamps = [p.header.stamp.sec + 1e-9 * p.header.stamp.nanosec for p in path.poses]
+    np.testing.assert_allclose(np.diff(stamps), 0.05, atol=1e-6)
+
+
+def test_bad_pose_messages_are_refused_with_a_warning(graph, scenario):
+    g = graph()
+    g.feed(scenario, until=4.0)
+    g.wait_outputs()
+    p, P = g.node.estimator.p.copy(), g.node.estimator.P.copy()
+    t = 100.0 + scenario.pose_t[scenario.pose_t <= 4.0][-1]
+    assert g.poses.send(odometry_pose(t + 0.05, math.nan, 0.0, 0.0), 'pose')
+    assert g.poses.send(odometry_pose(t - 0.5, 0.0, 0.0, 0.0), 'pose')
+    assert g.poses.send(odometry_pose(0.0, 0.0, 0.0, 0.0), 'pose')
+    np.testing.assert_array_equal(g.node.estimator.p, p)
+    np.testing.assert_array_equal(g.node.estimator.P, P)
+    assert g.node.counts['non_finite'] == 1
+    assert g.node.counts['stale'] == 1
+    assert g.node.counts['zero_stamp'] == 1
+    assert g.stderr.warnings('icr_estimator', 'refused (non_finite)')
+    assert g.stderr.warnings('icr_estimator', 'zero stamp')
+    g.wait_outputs()
+    assert all(map(math.isfinite, g.icr[-1].data))
+
+
+def test_heading_only_from_an_imu(ros_context, executor, capfd, scenario):
+    g = Graph(ros_context, executor, capfd, {'pose_type': 'imu', 'model': 'adaptive_icr'})
+    g.feed(scenario, heading_only=True)
+    assert g.node.counts['updated'] > 30
+    g.wait_outputs(path=False)
+    # Heading-only: the turn rate is learnt; no path without a position.
+    assert not g.paths
+    y_left, y_right = g.icr[-1].data[:2]
+    model_w = (1.0 - 2.0) / (y_left - y_right)
+    true_w = (1.0 - 2.0) / (2.23 + 2.23)
+    assert model_w == pytest.approx(true_w, rel=0.1)
+
+
+def test_pushes_the_estimate_into_a_running_odometry_node(ros_context, executor, capfd,
+                                                          scenario):
+    odometry = OdometryNode(context=ros_context, parameter_overrides=[
+        Parameter(k, value=v) for k, v in BASE.items() if k != 'publish_rate'])
+    executor.add_node(odometry)
+    g = Graph(ros_context, executor, capfd, {'push_to': ['odometry_node'],
+                                             'push_period': 0.2})
+    g.feed(scenario)
+
+    def pushed():
+        return [odometry.get_parameter(n).value for n in ('icr.y_left', 'icr.y_right', 'icr.x')]
+
+    # Pushes happen while the data stream in; wait for the one of the final estimate.
+    assert spin_until(executor, lambda: np.allclose(pushed(), g.node.estimator.icr(),
+                                                    atol=0.011), 5.0)
+    assert g.node.counts['pushed'] >= 1
+    pushed = pushed()
+    np.testing.assert_allclose(pushed, [2.23, -2.23, 0.5], atol=0.2)
+    assert odometry.odometry.icr.y_left == pytest.approx(pushed[0])
+
+
+def test_prediction_from_cmd_vel_through_the_drivetrain(ros_context, executor, capfd,
+                                                        scenario):
+    from geometry_msgs.msg import Twist
+    g = Graph(ros_context, executor, capfd, {'prediction.source': 'cmd_vel',
+                                             'drivetrain.delay': 0.2, 'drivetrain.loop': 'ideal'})
+    g.feed(scenario, until=3.0)
+    command = Twist()
+    command.linear.x = 0.0   # stop: the path ends after the delay and the stop
+    assert spin_until(executor, lambda: g.node.count_subscribers('cmd_vel') >= 0)
+    pub = g.encoders.node.create_publisher(Twist, 'cmd_vel', 10)
+    assert spin_until(executor, lambda: pub.get_subscription_count() > 0)
+    pub.publish(command)
+    assert spin_until(executor, lambda: g.node._command is not None)
+    g.wait_outputs()
+    xy = np.array([[p.pose.position.x, p.pose.position.y] for p in g.paths[-1].poses])
+    steps = np.linalg.norm(np.diff(xy, axis=0), axis=1)
+    assert np.all(steps[:3] > 0.05)          # still moving during the 0.2 s delay
+    assert np.all(steps[5:] < 1e-9)          # stopped after it (no lag, no ramp)
+
+
+def test_bad_parameters_refuse_to_start(ros_context):
+    for overrides, text in (({'window': 10.0}, 'window'), ({'pose_type': 'gps'}, 'pose_type'),
+                            ({'icr.y_left': -2.0}, 'icr.y_left')):
+        with pytest.raises(ParameterError, match=text):
+            IcrEstimatorNode(context=ros_context, parameter_overrides=[
+                Parameter(k, value=v) for k, v in {**BASE, **overrides}.items()])
+
+
+def test_console_script_starts_and_exits_cleanly(tmp_path):
+    with ConsoleScript('icr_estimator', '--ros-args', '-p', 'track_width:=0.5', '-p',
+                       'icr.y_left:=0.3', '-p', 'icr.y_right:=-0.3',
+                       tmp_path=tmp_path) as proc:
+        assert _wait_for(lambda: 'estimating icr' in proc.output)
+        assert proc.stop() == 0
+    bad = ConsoleScript('icr_estimator', '--ros-args', '-p', 'process_std:=-1.0',
+                        tmp_path=tmp_path)
+    assert bad.wait() == 2
+    assert 'process_std must be >= 0' in bad.output
+
+
+def _wait_for(condition, timeout=20.0):
+    import time
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if condition():
+            return True
+        time.sleep(0.1)
+    return condition()
+
+
+def test_pose_stamped_type_is_accepted(ros_context, executor, capfd, scenario):
+    g = Graph(ros_context, executor, capfd, {'pose_type': 'pose_stamped'})
+    k = 0
+    angle_left = np.cumsum(scenario.enc_left) / RADIUS
+    angle_right = np.cumsum(scenario.enc_right) / RADIUS
+    for t, pose in list(zip(scenario.pose_t, scenario.poses))[:25]:
+        while scenario.enc_t[k] <= t + 1e-9:
+            assert g.encoders.send(joint_state(scenario.enc_t[k] + 100.0,
+                                               [angle_left[k], angle_right[k]],
+                                               names=('left', 'right')))
+            k += 1
+        msg = PoseStamped()
+        msg.header.stamp = stamp(t + 100.0)
+        msg.header.frame_id = 'odom_gps'
+        msg.pose.position.x, msg.pose.position.y = float(pose[0]), float(pose[1])
+        _quaternion(msg.pose.orientation, pose[2])
+        assert g.poses.send(msg, 'pose')
+    assert g.node.counts['updated'] > 10
+    g.wait_outputs()
+    assert g.paths[-1].header.frame_id == 'odom_gps'
+
+
+def test_runtime_parameters_and_reset(ros_context, executor, capfd, scenario):
+    from rclpy.parameter import Parameter as P
+    from std_srvs.srv import Trigger
+    g = Graph(ros_context, executor, capfd)
+    g.feed(scenario, until=4.0)
+    assert g.node.estimator.updates > 10
+    before = g.node.estimator.p.copy()
+    result = g.node.set_parameters_atomically([P('icr.y_left', value=1.5),
+                                               P('icr.y_right', value=-1.5),
+                                               P('publish_rate', value=5.0)])
+    assert result.successful
+    np.testing.assert_array_equal(g.node.estimator.p, before)  # the estimate is kept
+    assert g.node._timer.timer_period_ns == 200_000_000
+    assert not g.node.set_parameters([P('window', value=100.0)])[0].successful
+    client = g.encoders.node.create_client(Trigger, '/icr_estimator/reset')
+    assert client.wait_for_service(timeout_sec=5.0)
+    future = client.call_async(Trigger.Request())
+    assert spin_until(executor, future.done)
+    assert future.result().success
+    np.testing.assert_allclose(g.node.estimator.p, [1.5, -1.5, 0.0])
+    assert g.node.set_parameters([P('track_width', value=2.0)])[0].successful
+    assert g.node.estimator.model.track_width == 2.0

@@ -1,0 +1,1 @@
+"""Online estimation: the EKF over slip-model parameters and its scenarios."""

@@ -1,0 +1,497 @@
+"""
+Online estimation of the slip-model parameters by an EKF, after the EKF paper (sec. 3).
+
+The state is the parameter vector ``p`` of a motion model (the paper's six coefficients of
+eq. 11 with :class:`~tracked_kinematics.core.models.AdaptiveIcr`, or the constant tread ICRs
+``(y_left, y_right, x)`` of :class:`~tracked_kinematics.core.models.ConstantIcr`). It follows
+a random walk (eq. 15, ``p_k = p_{k-1} + w``) whose variance grows with time, so the filter
+can follow a change of terrain.
+
+The measurement is a *pose change*, not a velocity (eqs. 16-18): between two pose
+measurements (an anchor and the current one) the model integrates the encoder travel of the
+window into a predicted pose change ``h(p)``, expressed in the frame of the anchor pose; the
+pose source gives the measured change ``z``. A heading-only source (an IMU during an RTK
+outage, the paper's sec. 5.3) measures only the heading component. The Jacobian
+``H = dh/dp`` (eq. 19) is not written out in the surviving text; we use the exact
+integration sensitivities of the identification (Fink & Stump eq. 4), which are eq. (19) for
+the exact-arc integration of eq. (14).
+
+The filter equations are the standard EKF (eqs. 20-21), with the Joseph form of the
+covariance update so that the covariance stays symmetric positive definite. Three guards
+keep bad pose data out of the state:
+
+* non-finite, stale (not after the anchor) and too-old (beyond ``max_window``) measurements
+  are refused before any arithmetic;
+* windows with an encoder gap are refused (their travel is unknown);
+* an innovation whose normalised squared size exceeds the chi-square gate is refused as a
+  jump. After ``max_outliers`` consecutive refusals the filter takes the pose as a new
+  anchor and widens its covariance: either the pose source jumped for good (re-localised)
+  or the terrain changed faster than the process noise allows, and in both cases the next
+  windows must be heard.
+
+Nothing here imports rclpy; the ``icr_estimator`` node is a thin adapter.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from dataclasses import dataclass
+import math
+
+import numpy as np
+from scipy.stats import chi2
+
+from .._checks import require_numbers
+from ..identify import SegmentProblem, Segments
+from ..integration import relative_pose, wrap_angle
+from ..kinematics import IcrParams
+from ..models import AdaptiveIcr, ConstantIcr, MotionModel
+
+
+@dataclass(frozen=True, slots=True)
+class EstimatorConfig:
+    """
+    Noise model, windows and gates of :class:`SlipEstimator`.
+
+    Attributes
+    ----------
+    pose_std_xy : float
+        Standard deviation of each measured position coordinate, m.
+    pose_std_yaw : float
+        Standard deviation of each measured heading, rad.
+    travel_std : float
+        Model and encoder error per metre travelled in the window (m/m): adds
+        ``(travel_std * travel)^2`` to the position variance and ``2 (travel_std *
+        travel / track_width)^2`` to the heading variance of a window.
+    process_std : float
+        Random-walk standard deviation of each parameter, per square-root second
+        (parameter units / sqrt(s)); larger follows terrain changes faster, noisier.
+    initial_std : float
+        Standard deviation of the initial parameters (parameter units).
+    window : float
+        Length of the window, s: each pose is compared with the newest accepted pose at
+        least this old (the paper's "last few seconds"). Windows of consecutive poses
+        overlap when poses come faster; a longer window averages the pose noise down.
+    min_window : float
+        Shortest window, s: a pose measurement closer than this to the previous one is
+        ignored.
+    max_window : float
+        Poses older than this are forgotten; after a longer outage the next pose starts a
+        new window without an update.
+    gate_probability : float
+        Chi-square probability of the innovation gate (0.9999 refuses one good window in
+        10,000).
+    max_outliers : int
+        Consecutive gated windows after which the filter re-anchors and widens its
+        covariance to ``initial_std``.
+    min_coverage : float
+        Fraction of a window the encoder steps must cover; less is an encoder gap.
+
+    """
+
+    pose_std_xy: float = 0.02
+    pose_std_yaw: float = 0.01
+    travel_std: float = 0.01
+    process_std: float = 0.1
+    initial_std: float = 1.0
+    window: float = 1.0
+    min_window: float = 0.05
+    max_window: float = 5.0
+    gate_probability: float = 0.9999
+    max_outliers: int = 3
+    min_coverage: float = 0.9
+
+    def __post_init__(self):
+        require_numbers(self, positive=('pose_std_xy', 'pose_std_yaw', 'initial_std', 'window',
+                                        'max_window', 'min_coverage'),
+                        non_negative=('travel_std', 'process_std', 'min_window'))
+        if not 0.0 < self.gate_probability < 1.0:
+            raise ValueError(f'gate_probability must be in (0, 1), got {self.gate_probability!r}')
+        if not self.min_window <= self.window < self.max_window:
+            raise ValueError(f'windows must satisfy min_window ({self.min_window}) <= window '
+                             f'({self.window}) < max_window ({self.max_window})')
+        if not isinstance(self.max_outliers, int) or self.max_outliers < 1:
+            raise ValueError(f'max_outliers must be an integer >= 1, got {self.max_outliers!r}')
+        if self.min_coverage > 1.0:
+            raise ValueError(f'min_coverage must be in (0, 1], got {self.min_coverage!r}')
+
+
+@dataclass(frozen=True, slots=True)
+class Outcome:
+    """
+    What :meth:`SlipEstimator.add_pose` did with a measurement.
+
+    Attributes
+    ----------
+    status : str
+        ``'updated'``, ``'anchored'`` (first pose, or a new anchor without update),
+        ``'deferred'`` (waiting for encoder data up to its stamp), ``'short'`` (window
+        below ``min_window``), or a refusal: ``'non_finite'``, ``'stale'``, ``'gap'``,
+        ``'outlier'``, ``'invalid'`` (the update would make the ICRs unphysical).
+    reason : str
+        One line for a log, empty when updated.
+    nis : float
+        Normalised innovation squared of the window (NaN when none was computed).
+
+    """
+
+    status: str
+    reason: str = ''
+    nis: float = math.nan
+
+    @property
+    def accepted(self) -> bool:
+        """Tell whether the measurement updated the parameters."""
+        return self.status == 'updated'
+
+    @property
+    def refused(self) -> bool:
+        """Tell whether the measurement was judged bad (it did not touch the state)."""
+        return self.status in ('non_finite', 'stale', 'gap', 'outlier', 'invalid')
+
+
+def model_icr(model: MotionModel, p, v_left: float, v_right: float):
+    """
+    Tread ICRs ``(y_left, y_right, x)`` (m) of a model with parameters ``p`` at given speeds.
+
+    Raises
+    ------
+    TypeError
+        For a model that has no tread ICRs (e.g. the 9-parameter general slip model).
+
+    """
+    if isinstance(model, AdaptiveIcr):
+        y_left, y_right, x, _ = model._floored_icr(p, v_left, v_right)
+        return float(y_left), float(y_right), float(x)
+    if isinstance(model, ConstantIcr):
+        return float(p[0]), float(p[1]), float(p[2])
+    icr = model.as_icr(p)
+    if icr is None:
+        raise TypeError(f'the {model.name} model has no tread ICRs')
+    return icr.y_left, icr.y_right, icr.x
+
+
+class _TravelLog:
+    """Encoder steps ``(t_start, t_end, d_left, d_right)`` of the last ``span`` seconds."""
+
+    def __init__(self, span: float):
+        self.span = span
+        self.steps: deque = deque()
+
+    @property
+    def end(self) -> float:
+        return self.steps[-1][1] if self.steps else -math.inf
+
+    def append(self, t_end: float, d_left: float, d_right: float, dt: float) -> None:
+        self.steps.append((t_end - dt, t_end, d_left, d_right))
+        while self.steps and self.steps[0][1] < t_end - self.span:
+            self.steps.popleft()
+
+    def window(self, t_a: float, t_b: float):
+        """
+        Clip the steps to ``[t_a, t_b]``: travel, durations, and the covered fraction.
+
+        A step that straddles a window edge contributes the part inside, in proportion to
+        time (constant track speed over a step, as in the identification).
+        """
+        if not self.steps:
+            return np.zeros(0), np.zeros(0), np.zeros(0), 0.0
+        data = np.array(self.steps)
+        lo = np.maximum(data[:, 0], t_a)
+        hi = np.minimum(data[:, 1], t_b)
+        keep = hi > lo
+        full = data[keep, 1] - data[keep, 0]
+        part = hi[keep] - lo[keep]
+        frac = np.divide(part, full, out=np.ones_like(part), where=full > 0.0)
+        covered = float(part.sum()) / (t_b - t_a)
+        return data[keep, 2] * frac, data[keep, 3] * frac, part, covered
+
+
+class SlipEstimator:
+    """
+    EKF over the parameters of a motion model, from encoder travel and pose measurements.
+
+    Parameters
+    ----------
+    model : MotionModel
+        The slip model whose parameters are estimated (the paper: ``AdaptiveIcr``).
+    p0 : array_like, optional
+        Initial parameters; default ``model.initial()`` (ideal differential drive).
+    config : EstimatorConfig, optional
+        Noise model, windows and gates.
+
+    Notes
+    -----
+    Feed :meth:`add_step` with every encoder step (nominal travel, scale-corrected by the
+    caller if the terrain file has scales) and :meth:`add_pose` / :meth:`add_heading` with
+    every pose measurement, each in time order. Poses whose stamp is ahead of the encoder
+    data wait (one at a time, the newest wins) until the encoders catch up.
+
+    """
+
+    def __init__(self, model: MotionModel, p0=None, config: EstimatorConfig | None = None):
+        self.model = model
+        self.config = config or EstimatorConfig()
+        p0 = model.initial() if p0 is None else np.asarray(p0, dtype=float).copy()
+        if p0.shape != (model.n_params,) or not np.all(np.isfinite(p0)):
+            raise ValueError(f'p0 must be {model.n_params} finite numbers, got {p0!r}')
+        self._p0 = p0.copy()
+        self.p = p0
+        self.P = np.eye(model.n_params) * self.config.initial_std ** 2
+        self._log = _TravelLog(self.config.max_window + 1.0)
+        self._history: deque = deque()   # accepted poses (t, x, y, yaw), newest last
+        self._heading_only = False
+        self._pending = None      # (t, pose, heading_only)
+        self._t_state = None      # time of the covariance
+        self._outliers = 0
+        self.updates = 0
+        self.last_speeds = (0.0, 0.0)
+
+    # --- inputs -------------------------------------------------------------------------
+
+    def add_step(self, t: float, d_left: float, d_right: float, dt: float) -> Outcome | None:
+        """
+        Record one encoder step: nominal travel (m) of each track over ``dt`` s ending at ``t``.
+
+        Returns
+        -------
+        Outcome or None
+            The outcome of a deferred pose measurement this step made processable.
+
+        Raises
+        ------
+        ValueError
+            For a non-finite value or ``dt <= 0`` (the caller filters encoder faults).
+
+        """
+        values = (t, d_left, d_right, dt)
+        if not all(math.isfinite(v) for v in values) or dt <= 0.0:
+            raise ValueError(f'encoder step must be finite with dt > 0, got {values!r}')
+        if t < self._log.end - 1e-9:
+            # Time went back (simulation reset, bag loop): the past no longer matches.
+            self._log.steps.clear()
+            self._history.clear()
+            self._pending = None
+        self._log.append(float(t), float(d_left), float(d_right), float(dt))
+        self.last_speeds = (d_left / dt, d_right / dt)
+        if self._pending is not None and self._pending[0] <= self._log.end:
+            t_p, pose, heading_only = self._pending
+            self._pending = None
+            return self._measure(t_p, pose, heading_only)
+        return None
+
+    def add_pose(self, t: float, x: float, y: float, yaw: float) -> Outcome:
+        """Process a full pose measurement (position in any fixed frame, m; yaw, rad)."""
+        return self._receive(t, (x, y, yaw), False)
+
+    def add_heading(self, t: float, yaw: float) -> Outcome:
+        """Process a heading-only measurement (rad), e.g. an IMU while RTK GPS is out."""
+        return self._receive(t, (math.nan, math.nan, yaw), True)
+
+    def configure(self, config: EstimatorConfig) -> None:
+        """Use new noise, window and gate settings from the next measurement on."""
+        self.config = config
+        self._log.span = config.max_window + 1.0
+
+    def set_initial(self, p0) -> None:
+        """Set the parameters :meth:`reset` returns to (the estimate itself is kept)."""
+        p0 = np.asarray(p0, dtype=float)
+        if p0.shape != self._p0.shape or not np.all(np.isfinite(p0)):
+            raise ValueError(f'p0 must be {len(self._p0)} finite numbers, got {p0!r}')
+        self._p0 = p0.copy()
+
+    def reset(self, p0=None) -> None:
+        """Forget the anchor and restart from ``p0`` (default: the initial parameters)."""
+        self.p = (self._p0 if p0 is None else np.asarray(p0, float)).copy()
+        self.P = np.eye(self.model.n_params) * self.config.initial_std ** 2
+        self._history.clear()
+        self._pending = None
+        self._t_state = None
+        self._outliers = 0
+
+    # --- outputs ------------------------------------------------------------------------
+
+    def icr(self, v_left: float | None = None, v_right: float | None = None):
+        """
+        Tread ICRs ``(y_left, y_right, x)`` of the current estimate, m.
+
+        For speed-dependent models they are evaluated at the given track speeds (default:
+        the latest encoder speeds).
+        """
+        if v_left is None:
+            v_left, v_right = self.last_speeds
+        return model_icr(self.model, self.p, v_left, v_right)
+
+    def icr_params(self, v_left=None, v_right=None, scales=(1.0, 1.0)) -> IcrParams | None:
+        """Return the estimate as terrain parameters, or None while it is not physical."""
+        y_left, y_right, x = self.icr(v_left, v_right)
+        try:
+            return IcrParams(self.model.track_width, y_left, y_right, x, *scales)
+        except ValueError:
+            return None
+
+    def pose_now(self):
+        """
+        Return the latest accepted pose advanced by the encoder travel since, or None.
+
+        Returns
+        -------
+        tuple or None
+            ``(t, x, y, yaw)`` at the time of the latest encoder step, in the pose source's
+            frame, dead-reckoned with the current estimate; None before the first full pose
+            (or with heading-only measurements).
+
+        """
+        if not self._history or self._heading_only:
+            return None
+        t_a, x, y, yaw = self._history[-1]
+        t_b = self._log.end
+        if t_b <= t_a:
+            return t_a, x, y, yaw
+        d_left, d_right, dt, _ = self._log.window(t_a, t_b)
+        if len(dt) == 0:
+            return t_a, x, y, yaw
+        xs, ys, yaws = self.model.integrate(self.p, d_left, d_right, dt, pose0=(x, y, yaw))
+        return t_b, float(xs[-1]), float(ys[-1]), float(yaws[-1])
+
+    @property
+    def std(self) -> np.ndarray:
+        """Return the standard deviations of the parameters."""
+        return np.sqrt(np.diag(self.P))
+
+    # --- the filter ---------------------------------------------------------------------
+
+    def _receive(self, t, pose, heading_only) -> Outcome:
+        t = float(t)
+        measured = pose[2:] if heading_only else pose
+        if not math.isfinite(t) or not all(math.isfinite(v) for v in measured):
+            return Outcome('non_finite', f'non-finite pose measurement {pose!r} at t={t!r}')
+        if self._history and t <= self._history[-1][0]:
+            if t >= self._history[-1][0] - self.config.max_window:
+                return Outcome('stale', f'pose stamp {t:.3f} s is not after the previous '
+                                        f'one ({self._history[-1][0]:.3f} s)')
+            # Far in the past: the pose source's clock was reset; so are the windows.
+            self._history.clear()
+        if self._history and heading_only != self._heading_only:
+            # A switch between full poses and headings: the windows do not compare.
+            self._history.clear()
+        self._heading_only = heading_only
+        if t > self._log.end:
+            # A newer pose replaces one still waiting: the window then simply starts later.
+            self._pending = (t, pose, heading_only)
+            return Outcome('deferred', 'waiting for encoder data up to the pose stamp')
+        return self._measure(t, pose, heading_only)
+
+    def _restart(self, t, pose) -> None:
+        """Forget the past poses: windows start at this one."""
+        self._history.clear()
+        self._history.append((t, *pose))
+
+    def _anchor_for(self, t):
+        """
+        Past pose that starts the window ending at ``t``.
+
+        The newest pose at least ``window`` s old, else the oldest one kept (a shorter
+        window while the history fills up).
+        """
+        cfg = self.config
+        while self._history and t - self._history[0][0] > cfg.max_window:
+            self._history.popleft()
+        anchor = None
+        for past in self._history:
+            if t - past[0] < cfg.window:
+                break
+            anchor = past
+        if anchor is None and self._history:
+            anchor = self._history[0]
+        return anchor
+
+    def _measure(self, t, pose, heading_only) -> Outcome:
+        cfg = self.config
+        anchor = self._anchor_for(t)
+        if anchor is None:
+            self._restart(t, pose)
+            return Outcome('anchored', 'no recent pose: the next window starts here')
+        t_a = anchor[0]
+        if t - t_a < cfg.min_window:
+            return Outcome('short', f'window {t - t_a:.3f} s < min_window {cfg.min_window:g} s')
+        d_left, d_right, dt, covered = self._log.window(t_a, t)
+        if covered < cfg.min_coverage or len(dt) == 0:
+            self._restart(t, pose)
+            return Outcome('gap', f'encoder data cover {100 * covered:.0f} % of the '
+                                  f'{t - t_a:.2f} s window: window restarts here')
+        z = self._measurement(anchor, pose, heading_only)
+        h, H = self._predict(d_left, d_right, dt)
+        R = self._noise(d_left, d_right, z)
+        rows = [2] if heading_only else [0, 1, 2]
+        h, H, R, z = h[rows], H[rows], R[np.ix_(rows, rows)], z[rows]
+        innovation = z - h
+        innovation[-1] = wrap_angle(innovation[-1])
+        # Time update, eq. (20): random walk since the last update.
+        P = self.P + np.eye(len(self.p)) * cfg.process_std ** 2 * (
+            0.0 if self._t_state is None else max(0.0, t - self._t_state))
+        S = H @ P @ H.T + R
+        nis = float(innovation @ np.linalg.solve(S, innovation))
+        if nis > chi2.ppf(cfg.gate_probability, len(rows)):
+            self._outliers += 1
+            if self._outliers >= cfg.max_outliers:
+                self._outliers = 0
+                self._restart(t, pose)
+                self.P = P + np.eye(len(self.p)) * cfg.initial_std ** 2
+                self._t_state = t
+                return Outcome('anchored', f'{cfg.max_outliers} windows in a row disagree '
+                                           'with the model: re-anchored, covariance widened',
+                               nis)
+            return Outcome('outlier', f'pose change disagrees with the prediction (NIS '
+                                      f'{nis:.1f}): refused as a jump', nis)
+        # Measurement update, eq. (21), in Joseph form (stays symmetric positive definite).
+        K = np.linalg.solve(S, H @ P).T
+        p = self.p + K @ innovation
+        if not self._physical(p):
+            self._restart(t, pose)
+            return Outcome('invalid', 'the update would put the left ICR right of the right '
+                                      'one: window skipped', nis)
+        A = np.eye(len(p)) - K @ H
+        P = A @ P @ A.T + K @ R @ K.T
+        self.P = 0.5 * (P + P.T)
+        self.p = p
+        self._t_state = t
+        self._outliers = 0
+        self.updates += 1
+        self._history.append((t, *pose))
+        return Outcome('updated', '', nis)
+
+    @staticmethod
+    def _measurement(anchor, pose, heading_only) -> np.ndarray:
+        _, x_a, y_a, yaw_a = anchor
+        if heading_only:
+            return np.array([0.0, 0.0, wrap_angle(pose[2] - yaw_a)])
+        dx, dy, dyaw = relative_pose(x_a, y_a, yaw_a, *pose)
+        return np.array([dx, dy, dyaw], dtype=float)
+
+    def _predict(self, d_left, d_right, dt):
+        """Predicted pose change of the window, eq. (14), and its Jacobian, eq. (19)."""
+        segment = Segments(d_left, d_right, dt, np.zeros(1, np.intp), np.zeros((1, 3)),
+                           np.zeros(1), np.zeros(1), np.zeros(1, np.intp))
+        problem = SegmentProblem(self.model, segment)
+        h = problem.predict(self.p)[0]
+        # SegmentProblem's Jacobian is that of measured - predicted.
+        H = -problem.jacobian(self.p) if self.model.n_params else np.zeros((3, 0))
+        return h, H
+
+    def _noise(self, d_left, d_right, z) -> np.ndarray:
+        cfg = self.config
+        travel = 0.5 * float(np.sum(np.abs(d_left) + np.abs(d_right)))
+        distance2 = float(z[0] ** 2 + z[1] ** 2)
+        pos = 2.0 * cfg.pose_std_xy ** 2 + cfg.pose_std_yaw ** 2 * distance2 \
+            + (cfg.travel_std * travel) ** 2
+        yaw = 2.0 * cfg.pose_std_yaw ** 2 \
+            + 2.0 * (cfg.travel_std * travel / self.model.track_width) ** 2
+        return np.diag([pos, pos, yaw])
+
+    def _physical(self, p) -> bool:
+        if not np.all(np.isfinite(p)):
+            return False
+        if isinstance(self.model, ConstantIcr):
+            return bool(p[0] - p[1] > 0.01 * self.model.track_width)
+        return True

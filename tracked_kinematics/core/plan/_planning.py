@@ -1,0 +1,739 @@
+"""
+Trajectory generation with identified motion models, Fink & Stump sec. III-C and IV-C.
+
+A plan is a sequence of *nominal track speed setpoints* (what ``cmd_vel_translator``
+publishes, one every ``dt``), found by optimisation so that the robot, as predicted by a
+motion model (:mod:`.models`) driven through the drive-train model (:mod:`.drivetrain`,
+Fink & Stump eqs. 6-8), reaches a goal pose or follows a reference path.
+
+Parameterisation
+----------------
+The setpoints of each track are piecewise linear between evenly spaced knots (the
+"spline-based" knot parameterisation of Fink & Stump Fig. 3(b), of degree one), the first
+and last knots fixed at zero: the robot starts and ends at rest. We parameterise the two
+*track speeds* rather than the paper's ``(v, kappa)``: curvature is undefined in a spin and
+at rest, and with knots on the track speeds every limit of the command path is a linear
+inequality in the knots (speed at the knots, acceleration between them, and, through the
+translator's ICR model, the twist limits), exactly the constraints the translator enforces.
+
+Optimiser
+---------
+scipy's COBYLA, as in the paper (sec. III-C, via NLopt there). We keep it because the
+path-following cost of eq. (9) contains ``min_s ||rho(t) - rho_d(s)||``, which is not
+differentiable (the nearest reference point jumps), so a gradient method with
+finite-difference gradients (SLSQP) gets poor steps there, and because COBYLA takes the
+linear limits as constraints and never needs derivatives of the drive-train simulation.
+The horizon is fixed (we do not minimise ``t_f``: the paper's ``w_t`` term is left out), and
+the final-pose condition of eq. (10) is a weighted penalty, not an equality: COBYLA has only
+inequality constraints, and a penalty lets an unreachable goal end with an honest distance
+instead of an infeasible iterate. A plan whose predicted final pose misses the goal by more
+than the tolerance is returned with ``success = False`` and a message; a goal beyond what
+the limits allow within the horizon is refused before optimising.
+
+Canonical trajectories
+----------------------
+Table V: a trapezoidal speed profile ``p_v = [v0, a0, v_trav, af, vf]`` (Fig. 3(a)) and a
+curvature through evenly spaced knots ``kappa_0..kappa_5``. The paper does not say how its
+splines interpolate; we use a monotone cubic (PCHIP), which does not overshoot between
+knots (a natural cubic spline through ``[0, 0, 1.5, 0, 0, 0]`` turns the wrong way between
+them). The desired path is the ideal differential drive's path of these inputs, as in the
+paper. Straight, spin and lane change complete the set (not in Table V; ours).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+import math
+import time
+
+import numpy as np
+from scipy import optimize
+from scipy.interpolate import PchipInterpolator
+from scipy.spatial import cKDTree
+
+from ..command import CommandLimits
+from ..drivetrain import DriveTrain
+from ..integration import integrate_twist, relative_pose
+from ..kinematics import forward, IcrParams
+from ..models import MotionModel
+
+CANONICAL = ('straight', 'left', 'right', 's_curve', 'lane_change', 'spin')
+
+
+class PlanningError(ValueError):
+    """A planning request that cannot be met; the message says why, on one line."""
+
+
+# Canonical reference inputs (Table V) -----------------------------------------------------
+
+
+def trapezoid_profile(t, t_f: float, v0: float = 0.0, a0: float = 5.0, v_trav: float = 1.0,
+                      a_f: float = 5.0, v_f: float = 0.0) -> np.ndarray:
+    """
+    Trapezoidal profile ``[v0, a0, v_trav, af, vf]`` of Fink & Stump Fig. 3(a).
+
+    Ramps from ``v0`` toward ``v_trav`` at ``a0``, travels, and ramps to ``v_f`` at ``a_f``
+    so as to arrive at ``t_f``; when the ramps meet before ``v_trav`` the profile turns at
+    their crossing.
+
+    Parameters
+    ----------
+    t : array_like
+        Times, s, in ``[0, t_f]``.
+    t_f : float
+        Duration, s.
+    v0, v_trav, v_f : float
+        Initial, travelling and final values (same sign, ``|v_trav|`` the largest).
+    a0, a_f : float
+        Ramp rates, > 0 (unit of ``v`` per second).
+
+    Returns
+    -------
+    ndarray
+        The profile at ``t``.
+
+    """
+    t = np.asarray(t, dtype=float)
+    if not (a0 > 0.0 and a_f > 0.0):
+        raise ValueError(f'ramp rates must be > 0, got a0={a0!r}, a_f={a_f!r}')
+    sign = -1.0 if v_trav < 0.0 else 1.0
+    rise = sign * v0 + a0 * t
+    fall = sign * v_f + a_f * (t_f - t)
+    return sign * np.minimum(np.minimum(rise, fall), abs(v_trav))
+
+
+def curvature_profile(t, t_f: float, knots) -> np.ndarray:
+    """
+    Curvature through knots evenly spaced over ``[0, t_f]`` (Fink & Stump Fig. 3(b)).
+
+    Interpolated by a monotone cubic (PCHIP); see the module notes.
+
+    Parameters
+    ----------
+    t : array_like
+        Times, s.
+    t_f : float
+        Duration, s.
+    knots : array_like, shape (K,), K >= 2
+        Curvature at ``t_f * k / (K - 1)``, 1/m.
+
+    Returns
+    -------
+    ndarray
+        Curvature at ``t``, 1/m.
+
+    """
+    knots = np.asarray(knots, dtype=float)
+    if knots.ndim != 1 or len(knots) < 2:
+        raise ValueError('curvature knots must be a sequence of at least 2 values')
+    return PchipInterpolator(np.linspace(0.0, t_f, len(knots)), knots)(t)
+
+
+@dataclass(frozen=True)
+class Reference:
+    """
+    Reference inputs and the path they give an ideal differential drive.
+
+    Attributes
+    ----------
+    name : str
+        Trajectory name.
+    dt : float
+        Sample period, s.
+    v, w : ndarray, shape (N,)
+        Reference forward speed (m/s) and turn rate (rad/s), held over each period.
+    path : ndarray, shape (N + 1, 3)
+        Desired path ``(x, y, theta)`` from the origin, ideal drive without drive train.
+
+    """
+
+    name: str
+    dt: float
+    v: np.ndarray
+    w: np.ndarray
+    path: np.ndarray
+
+    @property
+    def duration(self) -> float:
+        """Length of the reference, s."""
+        return len(self.v) * self.dt
+
+    @property
+    def goal(self) -> np.ndarray:
+        """Return the final pose of the desired path."""
+        return self.path[-1].copy()
+
+    def tracks(self, track_width: float) -> np.ndarray:
+        """Track speeds ``(N, 2)`` of the reference inputs for an ideal drive."""
+        half = 0.5 * float(track_width)
+        return np.column_stack([self.v - half * self.w, self.v + half * self.w])
+
+
+def reference(name: str, v, w, dt: float) -> Reference:
+    """Build a :class:`Reference` from inputs held over periods of ``dt``."""
+    v = np.asarray(v, dtype=float)
+    w = np.asarray(w, dtype=float)
+    x, y, th = integrate_twist(v, np.zeros_like(v), w, dt)
+    path = np.column_stack([np.r_[0.0, x], np.r_[0.0, y], np.r_[0.0, th]])
+    return Reference(name, float(dt), v, w, path)
+
+
+def canonical(name: str, dt: float = 0.02, speed: float = 1.0, accel: float = 5.0,
+              curvature_scale: float = 1.0) -> Reference:
+    """
+    Canonical reference trajectory, Fink & Stump Table V and three of ours.
+
+    With the defaults, ``left``, ``right`` and ``s_curve`` are Table V exactly:
+    ``p_v = [0 m/s, 5 m/s^2, 1 m/s, 5 m/s^2, 0 m/s]`` with the curvature knots
+    ``[0, 0, 1.5, 0, 0, 0]`` over 4 s (``p_L``), ``[0, 0, -1.5, 0, 0, 0]`` over 4 s
+    (``p_R``), ``[0, 0, -1, 0, 1, 0]`` over 6 s (``p_S``). Ours: ``straight`` (4 s, zero
+    curvature), ``lane_change`` (5 s, knots ``[0, 0.75, 0, -0.75, 0]``: a sideways offset
+    with the heading back to zero) and ``spin`` (no forward speed, the turn rate a trapezoid
+    to ``speed / 0.5 m`` rad/s lasting 3 s).
+
+    Parameters
+    ----------
+    name : str
+        One of :data:`CANONICAL`.
+    dt : float
+        Sample period, s.
+    speed : float
+        Travelling speed ``v_trav``, m/s (> 0); scale it to the vehicle.
+    accel : float
+        Ramp rates ``a0 = af`` of the speed profile, m/s^2.
+    curvature_scale : float
+        Factor on the curvature knots (a smaller vehicle turns tighter).
+
+    Returns
+    -------
+    Reference
+
+    Raises
+    ------
+    ValueError
+        For an unknown name or a non-positive speed, accel or dt.
+
+    """
+    for label, value in (('dt', dt), ('speed', speed), ('accel', accel)):
+        if not (math.isfinite(value) and value > 0.0):
+            raise ValueError(f'{label} must be a finite number > 0, got {value!r}')
+    table = {'straight': (4.0, [0.0, 0.0]),
+             'left': (4.0, [0, 0, 1.5, 0, 0, 0]),
+             'right': (4.0, [0, 0, -1.5, 0, 0, 0]),
+             's_curve': (6.0, [0, 0, -1, 0, 1, 0]),
+             'lane_change': (5.0, [0, 0.75, 0, -0.75, 0])}
+    if name == 'spin':
+        t_f = 3.0
+        t = (np.arange(int(round(t_f / dt))) + 0.5) * dt
+        w = trapezoid_profile(t, t_f, 0.0, 2.0 * accel, speed / 0.5, 2.0 * accel, 0.0)
+        return reference(name, np.zeros_like(w), w, dt)
+    if name not in table:
+        raise ValueError(f'unknown canonical trajectory {name!r}; choose one of '
+                         f'{", ".join(CANONICAL)}')
+    t_f, knots = table[name]
+    t = (np.arange(int(round(t_f / dt))) + 0.5) * dt
+    v = trapezoid_profile(t, t_f, 0.0, accel, speed, accel, 0.0)
+    kappa = curvature_scale * curvature_profile(t, t_f, knots)
+    return reference(name, v, v * kappa, dt)
+
+
+# Plans ------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Plan:
+    """
+    A planned command sequence and what the planning model predicts for it.
+
+    Attributes
+    ----------
+    commands : ndarray, shape (N, 2)
+        Nominal track speed setpoints ``(left, right)``, m/s, one per ``dt``, held; the
+        last is zero, and the robot is left to settle after it.
+    dt : float
+        Command period, s.
+    poses : ndarray, shape (N + S, 3)
+        Predicted poses at the command times and through ``S`` settling samples.
+    goal : ndarray, shape (3,)
+        Goal pose ``(x, y, theta)``.
+    position_error, yaw_error : float
+        Predicted final pose minus goal: distance (m) and ``|heading|`` difference (rad).
+    success : bool
+        Whether the predicted final pose is within the tolerance of the goal.
+    message : str
+        One line: what was achieved, or why not.
+    model : str
+        Name of the planning model.
+    path_deviation : float
+        Largest distance of the predicted path from the reference path, m (NaN for a plan
+        to a goal without a reference).
+    nfev : int
+        Predictions evaluated.
+    seconds : float
+        Planning wall time, s.
+
+    """
+
+    commands: np.ndarray
+    dt: float
+    poses: np.ndarray
+    goal: np.ndarray
+    position_error: float
+    yaw_error: float
+    success: bool
+    message: str
+    model: str = ''
+    path_deviation: float = math.nan
+    nfev: int = 0
+    seconds: float = 0.0
+    knots: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+
+    @property
+    def t(self) -> np.ndarray:
+        """Command times, s."""
+        return np.arange(len(self.commands)) * self.dt
+
+    def twists(self, icr: IcrParams):
+        """
+        ``cmd_vel`` that the translator with model ``icr`` turns back into these setpoints.
+
+        The translator computes ``nominal = inverse(v_x, w) / scale`` (Martinez eqs. 10-11,
+        20-21); its inverse is the forward kinematics of ``scale * nominal``.
+
+        Returns
+        -------
+        v_x, w : ndarray, shape (N,)
+            m/s, rad/s.
+
+        """
+        v_x, _, w = forward(self.commands[:, 0] * icr.scale_left,
+                            self.commands[:, 1] * icr.scale_right, icr)
+        return np.asarray(v_x, float), np.asarray(w, float)
+
+
+def path_deviation(path, ref_path) -> np.ndarray:
+    """
+    Distance of each point of ``path`` to the nearest point of ``ref_path``, m.
+
+    ``min_s ||rho(t) - rho_d(s)||`` of Fink & Stump eq. (9), with the reference sampled
+    densely (every ``dt``) rather than interpolated between samples.
+    """
+    path = np.asarray(path, float)[:, :2]
+    ref = np.asarray(ref_path, float)[:, :2]
+    d2 = (np.sum(path ** 2, 1)[:, None] + np.sum(ref ** 2, 1)[None, :]
+          - 2.0 * path @ ref.T)
+    return np.sqrt(np.maximum(d2.min(axis=1), 0.0))
+
+
+def _within(z, matrix, bound):
+    """
+    Scale knots into the limits ``matrix z <= bound``, which COBYLA meets only to ``catol``.
+
+    Every limit is symmetric about rest (``bound > 0``), so shrinking toward rest keeps all
+    of them; the returned knots never exceed any limit.
+    """
+    load = matrix @ z
+    over = load > bound
+    if not np.any(over):
+        return z
+    return z * float(np.min(bound[over] / load[over]))
+
+
+def reach(speed: float, accel: float, horizon: float) -> float:
+    """Longest travel of a track that starts and ends at rest within ``horizon``, m."""
+    if math.isinf(accel):
+        return speed * horizon
+    if horizon >= 2.0 * speed / accel:
+        return speed * (horizon - speed / accel)
+    return 0.25 * accel * horizon ** 2
+
+
+class Planner:
+    """
+    Command sequences for a motion model through a drive-train model, within limits.
+
+    Parameters
+    ----------
+    model : MotionModel
+        Planning model (from measured track speeds to twist).
+    p : array_like
+        Its parameters.
+    drivetrain : DriveTrain
+        Command -> measured track speed response (both tracks).
+    limits : CommandLimits, optional
+        The translator's limits, enforced on the setpoints as constraints. Track limits
+        default to the drive train's own (``max_speed``, ``max_accel``); at least a finite
+        track speed limit is needed.
+    command_icr : IcrParams, optional
+        The translator's model, needed for twist limits (``max_linear_velocity`` ...) and to
+        write ``cmd_vel``; default ideal drive of the model's track width.
+    dt : float
+        Command period, s (the translator's rate: 50 Hz by default).
+    knot_spacing : float
+        Target time between knots, s.
+    settle : float
+        Time after the last command over which the prediction continues (delay and lag of
+        the drive train), s.
+
+    """
+
+    def __init__(self, model: MotionModel, p, drivetrain: DriveTrain,
+                 limits: CommandLimits | None = None, command_icr: IcrParams | None = None,
+                 dt: float = 0.02, knot_spacing: float = 0.4, settle: float = 1.0):
+        self.model = model
+        self.p = np.asarray(p, dtype=float)
+        if len(self.p) != model.n_params or not np.all(np.isfinite(self.p)):
+            raise ValueError(f'{model.name} needs {model.n_params} finite parameters, got '
+                             f'{self.p.tolist()}')
+        self.drivetrain = drivetrain
+        self.limits = limits or CommandLimits()
+        self.command_icr = command_icr or IcrParams.ideal(model.track_width)
+        for label, value in (('dt', dt), ('knot_spacing', knot_spacing)):
+            if not (math.isfinite(value) and value > 0.0):
+                raise ValueError(f'{label} must be a finite number > 0 s, got {value!r}')
+        if not (math.isfinite(settle) and settle >= 0.0):
+            raise ValueError(f'settle must be a finite number >= 0 s, got {settle!r}')
+        self.dt, self.knot_spacing = float(dt), float(knot_spacing)
+        self.smoothing = 1e-4
+        self.settle_steps = int(round(settle / dt))
+        self.max_speed = min(self.limits.max_track_speed, drivetrain.max_speed)
+        self.max_accel = min(self.limits.max_track_accel, drivetrain.max_accel)
+        if math.isinf(self.max_speed):
+            raise ValueError('planning needs a finite max_track_speed (or a drive-train '
+                             'speed limit)')
+
+    # Prediction ---------------------------------------------------------------------------
+
+    def predict(self, commands, start=(0.0, 0.0, 0.0)) -> np.ndarray:
+        """
+        Poses the planning model predicts for setpoints, through the settling time.
+
+        The same chain as :func:`.simulation.simulate`, with the motion model in place of
+        the dynamics: drive train, mean speed over each step, twist, exact arcs.
+
+        Parameters
+        ----------
+        commands : array_like, shape (N, 2)
+            Nominal setpoints, m/s, held over each ``dt``.
+        start : sequence of float
+            Start pose.
+
+        Returns
+        -------
+        ndarray, shape (N + S, 3)
+            Pose at each sample, the first being ``start``.
+
+        """
+        commands = np.asarray(commands, dtype=float)
+        full = np.vstack([commands, np.zeros((self.settle_steps, 2))])
+        speeds = self.drivetrain.simulate(full, self.dt)
+        step = 0.5 * (speeds[1:] + speeds[:-1])
+        v_x, v_y, w = self.model.twist(self.p, step[:, 0], step[:, 1])
+        x, y, th = integrate_twist(v_x, v_y, w, self.dt, tuple(start))
+        return np.column_stack([np.r_[start[0], x], np.r_[start[1], y], np.r_[start[2], th]])
+
+    # Knots and constraints ----------------------------------------------------------------
+
+    def _grid(self, horizon: float):
+        """Sample count, knot count and the knot -> sample interpolation matrix."""
+        n = int(round(horizon / self.dt))
+        m = max(2, int(math.ceil(horizon / self.knot_spacing - 1e-9)))
+        t = np.arange(n) * self.dt
+        knot_t = np.linspace(0.0, (n - 1) * self.dt, m + 1)   # the last command is a knot
+        eye = np.eye(m + 1)
+        interp = np.stack([np.interp(t, knot_t, eye[j]) for j in range(m + 1)], axis=1)
+        return n, m, interp[:, 1:m], knot_t[1] - knot_t[0]
+
+    def _constraints(self, m: int, h: float):
+        """Linear inequalities ``G z <= b`` on the free knots, normalised by max_speed."""
+        free = m - 1
+        scale = self.max_speed
+        rows, bounds = [], []
+        # Knot values of both tracks (including the fixed zero ends) as matrices of z.
+        pad = np.zeros((m + 1, free))
+        pad[1:m] = np.eye(free)
+        left = np.hstack([pad, np.zeros_like(pad)])
+        right = np.hstack([np.zeros_like(pad), pad])
+        diff = np.diff(np.eye(m + 1), axis=0)
+
+        def add(matrix, limit):
+            if math.isfinite(limit):
+                rows.extend([matrix, -matrix])
+                bounds.extend([np.full(len(matrix), limit)] * 2)
+
+        for track in (left, right):
+            add(track[1:m] * scale, self.max_speed)
+            add(diff @ track * scale, self.max_accel * h)
+        icr, lim = self.command_icr, self.limits
+        span = icr.y_left - icr.y_right
+        v_x = (icr.scale_right * icr.y_left * right - icr.scale_left * icr.y_right * left) / span
+        w = (icr.scale_right * right - icr.scale_left * left) / span
+        add(v_x[1:m] * scale, lim.max_linear_velocity)
+        add(diff @ v_x * scale, lim.max_linear_acceleration * h)
+        add(w[1:m] * scale, lim.max_angular_velocity)
+        add(diff @ w * scale, lim.max_angular_acceleration * h)
+        return np.vstack(rows), np.concatenate(bounds)
+
+    def _optimise(self, cost, z0, matrix, bound, maxiter, extra=(), tol=1e-4):
+        """COBYLA over the free knots with the linear limits as constraints."""
+        cons = {'type': 'ineq', 'fun': lambda z: bound - matrix @ z,
+                'jac': lambda z: -matrix}
+        # Start inside the limits: shrink the guess toward rest (which is feasible).
+        worst = float(np.max(matrix @ z0 / bound)) if len(bound) else 0.0
+        if worst > 1.0:
+            z0 = z0 / worst * 0.999
+        res = optimize.minimize(cost, z0, method='COBYLA', constraints=[cons, *extra],
+                                options={'rhobeg': 0.1, 'tol': tol, 'maxiter': maxiter,
+                                         'catol': 1e-9})
+        return _within(res.x, matrix, bound)
+
+    def _commands(self, z, interp, free):
+        knots = z.reshape(2, free).T * self.max_speed
+        return interp @ knots, knots
+
+    # Planning -----------------------------------------------------------------------------
+
+    def plan_to(self, goal, horizon: float, start=(0.0, 0.0, 0.0),
+                tolerance=(0.05, 0.05), heading_weight: float = 0.5,
+                maxiter: int = 3000) -> Plan:
+        """
+        Setpoints that bring the robot from ``start`` to ``goal`` within ``horizon``.
+
+        Minimises ``|dp|^2 + (lambda dtheta)^2 + mu sum (knot steps)^2`` of the predicted
+        final pose error (the final-pose condition of eq. 10 as a penalty; ``mu`` small,
+        for the smoothest of the many sequences that reach the goal), subject to the
+        limits.
+
+        Parameters
+        ----------
+        goal : sequence of float
+            Goal pose ``(x, y, theta)`` in the frame of ``start``'s parent: m, m, rad.
+        horizon : float
+            Time of the last setpoint, s; the robot settles after it.
+        start : sequence of float
+            Start pose, at rest.
+        tolerance : tuple of float
+            Largest final position (m) and heading (rad) error of a successful plan.
+        heading_weight : float
+            ``lambda``, m/rad.
+        maxiter : int
+            COBYLA's evaluation budget.
+
+        Returns
+        -------
+        Plan
+            ``success`` False with a message when the goal is out of reach or missed.
+
+        Raises
+        ------
+        ValueError
+            On a non-finite pose, a horizon shorter than 2 knots' worth of commands, or a
+            non-positive tolerance.
+
+        """
+        started = time.perf_counter()
+        goal, start = self._check_pose(goal, 'goal'), self._check_pose(start, 'start')
+        horizon = self._check_horizon(horizon)
+        tol_pos, tol_yaw = (float(v) for v in tolerance)
+        if not (tol_pos > 0.0 and tol_yaw > 0.0):
+            raise ValueError(f'tolerance must be > 0, got {tolerance!r}')
+        dx, dy, dth = (float(v) for v in relative_pose(*start, *goal))
+        distance = math.hypot(dx, dy)
+        n, m, interp, h = self._grid(horizon)
+        free = m - 1
+        # Reachability: the farthest a track can go, times the model's speed per track speed.
+        v_fwd, _, _ = self.model.twist(self.p, [1.0, -1.0], [1.0, -1.0])
+        _, _, w_spin = self.model.twist(self.p, [-1.0, 1.0], [1.0, -1.0])
+        track_reach = reach(self.max_speed, self.max_accel, n * self.dt)
+        max_distance = track_reach * float(np.max(np.abs(v_fwd)))
+        max_turn = track_reach * float(np.max(np.abs(w_spin)))
+        # Twist limits act on the translator's model; carry them over to the planning model
+        # by the ratio of the two models' speed per track speed.
+        lim, icr = self.limits, self.command_icr
+        cmd_v, _, _ = forward(icr.scale_left, icr.scale_right, icr)
+        _, _, cmd_w = forward(-icr.scale_left, icr.scale_right, icr)
+        max_distance = min(max_distance, reach(
+            lim.max_linear_velocity, lim.max_linear_acceleration, n * self.dt)
+            * float(np.max(np.abs(v_fwd))) / abs(float(cmd_v)))
+        max_turn = min(max_turn, reach(
+            lim.max_angular_velocity, lim.max_angular_acceleration, n * self.dt)
+            * float(np.max(np.abs(w_spin))) / abs(float(cmd_w)))
+        empty = np.zeros((n, 2))
+        if distance > max_distance + tol_pos or abs(dth) > max_turn + tol_yaw:
+            what = (f'{distance:.2f} m away, at most {max_distance:.2f} m'
+                    if distance > max_distance + tol_pos else
+                    f'a {math.degrees(abs(dth)):.0f} deg turn, at most '
+                    f'{math.degrees(max_turn):.0f} deg')
+            msg = (f'goal unreachable within {horizon:g} s: {what} with max track speed '
+                   f'{self.max_speed:g} m/s and acceleration {self.max_accel:g} m/s^2 '
+                   f'({self.model.name} model); give a longer horizon or a nearer goal')
+            return self._failed(empty, goal, start, msg, started)
+        z0 = self._guess(dx, dy, dth, n, m, free)
+        matrix, bound = self._constraints(m, h)
+        mu = self.smoothing
+        count = [0]
+
+        def cost(z):
+            count[0] += 1
+            commands, knots = self._commands(z, interp, free)
+            end = self.predict(commands, start)[-1]
+            ex, ey, eth = relative_pose(*goal, *end)
+            smooth = np.sum(np.diff(np.vstack([[0, 0], z.reshape(2, free).T, [0, 0]]),
+                                    axis=0) ** 2)
+            return float(ex * ex + ey * ey + (heading_weight * eth) ** 2 + mu * smooth)
+
+        z = self._optimise(cost, z0, matrix, bound, maxiter)
+        return self._finish(z, interp, free, goal, start, tol_pos, tol_yaw, count[0],
+                            started, None)
+
+    def follow(self, ref: Reference, start=(0.0, 0.0, 0.0), tolerance=(0.05, 0.05),
+               path_weight: float = 1.0, goal_weight: float = 10.0,
+               heading_weight: float = 0.5, maxiter: int = 3000) -> Plan:
+        """
+        Setpoints that follow a reference path and end at its final pose (eq. 9 and 10).
+
+        Minimises ``w_p mean_t min_s ||rho(t) - rho_d(s)|| + w_g (|dp| + lambda |dtheta|)``
+        over the horizon of the reference (fixed: the ``w_t t_f`` term of eq. 9 is left
+        out), starting, as the paper does, from the inputs that give the desired path to an
+        ideal drive.
+
+        Parameters
+        ----------
+        ref : Reference
+            Reference inputs and desired path (from the origin; moved to ``start``).
+        start : sequence of float
+            Start pose.
+        tolerance : tuple of float
+            Final position (m) and heading (rad) tolerance of a successful plan.
+        path_weight, goal_weight : float
+            ``w_p`` and the weight of the final-pose penalty.
+        heading_weight : float
+            ``lambda``, m/rad.
+        maxiter : int
+            COBYLA's evaluation budget.
+
+        Returns
+        -------
+        Plan
+
+        """
+        started = time.perf_counter()
+        start = self._check_pose(start, 'start')
+        tol_pos, tol_yaw = (float(v) for v in tolerance)
+        c, s = math.cos(start[2]), math.sin(start[2])
+        ref_path = np.column_stack([start[0] + c * ref.path[:, 0] - s * ref.path[:, 1],
+                                    start[1] + s * ref.path[:, 0] + c * ref.path[:, 1],
+                                    start[2] + ref.path[:, 2]])
+        goal = ref_path[-1]
+        horizon = self._check_horizon(ref.duration)
+        n, m, interp, h = self._grid(horizon)
+        free = m - 1
+        # Initial guess: the ideal-drive inputs, sampled at the knots, scaled into the limits.
+        ideal = ref.tracks(self.model.track_width)
+        knot_t = np.linspace(0.0, (n - 1) * self.dt, m + 1)[1:m]
+        t_ref = (np.arange(len(ideal)) + 0.5) * ref.dt
+        z0 = np.concatenate([np.interp(knot_t, t_ref, ideal[:, k]) for k in (0, 1)])
+        z0 /= self.max_speed
+        matrix, bound = self._constraints(m, h)
+        tree = cKDTree(ref_path[:, :2])
+        count = [0]
+        memo = {}
+
+        def predicted(z):
+            key = z.tobytes()
+            if key not in memo:
+                count[0] += 1
+                memo.clear()
+                poses = self.predict(self._commands(z, interp, free)[0], start)
+                ex, ey, eth = relative_pose(*goal, *poses[-1])
+                memo[key] = (poses, math.hypot(ex, ey), abs(float(eth)))
+            return memo[key]
+
+        def cost(z):
+            poses, pos_err, yaw_err = predicted(z)
+            deviation = float(np.mean(tree.query(poses[:, :2])[0]))
+            return path_weight * deviation + goal_weight * (pos_err + heading_weight * yaw_err)
+
+        # The final-pose condition of eq. (10), as inequalities within half the tolerance.
+        goal_cons = {'type': 'ineq', 'fun': lambda z: np.array(
+            [0.5 * tol_pos - predicted(z)[1], 0.5 * tol_yaw - predicted(z)[2]])}
+        # The goal is held by the constraints; the path cost needs less precision than a
+        # goal cost (a final trust radius of 1e-3 of max speed halves the time, same paths).
+        z = self._optimise(cost, z0, matrix, bound, maxiter, extra=[goal_cons], tol=1e-3)
+        return self._finish(z, interp, free, goal, start, tol_pos, tol_yaw, count[0],
+                            started, ref_path)
+
+    # Helpers ------------------------------------------------------------------------------
+
+    def _guess(self, dx, dy, dth, n, m, free):
+        """Start of the search: one arc through the goal position, or a spin in place."""
+        horizon = (n - 1) * self.dt
+        knot_t = np.linspace(0.0, horizon, m + 1)[1:m]
+        ramp = max(self.max_speed / self.max_accel if math.isfinite(self.max_accel) else 0.0,
+                   self.knot_spacing)
+        ramp = min(ramp, 0.5 * horizon)
+        shape = np.minimum(1.0, np.minimum(knot_t, horizon - knot_t) / ramp)
+        area = horizon - ramp    # integral of the shape over the horizon, s
+        half = 0.5 * self.model.track_width
+        distance = math.hypot(dx, dy)
+        if distance < 1e-3:
+            v, w = 0.0, dth / area
+        else:
+            # Forward arc tangent to the start heading through the goal position (mirrored
+            # when the goal is behind: reversing along the mirrored arc).
+            sign = -1.0 if dx < 0.0 else 1.0
+            angle = 2.0 * math.atan2(dy, sign * dx)
+            length = distance if abs(angle) < 1e-6 else (
+                distance * angle / (2.0 * math.sin(0.5 * angle)))
+            v, w = sign * length / area, sign * angle / area
+        left, right = v - half * w, v + half * w
+        return np.concatenate([left * shape, right * shape]) / self.max_speed
+
+    def _finish(self, z, interp, free, goal, start, tol_pos, tol_yaw, nfev, started,
+                ref_path):
+        commands, knots = self._commands(z, interp, free)
+        poses = self.predict(commands, start)
+        ex, ey, eth = relative_pose(*goal, *poses[-1])
+        pos_err, yaw_err = math.hypot(ex, ey), abs(float(eth))
+        deviation = (float(np.max(path_deviation(poses, ref_path)))
+                     if ref_path is not None else math.nan)
+        success = pos_err <= tol_pos and yaw_err <= tol_yaw
+        if success:
+            message = (f'planned with the {self.model.name} model: predicted final pose '
+                       f'{pos_err * 100:.1f} cm and {math.degrees(yaw_err):.1f} deg from the '
+                       f'goal')
+        else:
+            message = (f'no plan within tolerance: the best the optimiser found with the '
+                       f'{self.model.name} model ends {pos_err:.3f} m and '
+                       f'{math.degrees(yaw_err):.1f} deg from the goal (tolerance '
+                       f'{tol_pos:g} m, {math.degrees(tol_yaw):.1f} deg)')
+        return Plan(commands=commands, dt=self.dt, poses=poses, goal=np.asarray(goal),
+                    position_error=pos_err, yaw_error=yaw_err, success=success,
+                    message=message, model=self.model.name, path_deviation=deviation,
+                    nfev=nfev, seconds=time.perf_counter() - started, knots=knots)
+
+    def _failed(self, commands, goal, start, message, started):
+        poses = np.tile(np.asarray(start, float), (len(commands) + self.settle_steps, 1))
+        ex, ey, eth = relative_pose(*goal, *start)
+        return Plan(commands=commands, dt=self.dt, poses=poses, goal=np.asarray(goal),
+                    position_error=math.hypot(ex, ey), yaw_error=abs(float(eth)),
+                    success=False, message=message, model=self.model.name,
+                    seconds=time.perf_counter() - started)
+
+    @staticmethod
+    def _check_pose(pose, label):
+        try:
+            pose = np.asarray(pose, dtype=float).reshape(3)
+        except (TypeError, ValueError):
+            raise ValueError(f'{label} must be three numbers (x y yaw), got {pose!r}') from None
+        if not np.all(np.isfinite(pose)):
+            raise ValueError(f'{label} must be finite, got {pose.tolist()}')
+        return pose
+
+    def _check_horizon(self, horizon):
+        horizon = float(horizon)
+        if not (math.isfinite(horizon) and horizon >= 2.0 * self.knot_spacing
+                and horizon >= 4 * self.dt):
+            raise ValueError(f'horizon must be a finite number >= {2 * self.knot_spacing:g} s '
+                             f'(two knots), got {horizon!r}')
+        return horizon

@@ -1,0 +1,1 @@
+"""Simulation: the dynamic track model, the simulator and its manoeuvres."""

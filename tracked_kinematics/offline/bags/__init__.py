@@ -1,0 +1,1 @@
+"""Reading and writing rosbags as plain arrays (rosbags, no ROS install)."""

@@ -1,0 +1,676 @@
+"""
+Read encoder travel and ground-truth poses from rosbags into plain arrays.
+
+rosbag2 directories (sqlite3, mcap) and ROS 1 ``.bag`` files are read with
+``rosbags.highlevel.AnyReader``, one bag at a time, streaming only the topics asked for.
+Each message is reduced to a few numbers appended to growing numpy buffers, so memory grows
+with the number of samples (tens of bytes each), never with the size of the bag.
+
+Encoders, as odometry_node takes them (INTERFACE.md):
+
+- ``joint_states``: sensor_msgs/JointState; the joints of each side are averaged; positions
+  (rad) when the messages carry them, else velocities (rad/s, trapezoidal rule); time from
+  ``header.stamp``;
+- ``track_speeds``: std_msgs/Float64 per side, m/s of nominal track speed;
+- ``encoder_ticks``: std_msgs/Int32 or Int64 per side, wrapping tick counters.
+
+Headerless messages are timed by the bag's receive time. Ground truth: nav_msgs/Odometry,
+geometry_msgs/PoseStamped, geometry_msgs/PoseWithCovarianceStamped (``header.stamp``) or
+tf2_msgs/TFMessage (the transform parent -> child), optionally moved from a tracked body to
+base_link by a fixed offset.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+import math
+from pathlib import Path
+import struct
+
+import numpy as np
+from rosbags.highlevel import AnyReader
+from tracked_kinematics.core.encoders import (
+    counter_increments, travel_from_ticks, travel_from_velocities)
+from tracked_kinematics.core.identify import Recording
+from tracked_kinematics.core.identify.drivetrain import DriveData
+from tracked_kinematics.core.integration import compose
+
+ENCODER_INPUTS = ('joint_states', 'track_speeds', 'encoder_ticks')
+GROUND_TRUTH_TYPES = ('nav_msgs/msg/Odometry', 'geometry_msgs/msg/PoseStamped',
+                      'geometry_msgs/msg/PoseWithCovarianceStamped', 'tf2_msgs/msg/TFMessage')
+_TICK_BITS = {'std_msgs/msg/Int32': 32, 'std_msgs/msg/Int64': 64}
+
+
+class BagError(ValueError):
+    """A bag cannot give what was asked; the message is one line for the user."""
+
+
+@dataclass(frozen=True)
+class EncoderSource:
+    """
+    Where and how to read the track encoders.
+
+    Attributes
+    ----------
+    mode : str
+        One of :data:`ENCODER_INPUTS`.
+    topic : str
+        JointState topic (``joint_states`` mode).
+    left_joints, right_joints : tuple of str
+        Joints of each side (``joint_states`` mode).
+    left_topic, right_topic : str
+        Per-side topics (``track_speeds`` and ``encoder_ticks`` modes).
+    sprocket_radius : float
+        m: joint angle (rad) x radius = nominal track travel.
+    ticks_per_revolution : float
+        Ticks per sprocket revolution (``encoder_ticks`` mode).
+
+    """
+
+    mode: str = 'joint_states'
+    topic: str = '/joint_states'
+    left_joints: tuple = ('left_sprocket_joint',)
+    right_joints: tuple = ('right_sprocket_joint',)
+    left_topic: str = '/left_track/speed'
+    right_topic: str = '/right_track/speed'
+    sprocket_radius: float = 0.1
+    ticks_per_revolution: float = 4096.0
+
+    def topics(self) -> tuple[str, ...]:
+        """Topics this source reads."""
+        if self.mode == 'joint_states':
+            return (self.topic,)
+        return (self.left_topic, self.right_topic)
+
+
+@dataclass(frozen=True)
+class GroundTruthSource:
+    """
+    Where to read the ground-truth pose of the vehicle.
+
+    Attributes
+    ----------
+    topic : str
+        Odometry, PoseStamped, PoseWithCovarianceStamped or TFMessage topic.
+    parent_frame, child_frame : str
+        For TFMessage: the fixed frame and the tracked frame. An empty parent accepts the
+        only parent that publishes ``child_frame``.
+    offset : tuple of float
+        Pose ``(x, y, yaw)`` of the tracked body in base_link (m, m, rad); the ground truth
+        is moved to base_link by it.
+
+    """
+
+    topic: str
+    parent_frame: str = ''
+    child_frame: str = 'base_link'
+    offset: tuple = (0.0, 0.0, 0.0)
+
+
+class _Columns:
+    """Growing float64 columns, doubled in place: appends are amortised O(1)."""
+
+    def __init__(self, width: int, capacity: int = 1024):
+        self._data = np.empty((capacity, width))
+        self.n = 0
+
+    def append(self, row) -> None:
+        if self.n == len(self._data):
+            self._data = np.concatenate([self._data, np.empty_like(self._data)])
+        self._data[self.n] = row
+        self.n += 1
+
+    def extend(self, rows) -> None:
+        while self.n + len(rows) > len(self._data):
+            self._data = np.concatenate([self._data, np.empty_like(self._data)])
+        self._data[self.n:self.n + len(rows)] = rows
+        self.n += len(rows)
+
+    @property
+    def array(self) -> np.ndarray:
+        return self._data[:self.n]
+
+
+def _stamp(header, receive_ns: int, ref_ns: int) -> float:
+    """Header stamp in ns after ``ref_ns`` (receive time when the stamp was never filled)."""
+    stamp_ns = header.stamp.sec * 1_000_000_000 + header.stamp.nanosec
+    return float((stamp_ns if stamp_ns > 0 else receive_ns) - ref_ns)
+
+
+def _yaw(q) -> float:
+    """Heading of a quaternion (rotation about z of its projection on the plane)."""
+    return math.atan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z))
+
+
+def _sort_unique(columns: np.ndarray) -> np.ndarray:
+    """Rows sorted by their first column (time), the first of equal times kept."""
+    if len(columns) == 0:
+        return columns
+    columns = columns[np.argsort(columns[:, 0], kind='stable')]
+    keep = np.concatenate([[True], np.diff(columns[:, 0]) > 0])
+    return columns[keep]
+
+
+def _strip(frame: str) -> str:
+    return frame.lstrip('/')
+
+
+def _unwrap_if_wrapped(positions: np.ndarray) -> np.ndarray:
+    """Unwrap joint angles that a driver reports wrapped into [-pi, pi]."""
+    if len(positions) < 2 or np.max(np.abs(positions)) > math.pi + 1e-6:
+        return positions
+    if not np.any(np.abs(np.diff(positions)) > math.pi):
+        return positions
+    return np.unwrap(positions)
+
+
+class _Progress:
+    """A progress bar on stderr when it is a terminal (tqdm), else nothing."""
+
+    def __init__(self, total: int, description: str, enabled: bool):
+        self._bar = None
+        self._pending = 0
+        if enabled:
+            try:
+                from tqdm import tqdm
+            except ImportError:  # optional: progress is a nicety
+                return
+            self._bar = tqdm(total=total, desc=description, unit='msg', unit_scale=True,
+                             leave=False)
+
+    def step(self) -> None:
+        if self._bar is not None:
+            self._pending += 1
+            if self._pending == 2000:
+                self._bar.update(self._pending)
+                self._pending = 0
+
+    def close(self) -> None:
+        if self._bar is not None:
+            self._bar.close()
+
+
+def _open(path: Path) -> AnyReader:
+    if not path.exists():
+        raise BagError(f'bag not found: {path}')
+    return AnyReader([path])
+
+
+def _topic_list(reader: AnyReader) -> str:
+    topics = sorted((c.topic, c.msgtype) for c in reader.connections)
+    return ', '.join(f'{t} ({m})' for t, m in dict(topics).items()) or 'none'
+
+
+def _connections(reader: AnyReader, path: Path, topic: str, allowed, what: str):
+    conns = [c for c in reader.connections if c.topic == topic]
+    if not conns:
+        raise BagError(f'{path}: no topic {topic} for the {what}; topics present: '
+                       f'{_topic_list(reader)}')
+    bad = sorted({c.msgtype for c in conns if c.msgtype not in allowed})
+    if bad:
+        raise BagError(f'{path}: topic {topic} has type {", ".join(bad)}, the {what} need '
+                       f'{" or ".join(allowed)}')
+    return conns
+
+
+@dataclass(frozen=True)
+class _Layout:
+    """
+    Byte layout of a serialised JointState whose frame id and joint names repeat.
+
+    Drivers publish the same joints in every message, so all messages of a topic have the
+    same length and the numbers sit at the same offsets: they can be read for many messages
+    at once with numpy instead of deserialising each. ``checks`` are the byte ranges (frame
+    id, joint names, array lengths) that must repeat for a message to share the layout.
+    """
+
+    length: int
+    stamp: int
+    checks: tuple
+    position: int | None
+    velocity: int | None
+    count: int
+
+    @classmethod
+    def of(cls, raw, ros2: bool):
+        """Parse the layout of one serialised JointState (None if not little-endian CDR)."""
+        raw = bytes(raw)
+        if ros2 and raw[:2] != b'\x00\x01':
+            return None
+        base = 4 if ros2 else 0
+        pos = base
+        checks = []
+
+        def counted(item_size=1, item_align=1):
+            # A length-prefixed field: returns its length, records its bytes as a check.
+            nonlocal pos
+            if ros2:
+                pos += -(pos - base) % 4
+            start = pos
+            (n,) = struct.unpack_from('<I', raw, pos)
+            pos += 4
+            if ros2 and n and item_align > 1:
+                pos += -(pos - base) % item_align
+            data_at = pos
+            pos += n * item_size
+            checks.append((start, raw[start:data_at if item_size == 8 else pos]))
+            return n, data_at
+
+        stamp = base + (0 if ros2 else 4)
+        pos = stamp + 8
+        counted()                                  # frame_id
+        names, _ = counted(item_size=0)            # the name sequence's length
+        for _ in range(names):
+            counted()
+        arrays = [counted(8, 8) for _ in range(3)]  # position, velocity, effort
+        if pos != len(raw):
+            return None
+        (n_pos, at_pos), (n_vel, at_vel) = arrays[0], arrays[1]
+        return cls(len(raw), stamp, tuple(checks), at_pos if n_pos == names else None,
+                   at_vel if n_vel == names else None, names)
+
+    def matches(self, raw) -> bool:
+        """Whether a serialised message has this layout."""
+        return len(raw) == self.length and all(raw[o:o + len(b)] == b for o, b in self.checks)
+
+    def decode(self, raws, receive_ns, ref_ns, left, right) -> np.ndarray:
+        """Rows ``(t, pos_l, pos_r, vel_l, vel_r)`` of many messages, as :class:`_JointStates`."""
+        rows = np.frombuffer(b''.join(raws), dtype=np.uint8).reshape(-1, self.length)
+
+        def column(offset, dtype, width=1):
+            size = np.dtype(dtype).itemsize * width
+            return np.ascontiguousarray(rows[:, offset:offset + size]).view(dtype).reshape(
+                len(rows), width)
+
+        sec = column(self.stamp, '<i4')[:, 0].astype(np.int64)
+        nanosec = column(self.stamp + 4, '<u4')[:, 0].astype(np.int64)
+        stamp = sec * 1_000_000_000 + nanosec
+        stamp = np.where(stamp > 0, stamp, np.asarray(receive_ns, dtype=np.int64)) - ref_ns
+        out = np.full((len(rows), 5), np.nan)
+        out[:, 0] = stamp
+        for offset, first in ((self.position, 1), (self.velocity, 3)):
+            if offset is not None:
+                values = column(offset, '<f8', self.count)
+                out[:, first] = values[:, left].mean(axis=1)
+                out[:, first + 1] = values[:, right].mean(axis=1)
+        return out
+
+
+class _JointStates:
+    """JointState messages -> time, per-side mean position and velocity."""
+
+    BATCH = 20_000
+
+    def __init__(self, source: EncoderSource, path: Path, ref_ns: int, ros2: bool):
+        self.source = source
+        self.path = path
+        self.ref_ns = ref_ns
+        self.ros2 = ros2
+        self.columns = _Columns(5)
+        self.names_seen: set[str] = set()
+        self._index_cache: dict[tuple, tuple | None] = {}
+        self._layout = None
+        self._layout_indices = None
+        self._batch = []
+        self._batch_ns = []
+
+    def _indices(self, names):
+        key = tuple(names)
+        if key not in self._index_cache:
+            where = {name: i for i, name in enumerate(key)}
+            src = self.source
+            try:
+                found = ([where[j] for j in src.left_joints], [where[j] for j in src.right_joints])
+            except KeyError:
+                found = None
+                self.names_seen.update(key)
+            self._index_cache[key] = found
+        return self._index_cache[key]
+
+    def add_raw(self, raw, receive_ns, deserialize) -> None:
+        """Take one serialised message: batched when it has the known layout."""
+        if self._layout and self._layout.matches(raw):
+            self._batch.append(raw)
+            self._batch_ns.append(receive_ns)
+            if len(self._batch) == self.BATCH:
+                self.flush()
+            return
+        msg = deserialize(raw)
+        row = self._row(msg, receive_ns)
+        if row is None:
+            return
+        self.columns.append(row)
+        if self._layout is None:
+            layout = _Layout.of(raw, self.ros2)
+            indices = self._indices(msg.name)
+            if layout is not None:
+                decoded = layout.decode([bytes(raw)], [receive_ns], self.ref_ns, *indices)[0]
+                if np.allclose(decoded, row, equal_nan=True, rtol=1e-12, atol=0.0):
+                    self._layout, self._layout_indices = layout, indices
+            if self._layout is None:
+                self._layout = False   # never try again: every message goes the slow way
+
+    def flush(self) -> None:
+        """Decode the batched messages."""
+        if self._batch:
+            self.columns.extend(self._layout.decode(self._batch, self._batch_ns, self.ref_ns,
+                                                    *self._layout_indices))
+            self._batch, self._batch_ns = [], []
+
+    def _row(self, msg, receive_ns):
+        indices = self._indices(msg.name)
+        if indices is None:
+            return None
+        left, right = indices
+        n = len(msg.name)
+        nan = float('nan')
+        row = [_stamp(msg.header, receive_ns, self.ref_ns), nan, nan, nan, nan]
+        for values, first in ((msg.position, 1), (msg.velocity, 3)):
+            if len(values) == n:
+                row[first] = sum(float(values[i]) for i in left) / len(left)
+                row[first + 1] = sum(float(values[i]) for i in right) / len(right)
+        return row
+
+    def travel(self):
+        """Return the times (ns) and cumulative nominal travel of each side (m)."""
+        if self._layout:
+            self.flush()
+        data = _sort_unique(self.columns.array)
+        if len(data) == 0:
+            src = self.source
+            missing = [j for j in src.left_joints + src.right_joints if j not in self.names_seen]
+            raise BagError(
+                f'{self.path}: joint {", ".join(missing) or "?"} not in {src.topic}; joint '
+                f'names present: {", ".join(sorted(self.names_seen)) or "none"}')
+        t, pos_l, pos_r, vel_l, vel_r = data.T
+        radius = self.source.sprocket_radius
+        positions = np.isfinite(pos_l) & np.isfinite(pos_r)
+        if np.count_nonzero(positions) >= 2 and np.count_nonzero(positions) >= 0.5 * len(t):
+            t = t[positions]
+            return (t, _unwrap_if_wrapped(pos_l[positions]) * radius,
+                    _unwrap_if_wrapped(pos_r[positions]) * radius)
+        ok = np.isfinite(vel_l) & np.isfinite(vel_r)
+        t, vel_l, vel_r = t[ok], vel_l[ok], vel_r[ok]
+        if len(t) < 2:
+            raise BagError(f'{self.path}: the JointState messages on {self.source.topic} carry '
+                           'neither positions nor velocities for the joints')
+        seconds = t * 1e-9
+        return t, *(np.concatenate([[0.0], np.cumsum(travel_from_velocities(v, seconds, radius))])
+                    for v in (vel_l, vel_r))
+
+    def velocities(self):
+        """Return times (ns) and nominal track speeds (m/s) from the joint velocities, or None."""
+        if self._layout:
+            self.flush()
+        data = _sort_unique(self.columns.array)
+        if len(data) == 0:
+            self.travel()   # raises the missing-joint error
+        t, _, _, vel_l, vel_r = data.T
+        ok = np.isfinite(vel_l) & np.isfinite(vel_r)
+        if np.count_nonzero(ok) < 2 or np.count_nonzero(ok) < 0.5 * len(t):
+            return None
+        radius = self.source.sprocket_radius
+        return t[ok], vel_l[ok] * radius, vel_r[ok] * radius
+
+
+class _SideStream:
+    """Per-side Float64 speeds or Int32/Int64 tick counters -> cumulative travel."""
+
+    def __init__(self, source: EncoderSource, path: Path, ref_ns: int):
+        self.source = source
+        self.path = path
+        self.ref_ns = ref_ns
+        self.columns = {source.left_topic: _Columns(2), source.right_topic: _Columns(2)}
+        self.bits = {}
+        self.first = {}
+
+    def add(self, topic, msgtype, msg, receive_ns) -> None:
+        self.bits[topic] = _TICK_BITS.get(msgtype, 0)
+        # Counters relative to their first value, so that floats hold them exactly.
+        first = self.first.setdefault(topic, msg.data if self.bits[topic] else 0)
+        self.columns[topic].append((float(receive_ns - self.ref_ns), float(msg.data - first)))
+
+    def _side(self, topic):
+        data = self.columns[topic].array
+        if len(data) < 2:
+            raise BagError(f'{self.path}: fewer than two messages on {topic}')
+        order = np.argsort(data[:, 0], kind='stable')
+        t = data[order, 0]
+        values = data[order, 1]
+        keep = np.concatenate([[True], np.diff(t) > 0])
+        t, values = t[keep], values[keep]
+        if self.source.mode == 'track_speeds':
+            travel = travel_from_velocities(values, t * 1e-9)
+        else:
+            travel = travel_from_ticks(counter_increments(values.astype(np.int64),
+                                                          self.bits[topic]),
+                                       self.source.ticks_per_revolution,
+                                       self.source.sprocket_radius)
+        return t, np.concatenate([[0.0], np.cumsum(travel)])
+
+    def travel(self):
+        """Return common times (ns) and the cumulative nominal travel of each side (m)."""
+        (t_l, c_l), (t_r, c_r) = (self._side(self.source.left_topic),
+                                  self._side(self.source.right_topic))
+        lo, hi = max(t_l[0], t_r[0]), min(t_l[-1], t_r[-1])
+        t = np.union1d(t_l, t_r)
+        t = t[(t >= lo) & (t <= hi)]
+        return t, np.interp(t, t_l, c_l), np.interp(t, t_r, c_r)
+
+
+class _GroundTruth:
+    """Pose messages -> time, x, y, yaw of base_link."""
+
+    def __init__(self, source: GroundTruthSource, path: Path, ref_ns: int):
+        self.source = source
+        self.path = path
+        self.ref_ns = ref_ns
+        self.columns = _Columns(4)
+        self.pairs: set[tuple[str, str]] = set()
+        self._parent = _strip(source.parent_frame) or None
+
+    def add(self, msgtype, msg, receive_ns) -> None:
+        if msgtype == 'tf2_msgs/msg/TFMessage':
+            child = _strip(self.source.child_frame)
+            for tf in msg.transforms:
+                parent = _strip(tf.header.frame_id)
+                self.pairs.add((parent, _strip(tf.child_frame_id)))
+                if _strip(tf.child_frame_id) != child:
+                    continue
+                if self._parent is None:
+                    self._parent = parent
+                if parent == self._parent:
+                    tr = tf.transform
+                    self.columns.append((_stamp(tf.header, receive_ns, self.ref_ns),
+                                         tr.translation.x, tr.translation.y, _yaw(tr.rotation)))
+            return
+        pose = msg.pose.pose if msgtype in ('nav_msgs/msg/Odometry',
+                                            'geometry_msgs/msg/PoseWithCovarianceStamped') \
+            else msg.pose
+        self.columns.append((_stamp(msg.header, receive_ns, self.ref_ns), pose.position.x,
+                             pose.position.y, _yaw(pose.orientation)))
+
+    def poses(self):
+        """Return the times (ns), x, y, yaw of base_link."""
+        src = self.source
+        child = _strip(src.child_frame)
+        parents = sorted({p for p, c in self.pairs if c == child})
+        pairs = ', '.join(f'{p} -> {c}' for p, c in sorted(self.pairs))
+        if len(parents) > 1 and not src.parent_frame:
+            raise BagError(
+                f'{self.path}: several transforms to {child} on {src.topic} ({", ".join(parents)}'
+                ' are parents); choose one with --ground-truth-parent-frame')
+        data = self.columns.array
+        data = _sort_unique(data[np.all(np.isfinite(data), axis=1)])
+        if len(data) < 2:
+            what = f'transforms {src.parent_frame or "?"} -> {child}' if self.pairs else 'poses'
+            raise BagError(f'{self.path}: fewer than two ground-truth {what} on {src.topic}'
+                           + (f'; transforms present: {pairs}' if self.pairs else ''))
+        t, x, y, yaw = data.T
+        ox, oy, oyaw = src.offset
+        if ox or oy or oyaw:
+            # base_link = body (+) offset^-1
+            back_x = -(math.cos(oyaw) * ox + math.sin(oyaw) * oy)
+            back_y = -(-math.sin(oyaw) * ox + math.cos(oyaw) * oy)
+            x, y, yaw = compose(x, y, yaw, back_x, back_y, -oyaw)
+        return t, x, y, np.angle(np.exp(1j * yaw))
+
+
+def _guarded(path: Path, read, *args):
+    """Open a bag and ``read(reader, path, *args)`` it; any reader failure is a BagError."""
+    try:
+        reader = _open(path)
+        with reader:
+            return read(reader, path, *args)
+    except BagError:
+        raise
+    except Exception as err:  # noqa: BLE001 -- rosbags and sqlite raise many kinds
+        detail = ' '.join(str(err).split()) or type(err).__name__
+        raise BagError(f'cannot read bag {path}: {detail} (truncated or corrupt?)') from None
+
+
+def _encoder_stream(reader, path, encoders, ref_ns):
+    """Return the decoder of the encoder messages and the bag connections it reads."""
+    if encoders.mode == 'joint_states':
+        enc = _JointStates(encoders, path, ref_ns, reader.is2)
+        return enc, _connections(reader, path, encoders.topic, ('sensor_msgs/msg/JointState',),
+                                 'encoders')
+    enc = _SideStream(encoders, path, ref_ns)
+    allowed = (('std_msgs/msg/Float64',) if encoders.mode == 'track_speeds'
+               else tuple(_TICK_BITS))
+    return enc, [c for topic in encoders.topics()
+                 for c in _connections(reader, path, topic, allowed, 'encoders')]
+
+
+def _feed(enc, reader, conn, receive_ns, raw) -> None:
+    """Pass one encoder message to its decoder (JointStates decode their columns lazily)."""
+    if isinstance(enc, _JointStates):
+        enc.add_raw(raw, receive_ns, lambda data, t=conn.msgtype: reader.deserialize(data, t))
+    else:
+        enc.add(conn.topic, conn.msgtype, reader.deserialize(raw, conn.msgtype), receive_ns)
+
+
+def read_bag(path, encoders: EncoderSource, ground_truth: GroundTruthSource,
+             progress: bool = False) -> Recording:
+    """
+    Read one bag into a :class:`Recording`.
+
+    Times are seconds from the first sample of either stream.
+
+    Raises
+    ------
+    BagError
+        For a missing or unreadable bag, a missing topic, joint or transform, or too few
+        samples; the message is one line.
+
+    """
+    return _guarded(Path(path), _read, encoders, ground_truth, progress)
+
+
+def _read(reader, path, encoders, ground_truth, progress) -> Recording:
+    ref_ns = reader.start_time
+    enc, enc_conns = _encoder_stream(reader, path, encoders, ref_ns)
+    gt = _GroundTruth(ground_truth, path, ref_ns)
+    gt_conns = _connections(reader, path, ground_truth.topic, GROUND_TRUTH_TYPES,
+                            'ground truth')
+    gt_ids = {id(c) for c in gt_conns}
+    conns = enc_conns + [c for c in gt_conns if c not in enc_conns]
+    bar = _Progress(sum(c.msgcount for c in conns), path.name, progress)
+    try:
+        for conn, receive_ns, raw in reader.messages(connections=conns):
+            if id(conn) in gt_ids:
+                gt.add(conn.msgtype, reader.deserialize(raw, conn.msgtype), receive_ns)
+            else:
+                _feed(enc, reader, conn, receive_ns, raw)
+            bar.step()
+    finally:
+        bar.close()
+    enc_t, left, right = enc.travel()
+    gt_t, x, y, yaw = gt.poses()
+    t0 = min(enc_t[0], gt_t[0])
+    return Recording((enc_t - t0) * 1e-9, left, right, (gt_t - t0) * 1e-9, x, y, yaw,
+                     name=str(path))
+
+
+def read_bags(paths, encoders: EncoderSource, ground_truth: GroundTruthSource,
+              progress: bool = False) -> list[Recording]:
+    """Read several bags, one :class:`Recording` each (see :func:`read_bag`)."""
+    return [read_bag(p, encoders, ground_truth, progress) for p in paths]
+
+
+SETPOINT_TOPICS = ('/left_track/setpoint', '/right_track/setpoint')
+
+
+def read_drive_bag(path, encoders: EncoderSource, setpoint_topics=SETPOINT_TOPICS,
+                   progress: bool = False) -> DriveData:
+    """
+    Read the commanded and measured track speeds of one bag, to identify its drive train.
+
+    Commands: std_msgs/Float64 setpoints per side (m/s of nominal track speed, as
+    cmd_vel_translator publishes them), timed by the bag's receive time. Measured speeds:
+    the joint velocities times the sprocket radius when the JointStates carry them, else
+    the encoder travel differentiated between samples (stamped at the midpoints).
+
+    Parameters
+    ----------
+    path : path-like
+        rosbag2 directory or ROS 1 ``.bag`` file.
+    encoders : EncoderSource
+        Where the track encoders are.
+    setpoint_topics : pair of str
+        Left and right setpoint topics.
+    progress : bool
+        Show a progress bar on stderr.
+
+    Returns
+    -------
+    DriveData
+        Times in seconds from the bag's start.
+
+    Raises
+    ------
+    BagError
+        For a missing or unreadable bag, a missing topic or joint, or too few messages.
+
+    """
+    return _guarded(Path(path), _read_drive, encoders, tuple(setpoint_topics), progress)
+
+
+def _read_drive(reader, path, encoders, setpoint_topics, progress) -> DriveData:
+    ref_ns = reader.start_time
+    enc, enc_conns = _encoder_stream(reader, path, encoders, ref_ns)
+    sp_conns = [c for topic in setpoint_topics
+                for c in _connections(reader, path, topic, ('std_msgs/msg/Float64',),
+                                      'setpoints')]
+    sides = {topic: _Columns(2) for topic in setpoint_topics}
+    sp_ids = {id(c) for c in sp_conns}
+    conns = enc_conns + [c for c in sp_conns if c not in enc_conns]
+    bar = _Progress(sum(c.msgcount for c in conns), path.name, progress)
+    try:
+        for conn, receive_ns, raw in reader.messages(connections=conns):
+            if id(conn) in sp_ids:
+                msg = reader.deserialize(raw, conn.msgtype)
+                sides[conn.topic].append((float(receive_ns - ref_ns), float(msg.data)))
+            else:
+                _feed(enc, reader, conn, receive_ns, raw)
+            bar.step()
+    finally:
+        bar.close()
+    speeds = enc.velocities() if encoders.mode == 'joint_states' else None
+    if speeds is None:
+        t, left, right = enc.travel()
+        dt = np.diff(t) * 1e-9
+        if not np.all(dt > 0) or len(t) < 2:
+            raise BagError(f'{path}: fewer than two encoder samples')
+        speeds = (0.5 * (t[1:] + t[:-1]), np.diff(left) / dt, np.diff(right) / dt)
+    speed_t, v_left, v_right = speeds
+    # Setpoints of both sides on the union of their stamps, each held until its next one.
+    data = [_sort_unique(sides[topic].array) for topic in setpoint_topics]
+    for topic, side in zip(setpoint_topics, data):
+        if len(side) < 2:
+            raise BagError(f'{path}: fewer than two messages on {topic}')
+    command_t = np.union1d(data[0][:, 0], data[1][:, 0])
+    command_t = command_t[command_t >= max(data[0][0, 0], data[1][0, 0])]
+    held = [side[np.searchsorted(side[:, 0], command_t, side='right') - 1, 1] for side in data]
+    return DriveData(command_t * 1e-9, np.column_stack(held), np.asarray(speed_t) * 1e-9,
+                     np.column_stack([v_left, v_right]), name=str(path))

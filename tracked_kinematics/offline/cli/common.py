@@ -1,0 +1,140 @@
+"""What the offline command-line tools share: argument types, encoder options, reports."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+from pathlib import Path
+import sys
+
+import numpy as np
+from tracked_kinematics.core.identify import ExcitationError, IdentificationError
+from tracked_kinematics.offline.bags.reader import BagError, ENCODER_INPUTS, EncoderSource
+
+EXIT_INPUT, EXIT_EXCITATION, EXIT_FIT = 2, 3, 4
+"""Exit statuses of the identification tools: bad input, too little excitation, failed fit."""
+
+SIDE_TOPICS = {'track_speeds': ('/left_track/speed', '/right_track/speed'),
+               'encoder_ticks': ('/left_track/ticks', '/right_track/ticks')}
+"""Default per-side topics of the encoder input modes other than joint_states."""
+
+
+class UsageError(ValueError):
+    """An invalid option value (exit status 2)."""
+
+
+def names(text: str) -> tuple[str, ...]:
+    """Argument type: comma-separated names."""
+    found = tuple(n.strip() for n in text.split(',') if n.strip())
+    if not found:
+        raise argparse.ArgumentTypeError('expected comma-separated names')
+    return found
+
+
+def _number(text: str) -> float:
+    try:
+        return float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f'expected a number, got {text!r}') from None
+
+
+def positive(text: str) -> float:
+    """Argument type: a finite number > 0."""
+    value = _number(text)
+    if not math.isfinite(value) or value <= 0:
+        raise argparse.ArgumentTypeError(f'must be a finite number > 0, got {text}')
+    return value
+
+
+def non_negative(text: str) -> float:
+    """Argument type: a finite number >= 0."""
+    value = _number(text)
+    if not math.isfinite(value) or value < 0:
+        raise argparse.ArgumentTypeError(f'must be a finite number >= 0, got {text}')
+    return value
+
+
+class HelpFormatter(argparse.RawDescriptionHelpFormatter,
+                    argparse.ArgumentDefaultsHelpFormatter):
+    """Show defaults, except the empty ones; keep the examples' lines."""
+
+    def __init__(self, prog):
+        super().__init__(prog, width=96)
+
+    def _get_help_string(self, action):
+        if action.default in (None, False, '') or action.required:
+            return action.help
+        return super()._get_help_string(action)
+
+
+def add_encoder_arguments(group) -> None:
+    """Add the encoder options, named and defaulted as odometry_node's parameters."""
+    group.add_argument('--encoder-input', choices=ENCODER_INPUTS, default='joint_states',
+                       help='kind of encoder messages, as odometry_node input_mode')
+    group.add_argument('--encoder-topic', default='/joint_states',
+                       help='sensor_msgs/JointState topic (joint_states)')
+    group.add_argument('--left-joints', type=names, default='left_sprocket_joint',
+                       metavar='A,B', help='joints of the left track, averaged')
+    group.add_argument('--right-joints', type=names, default='right_sprocket_joint',
+                       metavar='C,D', help='joints of the right track, averaged')
+    group.add_argument('--left-topic', default=None,
+                       help='left track topic: std_msgs/Float64 m/s (track_speeds) or '
+                       'Int32/Int64 counter (encoder_ticks); default /left_track/speed or '
+                       '/left_track/ticks')
+    group.add_argument('--right-topic', default=None, help='right track topic, likewise')
+    group.add_argument('--ticks-per-revolution', type=positive, default=4096.0,
+                       help='encoder ticks per sprocket revolution (encoder_ticks)')
+
+
+def encoder_source(args, radius: float) -> EncoderSource:
+    """
+    Build the encoder description from the options of :func:`add_encoder_arguments`.
+
+    Raises
+    ------
+    UsageError
+        When a joint is listed for both tracks.
+
+    """
+    left, right = SIDE_TOPICS.get(args.encoder_input, ('', ''))
+    both = set(args.left_joints) & set(args.right_joints)
+    if both:
+        raise UsageError(f'--left-joints and --right-joints both list {", ".join(sorted(both))}')
+    return EncoderSource(
+        mode=args.encoder_input, topic=args.encoder_topic, left_joints=tuple(args.left_joints),
+        right_joints=tuple(args.right_joints), left_topic=args.left_topic or left,
+        right_topic=args.right_topic or right, sprocket_radius=radius,
+        ticks_per_revolution=args.ticks_per_revolution)
+
+
+def write_report(path, report) -> None:
+    """Write a JSON report (numpy arrays as lists, numpy scalars as floats)."""
+    text = json.dumps(report, indent=2, default=lambda o: o.tolist()
+                      if isinstance(o, np.ndarray) else float(o))
+    Path(path).write_text(text + '\n', encoding='utf-8')
+
+
+def run_main(prog: str, run, args) -> int:
+    """
+    Run ``run(args, sys.stdout)`` and map failures to one stderr line and an exit status.
+
+    :data:`EXIT_INPUT` for a bag, option or file problem, :data:`EXIT_EXCITATION` for too
+    little excitation, :data:`EXIT_FIT` for a fit that failed, 130 for Ctrl-C.
+    """
+    def fail(status, err):
+        print(f'{prog}: error: {" ".join(str(err).split())}', file=sys.stderr)
+        return status
+
+    try:
+        return run(args, sys.stdout)
+    except (BagError, UsageError) as err:
+        return fail(EXIT_INPUT, err)
+    except ExcitationError as err:
+        return fail(EXIT_EXCITATION, err)
+    except IdentificationError as err:
+        return fail(EXIT_FIT, err)
+    except (OSError, ValueError) as err:
+        return fail(EXIT_INPUT, err)
+    except KeyboardInterrupt:
+        return fail(130, 'interrupted')

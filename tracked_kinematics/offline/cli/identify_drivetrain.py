@@ -1,0 +1,235 @@
+"""
+identify_drivetrain: fit the drive-train model of the tracks from recorded rosbags.
+
+Reads the commanded track speeds (the setpoints cmd_vel_translator publishes) and the
+measured ones (the track encoders) from one or more bags, fits the command delay, the
+acceleration limit and the speed loop of Fink & Stump sec. III-B, and writes them as the
+``drivetrain.*`` parameters of a terrain file, so that a motion prediction can start from
+the commands instead of the measured speeds.
+
+Exit status, as identify_icr: 0 success; 2 bad input (missing bag, topic or joint;
+unreadable bag; invalid option); 3 too little data, or commands that hardly change; 4 the fit
+failed (best delay at the search bound, no convergence).
+"""
+
+from __future__ import annotations
+
+import argparse
+from datetime import datetime, timezone
+import math
+from pathlib import Path
+import sys
+
+import numpy as np
+from tracked_kinematics.core.identify import drivetrain as dfit
+from tracked_kinematics.core.identify import IdentificationError
+from tracked_kinematics.offline.bags.reader import read_drive_bag, SETPOINT_TOPICS
+from tracked_kinematics.offline.cli.common import (
+    add_encoder_arguments, encoder_source, HelpFormatter, names, non_negative, positive,
+    run_main, UsageError, write_report)
+from tracked_kinematics.params import (
+    drivetrain_from_values, positive as check_positive, read_params_file, TERRAIN_DEFAULTS,
+    values_from_drivetrain, write_params_file)
+
+PROG = 'identify_drivetrain'
+_UNITS = {'delay': 's', 'max_accel': 'm/s^2', 'time_constant': 's', 'kp': '', 'ki': '',
+          'kd': ''}
+
+EPILOG = """examples:
+  identify_drivetrain run1/ run2/ --output drive.yaml --sprocket-radius 0.1
+  identify_drivetrain calib.bag --params hard_floor.yaml --output hard_floor.yaml \\
+      --report drive.json --plot drive.png
+  identify_drivetrain packbot/ --loop pid_dc_motor --params packbot_base.yaml -o packbot.yaml
+"""
+
+
+def _topic_pair(text: str) -> tuple[str, str]:
+    topics = names(text)
+    if len(topics) != 2:
+        raise argparse.ArgumentTypeError(f'expected LEFT,RIGHT topics, got {text!r}')
+    return topics
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """Return the command line of identify_drivetrain."""
+    parser = argparse.ArgumentParser(
+        prog=PROG, description=__doc__.split('\n\n')[1], epilog=EPILOG,
+        formatter_class=HelpFormatter)
+    parser.add_argument('bags', nargs='+', metavar='BAG',
+                        help='rosbag2 directories (sqlite3, mcap) or ROS 1 .bag files')
+    parser.add_argument('--output', '-o', required=True, metavar='OUT.yaml',
+                        help='terrain parameter file to write (ready for --params-file)')
+    parser.add_argument('--setpoint-topics', type=_topic_pair, default=','.join(SETPOINT_TOPICS),
+                        metavar='LEFT,RIGHT',
+                        help='std_msgs/Float64 commanded track speeds, m/s')
+    enc = parser.add_argument_group('encoders (measured speeds)')
+    add_encoder_arguments(enc)
+    enc.add_argument('--sprocket-radius', type=positive, default=None, metavar='R',
+                     help='m; default from --params, else '
+                     f'{TERRAIN_DEFAULTS["sprocket_radius"]}')
+    fit = parser.add_argument_group('fit')
+    fit.add_argument('--params', default=None, metavar='BASE.yaml',
+                     help='terrain file to start from: sprocket radius, starting point, fixed '
+                     'motor constants of --loop pid_dc_motor; its other parameters are copied '
+                     'to the output')
+    fit.add_argument('--loop', choices=dfit.LOOP_KINDS, default='first_order',
+                     help='speed loop to fit: first-order lag, PID gains around the fixed DC '
+                     'motor of eq. (8), or none')
+    fit.add_argument('--dt', type=positive, default=None, metavar='SECONDS',
+                     help='grid period and delay resolution (default: the encoder period, '
+                     'within 0.002-0.02 s)')
+    fit.add_argument('--max-delay', type=non_negative, default=0.5, metavar='SECONDS',
+                     help='largest command delay searched')
+    fit.add_argument('--max-gap', type=non_negative, default=0.5, metavar='SECONDS',
+                     help='longer gaps in either stream cut the data into segments')
+    out = parser.add_argument_group('output')
+    out.add_argument('--report', default=None, metavar='OUT.json',
+                     help='JSON report: values, standard errors, RMS, delay profile')
+    out.add_argument('--plot', default=None, metavar='OUT.png',
+                     help='commanded, measured and simulated speeds, and the delay profile')
+    return parser
+
+
+def _base(args):
+    """Read the base terrain values, the sprocket radius and the base drive train (or None)."""
+    base_values = read_params_file(args.params) if args.params else {}
+    radius = args.sprocket_radius
+    if radius is None:
+        radius = base_values.get('sprocket_radius', TERRAIN_DEFAULTS['sprocket_radius'])
+    if check_positive(radius):
+        raise UsageError(f'sprocket_radius must be a finite number > 0, got {radius!r}')
+    base = None
+    if any(k.startswith('drivetrain.') for k in base_values):
+        try:
+            base = drivetrain_from_values(base_values)
+        except ValueError as err:
+            raise UsageError(f'{args.params}: {err}') from None
+    return base_values, float(radius), base
+
+
+def _yaml_values(base_values, result, radius, extras):
+    """Merge base values without old drive-train keys, the fitted model and the fit's record."""
+    values = {k: v for k, v in base_values.items()
+              if not k.startswith(('drivetrain.', 'drivetrain_fit.'))}
+    values['sprocket_radius'] = radius
+    values.update(values_from_drivetrain(result.drivetrain))
+    for key, value in extras.items():
+        if isinstance(value, float) and not math.isfinite(value):
+            continue   # never write a non-finite value; the key is simply absent
+        values[f'drivetrain_fit.{key}'] = value
+    try:
+        drivetrain_from_values(values)
+    except ValueError as err:
+        raise IdentificationError(f'the identified model is invalid, nothing written: {err}') \
+            from None
+    return values
+
+
+def _print_table(result, recordings, out):
+    seconds = sum(float(s.t[-1] - s.t[0]) for s in result.segments)
+    print(f'{PROG}: {len(recordings)} bag(s), {seconds:.1f} s of commanded and measured speeds '
+          f'in {len(result.segments)} segment(s); grid {1000 * result.dt:.0f} ms; loop '
+          f'{result.loop}', file=out)
+    print(f'{"parameter":<16}{"value":>12}{"std. error":>14}  unit', file=out)
+    for name, value in result.parameters.items():
+        error = result.standard_errors.get(name, math.nan)
+        shown = 'none' if math.isinf(value) else f'{value:.4f}'
+        err = '' if not math.isfinite(error) else f'{error:.2g}'
+        print(f'{name:<16}{shown:>12}{err:>14}  {_UNITS.get(name, "")}'.rstrip(), file=out)
+    if math.isinf(result.drivetrain.max_accel):
+        print(f'acceleration limit: never binds (commands change at up to '
+              f'{result.max_command_accel:.2f} m/s^2); written as 0 = none', file=out)
+    else:
+        print(f'acceleration limit binds on {100 * result.accel_limit_binding:.1f} % of samples',
+              file=out)
+    if result.fixed:
+        fixed = ', '.join(f'{k} {v:g}' for k, v in result.fixed.items())
+        print(f'motor constants held fixed: {fixed}', file=out)
+    print(f'rms error {1000 * result.rms:.1f} mm/s over {result.samples} samples per track '
+          f'(commands taken as speeds: {1000 * result.rms_commands:.1f} mm/s); fit '
+          f'{result.fit_percent:.1f} %; {result.delays_fitted} delays tried, {result.nfev} '
+          f'simulations, {result.seconds:.2f} s', file=out)
+
+
+def _plot(path, result):
+    import matplotlib
+    matplotlib.use('Agg')
+    from matplotlib import pyplot as plt
+
+    segment = max(result.segments, key=lambda s: len(s.t))
+    simulated = result.simulate(segment)
+    # Show the 20 s with the most command activity.
+    n = len(segment.t)
+    width = min(n, int(round(20.0 / result.dt)))
+    activity = np.abs(np.diff(segment.commands, axis=0)).sum(axis=1)
+    window = np.convolve(activity, np.ones(width), mode='valid') if n > width else [0.0]
+    a = int(np.argmax(window))
+    span = slice(a, a + width)
+    fig, axes = plt.subplots(3, 1, figsize=(10, 9), constrained_layout=True)
+    for ax, j, side in ((axes[0], 0, 'left'), (axes[1], 1, 'right')):
+        t = segment.t[span]
+        ax.step(t, segment.commands[span, j], where='post', color='0.6', label='commanded')
+        ax.plot(t, segment.speeds[span, j], color='C0', label='measured')
+        ax.plot(t, simulated[span, j], color='C3', ls='--', label='model')
+        ax.set_ylabel(f'{side} track speed (m/s)')
+        ax.legend(loc='upper right')
+    axes[1].set_xlabel('time (s)')
+    delays, rms = result.delay_profile
+    axes[2].plot(delays, 1000 * rms, color='C0')
+    axes[2].axvline(result.parameters['delay'], color='C3', ls='--', label='fitted delay')
+    axes[2].set_xlabel('command delay (s)')
+    axes[2].set_ylabel('rms error (mm/s)')
+    axes[2].legend(loc='upper right')
+    fig.suptitle(f'{PROG}: {result.loop}, rms {1000 * result.rms:.1f} mm/s')
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+
+
+def _run(args, out) -> int:
+    base_values, radius, base = _base(args)
+    encoders = encoder_source(args, radius)
+    progress = sys.stderr.isatty()
+    recordings = [read_drive_bag(b, encoders, args.setpoint_topics, progress)
+                  for b in args.bags]
+    result = dfit.fit_drivetrain(recordings, loop=args.loop, dt=args.dt,
+                                 max_delay=args.max_delay, max_gap=args.max_gap, base=base)
+    date = datetime.now(timezone.utc).isoformat(timespec='seconds')
+    bags = [str(Path(b).resolve()) for b in args.bags]
+    extras = {'loop': result.loop, 'date': date, 'bags': bags, 'rms': result.rms,
+              'rms_commands': result.rms_commands, 'fit_percent': result.fit_percent,
+              'seconds_of_data': result.seconds_of_data, 'dt': result.dt,
+              'accel_limit_binding': result.accel_limit_binding}
+    extras.update({f'standard_errors.{k}': v for k, v in result.standard_errors.items()})
+    values = _yaml_values(base_values, result, radius, extras)
+    _print_table(result, recordings, out)
+    write_params_file(args.output, values, comment=(
+        f'Terrain parameters with the drive train written by {PROG} (tracked_kinematics) on '
+        f'{date}.\nLoad with: --ros-args --params-file THIS_FILE'))
+    if args.report:
+        write_report(args.report, {
+            'tool': PROG, 'date': date, 'bags': bags, 'sprocket_radius': radius,
+            'loop': result.loop, 'parameters': result.parameters,
+            'standard_errors': result.standard_errors, 'fixed': result.fixed,
+            'rms': result.rms, 'rms_commands': result.rms_commands,
+            'fit_percent': result.fit_percent,
+            'accel_limit_binding': result.accel_limit_binding,
+            'max_command_accel': result.max_command_accel, 'dt': result.dt,
+            'samples': result.samples, 'seconds_of_data': result.seconds_of_data,
+            'segments': len(result.segments), 'delays_fitted': result.delays_fitted,
+            'simulations': result.nfev, 'seconds': result.seconds,
+            'delay_profile': {'delay': result.delay_profile[0],
+                              'rms': result.delay_profile[1]}})
+    if args.plot:
+        _plot(args.plot, result)
+    print(f'wrote {args.output}' + (f', {args.report}' if args.report else '')
+          + (f', {args.plot}' if args.plot else ''), file=out)
+    return 0
+
+
+def main(argv=None) -> int:
+    """Run identify_drivetrain; return the exit status (see the module docstring)."""
+    return run_main(PROG, _run, build_parser().parse_args(argv))
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,359 @@
+"""
+Simulate a tracked vehicle and record the run as a bag, with its true ICR model next to it.
+
+The bag holds what a real calibration run would: ``/joint_states`` (sensor_msgs/JointState,
+``left_sprocket_joint`` / ``right_sprocket_joint`` positions and velocities), a ground-truth
+pose (geometry_msgs/PoseStamped on ``/ground_truth/pose``, or nav_msgs/Odometry on
+``/ground_truth/odom``), and the commanded setpoints ``/left_track/setpoint`` and
+``/right_track/setpoint`` (std_msgs/Float64, m/s), so the drive train can be identified from
+it too. Next to it, ``OUT.truth.yaml`` holds the vehicle's averaged stationary ICR model in the
+terrain format (a valid ``--params-file``): the ground truth an identification should find.
+
+Python API for scripts and demos: :func:`simulate_bag` does it all in one call;
+:func:`write_run` records any :class:`~tracked_kinematics.core.sim.simulation.Run`.
+"""
+
+from __future__ import annotations
+
+import argparse
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+import math
+import os
+from pathlib import Path
+import sys
+from typing import Any
+
+import numpy as np
+from rosbags.rosbag1 import WriterError as Rosbag1WriterError
+from rosbags.rosbag2 import WriterError as Rosbag2WriterError
+from tracked_kinematics.core.kinematics import IcrParams
+from tracked_kinematics.core.sim.manoeuvres import manoeuvre, MANOEUVRES
+from tracked_kinematics.core.sim.simulation import GroundTruth, Run, simulate, TwistTable
+from tracked_kinematics.offline.bags.writer import BagWriter, STORAGES
+from tracked_kinematics.offline.vehicle_file import (
+    add_vehicle_arguments, fixed, load_vehicle, overrides_from_args, VehicleFile)
+from tracked_kinematics.params import values_from_icr, write_params_file
+
+PROG = 'simulate_bag'
+JOINTS = ('left_sprocket_joint', 'right_sprocket_joint')
+START_NS = 1_700_000_000 * 1_000_000_000
+"""Stamp of the first sample (fixed, so that the same seed gives the same messages)."""
+GROUND_TRUTH_TOPICS = {'pose': '/ground_truth/pose', 'odometry': '/ground_truth/odom'}
+
+
+@dataclass(frozen=True)
+class SimulatedBag:
+    """
+    What :func:`simulate_bag` wrote.
+
+    Attributes
+    ----------
+    bag : Path
+        The rosbag2 directory or ROS 1 ``.bag`` file.
+    truth : Path
+        The true averaged ICR model, terrain YAML.
+    truth_icr : IcrParams
+        The same model.
+    run : Run
+        The simulated run (true poses, speeds, sensor readings).
+    messages : dict
+        Messages written per topic.
+    vehicle : VehicleFile
+        The vehicle simulated.
+
+    """
+
+    bag: Path
+    truth: Path
+    truth_icr: IcrParams
+    run: Run
+    messages: dict
+    vehicle: VehicleFile
+
+
+def truth_path(bag: str | os.PathLike) -> Path:
+    """``OUT.truth.yaml`` next to a bag (``run`` -> ``run.truth.yaml``, ``run.bag`` too)."""
+    bag = Path(bag)
+    stem = bag.name[:-4] if bag.name.endswith('.bag') else bag.name
+    return bag.with_name(f'{stem}.truth.yaml')
+
+
+def write_run(path: str | os.PathLike, run: Run, storage: str = 'sqlite3',
+              setpoint_rate: float | None = None, ground_truth: str = 'pose',
+              ground_truth_topic: str | None = None, frame_id: str = 'map',
+              joints: Sequence[str] = JOINTS, start_ns: int = START_NS) -> dict:
+    """
+    Record a simulated run as a bag, messages in time order.
+
+    Parameters
+    ----------
+    path : path-like
+        Bag to create (a rosbag2 directory, or a ``.bag`` file for ``storage='rosbag1'``);
+        must not exist.
+    run : Run
+        The run.
+    storage : {'sqlite3', 'mcap', 'rosbag1'}
+        Bag format.
+    setpoint_rate : float, optional
+        Rate at which the run's commands were held, Hz: one setpoint message per hold, stamped
+        at the encoder sample where it takes effect (default: one per encoder sample).
+    ground_truth : {'pose', 'odometry'}
+        geometry_msgs/PoseStamped or nav_msgs/Odometry (with the true body twist).
+    ground_truth_topic : str, optional
+        Default ``/ground_truth/pose`` or ``/ground_truth/odom``.
+    frame_id : str
+        Fixed frame of the ground truth.
+    joints : sequence of str
+        Names of the left and right sprocket joints.
+    start_ns : int
+        Stamp of the run's time 0, ns.
+
+    Returns
+    -------
+    dict
+        Messages written per topic.
+
+    """
+    if ground_truth not in GROUND_TRUTH_TOPICS:
+        raise ValueError(f'ground_truth must be one of {", ".join(GROUND_TRUTH_TOPICS)}, '
+                         f'got {ground_truth!r}')
+    gt_topic = ground_truth_topic or GROUND_TRUTH_TOPICS[ground_truth]
+    dt = float(run.t[1] - run.t[0])
+    if setpoint_rate is None:
+        setpoint_idx = np.arange(len(run.t))
+    else:
+        # Setpoint j takes effect at the first encoder sample of its hold (see simulate_bag).
+        first = np.ceil(np.arange(int(run.t[-1] * setpoint_rate + 1e-9) + 1)
+                        / (setpoint_rate * dt) - 1e-9).astype(int)
+        setpoint_idx = np.unique(first[first < len(run.t)])
+    stamps = [start_ns + np.round(run.t * 1e9).astype(np.int64),
+              start_ns + np.round(run.t[setpoint_idx] * 1e9).astype(np.int64),
+              start_ns + np.round(run.gt_t * 1e9).astype(np.int64)]
+    kinds = np.concatenate([np.full(len(s), k) for k, s in enumerate(stamps)])
+    index = np.concatenate([np.arange(len(s)) for s in stamps])
+    order = np.lexsort((kinds, np.concatenate(stamps)))
+    all_stamps = np.concatenate(stamps)[order]
+    # Twist at the ground-truth times, for Odometry: the step each sample falls in.
+    gt_step = np.clip(np.floor(run.gt_t / dt + 1e-9).astype(int), 0, len(run.twist) - 1)
+    positions = run.joint_position.tolist()
+    velocities = run.joint_velocity.tolist()
+    commands = run.commands[setpoint_idx].tolist()
+    gt = run.gt_pose.tolist()
+    gt_twist = run.twist[gt_step].tolist()
+    counts = {'/joint_states': len(stamps[0]), '/left_track/setpoint': len(stamps[1]),
+              '/right_track/setpoint': len(stamps[1]), gt_topic: len(stamps[2])}
+    names = list(joints)
+    with BagWriter(path, storage) as bag:
+        for stamp, kind, i in zip(all_stamps.tolist(), kinds[order].tolist(),
+                                  index[order].tolist()):
+            if kind == 0:
+                bag.write('/joint_states', stamp,
+                          bag.joint_state(stamp, names, positions[i], velocities[i]))
+            elif kind == 1:
+                bag.write('/left_track/setpoint', stamp, bag.float64(commands[i][0]))
+                bag.write('/right_track/setpoint', stamp, bag.float64(commands[i][1]))
+            elif ground_truth == 'pose':
+                bag.write(gt_topic, stamp, bag.pose_stamped(stamp, *gt[i], frame_id=frame_id))
+            else:
+                v_x, v_y, w = gt_twist[i]
+                bag.write(gt_topic, stamp, bag.odometry(stamp, *gt[i], v_x=v_x, v_y=v_y, w=w,
+                                                        frame_id=frame_id))
+    return counts
+
+
+def simulate_bag(output: str | os.PathLike, vehicle: str | os.PathLike = 'auriga_alpha', *,
+                 overrides: Mapping[str, Any] | None = None, manoeuvres: str = 'mixed',
+                 duration: float = 180.0, seed: int = 0, rate: float = 100.0,
+                 setpoint_rate: float = 50.0, gt_rate: float = 10.0,
+                 gt_position_noise: float = 0.002, gt_yaw_noise: float = 0.002,
+                 ground_truth: str = 'pose', ground_truth_topic: str | None = None,
+                 storage: str = 'sqlite3', truth: str | os.PathLike | None = None,
+                 table: TwistTable | None = None) -> SimulatedBag:
+    """
+    Simulate a run of a vehicle, write it as a bag and its true ICR model as YAML.
+
+    Parameters
+    ----------
+    output : path-like
+        Bag to create (must not exist): a rosbag2 directory, or ``X.bag`` for rosbag1.
+        Missing parent directories are created.
+    vehicle : str or path-like
+        Vehicle file, or a shipped vehicle's name (``auriga_alpha``, ``packbot``).
+    overrides : mapping, optional
+        Vehicle parameters replacing the file's (``{'friction.mu_y': 0.9}``).
+    manoeuvres : {'random', 'sweep', 'spin', 'mixed'}
+        Manoeuvre set (:mod:`tracked_kinematics.core.sim.manoeuvres`).
+    duration : float
+        Length of the run, s.
+    seed : int
+        Seed of every random choice (manoeuvres, sensor noise).
+    rate : float
+        Encoder (JointState) rate and simulation rate, Hz.
+    setpoint_rate : float
+        Command rate, Hz: commands are generated and recorded at this rate and held.
+    gt_rate : float
+        Ground-truth rate, Hz.
+    gt_position_noise, gt_yaw_noise : float
+        Standard deviations of the ground-truth noise, m and rad.
+    ground_truth : {'pose', 'odometry'}
+        Message type of the ground truth.
+    ground_truth_topic : str, optional
+        Its topic (default ``/ground_truth/pose`` or ``/ground_truth/odom``).
+    storage : {'sqlite3', 'mcap', 'rosbag1'}
+        Bag format.
+    truth : path-like, optional
+        Where to write the true model (default :func:`truth_path` of the bag).
+    table : TwistTable, optional
+        Precomputed dynamics of this vehicle, to reuse across calls.
+
+    Returns
+    -------
+    SimulatedBag
+
+    Raises
+    ------
+    FileNotFoundError, ValueError, FileExistsError
+        For a missing vehicle, invalid parameters or an existing output.
+
+    """
+    output = Path(output)
+    if storage not in STORAGES:
+        raise ValueError(f'storage must be one of {", ".join(STORAGES)}, got {storage!r}')
+    if storage == 'rosbag1' and output.suffix != '.bag':
+        raise ValueError(f'a ROS 1 bag needs a .bag file name, got {os.fspath(output)!r}')
+    if output.exists():
+        raise FileExistsError(f'{output} already exists; choose another output or remove it')
+    for name, value in (('rate', rate), ('setpoint_rate', setpoint_rate), ('gt_rate', gt_rate)):
+        if not (math.isfinite(value) and value > 0):
+            raise ValueError(f'{name} must be a finite number > 0 Hz, got {value!r}')
+    if setpoint_rate > rate:
+        raise ValueError(f'setpoint_rate ({setpoint_rate} Hz) must not exceed the encoder rate '
+                         f'({rate} Hz)')
+    spec = load_vehicle(vehicle, overrides)
+    robot, veh = spec.robot, spec.robot.vehicle
+    rng = np.random.default_rng(seed)
+    dt = 1.0 / rate
+    # Commands at the setpoint rate, held between setpoints, sampled at the encoder rate.
+    cmd = manoeuvre(manoeuvres, duration, 1.0 / setpoint_rate, veh.track_width,
+                    veh.max_track_speed, rng)
+    n = max(2, int(round(duration * rate)) + 1)
+    held = np.minimum(np.floor(np.arange(n) * (dt * setpoint_rate) + 1e-9).astype(int),
+                      len(cmd) - 1)
+    table = table if table is not None else TwistTable(veh)
+    run = simulate(robot, cmd[held], dt, table,
+                   GroundTruth(gt_rate, gt_position_noise, gt_yaw_noise), rng)
+    output.parent.mkdir(parents=True, exist_ok=True)
+    counts = write_run(output, run, storage, setpoint_rate, ground_truth, ground_truth_topic)
+    icr = robot.true_icr()
+    truth = Path(truth) if truth is not None else truth_path(output)
+    write_params_file(truth, truth_values(spec, icr, run, {
+        'bag': output.name, 'manoeuvres': manoeuvres, 'duration': float(duration),
+        'seed': int(seed), 'rate': float(rate), 'setpoint_rate': float(setpoint_rate),
+        'gt_rate': float(gt_rate), 'gt_position_noise': float(gt_position_noise),
+        'gt_yaw_noise': float(gt_yaw_noise)}), comment=(
+        f'True kinematic model of the simulated {spec.name} on {spec.terrain}: tread ICRs\n'
+        'averaged over the 21 x 21 stationary ICR map (Martinez et al. 2005, sec. 5.2) and\n'
+        'the simulated encoder scales. run_fit: the constant ICRs that best explain this\n'
+        f"run's true motion. Written by {PROG}; valid as --params-file."))
+    return SimulatedBag(output, truth, icr, run, counts, spec)
+
+
+def truth_values(spec: VehicleFile, icr: IcrParams, run: Run,
+                 simulation: Mapping[str, Any]) -> dict:
+    """Terrain parameters of the true model plus provenance, dotted names."""
+    values = values_from_icr(icr, spec.robot.encoders.sprocket_radius)
+    values.update({'chi': icr.chi, 'eccentricity': icr.eccentricity, 'vehicle': spec.name,
+                   'terrain': spec.terrain,
+                   'source': 'simulate_bag: averaged stationary ICR map (Martinez sec. 5.2)'})
+    best = run.best_constant_icr(icr.track_width)
+    if best is not None:
+        values.update({'run_fit.y_left': best.y_left, 'run_fit.y_right': best.y_right,
+                       'run_fit.x': best.x})
+    values.update({f'simulation.{key}': value for key, value in simulation.items()})
+    return {k: (float(v) if isinstance(v, (float, np.floating)) else v)
+            for k, v in values.items()}
+
+
+# Command line -----------------------------------------------------------------------------
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """Argument parser of ``simulate_bag``."""
+    parser = argparse.ArgumentParser(
+        prog=PROG, formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+        description='Simulate a tracked vehicle (stationary track-soil dynamics, drive train, '
+                    'encoders, ground truth) and write the run as a bag, with the true ICR '
+                    'model as OUT.truth.yaml next to it.',
+        epilog='examples:\n'
+               '  simulate_bag run1 --vehicle auriga_alpha --duration 180 --seed 1\n'
+               '  simulate_bag sweep.bag --vehicle packbot --manoeuvres sweep --storage rosbag1\n'
+               '  simulate_bag turf --vehicle packbot --mu-y 0.9 --terrain turf '
+               '--ground-truth odometry --storage mcap')
+    parser.add_argument('output', help='bag to create: a rosbag2 directory, or X.bag with '
+                                       '--storage rosbag1 (must not exist)')
+    add_vehicle_arguments(parser.add_argument_group('vehicle and terrain'))
+    run = parser.add_argument_group('run')
+    run.add_argument('--manoeuvres', choices=MANOEUVRES, default='mixed',
+                     help='random: manual-like driving; sweep: Fink & Stump speed x curvature '
+                          'grid; spin: spins in place; mixed: all three')
+    run.add_argument('--duration', type=float, default=180.0, help='length of the run, s')
+    run.add_argument('--seed', type=int, default=0, help='seed of every random choice')
+    sensors = parser.add_argument_group('sensors')
+    sensors.add_argument('--rate', type=float, default=100.0,
+                         help='encoder (joint_states) and simulation rate, Hz')
+    sensors.add_argument('--setpoint-rate', type=float, default=50.0,
+                         help='rate of the track speed commands, Hz')
+    sensors.add_argument('--ticks-per-rev', type=float, default=argparse.SUPPRESS,
+                         help='encoder ticks per sprocket revolution, 0 for none (overrides '
+                              'the file)')
+    sensors.add_argument('--encoder-noise', type=float, default=argparse.SUPPRESS,
+                         help='white noise on the joint velocities, rad/s (overrides the file)')
+    sensors.add_argument('--gt-rate', type=float, default=10.0, help='ground-truth rate, Hz')
+    sensors.add_argument('--gt-noise-xy', type=float, default=0.002,
+                         help='ground-truth position noise (standard deviation), m')
+    sensors.add_argument('--gt-noise-yaw', type=float, default=0.002,
+                         help='ground-truth heading noise (standard deviation), rad')
+    output = parser.add_argument_group('output')
+    output.add_argument('--ground-truth', choices=tuple(GROUND_TRUTH_TOPICS), default='pose',
+                        help='ground truth as geometry_msgs/PoseStamped or nav_msgs/Odometry')
+    output.add_argument('--gt-topic', default=argparse.SUPPRESS,
+                        help='ground-truth topic (default /ground_truth/pose or '
+                             '/ground_truth/odom)')
+    output.add_argument('--storage', choices=STORAGES, default='sqlite3', help='bag format')
+    output.add_argument('--truth', default=argparse.SUPPRESS,
+                        help='where to write the true ICR model (default OUT.truth.yaml)')
+    return parser
+
+
+def main(argv=None) -> int:
+    """Run ``simulate_bag``; return the exit status."""
+    args = build_parser().parse_args(argv)
+    try:
+        result = simulate_bag(
+            args.output, args.vehicle, overrides=overrides_from_args(args),
+            manoeuvres=args.manoeuvres, duration=args.duration, seed=args.seed,
+            rate=args.rate, setpoint_rate=args.setpoint_rate, gt_rate=args.gt_rate,
+            gt_position_noise=args.gt_noise_xy, gt_yaw_noise=args.gt_noise_yaw,
+            ground_truth=args.ground_truth, ground_truth_topic=getattr(args, 'gt_topic', None),
+            storage=args.storage, truth=getattr(args, 'truth', None))
+    except (OSError, ValueError, RuntimeError, Rosbag1WriterError, Rosbag2WriterError) as err:
+        print(f'{PROG}: {err}', file=sys.stderr)
+        return 2
+    run, icr = result.run, result.truth_icr
+    print(f'vehicle      {result.vehicle.name} on {result.vehicle.terrain} '
+          f'({result.vehicle.path})')
+    print(f'run          {args.manoeuvres}, {run.duration:.1f} s, {run.distance:.1f} m, '
+          f'seed {args.seed}')
+    print(f'bag          {result.bag} ({args.storage})')
+    for topic, count in result.messages.items():
+        print(f'  {topic:<26}{count:>8} messages')
+    print(f'true model   {result.truth}')
+    print(f'  icr.y_left {fixed(icr.y_left, 4)}  icr.y_right {fixed(icr.y_right, 4)}  '
+          f'icr.x {fixed(icr.x, 4)} m  scale {icr.scale_left:.4f} / {icr.scale_right:.4f}')
+    print(f'  chi {fixed(icr.chi)}  e {fixed(icr.eccentricity)}')
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,451 @@
+"""
+The out-of-the-box demo: simulate, identify, and compare odometry on held-out paths.
+
+Four steps, each the code path a user would run:
+
+1. simulate a tracked robot driving on a terrain (the stationary track-soil model of
+   Martinez et al. 2005, sec. 4.1, a drive train, quantised and noisy encoders, a noisy
+   ground truth) and record a calibration bag (:func:`.simulate.simulate_bag`);
+2. run ``identify_icr`` on that bag (:func:`.identify_cli.main`, the console script's own
+   entry point), which writes the terrain YAML, a JSON report and a plot;
+3. simulate held-out paths (other seeds, not used by the fit), record them as bags, read
+   their ``/joint_states`` back and dead-reckon them twice: as ``diff_drive_controller``
+   does (ideal differential drive, ICRs on the track centrelines, no scale corrections)
+   and through the identified ICRs loaded back from the written YAML (Martinez eqs. 7-9,
+   20-21); compare the final poses with the simulator's true poses;
+4. say where every output is and how to use the YAML with ``odometry_node``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import csv
+from dataclasses import dataclass
+import io
+import math
+from pathlib import Path
+import shlex
+import shutil
+import sys
+import textwrap
+import time
+
+import numpy as np
+from rosbags.rosbag2 import WriterError as Rosbag2WriterError
+from tracked_kinematics.core.integration import wrap_angle
+from tracked_kinematics.core.kinematics import IcrParams
+from tracked_kinematics.core.models import ConstantIcr
+from tracked_kinematics.core.sim.simulation import TwistTable
+from tracked_kinematics.offline.bags.reader import (
+    BagError, EncoderSource, GroundTruthSource, read_bag)
+from tracked_kinematics.offline.cli import identify_icr
+from tracked_kinematics.offline.cli.common import positive
+from tracked_kinematics.offline.cli.simulate_bag import GROUND_TRUTH_TOPICS, JOINTS, simulate_bag
+from tracked_kinematics.offline.vehicle_file import (
+    add_vehicle_arguments, fixed, load_vehicle, overrides_from_args)
+from tracked_kinematics.params import icr_from_values, read_params_file
+
+PROG = 'tracked_kinematics_demo'
+MARKER = '.tracked_kinematics_demo'
+"""File that marks an output directory as the demo's, so that a rerun may replace it."""
+OUTPUTS = ('calibration', 'heldout', 'identify_report.json', 'identify.png', 'heldout.csv',
+           'heldout.png')
+"""What the demo writes in its directory besides the terrain YAML (replaced on a rerun)."""
+HELDOUT_MANOEUVRES = ('random', 'sweep', 'random', 'mixed', 'random')
+"""Manoeuvre set of held-out path k (cycled)."""
+GT_TOPIC = GROUND_TRUTH_TOPICS['pose']
+
+
+class DemoError(Exception):
+    """A bad argument or an output that cannot be written (exit status 2, one line)."""
+
+
+@dataclass(frozen=True)
+class PathResult:
+    """
+    Odometry errors of one held-out path.
+
+    Attributes
+    ----------
+    name : str
+        Path name (also its bag's directory name).
+    manoeuvres : str
+        Manoeuvre set it was drawn from.
+    seed : int
+        Its simulation seed.
+    duration, distance : float
+        Length of the path, s and m (true path).
+    truth, ideal, identified : ndarray, shape (N, 3)
+        True pose and the two dead reckonings at each encoder sample.
+
+    """
+
+    name: str
+    manoeuvres: str
+    seed: int
+    duration: float
+    distance: float
+    truth: np.ndarray
+    ideal: np.ndarray
+    identified: np.ndarray
+
+    def errors(self, which: str) -> tuple[float, float, float]:
+        """
+        Compute the final errors of a dead reckoning against the true pose.
+
+        Parameters
+        ----------
+        which : {'ideal', 'identified'}
+            The dead reckoning.
+
+        Returns
+        -------
+        position, heading, percent : float
+            Final position error (m), absolute final heading error (deg), and the position
+            error as a percentage of the distance travelled.
+
+        """
+        odo = getattr(self, which)
+        position = float(np.hypot(*(odo[-1, :2] - self.truth[-1, :2])))
+        heading = math.degrees(abs(float(wrap_angle(odo[-1, 2] - self.truth[-1, 2]))))
+        return position, heading, 100.0 * position / max(self.distance, 1e-9)
+
+
+def dead_reckon(icr: IcrParams, left, right) -> np.ndarray:
+    """
+    Dead-reckon cumulative nominal track travel through constant tread ICRs, from pose zero.
+
+    Vectorised over the whole log: the scales correct the travel (Martinez eqs. 20-21), the
+    ICRs map it to body increments (eqs. 7-9) and the pose follows exact arcs
+    (:func:`.integration.integrate`), the same steps :class:`.odometry.Odometry` takes one
+    message at a time. ``IcrParams.ideal(track_width)`` gives ``diff_drive_controller``'s
+    odometry.
+
+    Parameters
+    ----------
+    icr : IcrParams
+        Kinematic model.
+    left, right : array_like, shape (N,)
+        Cumulative nominal travel of each track at the encoder samples, m.
+
+    Returns
+    -------
+    ndarray, shape (N, 3)
+        Pose ``(x, y, theta)`` at each sample, the first one zero; theta continuous.
+
+    """
+    model = ConstantIcr(icr.track_width)
+    x, y, theta = model.integrate(model.from_icr(icr), np.diff(left), np.diff(right), 1.0)
+    return np.column_stack([np.r_[0.0, x], np.r_[0.0, y], np.r_[0.0, theta]])
+
+
+# Output directory ------------------------------------------------------------------------
+
+
+def prepare_output(directory: Path) -> None:
+    """
+    Create the output directory, or clear the outputs of a previous demo run in it.
+
+    Raises
+    ------
+    DemoError
+        When it cannot be created or written, or holds other files than a demo's.
+
+    """
+    if directory.exists() and not directory.is_dir():
+        raise DemoError(f'--output {directory} exists and is not a directory')
+    if directory.is_dir() and any(directory.iterdir()) and not (directory / MARKER).exists():
+        raise DemoError(f'--output {directory} is not empty and was not written by the demo; '
+                        'choose another directory')
+    try:
+        directory.mkdir(parents=True, exist_ok=True)
+        (directory / MARKER).write_text(f'written by {PROG}; reruns replace its outputs\n',
+                                        encoding='utf-8')
+        for name in OUTPUTS:
+            path = directory / name
+            if path.is_dir():
+                shutil.rmtree(path)
+            elif path.exists():
+                path.unlink()
+        for path in directory.glob('*.yaml'):
+            path.unlink()
+    except OSError as err:
+        reason = err.strerror or str(err)
+        raise DemoError(f'cannot write to --output {directory}: {reason}') from None
+
+
+# Steps -----------------------------------------------------------------------------------
+
+
+def identify(bag: Path, out: Path, terrain: str, track_width: float, radius: float):
+    """
+    Run ``identify_icr`` on the calibration bag, as a user would.
+
+    Returns
+    -------
+    status : int
+        Its exit status.
+    command : list of str
+        The equivalent command line.
+    output : str
+        What it printed on stdout.
+
+    """
+    argv = [str(bag), '--ground-truth-topic', GT_TOPIC, '--output', str(out / f'{terrain}.yaml'),
+            '--sprocket-radius', repr(radius), '--track-width', repr(track_width),
+            '--terrain', terrain, '--report', str(out / 'identify_report.json'),
+            '--plot', str(out / 'identify.png')]
+    buffer = io.StringIO()
+    with contextlib.redirect_stdout(buffer):
+        status = identify_icr.main(argv)
+    return status, [identify_icr.PROG] + argv, buffer.getvalue()
+
+
+def heldout_path(k: int, args, overrides, table, identified: IcrParams,
+                 directory: Path) -> PathResult:
+    """Simulate held-out path ``k``, record it, read it back and dead-reckon it."""
+    manoeuvres = HELDOUT_MANOEUVRES[k % len(HELDOUT_MANOEUVRES)]
+    seed = args.seed + 1 + k
+    name = f'path{k + 1}_{manoeuvres}'
+    sim = simulate_bag(directory / name, args.vehicle, overrides=overrides,
+                       manoeuvres=manoeuvres, duration=args.path_duration, seed=seed,
+                       storage=args.storage, table=table)
+    radius = sim.vehicle.robot.encoders.sprocket_radius
+    rec = read_bag(sim.bag, EncoderSource(left_joints=JOINTS[:1], right_joints=JOINTS[1:],
+                                          sprocket_radius=radius),
+                   GroundTruthSource(GT_TOPIC))
+    run = sim.run
+    if len(rec.enc_t) != len(run.t):
+        raise RuntimeError(f'{sim.bag}: read {len(rec.enc_t)} encoder samples, wrote '
+                           f'{len(run.t)}')
+    ideal = IcrParams.ideal(identified.track_width)
+    return PathResult(name, manoeuvres, seed, run.duration, run.distance, run.pose,
+                      dead_reckon(ideal, rec.left, rec.right),
+                      dead_reckon(identified, rec.left, rec.right))
+
+
+def print_table(results, out) -> tuple[float, float]:
+    """
+    Print the held-out error table and its means.
+
+    Returns
+    -------
+    position, heading : float
+        Improvement of the identified model over ideal drive in the mean final position and
+        heading errors, %.
+
+    """
+    print(f'   {"":<18}{"":>16}  {"ideal differential drive":^26}  '
+          f'{"identified ICRs":^26}'.rstrip(), file=out)
+    print(f'   {"path":<18}{"dist (m)":>8}{"time (s)":>9}  {"pos (m)":>8}{"head (deg)":>11}'
+          f'{"% dist":>8}  {"pos (m)":>8}{"head (deg)":>11}{"% dist":>8}', file=out)
+
+    def row(label, distance, duration, ideal, ident):
+        print(f'   {label:<18}{distance:>8.1f}{duration:>9.0f}  {ideal[0]:>8.3f}{ideal[1]:>11.1f}'
+              f'{ideal[2]:>8.1f}  {ident[0]:>8.3f}{ident[1]:>11.1f}{ident[2]:>8.1f}', file=out)
+
+    ideal = np.array([r.errors('ideal') for r in results])
+    ident = np.array([r.errors('identified') for r in results])
+    for r, i, d in zip(results, ideal, ident):
+        row(r.name, r.distance, r.duration, i, d)
+    row('mean', np.mean([r.distance for r in results]),
+        np.mean([r.duration for r in results]), ideal.mean(axis=0), ident.mean(axis=0))
+    mean_ideal, mean_ident = ideal.mean(axis=0), ident.mean(axis=0)
+    gains = 100.0 * (1.0 - mean_ident[:2] / np.maximum(mean_ideal[:2], 1e-12))
+    print(f'   identified ICRs vs ideal: final position error {-gains[0]:+.0f} %, '
+          f'heading error {-gains[1]:+.0f} %', file=out)
+    return float(gains[0]), float(gains[1])
+
+
+def write_csv(path: Path, results) -> None:
+    """Write the held-out errors, one row per path."""
+    with open(path, 'w', newline='', encoding='utf-8') as stream:
+        writer = csv.writer(stream)
+        writer.writerow(['path', 'manoeuvres', 'seed', 'duration_s', 'distance_m',
+                         'ideal_position_error_m', 'ideal_heading_error_deg',
+                         'ideal_error_pct_of_distance', 'identified_position_error_m',
+                         'identified_heading_error_deg', 'identified_error_pct_of_distance'])
+        for r in results:
+            writer.writerow([r.name, r.manoeuvres, r.seed, f'{r.duration:.2f}',
+                             f'{r.distance:.4f}']
+                            + [f'{v:.6g}' for v in r.errors('ideal') + r.errors('identified')])
+
+
+def plot_paths(path: Path, results, title: str) -> None:
+    """Draw each held-out path: truth, ideal and identified dead reckoning, from above."""
+    from matplotlib.figure import Figure
+    cols = 2 if len(results) in (2, 4) else min(3, len(results))
+    rows = -(-len(results) // cols)
+    fig = Figure(figsize=(5.0 * cols, 4.8 * rows), layout='constrained')
+    fig.suptitle(title)
+    for k, r in enumerate(results):
+        ax = fig.add_subplot(rows, cols, k + 1)
+        for label, poses, style in (
+                ('ground truth', r.truth, {'color': 'black', 'lw': 2.0}),
+                ('ideal diff drive', r.ideal, {'color': 'tab:red'}),
+                ('identified ICRs', r.identified, {'color': 'tab:blue', 'ls': '--'})):
+            ax.plot(poses[:, 0], poses[:, 1], label=label, **style)
+        ax.plot([0.0], [0.0], 'ko', ms=4)
+        pos_i, _, _ = r.errors('ideal')
+        pos_c, _, _ = r.errors('identified')
+        ax.set_title(f'{r.name}: {r.distance:.1f} m\nfinal error ideal {pos_i:.2f} m, '
+                     f'identified {pos_c:.3f} m', fontsize=9)
+        ax.set_aspect('equal', adjustable='datalim')
+        ax.set_xlabel('x (m)')
+        ax.set_ylabel('y (m)')
+        ax.grid(True, alpha=0.3)
+        if k == 0:
+            ax.legend(fontsize=8, loc='best')
+    fig.savefig(path, dpi=90)
+
+
+# Command line ----------------------------------------------------------------------------
+
+
+def _count(text: str) -> int:
+    value = int(text)
+    if not 1 <= value <= 10:
+        raise argparse.ArgumentTypeError(f'must be 1 to 10, got {text}')
+    return value
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """Return the command line of the demo."""
+    parser = argparse.ArgumentParser(
+        prog=PROG, formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+        description='Simulate a tracked robot on a terrain, write a calibration bag, run '
+                    'identify_icr on it, and compare ideal differential-drive odometry with '
+                    'the identified ICRs on held-out paths.',
+        epilog='examples:\n'
+               '  tracked_kinematics_demo\n'
+               '  tracked_kinematics_demo --vehicle packbot --mu-y 0.9 --terrain turf '
+               '--output turf_demo')
+    add_vehicle_arguments(parser)
+    parser.add_argument('--output', '-o', default='demo_output', metavar='DIR',
+                        help='directory for every output (a rerun replaces its outputs)')
+    parser.add_argument('--seed', type=int, default=0,
+                        help='seed of the calibration drive; held-out path k uses seed + k')
+    parser.add_argument('--duration', type=positive, default=180.0, metavar='SECONDS',
+                        help='length of the calibration drive')
+    parser.add_argument('--paths', type=_count, default=4, help='number of held-out paths')
+    parser.add_argument('--path-duration', type=positive, default=60.0, metavar='SECONDS',
+                        help='length of each held-out path')
+    parser.add_argument('--storage', choices=('mcap', 'sqlite3'), default='mcap',
+                        help='rosbag2 storage of the bags')
+    return parser
+
+
+def _step(number, text, seconds, out):
+    print(f'{number}. {text:<78}{seconds:6.1f} s', file=out)
+
+
+def _indent(text, out, prefix='   | '):
+    for line in text.rstrip('\n').splitlines():
+        print(prefix + line, file=out)
+
+
+def run(args, out) -> int:
+    """Run the four steps; return the exit status."""
+    start = time.perf_counter()
+    directory = Path(args.output)
+    overrides = overrides_from_args(args)
+    try:
+        spec = load_vehicle(args.vehicle, overrides)
+    except (OSError, ValueError) as err:
+        raise DemoError(str(err)) from None
+    terrain = str(spec.terrain)
+    if not terrain or Path(terrain).name != terrain or terrain.startswith('.'):
+        raise DemoError(f'the terrain name {terrain!r} must be a plain file name (it names '
+                        'the terrain YAML)')
+    prepare_output(directory)
+    veh, enc = spec.robot.vehicle, spec.robot.encoders
+    print(f'{PROG}: {spec.name} on {terrain} ({spec.path}), seed {args.seed}; '
+          f'outputs in {directory}/', file=out)
+
+    t = time.perf_counter()
+    table = TwistTable(veh)
+    sim = simulate_bag(directory / 'calibration' / f'{spec.name}_{terrain}', args.vehicle,
+                       overrides=overrides, duration=args.duration, seed=args.seed,
+                       storage=args.storage, table=table)
+    truth = sim.truth_icr
+    _step(1, f'simulated a calibration drive: mixed manoeuvres, {sim.run.duration:.0f} s, '
+          f'{sim.run.distance:.1f} m', time.perf_counter() - t, out)
+    print(f'   bag         {sim.bag} ({args.storage}, '
+          f'{sum(sim.messages.values()):,} messages)', file=out)
+    print(f'   true model  {sim.truth}', file=out)
+    print(f"               the simulator's averaged ICR map: chi {fixed(truth.chi)}, "
+          f'e {fixed(truth.eccentricity)}', file=out)
+
+    t = time.perf_counter()
+    status, command, printed = identify(sim.bag, directory, terrain, veh.track_width,
+                                        enc.sprocket_radius)
+    seconds = time.perf_counter() - t
+    _step(2, 'identified the ICRs with identify_icr (what the console script runs)', seconds,
+          out)
+    lines = textwrap.wrap(shlex.join(command), 88, break_long_words=False,
+                          break_on_hyphens=False)
+    print('   $ ' + ' \\\n       '.join(lines), file=out)
+    print('   its output; its hold-out table compares the models on 30 s blocks of the '
+          'calibration bag:', file=out)
+    _indent(printed, out)
+    if status != 0:
+        print(f'{PROG}: identify_icr failed with exit status {status} (reason above); try a '
+              'longer --duration', file=sys.stderr)
+        return status
+    yaml_path = directory / f'{terrain}.yaml'
+    identified = icr_from_values(read_params_file(yaml_path))
+    print(f'   fitted YAML {yaml_path} (terrain parameters; fit statistics follow in the file):',
+          file=out)
+    text = yaml_path.read_text(encoding='utf-8')
+    _indent(text.split('    identification:')[0], out)
+    print(f'   identified chi {fixed(identified.chi)}, e {fixed(identified.eccentricity)}; '
+          f"simulator's averaged map chi {fixed(truth.chi)}, e {fixed(truth.eccentricity)}",
+          file=out)
+
+    t = time.perf_counter()
+    heldout = directory / 'heldout'
+    results = [heldout_path(k, args, overrides, table, identified, heldout)
+               for k in range(args.paths)]
+    write_csv(directory / 'heldout.csv', results)
+    plot_paths(directory / 'heldout.png', results,
+               f'{spec.name} on {terrain}: held-out paths, dead reckoning from the encoders')
+    _step(3, f'dead-reckoned {len(results)} held-out paths (new seeds, not used by the fit)',
+          time.perf_counter() - t, out)
+    print("   final errors against the true pose; ideal = diff_drive_controller's odometry, "
+          f'identified = {yaml_path.name}', file=out)
+    print_table(results, out)
+
+    print(f'4. outputs (total {time.perf_counter() - start:.1f} s):', file=out)
+    outputs = (
+            (yaml_path, 'identified terrain parameters (--params-file)'),
+            (directory / 'identify_report.json', 'identify_icr report: fit, hold-out stats'),
+            (directory / 'identify.png', 'identify_icr plot: paths and residuals'),
+            (directory / 'heldout.csv', 'held-out errors, one row per path'),
+            (directory / 'heldout.png', 'held-out paths: truth, ideal, identified'),
+            (sim.bag, 'calibration bag (+ .truth.yaml: the true model)'),
+            (heldout, 'held-out bags'))
+    width = max(len(str(path)) for path, _ in outputs)
+    for path, what in outputs:
+        print(f'   {str(path):<{width}}  {what}', file=out)
+    print('   use it on the robot:\n'
+          '   ros2 run tracked_kinematics odometry_node --ros-args --params-file '
+          f'{yaml_path.resolve()}', file=out)
+    return 0
+
+
+def main(argv=None) -> int:
+    """Run the demo; return the exit status (2 with one line for bad arguments)."""
+    args = build_parser().parse_args(argv)
+    try:
+        return run(args, sys.stdout)
+    except (DemoError, BagError, Rosbag2WriterError, OSError, ValueError, RuntimeError) as err:
+        print(f'{PROG}: error: {" ".join(str(err).split())}', file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f'{PROG}: interrupted', file=sys.stderr)
+        return 130
+
+
+if __name__ == '__main__':
+    sys.exit(main())
