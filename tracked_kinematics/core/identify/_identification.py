@@ -37,6 +37,7 @@ import time
 import numpy as np
 from scipy import optimize
 
+from ..errors import ExcitationError, FitError, IdentificationError
 from ..integration import integrate, relative_pose, wrap_angle
 from ..kinematics import IcrParams
 from ..models import ConstantIcr, make_model, MotionModel
@@ -54,18 +55,6 @@ _STRAIGHT_PARAMS = {'scale_left', 'scale_right', 'alpha1', 'alpha4', 'alpha7'}
 # ROS names of the parameters, for messages.
 _ROS_NAMES = {'y_left': 'icr.y_left', 'y_right': 'icr.y_right', 'x': 'icr.x',
               'scale_left': 'scale.left', 'scale_right': 'scale.right', 'alpha': 'chi'}
-
-
-class IdentificationError(ValueError):
-    """The data cannot give a trustworthy model; the message says why, on one line."""
-
-
-class ExcitationError(IdentificationError):
-    """Too little motion, turning or straight driving to identify a parameter."""
-
-
-class FitError(IdentificationError):
-    """The optimiser did not converge, or converged to an invalid model."""
 
 
 # Data -----------------------------------------------------------------------------------

@@ -53,15 +53,12 @@ from scipy.spatial import cKDTree
 
 from ..command import CommandLimits
 from ..drivetrain import DriveTrain
+from ..errors import PlanningError  # noqa: F401 (exported by the plan face)
 from ..integration import integrate_twist, relative_pose
 from ..kinematics import forward, IcrParams
 from ..models import MotionModel
 
 CANONICAL = ('straight', 'left', 'right', 's_curve', 'lane_change', 'spin')
-
-
-class PlanningError(ValueError):
-    """A planning request that cannot be met; the message says why, on one line."""
 
 
 # Canonical reference inputs (Table V) -----------------------------------------------------

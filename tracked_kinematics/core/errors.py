@@ -1,0 +1,28 @@
+"""
+The error types of the numerical core.
+
+Every error the core raises on purpose derives from :class:`TrackedKinematicsError`, so a front
+door (a console script, a node) can tell "the input cannot give what was asked" from a bug:
+it catches these and reports them on one line, and lets anything else surface as a traceback.
+They derive from :class:`ValueError` as well, for callers that only know the builtin.
+"""
+
+
+class TrackedKinematicsError(ValueError):
+    """Base of the package's own errors; the message is one line for the user."""
+
+
+class IdentificationError(TrackedKinematicsError):
+    """The data cannot give a trustworthy model; the message says why, on one line."""
+
+
+class ExcitationError(IdentificationError):
+    """Too little motion, turning or straight driving to identify a parameter."""
+
+
+class FitError(IdentificationError):
+    """The optimiser did not converge, or converged to an invalid model."""
+
+
+class PlanningError(TrackedKinematicsError):
+    """A planning request that cannot be met; the message says why, on one line."""
