@@ -6,12 +6,12 @@ from helpers.encoder_stream import Driver, joint_state, LEFT, RIGHT, Stderr
 import pytest
 from rclpy.node import Node
 from std_msgs.msg import Float64, Int32, Int64
-from tracked_kinematics.params import TERRAIN_DEFAULTS
-from tracked_kinematics.ros.encoder_input import ENCODER_INPUT_PARAMS, EncoderInput
+from tracked_kinematics.params import ENCODER_INPUT_DEFAULTS, TERRAIN_DEFAULTS
+from tracked_kinematics.ros.encoder_input import EncoderInput
 
 pytestmark = pytest.mark.ros
 
-DEFAULTS = {**TERRAIN_DEFAULTS, **{spec.name: spec.default for spec in ENCODER_INPUT_PARAMS}}
+DEFAULTS = {**TERRAIN_DEFAULTS, **ENCODER_INPUT_DEFAULTS}
 
 
 class Harness:

@@ -155,3 +155,49 @@ def compose(x0, y0, theta0, dx, dy, dtheta):
     return (x0 + c * np.asarray(dx) - s * np.asarray(dy),
             y0 + s * np.asarray(dx) + c * np.asarray(dy),
             theta0 + np.asarray(dtheta))
+
+
+# Headings and stamps as ROS messages carry them ------------------------------------------
+# The one place where a planar heading meets a quaternion and a time meets a (sec, nanosec)
+# stamp; nodes and bag readers/writers call these instead of their own copies.
+
+def yaw_from_quaternion(x, y, z, w):
+    """
+    Heading of a quaternion: rotation about z of its projection on the plane, rad.
+
+    Works on scalars and arrays alike (REP-103: counter-clockwise positive).
+    """
+    x, y, z, w = (np.asarray(v, dtype=float) for v in (x, y, z, w))
+    yaw = np.arctan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+    return float(yaw) if yaw.ndim == 0 else yaw
+
+
+def quaternion_from_yaw(yaw):
+    """Quaternion ``(x, y, z, w)`` of a rotation by ``yaw`` rad about z."""
+    half = 0.5 * np.asarray(yaw, dtype=float)
+    z, w = np.sin(half), np.cos(half)
+    if z.ndim == 0:
+        return 0.0, 0.0, float(z), float(w)
+    zeros = np.zeros_like(z)
+    return zeros, zeros, z, w
+
+
+_NS = 1_000_000_000
+
+
+def stamp_ns(sec, nanosec):
+    """Nanoseconds of a ``(sec, nanosec)`` stamp: an int, or int64 arrays of them."""
+    if isinstance(sec, np.ndarray) or isinstance(nanosec, np.ndarray):
+        return np.asarray(sec, dtype=np.int64) * _NS + np.asarray(nanosec, dtype=np.int64)
+    return int(sec) * _NS + int(nanosec)
+
+
+def split_stamp(ns: int) -> tuple[int, int]:
+    """``(sec, nanosec)`` of a time in nanoseconds (``nanosec`` in [0, 1e9))."""
+    ns = int(ns)
+    return ns // _NS, ns % _NS
+
+
+def seconds_to_stamp(seconds: float) -> tuple[int, int]:
+    """``(sec, nanosec)`` of a time in seconds, rounded to the nanosecond."""
+    return split_stamp(round(float(seconds) * _NS))

@@ -42,33 +42,13 @@ from rclpy.node import Node
 from std_msgs.msg import Float64, Float64MultiArray
 from tracked_kinematics.core.command import CommandLimiter, CommandLimits
 from tracked_kinematics.core.kinematics import IcrParams
-from tracked_kinematics.params import icr_from_values, ParamSpec, positive, TERRAIN_PARAMS
+from tracked_kinematics.params import (COMMAND_LIMIT_PARAMS, icr_from_values, LIMIT_FIELDS,
+                                       limits_from_values, ParamSpec, positive, TERRAIN_PARAMS)
 from tracked_kinematics.ros.main import run
 from tracked_kinematics.ros.parameters import ParameterTable
 
 NODE_NAME = 'cmd_vel_translator'
 
-
-def limit_value(value) -> str | None:
-    """Check: a limit, a number >= 0 where 0 (or .inf) means no limit."""
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        return f'must be a number, got {value!r}'
-    if not value >= 0.0:  # also catches NaN
-        return f'must be >= 0 (0 or .inf for no limit), got {value!r}'
-    return None
-
-
-_NO_LIMIT = '; 0 = no limit'
-
-# Limit parameter -> field of CommandLimits.
-LIMIT_PARAMS = {
-    'max_track_speed': 'max_track_speed',
-    'max_track_accel': 'max_track_accel',
-    'linear.x.max_velocity': 'max_linear_velocity',
-    'linear.x.max_acceleration': 'max_linear_acceleration',
-    'angular.z.max_velocity': 'max_angular_velocity',
-    'angular.z.max_acceleration': 'max_angular_acceleration',
-}
 
 TRANSLATOR_PARAMS: tuple[ParamSpec, ...] = TERRAIN_PARAMS + (
     ParamSpec('rate', 50.0, 'Rate at which the setpoints are published', 'Hz', positive),
@@ -79,23 +59,7 @@ TRANSLATOR_PARAMS: tuple[ParamSpec, ...] = TERRAIN_PARAMS + (
     ParamSpec('joint_velocity_topic', '',
               'Topic of a Float64MultiArray [left, right] of sprocket speeds in rad/s (for a '
               'ros2_control velocity controller); empty = not published', read_only=True),
-    ParamSpec('max_track_speed', 0.0,
-              'Largest track speed setpoint; both tracks are scaled together so the path '
-              'curvature is kept' + _NO_LIMIT, 'm/s', limit_value),
-    ParamSpec('max_track_accel', 0.0,
-              'Largest rate of change of a track speed setpoint' + _NO_LIMIT, 'm/s^2',
-              limit_value),
-    ParamSpec('linear.x.max_velocity', 0.0,
-              'Largest |v_x| of the command; v_x and w are scaled together' + _NO_LIMIT, 'm/s',
-              limit_value),
-    ParamSpec('linear.x.max_acceleration', 0.0,
-              'Largest rate of change of v_x' + _NO_LIMIT, 'm/s^2', limit_value),
-    ParamSpec('angular.z.max_velocity', 0.0,
-              'Largest |w| of the command; v_x and w are scaled together' + _NO_LIMIT, 'rad/s',
-              limit_value),
-    ParamSpec('angular.z.max_acceleration', 0.0,
-              'Largest rate of change of w' + _NO_LIMIT, 'rad/s^2', limit_value),
-)
+) + COMMAND_LIMIT_PARAMS
 
 
 def model_from_values(values: Mapping[str, Any]) -> tuple[IcrParams, CommandLimits]:
@@ -108,12 +72,11 @@ def model_from_values(values: Mapping[str, Any]) -> tuple[IcrParams, CommandLimi
         When the terrain parameters do not make a valid model (message in ROS names).
 
     """
-    limits = {field: (values[name] or math.inf) for name, field in LIMIT_PARAMS.items()}
-    return icr_from_values(values), CommandLimits(**limits)
+    return icr_from_values(values), limits_from_values(values)
 
 
 def _describe_limits(limits: CommandLimits) -> str:
-    set_limits = [f'{name} {getattr(limits, field):g}' for name, field in LIMIT_PARAMS.items()
+    set_limits = [f'{name} {getattr(limits, field):g}' for name, field in LIMIT_FIELDS.items()
                   if math.isfinite(getattr(limits, field))]
     return ', '.join(set_limits) or 'none'
 

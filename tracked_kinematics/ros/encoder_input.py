@@ -36,41 +36,14 @@ from rclpy.qos import qos_profile_sensor_data
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64, Int32, Int64
 from tracked_kinematics.core.encoders import IncrementTracker, Status
-from tracked_kinematics.params import one_of, ParamSpec, positive
+from tracked_kinematics.core.integration import stamp_ns
+from tracked_kinematics.params import JOINT_STATES_TOPIC, SIDE_TOPICS
 
-INPUT_MODES = ('joint_states', 'track_speeds', 'encoder_ticks')
-TICKS_TYPES = {'int32': (Int32, 32), 'int64': (Int64, 64)}
+# Message type and bit width of each ticks_type.
+_TICKS_MESSAGES = {'int32': (Int32, 32), 'int64': (Int64, 64)}
 
 # Seconds between two warnings about the same kind of bad input.
 WARN_PERIOD = 5.0
-
-
-def _joint_list(value):
-    if not value:
-        return 'must name at least one joint'
-    if any(not name for name in value):
-        return f'must not contain empty names, got {value!r}'
-    return None
-
-
-ENCODER_INPUT_PARAMS: tuple[ParamSpec, ...] = (
-    ParamSpec('input_mode', 'joint_states',
-              'Encoder input: joint_states (sensor_msgs/JointState), track_speeds '
-              '(std_msgs/Float64 per side, m/s) or encoder_ticks (std_msgs/Int32|Int64 per '
-              'side)', check=one_of(INPUT_MODES), read_only=True),
-    ParamSpec('left_joints', ['left_sprocket_joint'],
-              'JointState joints of the left track, averaged', check=_joint_list),
-    ParamSpec('right_joints', ['right_sprocket_joint'],
-              'JointState joints of the right track, averaged', check=_joint_list),
-    ParamSpec('ticks_type', 'int32', 'Message type of the tick counters: int32 or int64',
-              check=one_of(TICKS_TYPES), read_only=True),
-    ParamSpec('ticks_per_revolution', 4096.0,
-              'Encoder ticks per sprocket revolution (after any gearing)', 'ticks/rev',
-              positive),
-    ParamSpec('max_dt', 0.5,
-              'Longest gap between two encoder samples that is integrated; a longer one '
-              'restarts the integration from the new sample', 's', positive),
-)
 
 
 def check_encoder_values(values: Mapping[str, Any]) -> None:
@@ -102,7 +75,8 @@ class EncoderInput:
     node : rclpy.node.Node
         Node that owns the subscriptions and the logger.
     values : mapping
-        Parameter values: those of :data:`ENCODER_INPUT_PARAMS` and ``sprocket_radius``.
+        Parameter values: those of :data:`tracked_kinematics.params.ENCODER_INPUT_PARAMS`
+        and ``sprocket_radius``.
     callback : callable
         ``callback(stamp_s, d_left, d_right, dt)``: nominal travel of each track (m) over a
         step of ``dt`` s ending at ``stamp_s``.
@@ -143,17 +117,16 @@ class EncoderInput:
         self.configure(values)
         if self.mode == 'joint_states':
             self.topics = (node.create_subscription(
-                JointState, 'joint_states', self._on_joint_state, qos).topic_name,)
+                JointState, JOINT_STATES_TOPIC, self._on_joint_state, qos).topic_name,)
             return
         if self.mode == 'track_speeds':
-            msg_type, suffix = Float64, 'speed'
+            msg_type = Float64
         else:
-            msg_type, self._bits = TICKS_TYPES[values['ticks_type']]
-            suffix = 'ticks'
+            msg_type, self._bits = _TICKS_MESSAGES[values['ticks_type']]
         self.topics = tuple(
-            node.create_subscription(msg_type, f'{side}_track/{suffix}',
+            node.create_subscription(msg_type, topic,
                                      lambda msg, i=i: self._on_side(i, msg.data), qos).topic_name
-            for i, side in enumerate(('left', 'right')))
+            for i, topic in enumerate(SIDE_TOPICS[self.mode]))
 
     def configure(self, values: Mapping[str, Any]) -> None:
         """Apply (new) parameter values from the next message on."""
@@ -218,14 +191,14 @@ class EncoderInput:
                 'message skipped', throttle_duration_sec=WARN_PERIOD)
             return
         stamp = msg.header.stamp
-        stamp_ns = stamp.sec * 1_000_000_000 + stamp.nanosec
-        if stamp_ns == 0:
+        now_ns = stamp_ns(stamp.sec, stamp.nanosec)
+        if now_ns == 0:
             self.counts['zero_stamp'] += 1
             self._logger.warning(
                 'joint_states has no header.stamp (zero): message skipped; the driver must '
                 'stamp its messages', throttle_duration_sec=WARN_PERIOD)
             return
-        self._step(stamp_ns, kind, left, right, stamp)
+        self._step(now_ns, kind, left, right, stamp)
 
     # --- track_speeds and encoder_ticks ---------------------------------------------------
 
@@ -243,13 +216,13 @@ class EncoderInput:
 
     # --- common -----------------------------------------------------------------------------
 
-    def _step(self, stamp_ns: int, kind: str, left, right, stamp) -> None:
+    def _step(self, now_ns: int, kind: str, left, right, stamp) -> None:
         status, d_left, d_right, dt = self.tracker.update(
-            stamp_ns, kind, left, right, self._factor, self._bits)
+            now_ns, kind, left, right, self._factor, self._bits)
         self.counts[status] += 1
         if status == Status.STEP:
             self.stamp = stamp
-            self._callback(stamp_ns * 1e-9, d_left, d_right, dt)
+            self._callback(now_ns * 1e-9, d_left, d_right, dt)
         elif status == Status.NON_FINITE:
             self._logger.warning(
                 f'non-finite encoder reading (left {left}, right {right}) in {self.mode}: '

@@ -36,14 +36,16 @@ from sensor_msgs.msg import Imu
 from std_msgs.msg import Float64MultiArray, MultiArrayDimension
 from std_srvs.srv import Trigger
 from tracked_kinematics.core.estimate.ekf import EstimatorConfig, SlipEstimator
+from tracked_kinematics.core.integration import (quaternion_from_yaw, seconds_to_stamp, stamp_ns,
+                                                 yaw_from_quaternion)
 from tracked_kinematics.core.models import AdaptiveIcr, ConstantIcr
 from tracked_kinematics.core.prediction import (
     commands_from_twist, hold_speeds, predict_from_commands, predict_path)
 from tracked_kinematics.params import (
-    drivetrain_from_values, DRIVETRAIN_PARAMS, icr_from_values, non_negative, one_of,
-    ParamSpec, positive, TERRAIN_PARAMS)
+    drivetrain_from_values, DRIVETRAIN_PARAMS, ENCODER_INPUT_PARAMS, icr_from_values,
+    non_negative, one_of, ParamSpec, positive, TERRAIN_PARAMS)
 from tracked_kinematics.ros.encoder_input import (
-    check_encoder_values, ENCODER_INPUT_PARAMS, EncoderInput, WARN_PERIOD)
+    check_encoder_values, EncoderInput, WARN_PERIOD)
 from tracked_kinematics.ros.main import run
 from tracked_kinematics.ros.parameters import ParameterTable
 
@@ -151,16 +153,16 @@ def _config(values: Mapping[str, Any]) -> EstimatorConfig:
 
 
 def _yaw(q) -> float:
-    return math.atan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z))
+    return yaw_from_quaternion(q.x, q.y, q.z, q.w)
 
 
 def _seconds(stamp) -> float:
-    return stamp.sec + 1e-9 * stamp.nanosec
+    return stamp_ns(stamp.sec, stamp.nanosec) * 1e-9
 
 
 def _stamp(seconds: float) -> Time:
-    sec = math.floor(seconds)
-    return Time(sec=int(sec), nanosec=min(999_999_999, int(round((seconds - sec) * 1e9))))
+    sec, nanosec = seconds_to_stamp(seconds)
+    return Time(sec=sec, nanosec=nanosec)
 
 
 class IcrEstimatorNode(Node):
@@ -378,8 +380,7 @@ class IcrEstimatorNode(Node):
             pose.header.frame_id = self._frame
             pose.pose.position.x = px
             pose.pose.position.y = py
-            pose.pose.orientation.z = math.sin(0.5 * pyaw)
-            pose.pose.orientation.w = math.cos(0.5 * pyaw)
+            _, _, pose.pose.orientation.z, pose.pose.orientation.w = quaternion_from_yaw(pyaw)
             path.poses.append(pose)
         self._path_pub.publish(path)
 

@@ -22,10 +22,12 @@ from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from std_srvs.srv import Trigger
 from tracked_kinematics.core.covariance import TrackNoise
+from tracked_kinematics.core.integration import quaternion_from_yaw, stamp_ns
 from tracked_kinematics.core.odometry import Odometry
-from tracked_kinematics.params import icr_from_values, non_negative, ParamSpec, TERRAIN_PARAMS
+from tracked_kinematics.params import (ENCODER_INPUT_PARAMS, icr_from_values, non_negative,
+                                       ParamSpec, TERRAIN_PARAMS)
 from tracked_kinematics.ros.encoder_input import (
-    check_encoder_values, ENCODER_INPUT_PARAMS, EncoderInput, WARN_PERIOD)
+    check_encoder_values, EncoderInput, WARN_PERIOD)
 from tracked_kinematics.ros.main import run
 from tracked_kinematics.ros.odometry_message import OdometrySerializer
 from tracked_kinematics.ros.parameters import ParameterTable
@@ -171,13 +173,13 @@ class OdometryNode(Node):
         # Rate cap by message time, in integer nanoseconds so that it is exact; a stamp
         # before the last published one (time went back) publishes at once.
         stamp = self.encoder.stamp
-        stamp_ns = stamp.sec * 1_000_000_000 + stamp.nanosec
+        now_ns = stamp_ns(stamp.sec, stamp.nanosec)
         last = self._last_publish_ns
         if (self._min_period_ns and last is not None
-                and 0 <= stamp_ns - last < self._min_period_ns):
+                and 0 <= now_ns - last < self._min_period_ns):
             return
         if self._publish(stamp):
-            self._last_publish_ns = stamp_ns
+            self._last_publish_ns = now_ns
 
     def _publish(self, stamp) -> bool:
         odometry = self.odometry
@@ -188,8 +190,7 @@ class OdometryNode(Node):
                 f'non-finite twist {twist} not published', throttle_duration_sec=WARN_PERIOD)
             return False
         # The yaw as a quaternion with w >= 0 (theta itself is continuous, not wrapped).
-        qz = math.sin(0.5 * theta)
-        qw = math.cos(0.5 * theta)
+        _, _, qz, qw = quaternion_from_yaw(theta)
         if qw < 0.0:
             qz, qw = -qz, -qw
         self._publisher.publish(self._serializer.serialize(

@@ -33,9 +33,9 @@ from tracked_kinematics.core.encoders import (
     counter_increments, travel_from_ticks, travel_from_velocities)
 from tracked_kinematics.core.identify import Recording
 from tracked_kinematics.core.identify.drivetrain import DriveData
-from tracked_kinematics.core.integration import compose
+from tracked_kinematics.core.integration import compose, stamp_ns, yaw_from_quaternion
+from tracked_kinematics.params import ENCODER_INPUT_DEFAULTS, JOINT_STATES_TOPIC, SIDE_TOPICS
 
-ENCODER_INPUTS = ('joint_states', 'track_speeds', 'encoder_ticks')
 GROUND_TRUTH_TYPES = ('nav_msgs/msg/Odometry', 'geometry_msgs/msg/PoseStamped',
                       'geometry_msgs/msg/PoseWithCovarianceStamped', 'tf2_msgs/msg/TFMessage')
 _TICK_BITS = {'std_msgs/msg/Int32': 32, 'std_msgs/msg/Int64': 64}
@@ -53,7 +53,7 @@ class EncoderSource:
     Attributes
     ----------
     mode : str
-        One of :data:`ENCODER_INPUTS`.
+        One of :data:`tracked_kinematics.params.INPUT_MODES`.
     topic : str
         JointState topic (``joint_states`` mode).
     left_joints, right_joints : tuple of str
@@ -67,14 +67,14 @@ class EncoderSource:
 
     """
 
-    mode: str = 'joint_states'
-    topic: str = '/joint_states'
-    left_joints: tuple = ('left_sprocket_joint',)
-    right_joints: tuple = ('right_sprocket_joint',)
-    left_topic: str = '/left_track/speed'
-    right_topic: str = '/right_track/speed'
+    mode: str = ENCODER_INPUT_DEFAULTS['input_mode']
+    topic: str = '/' + JOINT_STATES_TOPIC
+    left_joints: tuple = tuple(ENCODER_INPUT_DEFAULTS['left_joints'])
+    right_joints: tuple = tuple(ENCODER_INPUT_DEFAULTS['right_joints'])
+    left_topic: str = '/' + SIDE_TOPICS['track_speeds'][0]
+    right_topic: str = '/' + SIDE_TOPICS['track_speeds'][1]
     sprocket_radius: float = 0.1
-    ticks_per_revolution: float = 4096.0
+    ticks_per_revolution: float = ENCODER_INPUT_DEFAULTS['ticks_per_revolution']
 
     def topics(self) -> tuple[str, ...]:
         """Topics this source reads."""
@@ -133,13 +133,12 @@ class _Columns:
 
 def _stamp(header, receive_ns: int, ref_ns: int) -> float:
     """Header stamp in ns after ``ref_ns`` (receive time when the stamp was never filled)."""
-    stamp_ns = header.stamp.sec * 1_000_000_000 + header.stamp.nanosec
-    return float((stamp_ns if stamp_ns > 0 else receive_ns) - ref_ns)
+    ns = stamp_ns(header.stamp.sec, header.stamp.nanosec)
+    return float((ns if ns > 0 else receive_ns) - ref_ns)
 
 
 def _yaw(q) -> float:
-    """Heading of a quaternion (rotation about z of its projection on the plane)."""
-    return math.atan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z))
+    return yaw_from_quaternion(q.x, q.y, q.z, q.w)
 
 
 def _sort_unique(columns: np.ndarray) -> np.ndarray:
@@ -282,9 +281,7 @@ class _Layout:
             return np.ascontiguousarray(rows[:, offset:offset + size]).view(dtype).reshape(
                 len(rows), width)
 
-        sec = column(self.stamp, '<i4')[:, 0].astype(np.int64)
-        nanosec = column(self.stamp + 4, '<u4')[:, 0].astype(np.int64)
-        stamp = sec * 1_000_000_000 + nanosec
+        stamp = stamp_ns(column(self.stamp, '<i4')[:, 0], column(self.stamp + 4, '<u4')[:, 0])
         stamp = np.where(stamp > 0, stamp, np.asarray(receive_ns, dtype=np.int64)) - ref_ns
         out = np.full((len(rows), 5), np.nan)
         out[:, 0] = stamp

@@ -8,18 +8,13 @@ so the same calls write a Jazzy rosbag2 or a Noetic .bag.
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
 
 import numpy as np
 from rosbags.typesys import get_types_from_msg, get_typestore, Stores
+from tracked_kinematics.core.integration import quaternion_from_yaw, split_stamp
 
 STORAGES = ('sqlite3', 'mcap', 'rosbag1')
-
-
-def _split_stamp(stamp_ns: int):
-    stamp_ns = int(stamp_ns)
-    return stamp_ns // 1_000_000_000, stamp_ns % 1_000_000_000
 
 
 class BagWriter:
@@ -84,7 +79,7 @@ class BagWriter:
 
     def header(self, stamp_ns: int, frame_id: str = ''):
         """std_msgs/Header of the bag's ROS version."""
-        sec, nanosec = _split_stamp(stamp_ns)
+        sec, nanosec = split_stamp(stamp_ns)
         stamp = self._types['builtin_interfaces/msg/Time'](sec=sec, nanosec=nanosec)
         kwargs = {'seq': 0} if self.storage == 'rosbag1' else {}
         return self._types['std_msgs/msg/Header'](stamp=stamp, frame_id=frame_id, **kwargs)
@@ -103,7 +98,7 @@ class BagWriter:
         return types['geometry_msgs/msg/Pose'](
             position=types['geometry_msgs/msg/Point'](x=float(x), y=float(y), z=float(z)),
             orientation=types['geometry_msgs/msg/Quaternion'](
-                x=0.0, y=0.0, z=math.sin(0.5 * yaw), w=math.cos(0.5 * yaw)))
+                **dict(zip('xyzw', quaternion_from_yaw(yaw)))))
 
     def pose_stamped(self, stamp_ns: int, x: float, y: float, yaw: float, frame_id='map'):
         """geometry_msgs/PoseStamped."""

@@ -10,14 +10,11 @@ import sys
 
 import numpy as np
 from tracked_kinematics.core.identify import ExcitationError, IdentificationError
-from tracked_kinematics.offline.bags.reader import BagError, ENCODER_INPUTS, EncoderSource
+from tracked_kinematics.offline.bags.reader import BagError, EncoderSource
+from tracked_kinematics.params import ENCODER_INPUT_DEFAULTS, INPUT_MODES, SIDE_TOPICS
 
 EXIT_INPUT, EXIT_EXCITATION, EXIT_FIT = 2, 3, 4
 """Exit statuses of the identification tools: bad input, too little excitation, failed fit."""
-
-SIDE_TOPICS = {'track_speeds': ('/left_track/speed', '/right_track/speed'),
-               'encoder_ticks': ('/left_track/ticks', '/right_track/ticks')}
-"""Default per-side topics of the encoder input modes other than joint_states."""
 
 
 class UsageError(ValueError):
@@ -70,20 +67,22 @@ class HelpFormatter(argparse.RawDescriptionHelpFormatter,
 
 def add_encoder_arguments(group) -> None:
     """Add the encoder options, named and defaulted as odometry_node's parameters."""
-    group.add_argument('--encoder-input', choices=ENCODER_INPUTS, default='joint_states',
+    defaults = EncoderSource()
+    group.add_argument('--encoder-input', choices=INPUT_MODES, default=defaults.mode,
                        help='kind of encoder messages, as odometry_node input_mode')
-    group.add_argument('--encoder-topic', default='/joint_states',
+    group.add_argument('--encoder-topic', default=defaults.topic,
                        help='sensor_msgs/JointState topic (joint_states)')
-    group.add_argument('--left-joints', type=names, default='left_sprocket_joint',
+    group.add_argument('--left-joints', type=names, default=','.join(defaults.left_joints),
                        metavar='A,B', help='joints of the left track, averaged')
-    group.add_argument('--right-joints', type=names, default='right_sprocket_joint',
+    group.add_argument('--right-joints', type=names, default=','.join(defaults.right_joints),
                        metavar='C,D', help='joints of the right track, averaged')
     group.add_argument('--left-topic', default=None,
                        help='left track topic: std_msgs/Float64 m/s (track_speeds) or '
-                       'Int32/Int64 counter (encoder_ticks); default /left_track/speed or '
-                       '/left_track/ticks')
+                       'Int32/Int64 counter (encoder_ticks); default '
+                       f'{" or ".join("/" + SIDE_TOPICS[m][0] for m in SIDE_TOPICS)}')
     group.add_argument('--right-topic', default=None, help='right track topic, likewise')
-    group.add_argument('--ticks-per-revolution', type=positive, default=4096.0,
+    group.add_argument('--ticks-per-revolution', type=positive,
+                       default=ENCODER_INPUT_DEFAULTS['ticks_per_revolution'],
                        help='encoder ticks per sprocket revolution (encoder_ticks)')
 
 
@@ -97,7 +96,8 @@ def encoder_source(args, radius: float) -> EncoderSource:
         When a joint is listed for both tracks.
 
     """
-    left, right = SIDE_TOPICS.get(args.encoder_input, ('', ''))
+    side = SIDE_TOPICS.get(args.encoder_input)
+    left, right = ('/' + side[0], '/' + side[1]) if side else ('', '')
     both = set(args.left_joints) & set(args.right_joints)
     if both:
         raise UsageError(f'--left-joints and --right-joints both list {", ".join(sorted(both))}')

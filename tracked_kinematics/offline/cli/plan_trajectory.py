@@ -36,20 +36,12 @@ from tracked_kinematics.core.sim.simulation import GroundTruth, Robot, simulate,
 from tracked_kinematics.offline.bags.writer import BagWriter
 from tracked_kinematics.offline.cli.common import positive, UsageError
 from tracked_kinematics.offline.vehicle_file import load_vehicle
-from tracked_kinematics.params import icr_from_values, read_params_file
+from tracked_kinematics.params import icr_from_values, LIMIT_FIELDS, read_params_file
 
 PROG = 'plan_trajectory'
 MODELS = ('ideal', 'effective', 'icr', 'general')
 _MODEL_NAMES = {'ideal': 'ideal', 'effective': 'effective_wheel_base', 'icr': 'icr_scales',
                 'general': 'general_slip'}
-# Translator parameters (cmd_vel_translator names) read from the terrain file when present.
-_LIMIT_PARAMS = {'max_track_speed': 'max_track_speed', 'max_track_accel': 'max_track_accel',
-                 'linear.x.max_velocity': 'max_linear_velocity',
-                 'linear.x.max_acceleration': 'max_linear_acceleration',
-                 'angular.z.max_velocity': 'max_angular_velocity',
-                 'angular.z.max_acceleration': 'max_angular_acceleration'}
-
-
 # Models --------------------------------------------------------------------------------
 
 
@@ -93,7 +85,7 @@ def model_from_terrain(name: str, icr: IcrParams, values=None) -> tuple[MotionMo
 def limits_from(values, robot: Robot, max_track_speed=None, max_track_accel=None):
     """Return the translator limits: command line, else terrain file, else drive train."""
     kwargs = {}
-    for param, field_name in _LIMIT_PARAMS.items():
+    for param, field_name in LIMIT_FIELDS.items():
         if param in values:
             try:
                 value = float(values[param])

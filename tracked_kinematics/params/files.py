@@ -1,0 +1,107 @@
+"""Read and write ROS 2 parameter files (``/**: ros__parameters:``) as dotted names."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+import os
+import tempfile
+from typing import Any
+
+import yaml
+
+
+def flatten(tree: Mapping[str, Any], prefix: str = '') -> dict[str, Any]:
+    """Nested mapping -> dotted names (``{'icr': {'x': 1}} -> {'icr.x': 1}``)."""
+    flat = {}
+    for key, value in tree.items():
+        name = f'{prefix}{key}'
+        if isinstance(value, Mapping):
+            flat.update(flatten(value, name + '.'))
+        else:
+            flat[name] = value
+    return flat
+
+
+def nest(flat: Mapping[str, Any]) -> dict[str, Any]:
+    """Dotted names -> nested mapping; inverse of :func:`flatten`."""
+    tree: dict[str, Any] = {}
+    for name, value in flat.items():
+        node = tree
+        *parents, leaf = name.split('.')
+        for part in parents:
+            node = node.setdefault(part, {})
+        node[leaf] = value
+    return tree
+
+
+def read_params_file(path: str | os.PathLike, node_name: str | None = None) -> dict[str, Any]:
+    """
+    Parameters of a ROS 2 params file, flattened to dotted names.
+
+    Reads the ``/**`` section and, when ``node_name`` is given, that node's section on top,
+    as ``--params-file`` would. A plain mapping without ``ros__parameters`` is read as is.
+
+    Raises
+    ------
+    ValueError
+        When the file is not a mapping of parameters (the message names the file).
+    OSError
+        When it cannot be read.
+
+    """
+    with open(path, encoding='utf-8') as stream:
+        try:
+            doc = yaml.safe_load(stream)
+        except yaml.YAMLError as err:
+            raise ValueError(f'{path}: not valid YAML ({err})') from None
+    if not isinstance(doc, Mapping):
+        raise ValueError(f'{path}: expected a mapping of parameters')
+    sections = [section for section in doc.values()
+                if isinstance(section, Mapping) and 'ros__parameters' in section]
+    if not sections:
+        return flatten(doc)
+    flat: dict[str, Any] = {}
+    for key, section in doc.items():
+        if not isinstance(section, Mapping) or 'ros__parameters' not in section:
+            continue
+        if key in ('/**', '**') or (node_name is not None
+                                    and key.lstrip('/').split('/')[-1] == node_name):
+            flat.update(flatten(section['ros__parameters'] or {}))
+    return flat
+
+
+def write_params_file(path: str | os.PathLike, values: Mapping[str, Any],
+                      comment: str | None = None) -> None:
+    """
+    Write parameters as a ``/**: ros__parameters:`` file, atomically.
+
+    The file is written next to its destination and renamed over it, so a reader never
+    sees a half-written file and a failure leaves any old file in place.
+
+    Parameters
+    ----------
+    path : path-like
+        Destination.
+    values : mapping
+        Dotted parameter names to plain values (numbers, strings, lists, nested mappings).
+    comment : str, optional
+        Lines written as a YAML comment at the top.
+
+    """
+    text = yaml.safe_dump({'/**': {'ros__parameters': nest(values)}}, sort_keys=False,
+                          default_flow_style=False)
+    if comment:
+        text = ''.join(f'# {line}\n' for line in comment.splitlines()) + text
+    directory = os.path.dirname(os.path.abspath(path))
+    fd, tmp = tempfile.mkstemp(prefix='.tmp-', suffix='.yaml', dir=directory)
+    try:
+        with os.fdopen(fd, 'w', encoding='utf-8') as stream:
+            stream.write(text)
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, 0o666 & ~umask)
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise

@@ -1,0 +1,159 @@
+"""
+The parameter tables: one vocabulary for nodes, command lines, YAML files and the docs.
+
+The terrain YAML (docs/parameters.md)::
+
+    /**:
+      ros__parameters:
+        track_width: 0.42
+        sprocket_radius: 0.1
+        icr: {y_left: 0.353, y_right: -0.425, x: 0.032}
+        scale: {left: 1.0072, right: 1.0275}
+        drivetrain: {loop: first_order, delay: 0.03, max_accel: 1.5, time_constant: 0.15}
+
+The ``drivetrain.*`` keys (:data:`DRIVETRAIN_PARAMS`, optional) describe the response of the
+tracks to their setpoints (Fink & Stump sec. III-B); vehicle files use the same keys.
+:data:`ENCODER_INPUT_PARAMS` name the encoder inputs the nodes subscribe to and the offline
+tools read from bags; :data:`COMMAND_LIMIT_PARAMS` the limits of cmd_vel_translator, which
+plan_trajectory reads from a terrain file too.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from tracked_kinematics.core.drivetrain import LOOP_KINDS
+
+from .spec import finite, non_negative, one_of, ParamSpec, positive
+
+
+TERRAIN_PARAMS: tuple[ParamSpec, ...] = (
+    ParamSpec('track_width', 0.42, 'Distance between the track centrelines (L, B)', 'm',
+              positive),
+    ParamSpec('sprocket_radius', 0.1,
+              'Drive sprocket radius: joint angle (rad) x radius = nominal track travel', 'm',
+              positive),
+    ParamSpec('icr.y_left', 0.21,
+              'Lateral coordinate of the left tread ICR in base_link (> 0; track_width / 2 '
+              'is ideal differential drive)', 'm', finite),
+    ParamSpec('icr.y_right', -0.21,
+              'Lateral coordinate of the right tread ICR in base_link (< 0)', 'm', finite),
+    ParamSpec('icr.x', 0.0,
+              'Longitudinal coordinate of both tread ICRs in base_link (+ ahead)', 'm', finite),
+    ParamSpec('scale.left', 1.0, 'Left encoder correction: true speed = scale x nominal', '',
+              positive),
+    ParamSpec('scale.right', 1.0, 'Right encoder correction: true speed = scale x nominal', '',
+              positive),
+)
+
+TERRAIN_DEFAULTS: dict[str, Any] = {spec.name: spec.default for spec in TERRAIN_PARAMS}
+
+
+DRIVETRAIN_PARAMS: tuple[ParamSpec, ...] = (
+    ParamSpec('drivetrain.loop', 'first_order',
+              'Speed loop: ideal, first_order (time_constant) or pid_dc_motor (pid, motor)', '',
+              one_of(LOOP_KINDS)),
+    ParamSpec('drivetrain.delay', 0.0, 'Command delay', 's', non_negative),
+    ParamSpec('drivetrain.max_accel', 0.0, 'Acceleration limit of the input shaping; 0 = none',
+              'm/s^2', non_negative),
+    ParamSpec('drivetrain.time_constant', 0.1, 'Time constant of the first-order loop', 's',
+              positive),
+    ParamSpec('drivetrain.pid.kp', 56.49, 'Proportional gain K_p (Fink & Stump eq. 6)', '',
+              non_negative),
+    ParamSpec('drivetrain.pid.ki', 1.11, 'Integral gain K_i', '', non_negative),
+    ParamSpec('drivetrain.pid.kd', 2.77, 'Derivative gain K_d', '', non_negative),
+    ParamSpec('drivetrain.motor.inertia', 0.059, 'Rotor inertia J (Fink & Stump eq. 7)',
+              'kg m^2', positive),
+    ParamSpec('drivetrain.motor.damping', 0.456, 'Viscous friction b', 'N m s', non_negative),
+    ParamSpec('drivetrain.motor.resistance', 0.254, 'Armature resistance R', 'Ohm', positive),
+    ParamSpec('drivetrain.motor.inductance', 0.253, 'Armature inductance L', 'H', positive),
+    ParamSpec('drivetrain.motor.constant', 0.0294, 'Torque / back-EMF constant K', 'N m/A',
+              positive),
+)
+
+DRIVETRAIN_DEFAULTS: dict[str, Any] = {spec.name: spec.default for spec in DRIVETRAIN_PARAMS}
+
+
+# Encoder input ---------------------------------------------------------------------------
+
+INPUT_MODES = ('joint_states', 'track_speeds', 'encoder_ticks')
+TICKS_TYPES = ('int32', 'int64')
+# Per-side topics of the track_speeds and encoder_ticks modes (relative names).
+SIDE_TOPICS = {'track_speeds': ('left_track/speed', 'right_track/speed'),
+               'encoder_ticks': ('left_track/ticks', 'right_track/ticks')}
+JOINT_STATES_TOPIC = 'joint_states'
+
+
+def _joint_list(value):
+    if not value:
+        return 'must name at least one joint'
+    if any(not name for name in value):
+        return f'must not contain empty names, got {value!r}'
+    return None
+
+
+ENCODER_INPUT_PARAMS: tuple[ParamSpec, ...] = (
+    ParamSpec('input_mode', 'joint_states',
+              'Encoder input: joint_states (sensor_msgs/JointState), track_speeds '
+              '(std_msgs/Float64 per side, m/s) or encoder_ticks (std_msgs/Int32|Int64 per '
+              'side)', check=one_of(INPUT_MODES), read_only=True),
+    ParamSpec('left_joints', ['left_sprocket_joint'],
+              'JointState joints of the left track, averaged', check=_joint_list),
+    ParamSpec('right_joints', ['right_sprocket_joint'],
+              'JointState joints of the right track, averaged', check=_joint_list),
+    ParamSpec('ticks_type', 'int32', 'Message type of the tick counters: int32 or int64',
+              check=one_of(TICKS_TYPES), read_only=True),
+    ParamSpec('ticks_per_revolution', 4096.0,
+              'Encoder ticks per sprocket revolution (after any gearing)', 'ticks/rev',
+              positive),
+    ParamSpec('max_dt', 0.5,
+              'Longest gap between two encoder samples that is integrated; a longer one '
+              'restarts the integration from the new sample', 's', positive),
+)
+
+ENCODER_INPUT_DEFAULTS: dict[str, Any] = {spec.name: spec.default
+                                          for spec in ENCODER_INPUT_PARAMS}
+
+
+# Command limits --------------------------------------------------------------------------
+
+
+def limit_value(value) -> str | None:
+    """Check: a limit, a number >= 0 where 0 (or .inf) means no limit."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        return f'must be a number, got {value!r}'
+    if not value >= 0.0:  # also catches NaN
+        return f'must be >= 0 (0 or .inf for no limit), got {value!r}'
+    return None
+
+
+_NO_LIMIT = '; 0 = no limit'
+
+# Limit parameter -> field of CommandLimits.
+LIMIT_FIELDS = {
+    'max_track_speed': 'max_track_speed',
+    'max_track_accel': 'max_track_accel',
+    'linear.x.max_velocity': 'max_linear_velocity',
+    'linear.x.max_acceleration': 'max_linear_acceleration',
+    'angular.z.max_velocity': 'max_angular_velocity',
+    'angular.z.max_acceleration': 'max_angular_acceleration',
+}
+
+COMMAND_LIMIT_PARAMS: tuple[ParamSpec, ...] = (
+    ParamSpec('max_track_speed', 0.0,
+              'Largest track speed setpoint; both tracks are scaled together so the path '
+              'curvature is kept' + _NO_LIMIT, 'm/s', limit_value),
+    ParamSpec('max_track_accel', 0.0,
+              'Largest rate of change of a track speed setpoint' + _NO_LIMIT, 'm/s^2',
+              limit_value),
+    ParamSpec('linear.x.max_velocity', 0.0,
+              'Largest |v_x| of the command; v_x and w are scaled together' + _NO_LIMIT, 'm/s',
+              limit_value),
+    ParamSpec('linear.x.max_acceleration', 0.0,
+              'Largest rate of change of v_x' + _NO_LIMIT, 'm/s^2', limit_value),
+    ParamSpec('angular.z.max_velocity', 0.0,
+              'Largest |w| of the command; v_x and w are scaled together' + _NO_LIMIT, 'rad/s',
+              limit_value),
+    ParamSpec('angular.z.max_acceleration', 0.0,
+              'Largest rate of change of w' + _NO_LIMIT, 'rad/s^2', limit_value),
+)
