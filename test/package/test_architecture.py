@@ -1,4 +1,4 @@
-"""The three rings: imports point inwards only (STYLE.md sec. 1)."""
+"""The rings: imports point inwards only (STYLE.md sec. 1; README "Layout")."""
 
 import ast
 from pathlib import Path
@@ -9,19 +9,37 @@ PACKAGE = Path(__file__).resolve().parents[2] / 'tracked_kinematics'
 ROS_LIBS = ('rclpy', 'rosbags', 'nav_msgs', 'geometry_msgs', 'sensor_msgs', 'std_msgs',
             'std_srvs', 'tf2_ros', 'tf2_msgs', 'builtin_interfaces', 'rcl_interfaces',
             'launch', 'launch_ros')
-# Per ring: module prefixes it must never import.
+PKG = 'tracked_kinematics'
+CORE_JOBS = tuple(f'{PKG}.core.{job}' for job in ('identify', 'estimate', 'sim', 'plan'))
+# Per ring (a folder of the package, most specific first): module prefixes it must never
+# import. A module obeys every rule whose folder contains it.
 FORBIDDEN = {
-    'core': ROS_LIBS + ('tracked_kinematics.offline', 'tracked_kinematics.ros',
-                        'tracked_kinematics.params', 'tracked_kinematics.share', 'yaml',
-                        'matplotlib'),
-    'offline': ('rclpy', 'tracked_kinematics.ros', 'tf2_ros'),
-    'ros': ('rosbags', 'tracked_kinematics.offline'),
+    'core': ROS_LIBS + (f'{PKG}.offline', f'{PKG}.ros', f'{PKG}.params', f'{PKG}.share',
+                        'yaml', 'matplotlib'),
+    # The core's foundation knows none of the jobs built on it.
+    'core/.': CORE_JOBS,
+    # Identification fits models to data; it never needs the simulator, the planner or the
+    # estimator (the estimator builds on identification, not the other way round).
+    'core/identify': (f'{PKG}.core.sim', f'{PKG}.core.plan', f'{PKG}.core.estimate'),
+    'core/sim': (f'{PKG}.core.identify', f'{PKG}.core.plan', f'{PKG}.core.estimate'),
+    'core/plan': (f'{PKG}.core.identify', f'{PKG}.core.sim', f'{PKG}.core.estimate'),
+    'core/estimate': (f'{PKG}.core.sim', f'{PKG}.core.plan'),
+    'params': ROS_LIBS + (f'{PKG}.offline', f'{PKG}.ros', 'matplotlib'),
+    'offline': ('rclpy', f'{PKG}.ros', 'tf2_ros'),
+    # Reading and writing bags is a library the command lines use, never the reverse.
+    'offline/bags': (f'{PKG}.offline.cli',),
+    'ros': ('rosbags', f'{PKG}.offline'),
 }
 
 
-def imported_modules(path):
+def package_parts_of(path: Path):
+    """Dotted package of a module file of the package, as a list of names."""
+    return [PKG] + list(path.relative_to(PACKAGE).parent.parts)
+
+
+def imported_modules(path: Path, package_parts):
+    """Yield (line, absolute module) for every import of ``path``; relative ones resolved."""
     tree = ast.parse(path.read_text(), filename=str(path))
-    package_parts = ['tracked_kinematics'] + list(path.relative_to(PACKAGE).parent.parts)
     for node in ast.walk(tree):
         if isinstance(node, ast.Import):
             for alias in node.names:
@@ -35,27 +53,65 @@ def imported_modules(path):
             yield node.lineno, module
 
 
-def ring_files():
+def rules_for(path: Path):
+    """Yield the rings that ``path`` belongs to."""
+    rel = path.relative_to(PACKAGE)
     for ring in FORBIDDEN:
-        for path in sorted((PACKAGE / ring).rglob('*.py')):
-            yield pytest.param(ring, path, id=str(path.relative_to(PACKAGE)))
+        if ring.endswith('/.'):
+            if rel.parent == Path(ring[:-2]):
+                yield ring
+        elif rel.parts[:len(Path(ring).parts)] == Path(ring).parts:
+            yield ring
 
 
-@pytest.mark.parametrize('ring, path', list(ring_files()))
-def test_imports_point_inwards(ring, path):
-    bad = [f'{path.name}:{line} imports {module}'
-           for line, module in imported_modules(path)
-           if any(module == f or module.startswith(f + '.') for f in FORBIDDEN[ring])]
-    assert not bad, f'{ring}/ must not import these: {bad}'
+def violations(path: Path, package_parts, rings):
+    """Return the imports of ``path`` that break a rule of ``rings``."""
+    return [f'{path.name}:{line} imports {module} ({ring}/ must not)'
+            for line, module in imported_modules(path, package_parts)
+            for ring in rings
+            if any(module == f or module.startswith(f + '.') for f in FORBIDDEN[ring])]
 
 
-def test_checker_catches_a_wrong_arrow():
-    # The test above must be able to fail: a core module importing rclpy is caught.
-    fake = PACKAGE / 'core' / '_probe_wrong_arrow.py'
-    fake.write_text('import rclpy\nfrom ..ros import something\n')
-    try:
-        found = [m for _, m in imported_modules(fake)]
-    finally:
-        fake.unlink()
-    assert found == ['rclpy', 'tracked_kinematics.ros']
-    assert any(m.startswith(f) for m in found for f in FORBIDDEN['core'])
+def module_files():
+    for path in sorted(PACKAGE.rglob('*.py')):
+        rings = list(rules_for(path))
+        if rings:
+            yield pytest.param(path, rings, id=str(path.relative_to(PACKAGE)))
+
+
+@pytest.mark.parametrize('path, rings', list(module_files()))
+def test_imports_point_inwards(path, rings):
+    assert not violations(path, package_parts_of(path), rings)
+
+
+def test_every_ring_has_modules():
+    # A renamed folder must not silently leave its rule checking nothing.
+    for ring in FORBIDDEN:
+        folder = PACKAGE / ring.rstrip('/.')
+        assert list(folder.glob('*.py')), ring
+
+
+@pytest.mark.parametrize('rel, source, ring', [
+    ('core/odometry.py', 'import rclpy\nfrom ..ros import something\n', 'core'),
+    ('core/odometry.py', 'from .identify import fit\n', 'core/.'),
+    ('core/identify/fit.py', 'from ..sim.dynamics import Vehicle\n', 'core/identify'),
+    ('offline/bags/reader.py', 'from tracked_kinematics.offline.cli import common\n',
+     'offline/bags'),
+    ('params/tables.py', 'from tracked_kinematics.ros import odometry_node\n', 'params'),
+])
+def test_checker_catches_a_wrong_arrow(tmp_path, rel, source, ring):
+    # The test above must be able to fail: a module as if at ``rel`` with a wrong import
+    # is caught. The probe lives in tmp_path, never in the package source.
+    probe = tmp_path / 'probe.py'
+    probe.write_text(source)
+    where = PACKAGE / rel
+    rings = list(rules_for(where))
+    assert ring in rings
+    assert violations(probe, package_parts_of(where), rings)
+
+
+def test_a_right_arrow_is_allowed(tmp_path):
+    probe = tmp_path / 'probe.py'
+    probe.write_text('from ..kinematics import IcrParams\nimport numpy as np\n')
+    where = PACKAGE / 'core' / 'identify' / 'fit.py'
+    assert not violations(probe, package_parts_of(where), list(rules_for(where)))

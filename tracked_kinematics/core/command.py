@@ -29,6 +29,7 @@ import math
 
 import numpy as np
 
+from ._checks import require_numbers
 from .kinematics import forward, IcrParams, inverse, nominal_speeds
 
 
@@ -63,15 +64,8 @@ class CommandLimits:
     max_angular_acceleration: float = math.inf
 
     def __post_init__(self):
-        for f in fields(self):
-            value = getattr(self, f.name)
-            try:
-                value = float(value)
-            except (TypeError, ValueError):
-                raise ValueError(f'{f.name} must be a number, got {value!r}') from None
-            if not value > 0.0:  # also catches NaN
-                raise ValueError(f'{f.name} must be > 0 (inf for no limit), got {value!r}')
-            object.__setattr__(self, f.name, value)
+        names = tuple(f.name for f in fields(self))
+        require_numbers(self, positive=names, unbounded=names)
 
 
 def _factor(magnitude, limit):

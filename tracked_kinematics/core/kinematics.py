@@ -12,10 +12,26 @@ See ../shared/INTERFACE.md and the README for the derivation of every formula be
 
 from __future__ import annotations
 
-from dataclasses import dataclass, fields
-import math
+from dataclasses import dataclass
 
 import numpy as np
+
+from ._checks import require_numbers
+
+
+def steering_efficiency(track_width, y_left, y_right):
+    """
+    Steering efficiency ``chi = L / (y_left - y_right)`` of tread ICRs, Martinez eq. (12).
+
+    Defined for any ICR pair (an estimate may give chi > 1); :class:`IcrParams` refuses
+    values outside (0, 1].
+    """
+    return track_width / (y_left - y_right)
+
+
+def eccentricity(y_left, y_right):
+    """Eccentricity ``e = -(y_left + y_right) / (y_left - y_right)``, Martinez eq. (13)."""
+    return -(y_left + y_right) / (y_left - y_right)
 
 
 @dataclass(frozen=True, slots=True)
@@ -52,17 +68,8 @@ class IcrParams:
     scale_right: float = 1.0
 
     def __post_init__(self):
-        for f in fields(self):
-            value = getattr(self, f.name)
-            try:
-                value = float(value)
-            except (TypeError, ValueError):
-                raise ValueError(f'{f.name} must be a number, got {value!r}') from None
-            if not math.isfinite(value):
-                raise ValueError(f'{f.name} must be finite, got {value!r}')
-            object.__setattr__(self, f.name, value)
-        if self.track_width <= 0.0:
-            raise ValueError(f'track_width must be > 0 m, got {self.track_width!r}')
+        require_numbers(self, finite=('y_left', 'y_right', 'x'),
+                        positive=('track_width', 'scale_left', 'scale_right'))
         if self.y_left <= self.y_right:
             raise ValueError(
                 f'y_left ({self.y_left!r} m) must be greater than y_right ({self.y_right!r} m): '
@@ -73,19 +80,16 @@ class IcrParams:
                 f'steering efficiency chi = track_width / (y_left - y_right) = {chi:.4g} is '
                 f'outside (0, 1]: the tread ICRs ({self.y_left!r}, {self.y_right!r} m) must be '
                 f'at least track_width = {self.track_width!r} m apart')
-        for name in ('scale_left', 'scale_right'):
-            if getattr(self, name) <= 0.0:
-                raise ValueError(f'{name} must be > 0, got {getattr(self, name)!r}')
 
     @property
     def chi(self) -> float:
         """Steering efficiency ``L / (y_left - y_right)``, Martinez eq. (12)."""
-        return self.track_width / (self.y_left - self.y_right)
+        return steering_efficiency(self.track_width, self.y_left, self.y_right)
 
     @property
     def eccentricity(self) -> float:
         """Eccentricity ``-(y_left + y_right) / (y_left - y_right)``, Martinez eq. (13)."""
-        return -(self.y_left + self.y_right) / (self.y_left - self.y_right)
+        return eccentricity(self.y_left, self.y_right)
 
     @classmethod
     def ideal(cls, track_width: float) -> IcrParams:

@@ -38,6 +38,7 @@ from std_srvs.srv import Trigger
 from tracked_kinematics.core.estimate.ekf import EstimatorConfig, SlipEstimator
 from tracked_kinematics.core.integration import (quaternion_from_yaw, seconds_to_stamp, stamp_ns,
                                                  yaw_from_quaternion)
+from tracked_kinematics.core.kinematics import eccentricity, steering_efficiency
 from tracked_kinematics.core.models import AdaptiveIcr, ConstantIcr
 from tracked_kinematics.core.prediction import (
     commands_from_twist, hold_speeds, predict_from_commands, predict_path)
@@ -335,11 +336,11 @@ class IcrEstimatorNode(Node):
 
     def _publish_icr(self, icr) -> None:
         y_left, y_right, x = icr
-        span = y_left - y_right
         msg = Float64MultiArray()
         msg.layout.dim = [MultiArrayDimension(label=','.join(ICR_LAYOUT), size=5, stride=5)]
-        msg.data = [y_left, y_right, x, self.estimator.model.track_width / span,
-                    -(y_left + y_right) / span]
+        msg.data = [y_left, y_right, x,
+                    steering_efficiency(self.estimator.model.track_width, y_left, y_right),
+                    eccentricity(y_left, y_right)]
         self._icr_pub.publish(msg)
 
     def _publish_path(self) -> None:
@@ -387,7 +388,7 @@ class IcrEstimatorNode(Node):
     def _push(self, icr) -> None:
         y_left, y_right, x = icr
         values = self.params.values
-        if self.estimator.model.track_width / (y_left - y_right) > 1.0:
+        if steering_efficiency(self.estimator.model.track_width, y_left, y_right) > 1.0:
             return  # chi > 1 is not a physical terrain; the nodes would refuse it
         if isinstance(self.estimator.model, AdaptiveIcr):
             v_left, v_right = self.estimator.last_speeds

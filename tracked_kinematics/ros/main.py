@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 from collections.abc import Callable
-import sys
 
 import rclpy
 from rclpy.executors import ExternalShutdownException
@@ -42,8 +41,3 @@ def run(node_factory: Callable[[], 'rclpy.node.Node'], name: str, args=None) -> 
             node.destroy_node()
         rclpy.try_shutdown()
     return 0
-
-
-def exit_with(node_factory, name: str) -> None:
-    """Console-script entry point helper: ``sys.exit(run(...))``."""
-    sys.exit(run(node_factory, name))
