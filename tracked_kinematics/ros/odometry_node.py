@@ -24,8 +24,8 @@ from std_srvs.srv import Trigger
 from tracked_kinematics.core.covariance import TrackNoise
 from tracked_kinematics.core.integration import quaternion_from_yaw, stamp_ns
 from tracked_kinematics.core.odometry import Odometry
-from tracked_kinematics.params import (ENCODER_INPUT_PARAMS, icr_from_values, non_negative,
-                                       ParamSpec, TERRAIN_PARAMS)
+from tracked_kinematics.params import (described_as, ENCODER_INPUT_PARAMS, icr_from_values,
+                                       non_negative, ParamSpec, TERRAIN_PARAMS)
 from tracked_kinematics.ros.encoder_input import (
     check_encoder_values, EncoderInput, WARN_PERIOD)
 from tracked_kinematics.ros.main import run
@@ -35,6 +35,7 @@ from tracked_kinematics.ros.parameters import ParameterTable
 NODE_NAME = 'odometry_node'
 
 
+@described_as('not empty, no leading or trailing blanks')
 def _frame(value):
     return None if value.strip() and value.strip() == value else (
         f'must be a frame id without blanks, got {value!r}')
