@@ -4,8 +4,8 @@ odometry_node: track encoders to nav_msgs/Odometry through the tread-ICR kinemat
 A thin adapter. :class:`~tracked_kinematics.ros.encoder_input.EncoderInput` turns encoder
 messages into steps of nominal track travel; :class:`~tracked_kinematics.core.odometry.
 Odometry` integrates them and propagates the covariance; this node copies the numbers into
-``odom`` (and the odom -> base_link transform) and answers ``~/reset``. Contract:
-../shared/INTERFACE.md, section ``odometry_node``.
+``odom`` (and the odom -> base_link transform) and answers ``~/reset``. Documented in
+docs/nodes/odometry_node.md (topics, input modes, bad input, covariance).
 """
 
 from __future__ import annotations
