@@ -7,7 +7,7 @@ right. Everything here speaks REP-103 instead; the mapping of one tread ICR is
     paper (x_ICR, y_ICR)  ->  ROS (x = y_ICR, y = -x_ICR)
 
 so ``y_left = -x_ICRl`` (> 0), ``y_right = -x_ICRr`` (< 0) and ``x = y_ICRv``.
-See ../shared/INTERFACE.md and the README for the derivation of every formula below.
+See docs/model.md for the derivation of every formula below.
 """
 
 from __future__ import annotations

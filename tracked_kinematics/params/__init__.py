@@ -8,7 +8,7 @@ ring; it imports only ``core/``. docs/parameters.md is generated from the tables
 """
 
 from .files import flatten, nest, read_params_file, write_params_file
-from .spec import check_values, finite, non_negative, one_of, ParamSpec, positive
+from .spec import check_values, described_as, finite, non_negative, one_of, ParamSpec, positive
 from .tables import (COMMAND_LIMIT_PARAMS, DRIVETRAIN_DEFAULTS, DRIVETRAIN_PARAMS,
                      ENCODER_INPUT_DEFAULTS, ENCODER_INPUT_PARAMS, INPUT_MODES,
                      JOINT_STATES_TOPIC, LIMIT_FIELDS, limit_value, SIDE_TOPICS,
@@ -20,7 +20,7 @@ __all__ = [
     'COMMAND_LIMIT_PARAMS', 'DRIVETRAIN_DEFAULTS', 'DRIVETRAIN_PARAMS', 'ENCODER_INPUT_DEFAULTS',
     'ENCODER_INPUT_PARAMS', 'INPUT_MODES', 'JOINT_STATES_TOPIC', 'LIMIT_FIELDS', 'ParamSpec',
     'SIDE_TOPICS', 'TERRAIN_DEFAULTS', 'TERRAIN_PARAMS', 'TICKS_TYPES', 'check_values',
-    'drivetrain_from_values', 'finite', 'flatten', 'icr_from_values', 'limit_value',
-    'limits_from_values', 'nest', 'non_negative', 'one_of', 'positive', 'read_params_file',
-    'values_from_drivetrain', 'values_from_icr', 'write_params_file',
+    'described_as', 'drivetrain_from_values', 'finite', 'flatten', 'icr_from_values',
+    'limit_value', 'limits_from_values', 'nest', 'non_negative', 'one_of', 'positive',
+    'read_params_file', 'values_from_drivetrain', 'values_from_icr', 'write_params_file',
 ]

@@ -5,7 +5,8 @@ Each :class:`ParamSpec` carries a parameter's ROS name, default, unit, descripti
 in the spirit of generate_parameter_library's YAML in ros2_controllers. Nodes declare their
 parameters from the tables of :mod:`.tables` (with descriptors, so ``ros2 param describe``
 explains them) and validate with the same checks at start and in their set-parameters
-callback; the command lines validate terrain files with them.
+callback; the command lines validate terrain files with them. Every check carries its rule
+in words (``check.words``, set by :func:`described_as`) for the generated parameter reference.
 """
 
 from __future__ import annotations
@@ -16,6 +17,23 @@ import math
 from typing import Any
 
 
+def described_as(words: str) -> Callable[[Callable], Callable]:
+    """
+    Return a decorator that attaches a check's rule in words, as the parameter docs show it.
+
+    Parameters
+    ----------
+    words : str
+        The rule, short: ``'> 0'``, ``'>= 0, 0 = no limit'``.
+
+    """
+    def mark(check: Callable) -> Callable:
+        check.words = words
+        return check
+    return mark
+
+
+@described_as('finite')
 def finite(value) -> str | None:
     """Check: a finite number."""
     if isinstance(value, bool) or not isinstance(value, (int, float)):
@@ -25,11 +43,13 @@ def finite(value) -> str | None:
     return None
 
 
+@described_as('> 0')
 def positive(value) -> str | None:
     """Check: a finite number > 0."""
     return finite(value) or (None if value > 0 else f'must be > 0, got {value!r}')
 
 
+@described_as('>= 0')
 def non_negative(value) -> str | None:
     """Check: a finite number >= 0."""
     return finite(value) or (None if value >= 0 else f'must be >= 0, got {value!r}')
@@ -41,6 +61,8 @@ def one_of(choices) -> Callable[[Any], str | None]:
 
     def check(value) -> str | None:
         return None if value in choices else f'must be one of {", ".join(choices)}, got {value!r}'
+    check.choices = choices
+    check.words = 'one of ' + ', '.join(choices)
     return check
 
 

@@ -24,7 +24,7 @@ from typing import Any
 
 from tracked_kinematics.core.drivetrain import LOOP_KINDS
 
-from .spec import finite, non_negative, one_of, ParamSpec, positive
+from .spec import described_as, finite, non_negative, one_of, ParamSpec, positive
 
 
 TERRAIN_PARAMS: tuple[ParamSpec, ...] = (
@@ -84,6 +84,7 @@ SIDE_TOPICS = {'track_speeds': ('left_track/speed', 'right_track/speed'),
 JOINT_STATES_TOPIC = 'joint_states'
 
 
+@described_as('at least one joint, no empty names')
 def _joint_list(value):
     if not value:
         return 'must name at least one joint'
@@ -118,6 +119,7 @@ ENCODER_INPUT_DEFAULTS: dict[str, Any] = {spec.name: spec.default
 # Command limits --------------------------------------------------------------------------
 
 
+@described_as('>= 0; 0 or .inf = no limit')
 def limit_value(value) -> str | None:
     """Check: a limit, a number >= 0 where 0 (or .inf) means no limit."""
     if isinstance(value, bool) or not isinstance(value, (int, float)):

@@ -43,8 +43,8 @@ from tracked_kinematics.core.models import AdaptiveIcr, ConstantIcr
 from tracked_kinematics.core.prediction import (
     commands_from_twist, hold_speeds, predict_from_commands, predict_path)
 from tracked_kinematics.params import (
-    drivetrain_from_values, DRIVETRAIN_PARAMS, ENCODER_INPUT_PARAMS, icr_from_values,
-    non_negative, one_of, ParamSpec, positive, TERRAIN_PARAMS)
+    described_as, drivetrain_from_values, DRIVETRAIN_PARAMS, ENCODER_INPUT_PARAMS,
+    icr_from_values, non_negative, one_of, ParamSpec, positive, TERRAIN_PARAMS)
 from tracked_kinematics.ros.encoder_input import (
     check_encoder_values, EncoderInput, WARN_PERIOD)
 from tracked_kinematics.ros.main import run
@@ -61,10 +61,12 @@ SOURCES = ('speeds', 'cmd_vel')
 ICR_LAYOUT = ('y_left', 'y_right', 'x', 'chi', 'e')
 
 
+@described_as('> 0 and < 1')
 def _probability(value):
     return positive(value) or (None if value < 1.0 else f'must be < 1, got {value!r}')
 
 
+@described_as('no empty names')
 def _names(value):
     return None if all(name.strip() for name in value) else f'has an empty name: {value!r}'
 

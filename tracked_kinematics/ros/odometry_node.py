@@ -4,8 +4,8 @@ odometry_node: track encoders to nav_msgs/Odometry through the tread-ICR kinemat
 A thin adapter. :class:`~tracked_kinematics.ros.encoder_input.EncoderInput` turns encoder
 messages into steps of nominal track travel; :class:`~tracked_kinematics.core.odometry.
 Odometry` integrates them and propagates the covariance; this node copies the numbers into
-``odom`` (and the odom -> base_link transform) and answers ``~/reset``. Contract:
-../shared/INTERFACE.md, section ``odometry_node``.
+``odom`` (and the odom -> base_link transform) and answers ``~/reset``. Documented in
+docs/nodes/odometry_node.md (topics, input modes, bad input, covariance).
 """
 
 from __future__ import annotations
@@ -24,8 +24,8 @@ from std_srvs.srv import Trigger
 from tracked_kinematics.core.covariance import TrackNoise
 from tracked_kinematics.core.integration import quaternion_from_yaw, stamp_ns
 from tracked_kinematics.core.odometry import Odometry
-from tracked_kinematics.params import (ENCODER_INPUT_PARAMS, icr_from_values, non_negative,
-                                       ParamSpec, TERRAIN_PARAMS)
+from tracked_kinematics.params import (described_as, ENCODER_INPUT_PARAMS, icr_from_values,
+                                       non_negative, ParamSpec, TERRAIN_PARAMS)
 from tracked_kinematics.ros.encoder_input import (
     check_encoder_values, EncoderInput, WARN_PERIOD)
 from tracked_kinematics.ros.main import run
@@ -35,6 +35,7 @@ from tracked_kinematics.ros.parameters import ParameterTable
 NODE_NAME = 'odometry_node'
 
 
+@described_as('not empty, no leading or trailing blanks')
 def _frame(value):
     return None if value.strip() and value.strip() == value else (
         f'must be a frame id without blanks, got {value!r}')
