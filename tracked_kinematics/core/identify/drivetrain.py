@@ -44,8 +44,8 @@ import time
 import numpy as np
 from scipy.optimize import least_squares
 
-from ._identification import ExcitationError, FitError
 from ..drivetrain import DriveTrain, FirstOrderLag, LOOP_KINDS, PidMotor
+from ..errors import ExcitationError, FitError
 
 MIN_SECONDS = 2.0
 """Least duration of usable data (after the delay search window of each segment), s."""

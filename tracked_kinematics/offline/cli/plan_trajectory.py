@@ -137,7 +137,7 @@ def identify_on_sweep(robot: Robot, table: TwistTable, dt: float = 0.02, seed: i
     Drives the trapezoidal speed x curvature sweep of sec. IV-B on the dynamic simulator
     (ground truth at 10 Hz with 2 mm / 2 mrad noise), then fits the effective wheel-base,
     ICR (with scales) and 9-parameter general slip models by the least squares of
-    :func:`..core.identification.fit` on 1 s segments of the encoder travel.
+    :func:`..core.identify.fit` on 1 s segments of the encoder travel.
 
     Returns
     -------
