@@ -5,10 +5,11 @@ The face of the sub-package; the modules behind it hold the derivations and refe
 :mod:`.segments` (the data), :mod:`.problem` (Martinez eq. 17 and its Jacobian),
 :mod:`.search_space`, :mod:`.excitation`, :mod:`.fitting`, :mod:`.evaluation`,
 :mod:`.spin` (Martinez eq. 16) and :mod:`.procedure` (:func:`identify`) for the motion
-models; :mod:`.drivetrain` for the drive train.
+models; :mod:`.drive_data` and :mod:`.drivetrain` for the drive train.
 """
 
-from .drivetrain import DriveData, fit_drivetrain
+from .drive_data import DriveData, resample
+from .drivetrain import DriveTrainFit, fit_drivetrain
 from .evaluation import dead_reckoning, ErrorStats, HoldOut, prediction_errors
 from .excitation import (
     check_excitation, Excitation, MIN_MOVING_SEGMENTS, MIN_STRAIGHT, MIN_TURNING)
@@ -24,12 +25,12 @@ from .spin import spin_in_place, SpinResult
 from ..errors import ExcitationError, FitError, IdentificationError
 
 __all__ = [
-    'COMPARE_MODELS', 'DriveData', 'ErrorStats', 'Excitation', 'ExcitationError',
-    'FIT_MODELS', 'FitError', 'FitResult', 'HoldOut', 'Identification', 'IdentificationError',
-    'LOSSES', 'METHODS', 'MIN_MOVING_SEGMENTS', 'MIN_STRAIGHT', 'MIN_TURNING',
-    'ModelEvaluation', 'Recording', 'STD_LIMITS', 'SegmentProblem', 'Segments', 'SpinResult',
-    'auto_heading_weight', 'bounds', 'build_model', 'build_segments', 'check_excitation',
-    'check_identified', 'dead_reckoning', 'fit', 'fit_drivetrain', 'gap_threshold',
-    'identify', 'initial_guess', 'prediction_errors', 'robust_cost', 'search_box',
-    'spin_in_place', 'steering_efficiency_guess',
+    'COMPARE_MODELS', 'DriveData', 'DriveTrainFit', 'ErrorStats', 'Excitation',
+    'ExcitationError', 'FIT_MODELS', 'FitError', 'FitResult', 'HoldOut', 'Identification',
+    'IdentificationError', 'LOSSES', 'METHODS', 'MIN_MOVING_SEGMENTS', 'MIN_STRAIGHT',
+    'MIN_TURNING', 'ModelEvaluation', 'Recording', 'STD_LIMITS', 'SegmentProblem', 'Segments',
+    'SpinResult', 'auto_heading_weight', 'bounds', 'build_model', 'build_segments',
+    'check_excitation', 'check_identified', 'dead_reckoning', 'fit', 'fit_drivetrain',
+    'gap_threshold', 'identify', 'initial_guess', 'prediction_errors', 'resample',
+    'robust_cost', 'search_box', 'spin_in_place', 'steering_efficiency_guess',
 ]
