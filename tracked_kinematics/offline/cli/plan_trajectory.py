@@ -3,7 +3,7 @@
 
 Plans the setpoints that bring the robot to a goal pose (or along a canonical trajectory of
 Fink & Stump Table V) through a motion model of a terrain file and the drive-train model of
-a vehicle file (:mod:`tracked_kinematics.core.plan._planning`), prints them, and writes them as a
+a vehicle file (:mod:`tracked_kinematics.core.plan`), prints them, and writes them as a
 CSV and as a rosbag2 of ``geometry_msgs/Twist`` on ``/cmd_vel`` that ``cmd_vel_translator``
 turns back into the same setpoints. ``--plot`` draws the planned path next to the path the
 truth-like dynamic simulator drives with the same commands. ``--compare`` reproduces the
