@@ -1,12 +1,17 @@
 """core.identify.problem: the residuals of Martinez eq. (17), their Jacobian, the cost."""
 
+import inspect
+import math
+
 from helpers.vehicle_sim import AURIGA, B
 import numpy as np
 import pytest
 from scipy import optimize
 from tracked_kinematics.core import identify as ident
+from tracked_kinematics.core.errors import IdentificationError, TrackedKinematicsError
 from tracked_kinematics.core.identify.problem import _chord_coefficients
 from tracked_kinematics.core.models import ConstantIcr
+from tracked_kinematics.offline.cli import identify_icr
 
 TRUTH = ConstantIcr(B)
 P_TRUE = np.array(AURIGA)
@@ -66,3 +71,40 @@ def test_robust_cost_is_scipys_cost():
     for loss in ident.LOSSES:
         res = optimize.least_squares(lambda p: target - p[0], [0.0], loss=loss, f_scale=0.7)
         assert ident.robust_cost(target - res.x[0], loss, 0.7) == pytest.approx(res.cost)
+
+
+def test_heading_weight_has_one_default():
+    # SegmentProblem, fit, identify, FitResult and identify_icr --heading-weight agree.
+    default = ident.DEFAULT_HEADING_WEIGHT
+    assert default == 1.0   # Martinez eq. (17) as written: metres and radians summed as they are
+    for function in (ident.SegmentProblem, ident.fit, ident.identify):
+        assert inspect.signature(function).parameters['heading_weight'].default == default
+    assert ident.FitResult(TRUTH, P_TRUE).heading_weight == default
+    assert identify_icr.build_parser().get_default('heading_weight') == default
+
+
+@pytest.mark.parametrize('weight', [0, 0.0, -1.0, math.nan, math.inf, 'auto', True])
+def test_heading_weight_that_is_not_positive_is_refused(weight, clean_segments):
+    # 0 used to mean "unset" (1 m/rad) in fit(); it is refused everywhere now, with one message.
+    match = 'heading weight .* must be a finite number > 0 m/rad'
+    with pytest.raises(TrackedKinematicsError, match=match) as refused:
+        ident.SegmentProblem(TRUTH, clean_segments, weight)
+    assert isinstance(refused.value, ValueError)
+    assert not isinstance(refused.value, IdentificationError)   # the input, not the data
+    with pytest.raises(TrackedKinematicsError, match=match):
+        ident.fit(TRUTH, clean_segments, heading_weight=weight)
+    assert ident.check_heading_weight(0.5) == 0.5
+
+
+def test_heading_weight_refused_by_identify(clean):
+    with pytest.raises(TrackedKinematicsError, match='heading weight'):
+        ident.identify([clean], 'icr_scales', B, heading_weight=0.0, holdout=0.0)
+    with pytest.raises(TrackedKinematicsError, match='heading weight'):
+        ident.identify([clean], 'icr_scales', B, heading_weight=math.nan, holdout=0.0)
+
+
+def test_heading_weight_none_is_the_auto_weight(clean_segments):
+    # The explicit auto mode: the weight balances the residual noise, within its clip.
+    result = ident.fit(TRUTH, clean_segments, heading_weight=None)
+    assert 0.25 <= result.heading_weight <= 4.0
+    np.testing.assert_allclose(result.p, P_TRUE, atol=1e-6)

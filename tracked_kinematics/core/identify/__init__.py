@@ -15,7 +15,8 @@ from .excitation import (
     check_excitation, Excitation, MIN_MOVING_SEGMENTS, MIN_STRAIGHT, MIN_TURNING)
 from .fitting import (
     auto_heading_weight, check_identified, fit, FitResult, METHODS, STD_LIMITS)
-from .problem import LOSSES, robust_cost, SegmentProblem
+from .problem import (
+    check_heading_weight, DEFAULT_HEADING_WEIGHT, LOSSES, robust_cost, SegmentProblem)
 from .procedure import Identification, identify, ModelEvaluation
 from .search_space import (
     bounds, build_model, COMPARE_MODELS, FIT_MODELS, initial_guess, search_box,
@@ -25,12 +26,13 @@ from .spin import spin_in_place, SpinResult
 from ..errors import ExcitationError, FitError, IdentificationError
 
 __all__ = [
-    'COMPARE_MODELS', 'DriveData', 'DriveTrainFit', 'ErrorStats', 'Excitation',
-    'ExcitationError', 'FIT_MODELS', 'FitError', 'FitResult', 'HoldOut', 'Identification',
-    'IdentificationError', 'LOSSES', 'METHODS', 'MIN_MOVING_SEGMENTS', 'MIN_STRAIGHT',
-    'MIN_TURNING', 'ModelEvaluation', 'Recording', 'STD_LIMITS', 'SegmentProblem', 'Segments',
-    'SpinResult', 'auto_heading_weight', 'bounds', 'build_model', 'build_segments',
-    'check_excitation', 'check_identified', 'dead_reckoning', 'fit', 'fit_drivetrain',
-    'gap_threshold', 'identify', 'initial_guess', 'prediction_errors', 'resample',
-    'robust_cost', 'search_box', 'spin_in_place', 'steering_efficiency_guess',
+    'COMPARE_MODELS', 'DEFAULT_HEADING_WEIGHT', 'DriveData', 'DriveTrainFit', 'ErrorStats',
+    'Excitation', 'ExcitationError', 'FIT_MODELS', 'FitError', 'FitResult', 'HoldOut',
+    'Identification', 'IdentificationError', 'LOSSES', 'METHODS', 'MIN_MOVING_SEGMENTS',
+    'MIN_STRAIGHT', 'MIN_TURNING', 'ModelEvaluation', 'Recording', 'STD_LIMITS',
+    'SegmentProblem', 'Segments', 'SpinResult', 'auto_heading_weight', 'bounds',
+    'build_model', 'build_segments', 'check_excitation', 'check_heading_weight',
+    'check_identified', 'dead_reckoning', 'fit', 'fit_drivetrain', 'gap_threshold',
+    'identify', 'initial_guess', 'prediction_errors', 'resample', 'robust_cost',
+    'search_box', 'spin_in_place', 'steering_efficiency_guess',
 ]

@@ -5,8 +5,8 @@ The cost and its Jacobian are :class:`.problem.SegmentProblem` (Fink & Stump sec
 eq. 4); the fit is robust (soft-L1 loss with a scale from the median absolute residual),
 bounded (:func:`.search_space.bounds`: ``0 < chi <= 1``, scales > 0), and checks from the
 standard errors of its parameters that the data identify what it fitted. The heading weight
-``lambda`` of eq. (17) is given or balances the noise of the residuals
-(:func:`auto_heading_weight`). Martinez
+``lambda`` of eq. (17) is fixed (default :data:`.problem.DEFAULT_HEADING_WEIGHT`) or, on
+request, balances the noise of the residuals (:func:`auto_heading_weight`). Martinez
 searched with a genetic algorithm; differential evolution is offered in its place, for
 comparison.
 """
@@ -20,7 +20,7 @@ import numpy as np
 from scipy import optimize
 
 from .excitation import _ros_names
-from .problem import LOSSES, robust_cost, SegmentProblem
+from .problem import DEFAULT_HEADING_WEIGHT, LOSSES, robust_cost, SegmentProblem
 from .search_space import bounds, initial_guess, search_box
 from .segments import Segments
 from ..errors import ExcitationError, FitError
@@ -90,7 +90,7 @@ class FitResult:
     p: np.ndarray
     method: str = 'lsq'
     loss: str = 'soft_l1'
-    heading_weight: float = 1.0
+    heading_weight: float = DEFAULT_HEADING_WEIGHT
     f_scale: float = 1.0
     cost: float = 0.0
     rms_position: float = 0.0
@@ -156,7 +156,7 @@ def check_identified(result: FitResult) -> None:
 
 
 def fit(model: MotionModel, segments: Segments, *, p0=None, method: str = 'lsq',
-        heading_weight: float | None = None, loss: str = 'soft_l1',
+        heading_weight: float | None = DEFAULT_HEADING_WEIGHT, loss: str = 'soft_l1',
         f_scale: float | None = None, max_nfev: int | None = None, rounds: int = 2,
         seed: int = 0, check: bool = True) -> FitResult:
     """
@@ -175,9 +175,10 @@ def fit(model: MotionModel, segments: Segments, *, p0=None, method: str = 'lsq',
         (:meth:`SegmentProblem.jacobian`). ``'de'``: scipy's differential evolution over
         :func:`search_box`, the derivative-free global search in the spirit of the paper's
         genetic algorithm; much slower, offered for comparison.
-    heading_weight : float, optional
-        ``lambda``, m/rad. Default: :func:`auto_heading_weight` of the residuals of the
-        first round.
+    heading_weight : float or None
+        ``lambda``, m/rad, a finite number > 0 (:func:`.problem.check_heading_weight`);
+        default :data:`.problem.DEFAULT_HEADING_WEIGHT`. None: :func:`auto_heading_weight`
+        of the unweighted residuals at the start of each round.
     loss : str
         One of :data:`LOSSES`; soft-L1 by default, so that ground-truth glitches do not pull
         the fit.
@@ -207,7 +208,8 @@ def fit(model: MotionModel, segments: Segments, *, p0=None, method: str = 'lsq',
     if loss not in LOSSES:
         raise ValueError(f'loss must be one of {", ".join(LOSSES)}, got {loss!r}')
     started = time.perf_counter()
-    problem = SegmentProblem(model, segments, heading_weight or 1.0)
+    # Auto (None) starts unweighted, lambda = 1, as auto_heading_weight wants its residuals.
+    problem = SegmentProblem(model, segments, 1.0 if heading_weight is None else heading_weight)
     lo, hi = bounds(model)
     p = initial_guess(model, segments) if p0 is None else np.asarray(p0, dtype=float)
     p = np.clip(p, lo, hi)

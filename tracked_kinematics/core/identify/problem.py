@@ -8,7 +8,7 @@ one the kinematic model predicts from the segment's encoder travel, eq. (17)::
     J(p) = sum_i (dx_i - dx^_i)^2 + (dy_i - dy^_i)^2 + lambda^2 (dphi_i - dphi^_i)^2
 
 where ``lambda`` (m/rad) is the heading weight (the paper sums metres and radians as they
-are, ``lambda = 1``). Martinez searched ``p`` with a genetic
+are, ``lambda = 1``: :data:`DEFAULT_HEADING_WEIGHT`). Martinez searched ``p`` with a genetic
 algorithm; Fink & Stump (sec. III-A, eqs. 4-5) minimise the same kind of cost by nonlinear
 least squares with the sensitivity of the integrated pose to the parameters, which is what
 :class:`SegmentProblem` computes, in closed form and for every segment at once:
@@ -35,13 +35,47 @@ loss, for the derivative-free search of :func:`.fitting.fit`.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from .segments import Segments
+from ..errors import TrackedKinematicsError
 from ..integration import integrate, relative_pose, wrap_angle
 from ..models import MotionModel
 
 LOSSES = ('soft_l1', 'huber', 'cauchy', 'linear')
+
+DEFAULT_HEADING_WEIGHT = 1.0
+"""
+``lambda`` of eq. (17) unless told otherwise, m/rad: the paper's unweighted sum.
+
+The one default of :class:`SegmentProblem`, :func:`.fitting.fit`, :func:`.procedure.identify`
+and the ``--heading-weight`` option of ``identify_icr``; :func:`.procedure.identify` says
+why it is not the noise-balancing ``auto`` weight (None, :func:`.fitting.auto_heading_weight`).
+"""
+
+
+def check_heading_weight(heading_weight) -> float:
+    """
+    Return a heading weight as a float, refusing what is not a finite number > 0.
+
+    Raises
+    ------
+    TrackedKinematicsError
+        For 0 (it would drop the heading from eq. 17), a negative, NaN or infinite weight,
+        or something that is not a number.
+
+    """
+    try:
+        value = float(heading_weight)
+    except (TypeError, ValueError):
+        value = math.nan
+    if isinstance(heading_weight, bool) or not (math.isfinite(value) and value > 0.0):
+        raise TrackedKinematicsError(
+            'the heading weight (lambda of eq. 17) must be a finite number > 0 m/rad, got '
+            f'{heading_weight!r}')
+    return value
 
 
 def _chord_coefficients(dtheta):
@@ -76,7 +110,8 @@ class SegmentProblem:
         Steps and measured increments.
     heading_weight : float
         ``lambda`` of eq. (17) as written in the module notes, m/rad: a heading residual of
-        1 rad counts as much as a position residual of ``lambda`` metres.
+        1 rad counts as much as a position residual of ``lambda`` metres. Checked by
+        :func:`check_heading_weight`.
 
     Notes
     -----
@@ -85,12 +120,13 @@ class SegmentProblem:
 
     """
 
-    def __init__(self, model: MotionModel, segments: Segments, heading_weight: float = 1.0):
+    def __init__(self, model: MotionModel, segments: Segments,
+                 heading_weight: float = DEFAULT_HEADING_WEIGHT):
         if len(segments) == 0:
             raise ValueError('no segments')
         self.model = model
         self.segments = segments
-        self.heading_weight = float(heading_weight)
+        self.heading_weight = check_heading_weight(heading_weight)
         self._start = segments.start
         self._last = segments.stop - 1
         if not model.linear:

@@ -15,6 +15,7 @@ import time
 from .evaluation import ErrorStats, HoldOut, prediction_errors
 from .excitation import check_excitation, Excitation
 from .fitting import fit, FitResult
+from .problem import DEFAULT_HEADING_WEIGHT
 from .search_space import build_model, COMPARE_MODELS
 from .segments import build_segments
 from ..errors import ExcitationError, FitError, IdentificationError
@@ -91,9 +92,10 @@ class Identification:
 
 def identify(recordings, model: str = 'icr_scales', track_width: float = 0.42, *,
              base: IcrParams | None = None, method: str = 'lsq',
-             segment_length: float | None = 1.0, heading_weight: float | None = 1.0,
-             loss: str = 'soft_l1', min_travel: float = 0.01, holdout: float = 0.2,
-             holdout_block: float = 30.0, window: float = 10.0, compare=COMPARE_MODELS,
+             segment_length: float | None = 1.0,
+             heading_weight: float | None = DEFAULT_HEADING_WEIGHT, loss: str = 'soft_l1',
+             min_travel: float = 0.01, holdout: float = 0.2, holdout_block: float = 30.0,
+             window: float = 10.0, compare=COMPARE_MODELS,
              max_nfev: int | None = None) -> Identification:
     """
     Identify a terrain model from recordings: check, hold out, compare, fit.
@@ -121,11 +123,12 @@ def identify(recordings, model: str = 'icr_scales', track_width: float = 0.42, *
         See :func:`fit`.
     heading_weight : float or None
         ``lambda`` of eq. (17), m/rad; None for :func:`.fitting.auto_heading_weight`. The
-        default, 1 m/rad, is the paper's unweighted sum. On simulated data with a model
-        mismatch (adaptive ICRs fitted by constant ones) and ground-truth noise, it gave
-        held-out odometry as good as any other weight tried (0.3 to 3), while the
-        noise-balancing ``auto`` weight dropped to its floor on long segments, where the
-        position residuals of the mismatch grow, and cost 10 % of final position accuracy.
+        default, 1 m/rad (:data:`DEFAULT_HEADING_WEIGHT`), is the paper's unweighted sum.
+        On simulated data with a model mismatch (adaptive ICRs fitted by constant ones) and
+        ground-truth noise, it gave held-out odometry as good as any other weight tried (0.3
+        to 3), while the noise-balancing ``auto`` weight dropped to its floor on long
+        segments, where the position residuals of the mismatch grow, and cost 10 % of final
+        position accuracy.
     segment_length : float or None
         See :func:`build_segments`.
     min_travel : float

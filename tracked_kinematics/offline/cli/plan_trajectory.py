@@ -159,7 +159,7 @@ def identify_on_sweep(robot: Robot, table: TwistTable, dt: float = 0.02, seed: i
     models = {'ideal': (ident.build_model('ideal', b), np.zeros(0))}
     for short in ('effective', 'icr', 'general'):
         model = ident.build_model(_MODEL_NAMES[short], b)
-        models[short] = (model, ident.fit(model, segments, check=False).p)
+        models[short] = (model, ident.fit(model, segments, heading_weight=None, check=False).p)
     return models
 
 
