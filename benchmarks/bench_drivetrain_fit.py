@@ -16,7 +16,7 @@ import time
 
 import numpy as np
 
-from tracked_kinematics.core.identify.drivetrain import DriveData, fit_drivetrain
+from tracked_kinematics.core.identify import DriveData, fit_drivetrain
 from tracked_kinematics.core.sim.manoeuvres import manoeuvre
 from tracked_kinematics.offline.cli import identify_drivetrain as cli
 from tracked_kinematics.offline.cli.simulate_bag import simulate_bag

@@ -32,7 +32,7 @@ def _errors(result, recordings, model, p):
 
 def plot_identification(path, recordings, result) -> None:
     """
-    Write the PNG of an :class:`~tracked_kinematics.core.identify._identification.Identification`.
+    Write the PNG of an :class:`~tracked_kinematics.core.identify.Identification`.
 
     Parameters
     ----------

@@ -9,8 +9,8 @@ import sys
 import numpy as np
 import pytest
 from tracked_kinematics.core.drivetrain import DriveTrain, FirstOrderLag, PidMotor
-from tracked_kinematics.core.identify import ExcitationError, FitError
-from tracked_kinematics.core.identify.drivetrain import DriveData, fit_drivetrain, resample
+from tracked_kinematics.core.identify import (
+    DriveData, ExcitationError, fit_drivetrain, FitError, resample)
 from tracked_kinematics.offline.bags.reader import EncoderSource, read_drive_bag
 from tracked_kinematics.offline.bags.writer import BagWriter
 from tracked_kinematics.offline.cli import identify_drivetrain as cli

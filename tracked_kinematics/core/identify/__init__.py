@@ -1,8 +1,38 @@
 """
 Identification: fit motion models and drive trains to logged data.
 
-The face of the sub-package; the modules behind it hold the derivations and references.
+The face of the sub-package; the modules behind it hold the derivations and references:
+:mod:`.segments` (the data), :mod:`.problem` (Martinez eq. 17 and its Jacobian),
+:mod:`.search_space`, :mod:`.excitation`, :mod:`.fitting`, :mod:`.evaluation`,
+:mod:`.spin` (Martinez eq. 16) and :mod:`.procedure` (:func:`identify`) for the motion
+models; :mod:`.drive_data` and :mod:`.drivetrain` for the drive train.
 """
 
-from ._identification import *  # noqa: F401,F403  (split into modules: issue 13)
-from .drivetrain import DriveData, fit_drivetrain  # noqa: F401
+from .drive_data import DriveData, resample
+from .drivetrain import DriveTrainFit, fit_drivetrain
+from .evaluation import dead_reckoning, ErrorStats, HoldOut, prediction_errors
+from .excitation import (
+    check_excitation, Excitation, MIN_MOVING_SEGMENTS, MIN_STRAIGHT, MIN_TURNING)
+from .fitting import (
+    auto_heading_weight, check_identified, fit, FitResult, METHODS, STD_LIMITS)
+from .problem import (
+    check_heading_weight, DEFAULT_HEADING_WEIGHT, LOSSES, robust_cost, SegmentProblem)
+from .procedure import Identification, identify, ModelEvaluation
+from .search_space import (
+    bounds, build_model, COMPARE_MODELS, FIT_MODELS, initial_guess, search_box,
+    steering_efficiency_guess)
+from .segments import build_segments, gap_threshold, Recording, Segments
+from .spin import spin_in_place, SpinResult
+from ..errors import ExcitationError, FitError, IdentificationError
+
+__all__ = [
+    'COMPARE_MODELS', 'DEFAULT_HEADING_WEIGHT', 'DriveData', 'DriveTrainFit', 'ErrorStats',
+    'Excitation', 'ExcitationError', 'FIT_MODELS', 'FitError', 'FitResult', 'HoldOut',
+    'Identification', 'IdentificationError', 'LOSSES', 'METHODS', 'MIN_MOVING_SEGMENTS',
+    'MIN_STRAIGHT', 'MIN_TURNING', 'ModelEvaluation', 'Recording', 'STD_LIMITS',
+    'SegmentProblem', 'Segments', 'SpinResult', 'auto_heading_weight', 'bounds',
+    'build_model', 'build_segments', 'check_excitation', 'check_heading_weight',
+    'check_identified', 'dead_reckoning', 'fit', 'fit_drivetrain', 'gap_threshold',
+    'identify', 'initial_guess', 'prediction_errors', 'resample', 'robust_cost',
+    'search_box', 'spin_in_place', 'steering_efficiency_guess',
+]

@@ -31,8 +31,7 @@ import numpy as np
 from rosbags.highlevel import AnyReader
 from tracked_kinematics.core.encoders import (
     counter_increments, travel_from_ticks, travel_from_velocities)
-from tracked_kinematics.core.identify import Recording
-from tracked_kinematics.core.identify.drivetrain import DriveData
+from tracked_kinematics.core.identify import DriveData, Recording
 from tracked_kinematics.core.integration import compose, stamp_ns, yaw_from_quaternion
 from tracked_kinematics.params import ENCODER_INPUT_DEFAULTS, JOINT_STATES_TOPIC, SIDE_TOPICS
 

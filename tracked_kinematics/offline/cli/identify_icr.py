@@ -87,8 +87,8 @@ def build_parser() -> argparse.ArgumentParser:
                      'spin-in-place runs (Martinez eq. 16) and write the symmetric model')
     fit.add_argument('--segment-length', type=non_negative, default=1.0, metavar='SECONDS',
                      help='segment duration; 0 cuts at every ground-truth sample')
-    fit.add_argument('--heading-weight', type=_heading_weight, default=1.0,
-                     metavar='M_PER_RAD|auto',
+    fit.add_argument('--heading-weight', type=_heading_weight,
+                     default=ident.DEFAULT_HEADING_WEIGHT, metavar='M_PER_RAD|auto',
                      help='lambda of the cost: metres that 1 rad of heading error counts as; '
                      'auto balances the noise of position and heading residuals')
     fit.add_argument('--loss', choices=ident.LOSSES, default='soft_l1',

@@ -3,7 +3,7 @@
 
 Plans the setpoints that bring the robot to a goal pose (or along a canonical trajectory of
 Fink & Stump Table V) through a motion model of a terrain file and the drive-train model of
-a vehicle file (:mod:`tracked_kinematics.core.plan._planning`), prints them, and writes them as a
+a vehicle file (:mod:`tracked_kinematics.core.plan`), prints them, and writes them as a
 CSV and as a rosbag2 of ``geometry_msgs/Twist`` on ``/cmd_vel`` that ``cmd_vel_translator``
 turns back into the same setpoints. ``--plot`` draws the planned path next to the path the
 truth-like dynamic simulator drives with the same commands. ``--compare`` reproduces the
@@ -137,7 +137,7 @@ def identify_on_sweep(robot: Robot, table: TwistTable, dt: float = 0.02, seed: i
     Drives the trapezoidal speed x curvature sweep of sec. IV-B on the dynamic simulator
     (ground truth at 10 Hz with 2 mm / 2 mrad noise), then fits the effective wheel-base,
     ICR (with scales) and 9-parameter general slip models by the least squares of
-    :func:`..core.identification.fit` on 1 s segments of the encoder travel.
+    :func:`..core.identify.fit` on 1 s segments of the encoder travel.
 
     Returns
     -------
@@ -159,7 +159,7 @@ def identify_on_sweep(robot: Robot, table: TwistTable, dt: float = 0.02, seed: i
     models = {'ideal': (ident.build_model('ideal', b), np.zeros(0))}
     for short in ('effective', 'icr', 'general'):
         model = ident.build_model(_MODEL_NAMES[short], b)
-        models[short] = (model, ident.fit(model, segments, check=False).p)
+        models[short] = (model, ident.fit(model, segments, heading_weight=None, check=False).p)
     return models
 
 

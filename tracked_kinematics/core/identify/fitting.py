@@ -1,0 +1,269 @@
+"""
+Fit a motion model to segments: robust, bounded least squares of Martinez eq. (17).
+
+The cost and its Jacobian are :class:`.problem.SegmentProblem` (Fink & Stump sec. III-A,
+eq. 4); the fit is robust (soft-L1 loss with a scale from the median absolute residual),
+bounded (:func:`.search_space.bounds`: ``0 < chi <= 1``, scales > 0), and checks from the
+standard errors of its parameters that the data identify what it fitted. The heading weight
+``lambda`` of eq. (17) is fixed (default :data:`.problem.DEFAULT_HEADING_WEIGHT`) or, on
+request, balances the noise of the residuals (:func:`auto_heading_weight`). Martinez
+searched with a genetic algorithm; differential evolution is offered in its place, for
+comparison.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+import time
+
+import numpy as np
+from scipy import optimize
+
+from .excitation import _ros_names
+from .problem import DEFAULT_HEADING_WEIGHT, LOSSES, robust_cost, SegmentProblem
+from .search_space import bounds, initial_guess, search_box
+from .segments import Segments
+from ..errors import ExcitationError, FitError
+from ..kinematics import IcrParams
+from ..models import MotionModel
+
+METHODS = ('lsq', 'de')
+
+
+def _mad_sigma(values) -> float:
+    values = np.asarray(values, dtype=float)
+    if len(values) == 0:
+        return 0.0
+    return float(1.4826 * np.median(np.abs(values - np.median(values))))
+
+
+def auto_heading_weight(residuals, lo: float = 0.25, hi: float = 4.0) -> float:
+    """
+    Heading weight that puts position and heading residuals on one noise scale, m/rad.
+
+    ``lambda = sigma_position / sigma_heading`` from robust (median absolute deviation)
+    spreads of unweighted residuals (``residuals`` with ``lambda = 1``), clipped to
+    [``lo``, ``hi``]: eq. (17) then weighs each residual by its own noise, as maximum
+    likelihood would. Martinez's unweighted sum is ``lambda = 1``.
+    """
+    r = np.asarray(residuals, dtype=float).reshape(-1, 3)
+    sigma_pos = _mad_sigma(r[:, :2].ravel())
+    sigma_head = _mad_sigma(r[:, 2])
+    if sigma_pos <= 0.0 or sigma_head <= 0.0:
+        return 1.0
+    return float(np.clip(sigma_pos / sigma_head, lo, hi))
+
+
+@dataclass
+class FitResult:
+    """
+    A fitted model and how well it fits.
+
+    Attributes
+    ----------
+    model : MotionModel
+        The model.
+    p : ndarray
+        Fitted parameters.
+    method, loss : str
+        Optimiser and loss.
+    heading_weight, f_scale : float
+        ``lambda`` (m/rad) and the robust loss scale used.
+    cost : float
+        Final cost (:func:`robust_cost` of the weighted residuals).
+    rms_position, rms_heading : float
+        Root mean square of the inlier position (m) and heading (rad) residuals.
+    segments, inliers : int
+        Segments fitted, and those whose residuals are all within 3 ``f_scale``.
+    std : ndarray
+        Standard errors of the parameters (inf when not identified).
+    nfev : int
+        Cost evaluations.
+    seconds : float
+        Wall time of the fit.
+    message : str
+        The optimiser's last word.
+
+    """
+
+    model: MotionModel
+    p: np.ndarray
+    method: str = 'lsq'
+    loss: str = 'soft_l1'
+    heading_weight: float = DEFAULT_HEADING_WEIGHT
+    f_scale: float = 1.0
+    cost: float = 0.0
+    rms_position: float = 0.0
+    rms_heading: float = 0.0
+    segments: int = 0
+    inliers: int = 0
+    std: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    nfev: int = 0
+    seconds: float = 0.0
+    message: str = ''
+
+    @property
+    def params(self) -> dict[str, float]:
+        """Parameters by name."""
+        return dict(zip(self.model.param_names, map(float, self.p)))
+
+    @property
+    def icr(self) -> IcrParams | None:
+        """Return the constant-ICR model equal to the fitted one, or None if there is none."""
+        return self.model.as_icr(self.p)
+
+
+def _standard_errors(jac, residuals, inlier_rows):
+    """Compute standard errors from the Jacobian and inlier residuals (inf: unidentified)."""
+    n_params = jac.shape[1]
+    jac = jac[inlier_rows]
+    variance = float(np.sum(residuals[inlier_rows] ** 2)) / max(len(jac) - n_params, 1)
+    norms = np.linalg.norm(jac, axis=0)
+    std = np.full(n_params, np.inf)
+    ok = norms > 0
+    while np.any(ok):
+        _, sv, vt = np.linalg.svd(jac[:, ok] / norms[ok], full_matrices=False)
+        if sv[-1] > 1e-9 * sv[0]:
+            cov = (vt.T / sv ** 2) @ vt
+            std[ok] = np.sqrt(np.maximum(np.diag(cov) * variance, 0.0)) / norms[ok]
+            break
+        # Rank deficient: the parameters along the null direction are not identified.
+        ok[np.flatnonzero(ok)[np.abs(vt[-1]) > 0.1]] = False
+    return std
+
+
+# Largest standard error that still counts as identified, per parameter kind.
+STD_LIMITS = {'icr': 0.1, 'scale': 0.02}   # icr: x track width; scale: absolute
+
+
+def check_identified(result: FitResult) -> None:
+    """Raise :class:`ExcitationError` for an ICR or scale parameter the fit did not pin down."""
+    b = result.model.track_width
+    for name, std in zip(result.model.param_names, result.std):
+        if name in ('y_left', 'y_right', 'x'):
+            limit, need = STD_LIMITS['icr'] * b, 'turning'
+        elif name in ('scale_left', 'scale_right'):
+            limit, need = STD_LIMITS['scale'], 'straight driving'
+        elif name == 'alpha':
+            limit, need = STD_LIMITS['icr'], 'turning'
+        else:
+            continue
+        if not std <= limit:
+            raise ExcitationError(
+                f'too little {need} to identify {_ros_names([name])}: its standard error is '
+                f'{std:.3g} (limit {limit:.3g}); drive more, and more varied, '
+                f'{"curves and turns in place" if need == "turning" else "straight lines"}')
+
+
+def fit(model: MotionModel, segments: Segments, *, p0=None, method: str = 'lsq',
+        heading_weight: float | None = DEFAULT_HEADING_WEIGHT, loss: str = 'soft_l1',
+        f_scale: float | None = None, max_nfev: int | None = None, rounds: int = 2,
+        seed: int = 0, check: bool = True) -> FitResult:
+    """
+    Fit a motion model to segments: robust, bounded least squares of Martinez eq. (17).
+
+    Parameters
+    ----------
+    model : MotionModel
+        What to fit.
+    segments : Segments
+        The data (stationary segments should already be removed).
+    p0 : array_like, optional
+        Starting point; default :func:`initial_guess`. Clipped into :func:`bounds`.
+    method : {'lsq', 'de'}
+        ``'lsq'``: trust-region least squares with the analytic Jacobian
+        (:meth:`SegmentProblem.jacobian`). ``'de'``: scipy's differential evolution over
+        :func:`search_box`, the derivative-free global search in the spirit of the paper's
+        genetic algorithm; much slower, offered for comparison.
+    heading_weight : float or None
+        ``lambda``, m/rad, a finite number > 0 (:func:`.problem.check_heading_weight`);
+        default :data:`.problem.DEFAULT_HEADING_WEIGHT`. None: :func:`auto_heading_weight`
+        of the unweighted residuals at the start of each round.
+    loss : str
+        One of :data:`LOSSES`; soft-L1 by default, so that ground-truth glitches do not pull
+        the fit.
+    f_scale : float, optional
+        Loss scale. Default: twice the robust standard deviation of the weighted residuals
+        at the start of each round.
+    max_nfev : int, optional
+        Evaluation budget per round (least squares). Default 100 x (parameters + 1).
+    rounds : int
+        Rounds of (re)estimating ``lambda`` and ``f_scale`` then fitting, warm-started.
+    seed : int
+        Seed of the differential evolution.
+    check : bool
+        Raise :class:`ExcitationError` when a parameter is not identified (its standard
+        error is beyond :data:`STD_LIMITS`).
+
+    Raises
+    ------
+    FitError
+        When the optimiser does not converge.
+    ExcitationError
+        When ``check`` and a parameter is not identified.
+
+    """
+    if method not in METHODS:
+        raise ValueError(f'method must be one of {", ".join(METHODS)}, got {method!r}')
+    if loss not in LOSSES:
+        raise ValueError(f'loss must be one of {", ".join(LOSSES)}, got {loss!r}')
+    started = time.perf_counter()
+    # Auto (None) starts unweighted, lambda = 1, as auto_heading_weight wants its residuals.
+    problem = SegmentProblem(model, segments, 1.0 if heading_weight is None else heading_weight)
+    lo, hi = bounds(model)
+    p = initial_guess(model, segments) if p0 is None else np.asarray(p0, dtype=float)
+    p = np.clip(p, lo, hi)
+    nfev = 0
+    message = 'nothing to fit'
+    scale = f_scale or 1.0
+    n_rounds = rounds if model.n_params else 1
+    for _ in range(n_rounds):
+        if heading_weight is None:
+            problem.heading_weight = 1.0
+            problem.heading_weight = auto_heading_weight(problem.residuals(p))
+        r = problem.residuals(p)
+        scale = f_scale or max(2.0 * _mad_sigma(r), 1e-9)
+        if not model.n_params:
+            break
+        if method == 'lsq':
+            res = optimize.least_squares(
+                problem.residuals, p, jac=problem.jacobian, bounds=(lo, hi), loss=loss,
+                f_scale=scale, x_scale='jac', method='trf',
+                max_nfev=max_nfev or 100 * (model.n_params + 1))
+            nfev += res.nfev
+            message = res.message
+            if res.status <= 0 or not np.all(np.isfinite(res.x)):
+                raise FitError(f'the {model.name} fit did not converge: {res.message} '
+                               f'({res.nfev} evaluations)')
+            p = res.x
+        else:
+            box_lo, box_hi = search_box(model)
+            res = optimize.differential_evolution(
+                lambda q: robust_cost(problem.residuals(q), loss, scale),
+                list(zip(box_lo, box_hi)), seed=seed, polish=False, tol=1e-8,
+                maxiter=max_nfev or 300)
+            nfev += res.nfev
+            message = res.message
+            if not res.success or not np.all(np.isfinite(res.x)):
+                raise FitError(f'the {model.name} fit did not converge: {res.message} '
+                               f'({res.nfev} evaluations)')
+            p = res.x
+    r = problem.residuals(p)
+    rows = np.abs(r.reshape(-1, 3)) <= 3.0 * scale
+    inlier = rows.all(axis=1)
+    if not np.any(inlier):
+        inlier[:] = True
+    r3 = r.reshape(-1, 3)
+    result = FitResult(
+        model=model, p=p, method=method, loss=loss, heading_weight=problem.heading_weight,
+        f_scale=scale, cost=robust_cost(r, loss, scale),
+        rms_position=float(np.sqrt(np.mean(r3[inlier, :2] ** 2))),
+        rms_heading=float(np.sqrt(np.mean(r3[inlier, 2] ** 2))) / problem.heading_weight,
+        segments=len(segments), inliers=int(inlier.sum()), nfev=nfev,
+        message=str(message))
+    if model.n_params:
+        result.std = _standard_errors(problem.jacobian(p), r, np.repeat(inlier, 3))
+    result.seconds = time.perf_counter() - started
+    if check:
+        check_identified(result)
+    return result
