@@ -23,7 +23,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT / 'test'))
 
-from helpers.vehicle_sim import AURIGA, B, simulate, write_bag  # noqa: E402
+from helpers.vehicle_sim import AURIGA, B, simulate, write_bag  # noqa: E402,I100
 from timing import best_of  # noqa: E402
 from tracked_kinematics.core import identify as ident  # noqa: E402
 from tracked_kinematics.core.models import ConstantIcr  # noqa: E402
