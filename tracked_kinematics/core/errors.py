@@ -26,3 +26,7 @@ class FitError(IdentificationError):
 
 class PlanningError(TrackedKinematicsError):
     """A planning request that cannot be met; the message says why, on one line."""
+
+
+class InvalidParameters(TrackedKinematicsError):
+    """Parameter values, or a parameter file, that cannot be used; the message names them."""

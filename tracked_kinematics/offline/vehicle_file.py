@@ -30,6 +30,7 @@ import os
 from pathlib import Path
 from typing import Any
 
+from tracked_kinematics.core.errors import InvalidParameters
 from tracked_kinematics.core.sim.dynamics import Vehicle
 from tracked_kinematics.core.sim.simulation import Encoders, Robot
 from tracked_kinematics.params import (check_values, drivetrain_from_values, DRIVETRAIN_PARAMS,
@@ -154,18 +155,18 @@ def robot_from_values(values: Mapping[str, Any]) -> Robot:
 
     Raises
     ------
-    ValueError
+    InvalidParameters
         With every problem found, naming the parameters.
 
     """
     unknown = sorted(set(values) - set(VEHICLE_DEFAULTS))
     if unknown:
-        raise ValueError(f'unknown vehicle parameter(s) {", ".join(unknown)}; known: '
-                         f'{", ".join(VEHICLE_DEFAULTS)}')
+        raise InvalidParameters(f'unknown vehicle parameter(s) {", ".join(unknown)}; known: '
+                                f'{", ".join(VEHICLE_DEFAULTS)}')
     v = {**VEHICLE_DEFAULTS, **values}
     problems = check_values(VEHICLE_PARAMS, v)
     if problems:
-        raise ValueError('; '.join(problems))
+        raise InvalidParameters('; '.join(problems))
     try:
         vehicle = Vehicle(
             track_width=v['track_width'], contact_length=v['contact_length'],
@@ -181,7 +182,7 @@ def robot_from_values(values: Mapping[str, Any]) -> Robot:
             position_noise=v['encoders.position_noise'],
             velocity_noise=v['encoders.velocity_noise'])
     except ValueError as err:
-        raise ValueError(_to_yaml_names(str(err))) from None
+        raise InvalidParameters(_to_yaml_names(str(err))) from None
     return Robot(vehicle, drivetrain, encoders)
 
 
@@ -221,7 +222,7 @@ def load_vehicle(name_or_path: str | os.PathLike,
     ------
     FileNotFoundError
         No such file or shipped vehicle.
-    ValueError
+    InvalidParameters
         Invalid YAML or values; the message names the file and the parameters.
 
     """
@@ -230,8 +231,8 @@ def load_vehicle(name_or_path: str | os.PathLike,
         values = read_params_file(path)
         values.update(overrides or {})
         robot = robot_from_values(values)
-    except ValueError as err:
-        raise ValueError(f'{path}: {err}') from None
+    except InvalidParameters as err:
+        raise InvalidParameters(f'{path}: {err}') from None
     return VehicleFile(robot, {**VEHICLE_DEFAULTS, **values}, path)
 
 

@@ -7,6 +7,7 @@ import os
 import tempfile
 from typing import Any
 
+from tracked_kinematics.core.errors import InvalidParameters
 import yaml
 
 
@@ -43,8 +44,9 @@ def read_params_file(path: str | os.PathLike, node_name: str | None = None) -> d
 
     Raises
     ------
-    ValueError
-        When the file is not a mapping of parameters (the message names the file).
+    InvalidParameters
+        When the file is not UTF-8 text, or not a mapping of parameters (the message names
+        the file, except for a decoding error, which names the byte).
     OSError
         When it cannot be read.
 
@@ -53,9 +55,11 @@ def read_params_file(path: str | os.PathLike, node_name: str | None = None) -> d
         try:
             doc = yaml.safe_load(stream)
         except yaml.YAMLError as err:
-            raise ValueError(f'{path}: not valid YAML ({err})') from None
+            raise InvalidParameters(f'{path}: not valid YAML ({err})') from None
+        except UnicodeDecodeError as err:
+            raise InvalidParameters(str(err)) from None
     if not isinstance(doc, Mapping):
-        raise ValueError(f'{path}: expected a mapping of parameters')
+        raise InvalidParameters(f'{path}: expected a mapping of parameters')
     sections = [section for section in doc.values()
                 if isinstance(section, Mapping) and 'ros__parameters' in section]
     if not sections:

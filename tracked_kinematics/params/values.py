@@ -16,6 +16,7 @@ from typing import Any
 
 from tracked_kinematics.core.command import CommandLimits
 from tracked_kinematics.core.drivetrain import DriveTrain, FirstOrderLag, PidMotor
+from tracked_kinematics.core.errors import InvalidParameters
 from tracked_kinematics.core.kinematics import IcrParams
 
 from .spec import check_values
@@ -51,7 +52,7 @@ def drivetrain_from_values(values: Mapping[str, Any], max_speed: float = math.in
 
     Raises
     ------
-    ValueError
+    InvalidParameters
         With every problem found, in ROS parameter names (also an unstable PID loop).
 
     """
@@ -59,7 +60,7 @@ def drivetrain_from_values(values: Mapping[str, Any], max_speed: float = math.in
          **{k: val for k, val in values.items() if k in DRIVETRAIN_DEFAULTS}}
     problems = check_values(DRIVETRAIN_PARAMS, v)
     if problems:
-        raise ValueError('; '.join(problems))
+        raise InvalidParameters('; '.join(problems))
     try:
         loop = None
         if v['drivetrain.loop'] == 'first_order':
@@ -79,7 +80,7 @@ def drivetrain_from_values(values: Mapping[str, Any], max_speed: float = math.in
         message = _DRIVE_RE.sub(lambda m: _DRIVE_FIELDS[m.group(1)], str(err))
         if 'unstable' in message or 'at least one of' in message:
             message = f'drivetrain.pid: {message}'
-        raise ValueError(message) from None
+        raise InvalidParameters(message) from None
 
 
 def values_from_drivetrain(drive: DriveTrain) -> dict[str, Any]:
@@ -132,21 +133,22 @@ def icr_from_values(values: Mapping[str, Any]) -> IcrParams:
 
     Raises
     ------
-    ValueError
+    InvalidParameters
         With every problem found, in ROS parameter names.
 
     """
     merged = {**TERRAIN_DEFAULTS, **{k: v for k, v in values.items() if k in TERRAIN_DEFAULTS}}
     problems = check_values(TERRAIN_PARAMS, merged)
     if problems:
-        raise ValueError('; '.join(problems))
+        raise InvalidParameters('; '.join(problems))
     try:
         return IcrParams(
             track_width=merged['track_width'], y_left=merged['icr.y_left'],
             y_right=merged['icr.y_right'], x=merged['icr.x'],
             scale_left=merged['scale.left'], scale_right=merged['scale.right'])
     except ValueError as err:
-        raise ValueError(_FIELD_RE.sub(lambda m: _FIELD_TO_PARAM[m.group(1)], str(err))) from None
+        raise InvalidParameters(
+            _FIELD_RE.sub(lambda m: _FIELD_TO_PARAM[m.group(1)], str(err))) from None
 
 
 def values_from_icr(icr: IcrParams, sprocket_radius: float) -> dict[str, float]:
@@ -164,14 +166,16 @@ def limits_from_values(values: Mapping[str, Any]) -> CommandLimits:
 
     Raises
     ------
+    InvalidParameters
+        When a limit is not a number (message in ROS names).
     ValueError
-        When a limit is not a number >= 0 (message in ROS names).
+        When a limit is < 0 (from :class:`~tracked_kinematics.core.command.CommandLimits`).
 
     """
     limits = {}
     for name, field in LIMIT_FIELDS.items():
         value = values.get(name, 0.0)
         if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise ValueError(f'{name} must be a number, got {value!r}')
+            raise InvalidParameters(f'{name} must be a number, got {value!r}')
         limits[field] = float(value) or math.inf
     return CommandLimits(**limits)
