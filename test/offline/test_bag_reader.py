@@ -6,9 +6,8 @@ from helpers.vehicle_sim import AURIGA, B, simulate, write_bag
 import numpy as np
 import pytest
 from tracked_kinematics.core.models import ConstantIcr
-from tracked_kinematics.offline.bags import reader
-from tracked_kinematics.offline.bags.reader import (
-    BagError, EncoderSource, GroundTruthSource, read_bag)
+from tracked_kinematics.offline.bags import (
+    BagError, EncoderSource, GroundTruthSource, read_bag, reader)
 
 GT = GroundTruthSource('/mocap/pose')
 
@@ -75,7 +74,7 @@ def test_tf_without_parent_takes_the_only_one(tmp_path, rec):
 
 
 def test_tf_with_two_parents_asks_which(tmp_path):
-    from tracked_kinematics.offline.bags.writer import BagWriter
+    from tracked_kinematics.offline.bags import BagWriter
     path = tmp_path / 'two'
     with BagWriter(path, 'sqlite3') as bag:
         for k in range(5):

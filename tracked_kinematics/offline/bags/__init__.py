@@ -1,1 +1,18 @@
-"""Reading and writing rosbags as plain arrays (rosbags, no ROS install)."""
+"""
+Reading and writing rosbags as plain arrays (rosbags, no ROS install).
+
+The face of the sub-package: :mod:`.sources` says what to read, :mod:`.reader` reads it,
+:mod:`.writer` writes bags.
+"""
+
+from tracked_kinematics.offline.errors import BagError
+
+from .reader import read_bag, read_bags, read_drive_bag
+from .sources import (EncoderSource, GROUND_TRUTH_TYPES, GroundTruthSource, SETPOINT_TOPICS,
+                      TICK_BITS)
+from .writer import BagWriter, STORAGES
+
+__all__ = [
+    'BagError', 'BagWriter', 'EncoderSource', 'GROUND_TRUTH_TYPES', 'GroundTruthSource',
+    'SETPOINT_TOPICS', 'STORAGES', 'TICK_BITS', 'read_bag', 'read_bags', 'read_drive_bag',
+]

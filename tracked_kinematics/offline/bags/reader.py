@@ -1,23 +1,15 @@
 """
-Read encoder travel and ground-truth poses from rosbags into plain arrays.
+Read encoder travel, ground-truth poses and setpoints from rosbags into plain arrays.
 
 rosbag2 directories (sqlite3, mcap) and ROS 1 ``.bag`` files are read with
 ``rosbags.highlevel.AnyReader``, one bag at a time, streaming only the topics asked for.
 Each message is reduced to a few numbers appended to growing numpy buffers, so memory grows
 with the number of samples (tens of bytes each), never with the size of the bag.
 
-Encoders, as odometry_node takes them (INTERFACE.md):
-
-- ``joint_states``: sensor_msgs/JointState; the joints of each side are averaged; positions
-  (rad) when the messages carry them, else velocities (rad/s, trapezoidal rule); time from
-  ``header.stamp``;
-- ``track_speeds``: std_msgs/Float64 per side, m/s of nominal track speed;
-- ``encoder_ticks``: std_msgs/Int32 or Int64 per side, wrapping tick counters.
-
-Headerless messages are timed by the bag's receive time. Ground truth: nav_msgs/Odometry,
-geometry_msgs/PoseStamped, geometry_msgs/PoseWithCovarianceStamped (``header.stamp``) or
-tf2_msgs/TFMessage (the transform parent -> child), optionally moved from a tracked body to
-base_link by a fixed offset.
+One message loop (:func:`_read`) serves both readers: it feeds the encoder messages to
+their decoder and the others to the decoder of the second stream, the ground truth for
+:func:`read_bag`, the setpoints for :func:`read_drive_bag`. What the streams are and how
+they are chosen: :mod:`.sources`.
 """
 
 from __future__ import annotations
@@ -33,77 +25,10 @@ from tracked_kinematics.core.encoders import (
     counter_increments, travel_from_ticks, travel_from_velocities)
 from tracked_kinematics.core.identify import DriveData, Recording
 from tracked_kinematics.core.integration import compose, stamp_ns, yaw_from_quaternion
-from tracked_kinematics.params import ENCODER_INPUT_DEFAULTS, JOINT_STATES_TOPIC, SIDE_TOPICS
+from tracked_kinematics.offline.errors import BagError
 
-GROUND_TRUTH_TYPES = ('nav_msgs/msg/Odometry', 'geometry_msgs/msg/PoseStamped',
-                      'geometry_msgs/msg/PoseWithCovarianceStamped', 'tf2_msgs/msg/TFMessage')
-_TICK_BITS = {'std_msgs/msg/Int32': 32, 'std_msgs/msg/Int64': 64}
-
-
-class BagError(ValueError):
-    """A bag cannot give what was asked; the message is one line for the user."""
-
-
-@dataclass(frozen=True)
-class EncoderSource:
-    """
-    Where and how to read the track encoders.
-
-    Attributes
-    ----------
-    mode : str
-        One of :data:`tracked_kinematics.params.INPUT_MODES`.
-    topic : str
-        JointState topic (``joint_states`` mode).
-    left_joints, right_joints : tuple of str
-        Joints of each side (``joint_states`` mode).
-    left_topic, right_topic : str
-        Per-side topics (``track_speeds`` and ``encoder_ticks`` modes).
-    sprocket_radius : float
-        m: joint angle (rad) x radius = nominal track travel.
-    ticks_per_revolution : float
-        Ticks per sprocket revolution (``encoder_ticks`` mode).
-
-    """
-
-    mode: str = ENCODER_INPUT_DEFAULTS['input_mode']
-    topic: str = '/' + JOINT_STATES_TOPIC
-    left_joints: tuple = tuple(ENCODER_INPUT_DEFAULTS['left_joints'])
-    right_joints: tuple = tuple(ENCODER_INPUT_DEFAULTS['right_joints'])
-    left_topic: str = '/' + SIDE_TOPICS['track_speeds'][0]
-    right_topic: str = '/' + SIDE_TOPICS['track_speeds'][1]
-    sprocket_radius: float = 0.1
-    ticks_per_revolution: float = ENCODER_INPUT_DEFAULTS['ticks_per_revolution']
-
-    def topics(self) -> tuple[str, ...]:
-        """Topics this source reads."""
-        if self.mode == 'joint_states':
-            return (self.topic,)
-        return (self.left_topic, self.right_topic)
-
-
-@dataclass(frozen=True)
-class GroundTruthSource:
-    """
-    Where to read the ground-truth pose of the vehicle.
-
-    Attributes
-    ----------
-    topic : str
-        Odometry, PoseStamped, PoseWithCovarianceStamped or TFMessage topic.
-    parent_frame, child_frame : str
-        For TFMessage: the fixed frame and the tracked frame. An empty parent accepts the
-        only parent that publishes ``child_frame``.
-    offset : tuple of float
-        Pose ``(x, y, yaw)`` of the tracked body in base_link (m, m, rad); the ground truth
-        is moved to base_link by it.
-
-    """
-
-    topic: str
-    parent_frame: str = ''
-    child_frame: str = 'base_link'
-    offset: tuple = (0.0, 0.0, 0.0)
+from .sources import (EncoderSource, GROUND_TRUTH_TYPES, GroundTruthSource, SETPOINT_TOPICS,
+                      TICK_BITS)
 
 
 class _Columns:
@@ -421,7 +346,7 @@ class _SideStream:
         self.first = {}
 
     def add(self, topic, msgtype, msg, receive_ns) -> None:
-        self.bits[topic] = _TICK_BITS.get(msgtype, 0)
+        self.bits[topic] = TICK_BITS.get(msgtype, 0)
         # Counters relative to their first value, so that floats hold them exactly.
         first = self.first.setdefault(topic, msg.data if self.bits[topic] else 0)
         self.columns[topic].append((float(receive_ns - self.ref_ns), float(msg.data - first)))
@@ -465,7 +390,13 @@ class _GroundTruth:
         self.pairs: set[tuple[str, str]] = set()
         self._parent = _strip(source.parent_frame) or None
 
-    def add(self, msgtype, msg, receive_ns) -> None:
+    def connections(self, reader: AnyReader):
+        """Return the bag connections of the ground-truth topic (checked)."""
+        return _connections(reader, self.path, self.source.topic, GROUND_TRUTH_TYPES,
+                            'ground truth')
+
+    def add(self, conn, msg, receive_ns) -> None:
+        msgtype = conn.msgtype
         if msgtype == 'tf2_msgs/msg/TFMessage':
             child = _strip(self.source.child_frame)
             for tf in msg.transforms:
@@ -512,6 +443,38 @@ class _GroundTruth:
         return t, x, y, np.angle(np.exp(1j * yaw))
 
 
+class _Setpoints:
+    """Per-side std_msgs/Float64 setpoints -> commands held until the next setpoint."""
+
+    def __init__(self, topics: tuple[str, str], path: Path, ref_ns: int):
+        self.topics = topics
+        self.path = path
+        self.ref_ns = ref_ns
+        self.sides = {topic: _Columns(2) for topic in topics}
+
+    def connections(self, reader: AnyReader):
+        """Return the bag connections of both setpoint topics (checked)."""
+        return [c for topic in self.topics
+                for c in _connections(reader, self.path, topic, ('std_msgs/msg/Float64',),
+                                      'setpoints')]
+
+    def add(self, conn, msg, receive_ns) -> None:
+        self.sides[conn.topic].append((float(receive_ns - self.ref_ns), float(msg.data)))
+
+    def commands(self):
+        """Return the times (ns) and the setpoints of both sides, each held until its next."""
+        # Setpoints of both sides on the union of their stamps.
+        data = [_sort_unique(self.sides[topic].array) for topic in self.topics]
+        for topic, side in zip(self.topics, data):
+            if len(side) < 2:
+                raise BagError(f'{self.path}: fewer than two messages on {topic}')
+        command_t = np.union1d(data[0][:, 0], data[1][:, 0])
+        command_t = command_t[command_t >= max(data[0][0, 0], data[1][0, 0])]
+        held = [side[np.searchsorted(side[:, 0], command_t, side='right') - 1, 1]
+                for side in data]
+        return command_t, np.column_stack(held)
+
+
 def _guarded(path: Path, read, *args):
     """Open a bag and ``read(reader, path, *args)`` it; any reader failure is a BagError."""
     try:
@@ -533,7 +496,7 @@ def _encoder_stream(reader, path, encoders, ref_ns):
                                  'encoders')
     enc = _SideStream(encoders, path, ref_ns)
     allowed = (('std_msgs/msg/Float64',) if encoders.mode == 'track_speeds'
-               else tuple(_TICK_BITS))
+               else tuple(TICK_BITS))
     return enc, [c for topic in encoders.topics()
                  for c in _connections(reader, path, topic, allowed, 'encoders')]
 
@@ -544,6 +507,52 @@ def _feed(enc, reader, conn, receive_ns, raw) -> None:
         enc.add_raw(raw, receive_ns, lambda data, t=conn.msgtype: reader.deserialize(data, t))
     else:
         enc.add(conn.topic, conn.msgtype, reader.deserialize(raw, conn.msgtype), receive_ns)
+
+
+def _read(reader, path, encoders, kind, source, progress):
+    """
+    Stream the encoder messages and those of one other stream: the one message loop.
+
+    Parameters
+    ----------
+    reader : AnyReader
+        The open bag.
+    path : Path
+        Its path, for the messages.
+    encoders : EncoderSource
+        Where the encoders are.
+    kind : type
+        Decoder of the other stream, made as ``kind(source, path, reader.start_time)``; it
+        gives the bag connections it reads (checked) by ``connections(reader)`` and takes
+        each message by ``add(connection, message, receive_ns)``.
+    source
+        What the other stream is (a :class:`GroundTruthSource`, the setpoint topics).
+    progress : bool
+        Show a progress bar on stderr.
+
+    Returns
+    -------
+    tuple
+        The encoder decoder and the other decoder, fed with every message.
+
+    """
+    ref_ns = reader.start_time
+    enc, enc_conns = _encoder_stream(reader, path, encoders, ref_ns)
+    other = kind(source, path, ref_ns)
+    other_conns = other.connections(reader)
+    other_ids = {id(c) for c in other_conns}
+    conns = enc_conns + [c for c in other_conns if c not in enc_conns]
+    bar = _Progress(sum(c.msgcount for c in conns), path.name, progress)
+    try:
+        for conn, receive_ns, raw in reader.messages(connections=conns):
+            if id(conn) in other_ids:
+                other.add(conn, reader.deserialize(raw, conn.msgtype), receive_ns)
+            else:
+                _feed(enc, reader, conn, receive_ns, raw)
+            bar.step()
+    finally:
+        bar.close()
+    return enc, other
 
 
 def read_bag(path, encoders: EncoderSource, ground_truth: GroundTruthSource,
@@ -560,27 +569,11 @@ def read_bag(path, encoders: EncoderSource, ground_truth: GroundTruthSource,
         samples; the message is one line.
 
     """
-    return _guarded(Path(path), _read, encoders, ground_truth, progress)
+    return _guarded(Path(path), _read_recording, encoders, ground_truth, progress)
 
 
-def _read(reader, path, encoders, ground_truth, progress) -> Recording:
-    ref_ns = reader.start_time
-    enc, enc_conns = _encoder_stream(reader, path, encoders, ref_ns)
-    gt = _GroundTruth(ground_truth, path, ref_ns)
-    gt_conns = _connections(reader, path, ground_truth.topic, GROUND_TRUTH_TYPES,
-                            'ground truth')
-    gt_ids = {id(c) for c in gt_conns}
-    conns = enc_conns + [c for c in gt_conns if c not in enc_conns]
-    bar = _Progress(sum(c.msgcount for c in conns), path.name, progress)
-    try:
-        for conn, receive_ns, raw in reader.messages(connections=conns):
-            if id(conn) in gt_ids:
-                gt.add(conn.msgtype, reader.deserialize(raw, conn.msgtype), receive_ns)
-            else:
-                _feed(enc, reader, conn, receive_ns, raw)
-            bar.step()
-    finally:
-        bar.close()
+def _read_recording(reader, path, encoders, ground_truth, progress) -> Recording:
+    enc, gt = _read(reader, path, encoders, _GroundTruth, ground_truth, progress)
     enc_t, left, right = enc.travel()
     gt_t, x, y, yaw = gt.poses()
     t0 = min(enc_t[0], gt_t[0])
@@ -592,9 +585,6 @@ def read_bags(paths, encoders: EncoderSource, ground_truth: GroundTruthSource,
               progress: bool = False) -> list[Recording]:
     """Read several bags, one :class:`Recording` each (see :func:`read_bag`)."""
     return [read_bag(p, encoders, ground_truth, progress) for p in paths]
-
-
-SETPOINT_TOPICS = ('/left_track/setpoint', '/right_track/setpoint')
 
 
 def read_drive_bag(path, encoders: EncoderSource, setpoint_topics=SETPOINT_TOPICS,
@@ -633,25 +623,7 @@ def read_drive_bag(path, encoders: EncoderSource, setpoint_topics=SETPOINT_TOPIC
 
 
 def _read_drive(reader, path, encoders, setpoint_topics, progress) -> DriveData:
-    ref_ns = reader.start_time
-    enc, enc_conns = _encoder_stream(reader, path, encoders, ref_ns)
-    sp_conns = [c for topic in setpoint_topics
-                for c in _connections(reader, path, topic, ('std_msgs/msg/Float64',),
-                                      'setpoints')]
-    sides = {topic: _Columns(2) for topic in setpoint_topics}
-    sp_ids = {id(c) for c in sp_conns}
-    conns = enc_conns + [c for c in sp_conns if c not in enc_conns]
-    bar = _Progress(sum(c.msgcount for c in conns), path.name, progress)
-    try:
-        for conn, receive_ns, raw in reader.messages(connections=conns):
-            if id(conn) in sp_ids:
-                msg = reader.deserialize(raw, conn.msgtype)
-                sides[conn.topic].append((float(receive_ns - ref_ns), float(msg.data)))
-            else:
-                _feed(enc, reader, conn, receive_ns, raw)
-            bar.step()
-    finally:
-        bar.close()
+    enc, setpoints = _read(reader, path, encoders, _Setpoints, setpoint_topics, progress)
     speeds = enc.velocities() if encoders.mode == 'joint_states' else None
     if speeds is None:
         t, left, right = enc.travel()
@@ -660,13 +632,6 @@ def _read_drive(reader, path, encoders, setpoint_topics, progress) -> DriveData:
             raise BagError(f'{path}: fewer than two encoder samples')
         speeds = (0.5 * (t[1:] + t[:-1]), np.diff(left) / dt, np.diff(right) / dt)
     speed_t, v_left, v_right = speeds
-    # Setpoints of both sides on the union of their stamps, each held until its next one.
-    data = [_sort_unique(sides[topic].array) for topic in setpoint_topics]
-    for topic, side in zip(setpoint_topics, data):
-        if len(side) < 2:
-            raise BagError(f'{path}: fewer than two messages on {topic}')
-    command_t = np.union1d(data[0][:, 0], data[1][:, 0])
-    command_t = command_t[command_t >= max(data[0][0, 0], data[1][0, 0])]
-    held = [side[np.searchsorted(side[:, 0], command_t, side='right') - 1, 1] for side in data]
-    return DriveData(command_t * 1e-9, np.column_stack(held), np.asarray(speed_t) * 1e-9,
+    command_t, commands = setpoints.commands()
+    return DriveData(command_t * 1e-9, commands, np.asarray(speed_t) * 1e-9,
                      np.column_stack([v_left, v_right]), name=str(path))

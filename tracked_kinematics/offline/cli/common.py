@@ -9,16 +9,13 @@ from pathlib import Path
 import sys
 
 import numpy as np
-from tracked_kinematics.core.identify import ExcitationError, IdentificationError
-from tracked_kinematics.offline.bags.reader import BagError, EncoderSource
+from tracked_kinematics.core.errors import ExcitationError, IdentificationError
+from tracked_kinematics.offline.bags import BagError, EncoderSource
+from tracked_kinematics.offline.errors import UsageError
 from tracked_kinematics.params import ENCODER_INPUT_DEFAULTS, INPUT_MODES, SIDE_TOPICS
 
 EXIT_INPUT, EXIT_EXCITATION, EXIT_FIT = 2, 3, 4
 """Exit statuses of the identification tools: bad input, too little excitation, failed fit."""
-
-
-class UsageError(ValueError):
-    """An invalid option value (exit status 2)."""
 
 
 def names(text: str) -> tuple[str, ...]:

@@ -23,10 +23,11 @@ import sys
 import numpy as np
 from tracked_kinematics.core.identify import drivetrain as dfit
 from tracked_kinematics.core.identify import IdentificationError
-from tracked_kinematics.offline.bags.reader import read_drive_bag, SETPOINT_TOPICS
+from tracked_kinematics.offline.bags import read_drive_bag, SETPOINT_TOPICS
 from tracked_kinematics.offline.cli.common import (
     add_encoder_arguments, encoder_source, HelpFormatter, names, non_negative, positive,
-    run_main, UsageError, write_report)
+    run_main, write_report)
+from tracked_kinematics.offline.errors import UsageError
 from tracked_kinematics.params import (
     drivetrain_from_values, positive as check_positive, read_params_file, TERRAIN_DEFAULTS,
     values_from_drivetrain, write_params_file)

@@ -21,10 +21,11 @@ import sys
 
 from tracked_kinematics.core import identify as ident
 from tracked_kinematics.core.kinematics import IcrParams
-from tracked_kinematics.offline.bags.reader import GroundTruthSource, read_bags
+from tracked_kinematics.offline.bags import GroundTruthSource, read_bags
 from tracked_kinematics.offline.cli.common import (
     add_encoder_arguments, encoder_source, HelpFormatter, names, non_negative, positive,
-    run_main, UsageError, write_report)
+    run_main, write_report)
+from tracked_kinematics.offline.errors import UsageError
 from tracked_kinematics.params import (
     icr_from_values, positive as check_positive, read_params_file, TERRAIN_DEFAULTS,
     values_from_icr, write_params_file)

@@ -33,8 +33,9 @@ from tracked_kinematics.core.plan import (
     CANONICAL, canonical, path_deviation, Plan, Planner, Reference)
 from tracked_kinematics.core.sim.manoeuvres import fink_stump_sweep
 from tracked_kinematics.core.sim.simulation import GroundTruth, Robot, simulate, TwistTable
-from tracked_kinematics.offline.bags.writer import BagWriter
-from tracked_kinematics.offline.cli.common import positive, UsageError
+from tracked_kinematics.offline.bags import BagWriter
+from tracked_kinematics.offline.cli.common import positive
+from tracked_kinematics.offline.errors import UsageError
 from tracked_kinematics.offline.vehicle_file import load_vehicle
 from tracked_kinematics.params import icr_from_values, LIMIT_FIELDS, read_params_file
 

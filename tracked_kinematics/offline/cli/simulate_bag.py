@@ -30,7 +30,7 @@ from rosbags.rosbag2 import WriterError as Rosbag2WriterError
 from tracked_kinematics.core.kinematics import IcrParams
 from tracked_kinematics.core.sim.manoeuvres import manoeuvre, MANOEUVRES
 from tracked_kinematics.core.sim.simulation import GroundTruth, Run, simulate, TwistTable
-from tracked_kinematics.offline.bags.writer import BagWriter, STORAGES
+from tracked_kinematics.offline.bags import BagWriter, STORAGES
 from tracked_kinematics.offline.vehicle_file import (
     add_vehicle_arguments, fixed, load_vehicle, overrides_from_args, VehicleFile)
 from tracked_kinematics.params import values_from_icr, write_params_file

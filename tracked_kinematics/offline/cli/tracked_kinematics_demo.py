@@ -37,7 +37,7 @@ from tracked_kinematics.core.integration import wrap_angle
 from tracked_kinematics.core.kinematics import IcrParams
 from tracked_kinematics.core.models import ConstantIcr
 from tracked_kinematics.core.sim.simulation import TwistTable
-from tracked_kinematics.offline.bags.reader import (
+from tracked_kinematics.offline.bags import (
     BagError, EncoderSource, GroundTruthSource, read_bag)
 from tracked_kinematics.offline.cli import identify_icr
 from tracked_kinematics.offline.cli.common import positive

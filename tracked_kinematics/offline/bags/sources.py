@@ -1,0 +1,93 @@
+"""
+What to read from a bag: the track encoders, the ground-truth pose, the setpoints.
+
+Encoders, as odometry_node takes them (its ``input_mode`` parameters, docs/parameters.md):
+
+- ``joint_states``: sensor_msgs/JointState; the joints of each side are averaged; positions
+  (rad) when the messages carry them, else velocities (rad/s, trapezoidal rule); time from
+  ``header.stamp``;
+- ``track_speeds``: std_msgs/Float64 per side, m/s of nominal track speed;
+- ``encoder_ticks``: std_msgs/Int32 or Int64 per side, wrapping tick counters.
+
+Headerless messages are timed by the bag's receive time. Ground truth: nav_msgs/Odometry,
+geometry_msgs/PoseStamped, geometry_msgs/PoseWithCovarianceStamped (``header.stamp``) or
+tf2_msgs/TFMessage (the transform parent -> child), optionally moved from a tracked body to
+base_link by a fixed offset. Setpoints: std_msgs/Float64 per side, as cmd_vel_translator
+publishes them.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from tracked_kinematics.params import ENCODER_INPUT_DEFAULTS, JOINT_STATES_TOPIC, SIDE_TOPICS
+
+GROUND_TRUTH_TYPES = ('nav_msgs/msg/Odometry', 'geometry_msgs/msg/PoseStamped',
+                      'geometry_msgs/msg/PoseWithCovarianceStamped', 'tf2_msgs/msg/TFMessage')
+"""Message types a ground-truth topic may carry."""
+TICK_BITS = {'std_msgs/msg/Int32': 32, 'std_msgs/msg/Int64': 64}
+"""Tick counter message types (``encoder_ticks``) and the width at which they wrap."""
+SETPOINT_TOPICS = ('/left_track/setpoint', '/right_track/setpoint')
+"""Default left and right setpoint topics of :func:`.reader.read_drive_bag`."""
+
+
+@dataclass(frozen=True)
+class EncoderSource:
+    """
+    Where and how to read the track encoders.
+
+    Attributes
+    ----------
+    mode : str
+        One of :data:`tracked_kinematics.params.INPUT_MODES`.
+    topic : str
+        JointState topic (``joint_states`` mode).
+    left_joints, right_joints : tuple of str
+        Joints of each side (``joint_states`` mode).
+    left_topic, right_topic : str
+        Per-side topics (``track_speeds`` and ``encoder_ticks`` modes).
+    sprocket_radius : float
+        m: joint angle (rad) x radius = nominal track travel.
+    ticks_per_revolution : float
+        Ticks per sprocket revolution (``encoder_ticks`` mode).
+
+    """
+
+    mode: str = ENCODER_INPUT_DEFAULTS['input_mode']
+    topic: str = '/' + JOINT_STATES_TOPIC
+    left_joints: tuple = tuple(ENCODER_INPUT_DEFAULTS['left_joints'])
+    right_joints: tuple = tuple(ENCODER_INPUT_DEFAULTS['right_joints'])
+    left_topic: str = '/' + SIDE_TOPICS['track_speeds'][0]
+    right_topic: str = '/' + SIDE_TOPICS['track_speeds'][1]
+    sprocket_radius: float = 0.1
+    ticks_per_revolution: float = ENCODER_INPUT_DEFAULTS['ticks_per_revolution']
+
+    def topics(self) -> tuple[str, ...]:
+        """Topics this source reads."""
+        if self.mode == 'joint_states':
+            return (self.topic,)
+        return (self.left_topic, self.right_topic)
+
+
+@dataclass(frozen=True)
+class GroundTruthSource:
+    """
+    Where to read the ground-truth pose of the vehicle.
+
+    Attributes
+    ----------
+    topic : str
+        Odometry, PoseStamped, PoseWithCovarianceStamped or TFMessage topic.
+    parent_frame, child_frame : str
+        For TFMessage: the fixed frame and the tracked frame. An empty parent accepts the
+        only parent that publishes ``child_frame``.
+    offset : tuple of float
+        Pose ``(x, y, yaw)`` of the tracked body in base_link (m, m, rad); the ground truth
+        is moved to base_link by it.
+
+    """
+
+    topic: str
+    parent_frame: str = ''
+    child_frame: str = 'base_link'
+    offset: tuple = (0.0, 0.0, 0.0)

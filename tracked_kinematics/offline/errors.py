@@ -1,0 +1,17 @@
+"""
+The error types of the offline ring: a bag that cannot give what was asked, a bad option.
+
+Both derive from :class:`tracked_kinematics.core.errors.TrackedKinematicsError`, so that
+:func:`tracked_kinematics.offline.cli.common.run_main` reports them, and the core's own
+errors, as one line with an exit status, and lets anything else surface as a traceback.
+"""
+
+from tracked_kinematics.core.errors import TrackedKinematicsError
+
+
+class BagError(TrackedKinematicsError):
+    """A bag cannot give what was asked; the message is one line for the user."""
+
+
+class UsageError(TrackedKinematicsError):
+    """An invalid option value (exit status 2)."""
