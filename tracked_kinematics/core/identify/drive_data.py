@@ -15,7 +15,7 @@ import math
 
 import numpy as np
 
-from ..errors import ExcitationError
+from ..errors import ExcitationError, TrackedKinematicsError
 
 
 @dataclass(frozen=True)
@@ -108,7 +108,9 @@ def resample(data: DriveData, dt: float, max_gap: float) -> list[Segment]:
     Raises
     ------
     ValueError
-        For malformed or non-overlapping series (the message names the recording).
+        For malformed series (the message names the recording).
+    TrackedKinematicsError
+        For series that do not overlap in time (the message names the recording).
     ExcitationError
         When a series has fewer than two finite samples.
 
@@ -117,8 +119,9 @@ def resample(data: DriveData, dt: float, max_gap: float) -> list[Segment]:
     t_m, meas = _series(data.speed_t, data.speeds, 'speed', data.name)
     start, end = max(t_c[0], t_m[0]), t_m[-1]
     if end <= start:
-        raise ValueError(f'{data.name}: the commands ({t_c[0]:.2f}-{t_c[-1]:.2f} s) and the '
-                         f'measured speeds ({t_m[0]:.2f}-{t_m[-1]:.2f} s) do not overlap in time')
+        raise TrackedKinematicsError(
+            f'{data.name}: the commands ({t_c[0]:.2f}-{t_c[-1]:.2f} s) and the measured '
+            f'speeds ({t_m[0]:.2f}-{t_m[-1]:.2f} s) do not overlap in time')
     grid = start + dt * np.arange(int(math.floor((end - start) / dt + 1e-9)) + 1)
     held = np.searchsorted(t_c, grid + 1e-9 * dt, side='right') - 1
     after = np.clip(np.searchsorted(t_m, grid, side='left'), 1, len(t_m) - 1)

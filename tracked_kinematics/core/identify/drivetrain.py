@@ -246,7 +246,9 @@ def fit_drivetrain(data: DriveData | Sequence[DriveData], loop: str = 'first_ord
     Raises
     ------
     ValueError
-        Malformed inputs or options (shapes, lengths, no overlap in time).
+        Malformed inputs or options (shapes, lengths).
+    TrackedKinematicsError
+        Commands and measured speeds that do not overlap in time.
     ExcitationError
         Too little data, or commands that hardly change.
     FitError

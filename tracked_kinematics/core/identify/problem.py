@@ -123,7 +123,7 @@ class SegmentProblem:
     def __init__(self, model: MotionModel, segments: Segments,
                  heading_weight: float = DEFAULT_HEADING_WEIGHT):
         if len(segments) == 0:
-            raise ValueError('no segments')
+            raise TrackedKinematicsError('no segments')
         self.model = model
         self.segments = segments
         self.heading_weight = check_heading_weight(heading_weight)
