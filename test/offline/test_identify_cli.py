@@ -165,3 +165,40 @@ def test_too_little_excitation(tmp_path, capsys, legs, pattern):
     status, _, err = run([path, *ARGS, '--output', tmp_path / 'o.yaml'], capsys)
     one_line_error(err, status, 3, pattern)
     assert not (tmp_path / 'o.yaml').exists()
+
+
+@pytest.mark.parametrize('params, extra, pattern', [
+    ('a: [1, 2\n', [], r'base.yaml: not valid YAML \(while parsing'),
+    (b'\x89PNG\r\n\x1a\n\xff\xfe', [], r"'utf-8' codec can't decode byte 0x89"),
+    ('- 1\n- 2\n', [], r'base.yaml: expected a mapping of parameters$'),
+    ('scale:\n  left: -1\n', [], r'scale_left must be > 0, got -1.0$'),
+    (None, ['--max-nfev', '-3'], r'--max-nfev must not be negative, got -3$'),
+])
+def test_user_errors_are_bad_input_not_tracebacks(bag, tmp_path, capsys, params, extra,
+                                                  pattern):
+    base = []
+    if params is not None:
+        path = tmp_path / 'base.yaml'
+        path.write_bytes(params if isinstance(params, bytes) else params.encode())
+        base = ['--params', path]
+    got, _, err = run([bag, *ARGS, '--output', tmp_path / 'o.yaml', *base, *extra], capsys)
+    one_line_error(err, got, 2, pattern)
+    assert not (tmp_path / 'o.yaml').exists()
+
+
+def test_plot_format_matplotlib_cannot_write_is_bad_input(bag, tmp_path, capsys):
+    out = tmp_path / 'o.yaml'
+    got, _, err = run([bag, *ARGS, '--output', out, '--holdout', '0', '--plot',
+                       tmp_path / 'fit.xyz'], capsys)
+    one_line_error(err, got, 2, r"Format 'xyz' is not supported \(supported formats: .*png")
+    assert out.exists()   # as before: the terrain file is written before the plot
+
+
+def test_a_bug_in_the_core_surfaces_as_a_traceback(bag, tmp_path, capsys, monkeypatch):
+    def bug(*args, **kwargs):
+        raise ValueError('bug')
+    monkeypatch.setattr(identify_icr.ident, 'identify', bug)
+    with pytest.raises(ValueError, match='^bug$'):
+        identify_icr.main([str(bag), *ARGS, '--output', str(tmp_path / 'o.yaml')])
+    assert capsys.readouterr().err == ''
+    assert not (tmp_path / 'o.yaml').exists()

@@ -11,14 +11,34 @@ matplotlib Figure, so the file is rendered by Agg without touching pyplot state.
 from __future__ import annotations
 
 import math
+import os
 
+from matplotlib.backend_bases import get_registered_canvas_class
 from matplotlib.figure import Figure
 import numpy as np
 from tracked_kinematics.core import identify as ident
 from tracked_kinematics.core.models import IdealDiffDrive
+from tracked_kinematics.offline.errors import UsageError
 
 _COLOURS = {'ground truth': 'black', 'ideal': 'tab:red', 'written ICR model': 'tab:blue',
             'fitted': 'tab:green'}
+
+
+def save(fig: Figure, path, dpi: int) -> None:
+    """
+    Write a figure to ``path``, in the format its extension names.
+
+    Raises
+    ------
+    UsageError
+        When matplotlib cannot write that format (its own message).
+
+    """
+    fmt = os.path.splitext(os.fspath(path))[1][1:].lower()
+    if fmt and get_registered_canvas_class(fmt) is None:
+        raise UsageError(f'Format {fmt!r} is not supported (supported formats: '
+                         f'{", ".join(sorted(fig.canvas.get_supported_filetypes()))})')
+    fig.savefig(path, dpi=dpi)
 
 
 def _errors(result, recordings, model, p):
@@ -99,4 +119,4 @@ def plot_identification(path, recordings, result) -> None:
     icr = result.icr
     fig.suptitle(f'identify_icr: {fitted.model.name} ({fitted.method}); chi = {icr.chi:.3f}, '
                  f'e = {icr.eccentricity:.3f}', fontsize=12)
-    fig.savefig(path, dpi=110)
+    save(fig, path, dpi=110)

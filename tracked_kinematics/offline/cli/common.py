@@ -9,8 +9,9 @@ from pathlib import Path
 import sys
 
 import numpy as np
-from tracked_kinematics.core.errors import ExcitationError, IdentificationError
-from tracked_kinematics.offline.bags import BagError, EncoderSource
+from tracked_kinematics.core.errors import (
+    ExcitationError, IdentificationError, TrackedKinematicsError)
+from tracked_kinematics.offline.bags import EncoderSource
 from tracked_kinematics.offline.errors import UsageError
 from tracked_kinematics.params import ENCODER_INPUT_DEFAULTS, INPUT_MODES, SIDE_TOPICS
 
@@ -114,10 +115,13 @@ def write_report(path, report) -> None:
 
 def run_main(prog: str, run, args) -> int:
     """
-    Run ``run(args, sys.stdout)`` and map failures to one stderr line and an exit status.
+    Run ``run(args, sys.stdout)`` and map the package's errors to one stderr line and a status.
 
-    :data:`EXIT_INPUT` for a bag, option or file problem, :data:`EXIT_EXCITATION` for too
-    little excitation, :data:`EXIT_FIT` for a fit that failed, 130 for Ctrl-C.
+    :data:`EXIT_EXCITATION` for too little excitation, :data:`EXIT_FIT` for a fit that
+    failed, :data:`EXIT_INPUT` for any other
+    :class:`~tracked_kinematics.core.errors.TrackedKinematicsError` (a bag, option or
+    parameter problem) and for an :class:`OSError` (a file the user named), 130 for Ctrl-C.
+    Any other exception is a bug: it is not caught, and surfaces as a traceback.
     """
     def fail(status, err):
         print(f'{prog}: error: {" ".join(str(err).split())}', file=sys.stderr)
@@ -125,13 +129,11 @@ def run_main(prog: str, run, args) -> int:
 
     try:
         return run(args, sys.stdout)
-    except (BagError, UsageError) as err:
-        return fail(EXIT_INPUT, err)
     except ExcitationError as err:
         return fail(EXIT_EXCITATION, err)
     except IdentificationError as err:
         return fail(EXIT_FIT, err)
-    except (OSError, ValueError) as err:
+    except (TrackedKinematicsError, OSError) as err:
         return fail(EXIT_INPUT, err)
     except KeyboardInterrupt:
         return fail(130, 'interrupted')

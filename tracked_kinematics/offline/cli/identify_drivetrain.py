@@ -21,8 +21,9 @@ from pathlib import Path
 import sys
 
 import numpy as np
-from tracked_kinematics.core.identify import drivetrain as dfit
-from tracked_kinematics.core.identify import IdentificationError
+from tracked_kinematics.core.drivetrain import LOOP_KINDS
+from tracked_kinematics.core.errors import IdentificationError, InvalidParameters
+from tracked_kinematics.core.identify import fit_drivetrain
 from tracked_kinematics.offline.bags import read_drive_bag, SETPOINT_TOPICS
 from tracked_kinematics.offline.cli.common import (
     add_encoder_arguments, encoder_source, HelpFormatter, names, non_negative, positive,
@@ -73,7 +74,7 @@ def build_parser() -> argparse.ArgumentParser:
                      help='terrain file to start from: sprocket radius, starting point, fixed '
                      'motor constants of --loop pid_dc_motor; its other parameters are copied '
                      'to the output')
-    fit.add_argument('--loop', choices=dfit.LOOP_KINDS, default='first_order',
+    fit.add_argument('--loop', choices=LOOP_KINDS, default='first_order',
                      help='speed loop to fit: first-order lag, PID gains around the fixed DC '
                      'motor of eq. (8), or none')
     fit.add_argument('--dt', type=positive, default=None, metavar='SECONDS',
@@ -103,7 +104,7 @@ def _base(args):
     if any(k.startswith('drivetrain.') for k in base_values):
         try:
             base = drivetrain_from_values(base_values)
-        except ValueError as err:
+        except InvalidParameters as err:
             raise UsageError(f'{args.params}: {err}') from None
     return base_values, float(radius), base
 
@@ -182,8 +183,11 @@ def _plot(path, result):
     axes[2].set_ylabel('rms error (mm/s)')
     axes[2].legend(loc='upper right')
     fig.suptitle(f'{PROG}: {result.loop}, rms {1000 * result.rms:.1f} mm/s')
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
+    from tracked_kinematics.offline.plots import save
+    try:
+        save(fig, path, dpi=100)
+    finally:
+        plt.close(fig)
 
 
 def _run(args, out) -> int:
@@ -192,8 +196,8 @@ def _run(args, out) -> int:
     progress = sys.stderr.isatty()
     recordings = [read_drive_bag(b, encoders, args.setpoint_topics, progress)
                   for b in args.bags]
-    result = dfit.fit_drivetrain(recordings, loop=args.loop, dt=args.dt,
-                                 max_delay=args.max_delay, max_gap=args.max_gap, base=base)
+    result = fit_drivetrain(recordings, loop=args.loop, dt=args.dt, max_delay=args.max_delay,
+                            max_gap=args.max_gap, base=base)
     date = datetime.now(timezone.utc).isoformat(timespec='seconds')
     bags = [str(Path(b).resolve()) for b in args.bags]
     extras = {'loop': result.loop, 'date': date, 'bags': bags, 'rms': result.rms,

@@ -20,6 +20,7 @@ from pathlib import Path
 import sys
 
 from tracked_kinematics.core import identify as ident
+from tracked_kinematics.core.errors import InvalidParameters
 from tracked_kinematics.core.kinematics import IcrParams
 from tracked_kinematics.offline.bags import GroundTruthSource, read_bags
 from tracked_kinematics.offline.cli.common import (
@@ -134,11 +135,14 @@ def _vehicle(args):
     if args.params:
         try:
             base = icr_from_values(merged)
-        except ValueError:
+        except InvalidParameters:
             # The ICRs of a file made for another track width: keep its scales only.
-            base = IcrParams.ideal(merged['track_width'])
-            base = IcrParams(base.track_width, base.y_left, base.y_right, 0.0,
-                             merged['scale.left'], merged['scale.right'])
+            try:
+                base = IcrParams.ideal(merged['track_width'])
+                base = IcrParams(base.track_width, base.y_left, base.y_right, 0.0,
+                                 merged['scale.left'], merged['scale.right'])
+            except ValueError as err:   # the user's track width or scales
+                raise UsageError(str(err)) from None
     for name in ('track_width', 'sprocket_radius'):
         value = merged[name]
         if check_positive(value):
@@ -305,6 +309,9 @@ def _run(args, out) -> int:
               f'(std {spin.chi_std:.4f}); ICRs at +-{icr.y_left:.4f} m', file=out)
     else:
         model = 'effective_wheel_base' if args.model == 'symmetric' else args.model
+        if args.method == 'lsq' and args.max_nfev is not None and args.max_nfev < 0:
+            # Least squares refuses a negative budget; 0 takes the default one.
+            raise UsageError(f'--max-nfev must not be negative, got {args.max_nfev}')
         result = ident.identify(
             recordings, model, track_width, base=base, method=args.method,
             segment_length=args.segment_length or None, heading_weight=args.heading_weight,
