@@ -22,16 +22,17 @@ import sys
 
 import numpy as np
 from tracked_kinematics.core.drivetrain import LOOP_KINDS
-from tracked_kinematics.core.errors import IdentificationError, InvalidParameters
+from tracked_kinematics.core.errors import InvalidParameters
 from tracked_kinematics.core.identify import fit_drivetrain
 from tracked_kinematics.offline.bags import read_drive_bag, SETPOINT_TOPICS
 from tracked_kinematics.offline.cli.common import (
     add_encoder_arguments, encoder_source, HelpFormatter, names, non_negative, positive,
     run_main, write_report)
 from tracked_kinematics.offline.errors import UsageError
+from tracked_kinematics.offline.terrain_file import terrain_values, write_terrain_file
 from tracked_kinematics.params import (
     drivetrain_from_values, positive as check_positive, read_params_file, TERRAIN_DEFAULTS,
-    values_from_drivetrain, write_params_file)
+    values_from_drivetrain)
 
 PROG = 'identify_drivetrain'
 _UNITS = {'delay': 's', 'max_accel': 'm/s^2', 'time_constant': 's', 'kp': '', 'ki': '',
@@ -111,20 +112,9 @@ def _base(args):
 
 def _yaml_values(base_values, result, radius, extras):
     """Merge base values without old drive-train keys, the fitted model and the fit's record."""
-    values = {k: v for k, v in base_values.items()
-              if not k.startswith(('drivetrain.', 'drivetrain_fit.'))}
-    values['sprocket_radius'] = radius
-    values.update(values_from_drivetrain(result.drivetrain))
-    for key, value in extras.items():
-        if isinstance(value, float) and not math.isfinite(value):
-            continue   # never write a non-finite value; the key is simply absent
-        values[f'drivetrain_fit.{key}'] = value
-    try:
-        drivetrain_from_values(values)
-    except ValueError as err:
-        raise IdentificationError(f'the identified model is invalid, nothing written: {err}') \
-            from None
-    return values
+    fitted = {'sprocket_radius': radius, **values_from_drivetrain(result.drivetrain)}
+    return terrain_values(base_values, fitted, record='drivetrain_fit', extras=extras,
+                          check=drivetrain_from_values, drop=('drivetrain.',))
 
 
 def _print_table(result, recordings, out):
@@ -207,9 +197,8 @@ def _run(args, out) -> int:
     extras.update({f'standard_errors.{k}': v for k, v in result.standard_errors.items()})
     values = _yaml_values(base_values, result, radius, extras)
     _print_table(result, recordings, out)
-    write_params_file(args.output, values, comment=(
-        f'Terrain parameters with the drive train written by {PROG} (tracked_kinematics) on '
-        f'{date}.\nLoad with: --ros-args --params-file THIS_FILE'))
+    write_terrain_file(args.output, values, tool=PROG, date=date,
+                       contents='Terrain parameters with the drive train')
     if args.report:
         write_report(args.report, {
             'tool': PROG, 'date': date, 'bags': bags, 'sprocket_radius': radius,

@@ -27,9 +27,10 @@ from tracked_kinematics.offline.cli.common import (
     add_encoder_arguments, encoder_source, HelpFormatter, names, non_negative, positive,
     run_main, write_report)
 from tracked_kinematics.offline.errors import UsageError
+from tracked_kinematics.offline.terrain_file import terrain_values, write_terrain_file
 from tracked_kinematics.params import (
     icr_from_values, positive as check_positive, read_params_file, TERRAIN_DEFAULTS,
-    values_from_icr, write_params_file)
+    values_from_icr)
 
 PROG = 'identify_icr'
 MODEL_CHOICES = ('symmetric',) + ident.FIT_MODELS
@@ -220,20 +221,12 @@ def _recordings_summary(recordings):
 
 
 def _yaml_values(base_values, icr, radius, terrain, extras):
-    values = {k: v for k, v in base_values.items()
-              if not k.startswith('identification.') and k != 'terrain'}
-    values.update(values_from_icr(icr, radius))
+    """Merge base values without the old terrain name and record, the ICR model, its record."""
+    fitted = values_from_icr(icr, radius)
     if terrain:
-        values['terrain'] = terrain
-    for key, value in extras.items():
-        if isinstance(value, float) and not math.isfinite(value):
-            continue   # never write a non-finite value; the key is simply absent
-        values[f'identification.{key}'] = value
-    try:
-        icr_from_values(values)
-    except ValueError as err:
-        raise ident.FitError(f'the identified model is invalid, nothing written: {err}') from None
-    return values
+        fitted['terrain'] = terrain
+    return terrain_values(base_values, fitted, record='identification', extras=extras,
+                          check=icr_from_values, drop=('terrain',))
 
 
 def _print_table(result, recordings, out):
@@ -340,13 +333,12 @@ def _run(args, out) -> int:
             'excitation': vars(result.excitation), 'holdout': _holdout_summary(result),
             'seconds': result.seconds})
         _print_table(result, recordings, out)
-    comment = (f'Terrain parameters written by {PROG} (tracked_kinematics) on {date}.\n'
-               'Load with: --ros-args --params-file THIS_FILE')
+    note = ''
     if args.model in ('general_slip', 'adaptive_icr') and not args.spin_in_place:
-        comment += (f'\nThe {args.model} model has no constant ICRs: icr.* and scale.* are the '
-                    f'{values["identification.icr_source"]} fit of the same data;\nthe '
-                    f'{args.model} parameters are under identification.parameters.')
-    write_params_file(args.output, values, comment=comment)
+        note = (f'The {args.model} model has no constant ICRs: icr.* and scale.* are the '
+                f'{values["identification.icr_source"]} fit of the same data;\nthe '
+                f'{args.model} parameters are under identification.parameters.')
+    write_terrain_file(args.output, values, tool=PROG, date=date, note=note)
     if args.report:
         write_report(args.report, report)
     if args.plot and not args.spin_in_place:

@@ -1,0 +1,96 @@
+"""
+The terrain file an identification writes: the base file, the fitted model, the fit's record.
+
+identify_icr and identify_drivetrain both start from the terrain file given with
+``--params`` (or nothing), drop what the fit replaces and the record of an older fit, put in
+the fitted values and a record of this fit under one prefix (``identification.*``,
+``drivetrain_fit.*``), check that the result still loads, and write it with a header comment
+as a ``--params-file`` (docs/parameters.md, docs/tools/identify_icr.md,
+docs/tools/identify_drivetrain.md).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterable, Mapping
+import math
+from typing import Any
+
+from tracked_kinematics.core.errors import FitError, InvalidParameters
+from tracked_kinematics.params import write_params_file
+
+
+def terrain_values(base_values: Mapping[str, Any], fitted: Mapping[str, Any], *, record: str,
+                   extras: Mapping[str, Any], check: Callable[[Mapping[str, Any]], Any],
+                   drop: Iterable[str] = ()) -> dict[str, Any]:
+    """
+    Merge the values of a terrain file written after a fit, and check them.
+
+    Parameters
+    ----------
+    base_values : mapping
+        The base terrain file's values (dotted names).
+    fitted : mapping
+        The fitted values; they replace the base's (which keep their place in the file).
+    record : str
+        Prefix of the fit's record (``identification``); the base's ``record.*`` is dropped.
+    extras : mapping
+        The fit's record, written as ``record.key``; non-finite floats are left out.
+    check : callable
+        Builds the model from the values, raising
+        :class:`~tracked_kinematics.core.errors.InvalidParameters` when they are invalid
+        (``tracked_kinematics.params.icr_from_values``).
+    drop : iterable of str
+        Further base values to drop: names, or prefixes ending with ``.``.
+
+    Returns
+    -------
+    dict
+        Dotted names to values, in file order.
+
+    Raises
+    ------
+    FitError
+        When the values do not give a valid model: nothing is to be written.
+
+    """
+    dropped = (f'{record}.', *drop)
+    values = {k: v for k, v in base_values.items()
+              if not any(k.startswith(d) if d.endswith('.') else k == d for d in dropped)}
+    values.update(fitted)
+    for key, value in extras.items():
+        if isinstance(value, float) and not math.isfinite(value):
+            continue   # never write a non-finite value; the key is simply absent
+        values[f'{record}.{key}'] = value
+    try:
+        check(values)
+    except InvalidParameters as err:
+        raise FitError(f'the identified model is invalid, nothing written: {err}') from None
+    return values
+
+
+def write_terrain_file(path, values: Mapping[str, Any], *, tool: str, date: str,
+                       contents: str = 'Terrain parameters', note: str = '') -> None:
+    """
+    Write terrain values as a ``--params-file``, with a header saying who wrote it and when.
+
+    Parameters
+    ----------
+    path : path-like
+        Destination (written atomically).
+    values : mapping
+        From :func:`terrain_values`.
+    tool : str
+        The program that wrote it.
+    date : str
+        When, ISO 8601.
+    contents : str
+        What the file holds, first words of the header.
+    note : str
+        More header lines.
+
+    """
+    comment = (f'{contents} written by {tool} (tracked_kinematics) on {date}.\n'
+               'Load with: --ros-args --params-file THIS_FILE')
+    if note:
+        comment += '\n' + note
+    write_params_file(path, values, comment=comment)
