@@ -202,3 +202,28 @@ def test_a_bug_in_the_core_surfaces_as_a_traceback(bag, tmp_path, capsys, monkey
         identify_icr.main([str(bag), *ARGS, '--output', str(tmp_path / 'o.yaml')])
     assert capsys.readouterr().err == ''
     assert not (tmp_path / 'o.yaml').exists()
+
+
+def test_plot_shows_the_segments_of_the_fit(bag, tmp_path, capsys, monkeypatch, no_pyplot):
+    # The residuals plotted are those of the segments the fit used (--min-travel), not of a
+    # threshold of the plot's own; the plot is drawn without pyplot.
+    from tracked_kinematics.core import identify as ident
+    from tracked_kinematics.offline import plots
+    seen = {}
+    draw = plots.plot_identification
+
+    def spy(path, recordings, result, segments):
+        seen.update(recordings=recordings, result=result, segments=segments)
+        draw(path, recordings, result, segments)
+
+    monkeypatch.setattr(plots, 'plot_identification', spy)
+    plot = tmp_path / 'fit.png'
+    status, _, err = run([bag, *ARGS, '--output', tmp_path / 'o.yaml', '--min-travel', '0.4',
+                          '--holdout', '0', '--plot', plot], capsys)
+    assert status == 0, err
+    segments, result = seen['segments'], seen['result']
+    assert len(segments) == result.fit.segments
+    assert np.all(segments.travel >= 0.4)
+    every = ident.build_segments(seen['recordings'], result.segment_length)
+    assert np.count_nonzero(every.travel >= 0.01) > len(segments)   # 0.4 m left some out
+    assert plot.read_bytes()[:8] == b'\x89PNG\r\n\x1a\n'

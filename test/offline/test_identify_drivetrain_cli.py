@@ -68,6 +68,13 @@ def test_plot_format_matplotlib_cannot_write_is_bad_input(sim_bag, tmp_path, cap
     assert_one_line(err, r"Format 'xyz' is not supported \(supported formats: .*png")
 
 
+def test_plot_is_written_without_pyplot(sim_bag, tmp_path, capsys, no_pyplot):
+    plot = tmp_path / 'drive.png'
+    status, err = run([sim_bag, '-o', tmp_path / 'o.yaml', '--plot', plot], capsys)
+    assert status == 0, err
+    assert plot.read_bytes()[:8] == b'\x89PNG\r\n\x1a\n'
+
+
 def test_a_bug_in_the_core_surfaces_as_a_traceback(sim_bag, tmp_path, capsys, monkeypatch):
     def bug(*args, **kwargs):
         raise ValueError('bug')

@@ -95,72 +95,6 @@ def write_csv(path, the_map: IcrMap) -> None:
         writer.writerows(rows.tolist())
 
 
-def plot(path, spec: VehicleFile, the_map: IcrMap, icr: IcrParams) -> None:
-    """
-    Plot the map: tread ICRs seen from above, and their dependence on the speed pair.
-
-    Left: every turning pair's ICR_l and ICR_r in base_link, drawn as seen from above with
-    the vehicle's front up and its left on the left (like the paper's Figs. 6-7), over the
-    contact patches, the centre of mass and the averaged model. Right: the ICR coordinates
-    against the direction of the track-speed pair, coloured by its magnitude.
-    """
-    import matplotlib
-    matplotlib.use('Agg')
-    import matplotlib.pyplot as plt
-    from matplotlib.patches import Rectangle
-
-    veh = spec.robot.vehicle
-    valid = the_map.valid
-    fig, (top, side) = plt.subplots(1, 2, figsize=(13, 6), gridspec_kw={'width_ratios': [1, 1.3]})
-    half, length, width = 0.5 * veh.track_width, veh.contact_length, veh.contact_width
-    for y_c in (half, -half):
-        top.add_patch(Rectangle((y_c - 0.5 * width, -0.5 * length), width, length,
-                                facecolor='0.85', edgecolor='0.4'))
-    top.scatter(the_map.y_left[valid], the_map.x[valid], s=10, c='tab:blue', alpha=0.6,
-                label='ICR$_l$ (map)')
-    top.scatter(the_map.y_right[valid], the_map.x[valid], s=10, c='tab:red', alpha=0.6,
-                label='ICR$_r$ (map)')
-    top.plot([icr.y_left, icr.y_right], [icr.x, icr.x], 'k-', lw=1)
-    top.plot([icr.y_left, icr.y_right], [icr.x, icr.x], 'kD', ms=8,
-             label=f'averaged: chi {fixed(icr.chi)}, e {fixed(icr.eccentricity)}')
-    top.plot([veh.com_y], [veh.com_x], 'k+', ms=14, mew=2, label='centre of mass')
-    top.plot([half, -half], [0.0, 0.0], 'o', mfc='none', mec='0.3', ms=8,
-             label='ideal contact points')
-    top.set_aspect('equal')
-    top.invert_xaxis()
-    top.set_xlabel('y (m), left <- -> right')
-    top.set_ylabel('x (m), forward')
-    top.set_title(f'{spec.name} on {spec.terrain}: tread ICRs, top view')
-    top.grid(True, alpha=0.3)
-    top.legend(loc='lower center', fontsize=8, framealpha=0.9)
-
-    v_left, v_right = the_map.v_left[valid], the_map.v_right[valid]
-    phi = np.degrees(np.arctan2(v_right, v_left))
-    speed = np.hypot(v_left, v_right)
-    handles = []
-    for arr, marker, label in ((the_map.y_left, 'o', 'icr.y_left'),
-                               (the_map.y_right, 's', 'icr.y_right'), (the_map.x, '^', 'icr.x')):
-        points = side.scatter(phi, arr[valid], c=speed, cmap='viridis', marker=marker, s=14)
-        handles.append(side.scatter([], [], c='0.5', marker=marker, s=14, label=label))
-    for value in (icr.y_left, icr.y_right, icr.x):
-        side.axhline(value, color='k', lw=0.8, ls='--')
-    for angle, text in ((45, 'straight'), (-135, 'reverse'), (135, 'spin left'),
-                        (-45, 'spin right')):
-        side.axvline(angle, color='0.6', lw=0.8, ls=':')
-        side.annotate(text, (angle, 1.0), xycoords=('data', 'axes fraction'), ha='center',
-                      va='bottom', fontsize=8, color='0.4')
-    fig.colorbar(points, ax=side, label='|(V_l, V_r)| (m/s)')
-    side.set_xlabel('direction of the track-speed pair, atan2(V_r, V_l) (deg)')
-    side.set_ylabel('ICR coordinate (m); dashed: averaged model')
-    side.set_xlim(-180, 180)
-    side.set_xticks(range(-180, 181, 45))
-    side.grid(True, alpha=0.3)
-    side.legend(handles=handles, loc='center left', fontsize=8)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-
-
 def main(argv=None) -> int:
     """Run ``icr_map``; return the exit status."""
     args = build_parser().parse_args(argv)
@@ -192,7 +126,8 @@ def main(argv=None) -> int:
                 'dynamic model; valid as --params-file. Encoder scales are not modelled (1).'))
             print(f'averaged model written to {args.output}')
         if args.plot:
-            plot(args.plot, spec, the_map, icr)
+            from tracked_kinematics.offline.plots import plot_icr_map
+            plot_icr_map(args.plot, spec, the_map, icr)
             print(f'plot written to {args.plot}')
     except OSError as err:
         print(f'{PROG}: {err}', file=sys.stderr)

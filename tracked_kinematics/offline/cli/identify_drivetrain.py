@@ -20,7 +20,6 @@ import math
 from pathlib import Path
 import sys
 
-import numpy as np
 from tracked_kinematics.core.drivetrain import LOOP_KINDS
 from tracked_kinematics.core.errors import InvalidParameters
 from tracked_kinematics.core.identify import fit_drivetrain
@@ -143,43 +142,6 @@ def _print_table(result, recordings, out):
           f'simulations, {result.seconds:.2f} s', file=out)
 
 
-def _plot(path, result):
-    import matplotlib
-    matplotlib.use('Agg')
-    from matplotlib import pyplot as plt
-
-    segment = max(result.segments, key=lambda s: len(s.t))
-    simulated = result.simulate(segment)
-    # Show the 20 s with the most command activity.
-    n = len(segment.t)
-    width = min(n, int(round(20.0 / result.dt)))
-    activity = np.abs(np.diff(segment.commands, axis=0)).sum(axis=1)
-    window = np.convolve(activity, np.ones(width), mode='valid') if n > width else [0.0]
-    a = int(np.argmax(window))
-    span = slice(a, a + width)
-    fig, axes = plt.subplots(3, 1, figsize=(10, 9), constrained_layout=True)
-    for ax, j, side in ((axes[0], 0, 'left'), (axes[1], 1, 'right')):
-        t = segment.t[span]
-        ax.step(t, segment.commands[span, j], where='post', color='0.6', label='commanded')
-        ax.plot(t, segment.speeds[span, j], color='C0', label='measured')
-        ax.plot(t, simulated[span, j], color='C3', ls='--', label='model')
-        ax.set_ylabel(f'{side} track speed (m/s)')
-        ax.legend(loc='upper right')
-    axes[1].set_xlabel('time (s)')
-    delays, rms = result.delay_profile
-    axes[2].plot(delays, 1000 * rms, color='C0')
-    axes[2].axvline(result.parameters['delay'], color='C3', ls='--', label='fitted delay')
-    axes[2].set_xlabel('command delay (s)')
-    axes[2].set_ylabel('rms error (mm/s)')
-    axes[2].legend(loc='upper right')
-    fig.suptitle(f'{PROG}: {result.loop}, rms {1000 * result.rms:.1f} mm/s')
-    from tracked_kinematics.offline.plots import save
-    try:
-        save(fig, path, dpi=100)
-    finally:
-        plt.close(fig)
-
-
 def _run(args, out) -> int:
     base_values, radius, base = _base(args)
     encoders = encoder_source(args, radius)
@@ -214,7 +176,8 @@ def _run(args, out) -> int:
             'delay_profile': {'delay': result.delay_profile[0],
                               'rms': result.delay_profile[1]}})
     if args.plot:
-        _plot(args.plot, result)
+        from tracked_kinematics.offline.plots import plot_drivetrain
+        plot_drivetrain(args.plot, result)
     print(f'wrote {args.output}' + (f', {args.report}' if args.report else '')
           + (f', {args.plot}' if args.plot else ''), file=out)
     return 0

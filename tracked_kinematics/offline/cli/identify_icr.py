@@ -343,7 +343,10 @@ def _run(args, out) -> int:
         write_report(args.report, report)
     if args.plot and not args.spin_in_place:
         from tracked_kinematics.offline.plots import plot_identification
-        plot_identification(args.plot, recordings, result)
+        # The moving segments the fit used: those of --min-travel.
+        segments = ident.build_segments(recordings, result.segment_length)
+        plot_identification(args.plot, recordings, result,
+                            segments.select(segments.travel >= args.min_travel))
     print(f'wrote {args.output}' + (f', {args.report}' if args.report else '')
           + (f', {args.plot}' if args.plot and not args.spin_in_place else ''), file=out)
     return 0

@@ -30,7 +30,7 @@ from tracked_kinematics.core.integration import relative_pose
 from tracked_kinematics.core.kinematics import IcrParams
 from tracked_kinematics.core.models import MotionModel
 from tracked_kinematics.core.plan import (
-    CANONICAL, canonical, path_deviation, Plan, Planner, Reference)
+    CANONICAL, canonical, path_deviation, Plan, Planner)
 from tracked_kinematics.core.sim.manoeuvres import fink_stump_sweep
 from tracked_kinematics.core.sim.simulation import GroundTruth, Robot, simulate, TwistTable
 from tracked_kinematics.offline.bags import BagWriter
@@ -226,31 +226,6 @@ def write_bag(path, plan: Plan, icr: IcrParams, storage: str = 'sqlite3',
     return len(v_x)
 
 
-def plot(path, plan: Plan, driven, ref: Reference | None, title: str) -> None:
-    """Planned path against the path simulated with the dynamic model (PNG)."""
-    import matplotlib
-    matplotlib.use('Agg')
-    from matplotlib import pyplot as plt
-    fig, ax = plt.subplots(figsize=(6.4, 5.6))
-    if ref is not None:
-        ax.plot(ref.path[:, 0], ref.path[:, 1], color='tab:green', lw=4, alpha=0.5,
-                label='desired (ideal drive)')
-    ax.plot(plan.poses[:, 0], plan.poses[:, 1], 'r--', label=f'planned ({plan.model})')
-    ax.plot(driven[:, 0], driven[:, 1], 'k-', lw=1, label='simulated with dynamics')
-    gx, gy, gth = plan.goal
-    ax.plot(gx, gy, 'o', color='tab:blue', label='goal')
-    ax.arrow(gx, gy, 0.2 * math.cos(gth), 0.2 * math.sin(gth), width=0.01, color='tab:blue')
-    ax.set_aspect('equal', adjustable='datalim')
-    ax.set_xlabel('x (m)')
-    ax.set_ylabel('y (m)')
-    ax.set_title(title, fontsize=9)
-    ax.grid(True, alpha=0.3)
-    ax.legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-
-
 def print_plan(plan: Plan, icr: IcrParams, out=sys.stdout) -> None:
     """Print the setpoints at the knots, and the plan's summary line."""
     v_x, w = plan.twists(icr)
@@ -418,7 +393,8 @@ def main(argv=None) -> int:
                   f'cm and {math.degrees(yaw):.1f} deg from the goal')
             title = (f'{args.canonical or "goal"}: {plan.model} model, vehicle '
                      f'{vehicle.name}; simulated final error {pos * 100:.1f} cm')
-            plot(args.plot, plan, driven, ref, title)
+            from tracked_kinematics.offline.plots import plot_plan
+            plot_plan(args.plot, plan, driven, ref, title)
             print(f'plot  {args.plot}')
     except (OSError, WriterError) as err:
         print(f'{PROG}: cannot write: {err}', file=sys.stderr)

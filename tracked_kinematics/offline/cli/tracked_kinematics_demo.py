@@ -272,34 +272,6 @@ def write_csv(path: Path, results) -> None:
                             + [f'{v:.6g}' for v in r.errors('ideal') + r.errors('identified')])
 
 
-def plot_paths(path: Path, results, title: str) -> None:
-    """Draw each held-out path: truth, ideal and identified dead reckoning, from above."""
-    from matplotlib.figure import Figure
-    cols = 2 if len(results) in (2, 4) else min(3, len(results))
-    rows = -(-len(results) // cols)
-    fig = Figure(figsize=(5.0 * cols, 4.8 * rows), layout='constrained')
-    fig.suptitle(title)
-    for k, r in enumerate(results):
-        ax = fig.add_subplot(rows, cols, k + 1)
-        for label, poses, style in (
-                ('ground truth', r.truth, {'color': 'black', 'lw': 2.0}),
-                ('ideal diff drive', r.ideal, {'color': 'tab:red'}),
-                ('identified ICRs', r.identified, {'color': 'tab:blue', 'ls': '--'})):
-            ax.plot(poses[:, 0], poses[:, 1], label=label, **style)
-        ax.plot([0.0], [0.0], 'ko', ms=4)
-        pos_i, _, _ = r.errors('ideal')
-        pos_c, _, _ = r.errors('identified')
-        ax.set_title(f'{r.name}: {r.distance:.1f} m\nfinal error ideal {pos_i:.2f} m, '
-                     f'identified {pos_c:.3f} m', fontsize=9)
-        ax.set_aspect('equal', adjustable='datalim')
-        ax.set_xlabel('x (m)')
-        ax.set_ylabel('y (m)')
-        ax.grid(True, alpha=0.3)
-        if k == 0:
-            ax.legend(fontsize=8, loc='best')
-    fig.savefig(path, dpi=90)
-
-
 # Command line ----------------------------------------------------------------------------
 
 
@@ -408,8 +380,10 @@ def run(args, out) -> int:
     results = [heldout_path(k, args, overrides, table, identified, heldout)
                for k in range(args.paths)]
     write_csv(directory / 'heldout.csv', results)
-    plot_paths(directory / 'heldout.png', results,
-               f'{spec.name} on {terrain}: held-out paths, dead reckoning from the encoders')
+    from tracked_kinematics.offline.plots import plot_heldout_paths
+    plot_heldout_paths(directory / 'heldout.png', results,
+                       f'{spec.name} on {terrain}: held-out paths, dead reckoning from the '
+                       'encoders')
     _step(3, f'dead-reckoned {len(results)} held-out paths (new seeds, not used by the fit)',
           time.perf_counter() - t, out)
     print("   final errors against the true pose; ideal = diff_drive_controller's odometry, "

@@ -1,0 +1,45 @@
+"""offline.plots: every picture of the offline tools is drawn without pyplot's state."""
+
+from pathlib import Path
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+from tracked_kinematics.offline import plots
+from tracked_kinematics.offline.cli import icr_map, plan_trajectory
+from tracked_kinematics.offline.errors import UsageError
+
+PNG = b'\x89PNG\r\n\x1a\n'
+TERRAIN = Path(__file__).resolve().parents[2] / 'config' / 'auriga_alpha_hard_floor.yaml'
+
+
+def test_icr_map_plot(tmp_path, capsys, no_pyplot):
+    path = tmp_path / 'map.png'
+    assert icr_map.main(['packbot', '--n', '5', '--plot', str(path)]) == 0
+    assert path.read_bytes()[:8] == PNG
+
+
+def test_plan_trajectory_plot(tmp_path, capsys, no_pyplot):
+    path = tmp_path / 'plan.png'
+    assert plan_trajectory.main(['--params', str(TERRAIN), '--goal', '1.0', '0.3', '0.2',
+                                 '--plot', str(path)]) == 0, capsys.readouterr().err
+    assert path.read_bytes()[:8] == PNG
+
+
+def test_heldout_paths_plot(tmp_path, no_pyplot):
+    poses = np.column_stack([np.linspace(0, 2, 50), np.zeros(50), np.zeros(50)])
+    result = SimpleNamespace(name='path1_random', distance=2.0, truth=poses, ideal=poses + 0.1,
+                             identified=poses + 0.01, errors=lambda which: (0.1, 1.0, 5.0))
+    path = tmp_path / 'heldout.png'
+    plots.plot_heldout_paths(path, [result, result], 'held-out paths')
+    assert path.read_bytes()[:8] == PNG
+
+
+def test_a_format_matplotlib_cannot_write_is_a_usage_error(tmp_path):
+    fig = plots._figure()
+    with pytest.raises(UsageError, match=r"^Format 'xyz' is not supported \(supported "
+                                         r'formats: .*png'):
+        plots.save(fig, tmp_path / 'p.xyz', dpi=50)
+    assert not (tmp_path / 'p.xyz').exists()
+    plots.save(fig, tmp_path / 'p.svg', dpi=50)
+    assert (tmp_path / 'p.svg').read_text().lstrip().startswith('<?xml')
