@@ -6,6 +6,8 @@ pair of ``n`` equidistant track speeds in ``(-max_track_speed, max_track_speed)`
 et al. (2005) do in sec. 5.2 (Figs. 6-7), prints the spread of the tread ICRs and their
 average (the constant-ICR model, with chi and e, in ROS and in the paper's symbols), and
 optionally plots the map, writes it as CSV, and writes the averaged model as a terrain YAML.
+
+Documentation: docs/tools/icr_map.md; the model: docs/model.md.
 """
 
 from __future__ import annotations

@@ -10,6 +10,9 @@ the commands instead of the measured speeds.
 Exit status, as identify_icr: 0 success; 2 bad input (missing bag, topic or joint;
 unreadable bag; invalid option); 3 too little data, or commands that hardly change; 4 the fit
 failed (best delay at the search bound, no convergence).
+
+Documentation: docs/tools/identify_drivetrain.md; the ``drivetrain.*`` parameters:
+docs/parameters.md.
 """
 
 from __future__ import annotations

@@ -9,6 +9,9 @@ held-out time blocks, and writes a terrain parameter file for ``--params-file``.
 Exit status: 0 success; 2 bad input (missing bag, topic, joint or transform; unreadable
 bag; invalid option); 3 too little motion, turning or straight driving to identify the
 model; 4 the fit did not converge or gave an invalid model.
+
+Documentation: docs/tools/identify_icr.md; the models it fits: docs/model.md; the terrain
+file it writes: docs/parameters.md.
 """
 
 from __future__ import annotations

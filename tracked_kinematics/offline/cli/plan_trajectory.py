@@ -11,6 +11,8 @@ comparison of Fink & Stump Table VI on the simulated vehicle.
 
 Exit status: 0 planned; 1 no plan (goal out of reach, or missed by more than the tolerance:
 nothing is written); 2 bad input.
+
+Documentation: docs/tools/plan_trajectory.md.
 """
 
 from __future__ import annotations
@@ -138,7 +140,7 @@ def identify_on_sweep(robot: Robot, table: TwistTable, dt: float = 0.02, seed: i
     Drives the trapezoidal speed x curvature sweep of sec. IV-B on the dynamic simulator
     (ground truth at 10 Hz with 2 mm / 2 mrad noise), then fits the effective wheel-base,
     ICR (with scales) and 9-parameter general slip models by the least squares of
-    :func:`..core.identify.fit` on 1 s segments of the encoder travel.
+    :func:`tracked_kinematics.core.identify.fit` on 1 s segments of the encoder travel.
 
     Returns
     -------

@@ -11,6 +11,8 @@ terrain format (a valid ``--params-file``): the ground truth an identification s
 
 Python API for scripts and demos: :func:`simulate_bag` does it all in one call;
 :func:`write_run` records any :class:`~tracked_kinematics.core.sim.simulation.Run`.
+
+Documentation: docs/tools/simulate_bag.md.
 """
 
 from __future__ import annotations

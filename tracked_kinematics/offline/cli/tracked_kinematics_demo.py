@@ -5,8 +5,8 @@ Four steps, each the code path a user would run:
 
 1. simulate a tracked robot driving on a terrain (the stationary track-soil model of
    Martinez et al. 2005, sec. 4.1, a drive train, quantised and noisy encoders, a noisy
-   ground truth) and record a calibration bag (:func:`.simulate.simulate_bag`);
-2. run ``identify_icr`` on that bag (:func:`.identify_cli.main`, the console script's own
+   ground truth) and record a calibration bag (:func:`.simulate_bag.simulate_bag`);
+2. run ``identify_icr`` on that bag (:func:`.identify_icr.main`, the console script's own
    entry point), which writes the terrain YAML, a JSON report and a plot;
 3. simulate held-out paths (other seeds, not used by the fit), record them as bags, read
    their ``/joint_states`` back and dead-reckon them twice: as ``diff_drive_controller``
@@ -14,6 +14,8 @@ Four steps, each the code path a user would run:
    and through the identified ICRs loaded back from the written YAML (Martinez eqs. 7-9,
    20-21); compare the final poses with the simulator's true poses;
 4. say where every output is and how to use the YAML with ``odometry_node``.
+
+Documentation: docs/tools/tracked_kinematics_demo.md; the model: docs/model.md.
 """
 
 from __future__ import annotations
@@ -118,9 +120,9 @@ def dead_reckon(icr: IcrParams, left, right) -> np.ndarray:
 
     Vectorised over the whole log: the scales correct the travel (Martinez eqs. 20-21), the
     ICRs map it to body increments (eqs. 7-9) and the pose follows exact arcs
-    (:func:`.integration.integrate`), the same steps :class:`.odometry.Odometry` takes one
-    message at a time. ``IcrParams.ideal(track_width)`` gives ``diff_drive_controller``'s
-    odometry.
+    (:func:`tracked_kinematics.core.integration.integrate`), the same steps
+    :class:`tracked_kinematics.core.odometry.Odometry` takes one message at a time.
+    ``IcrParams.ideal(track_width)`` gives ``diff_drive_controller``'s odometry.
 
     Parameters
     ----------
