@@ -13,7 +13,7 @@ import numpy as np
 from timing import best_of
 from tracked_kinematics.core.plan import CANONICAL, canonical, Planner
 from tracked_kinematics.core.sim.simulation import TwistTable
-from tracked_kinematics.offline.cli.plan_trajectory import compare, identify_on_sweep, limits_from
+from tracked_kinematics.offline.planning import compare, identify_on_sweep, limits_from
 from tracked_kinematics.offline.vehicle_file import load_vehicle
 
 

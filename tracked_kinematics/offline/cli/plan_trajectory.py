@@ -18,7 +18,6 @@ Documentation: docs/tools/plan_trajectory.md.
 from __future__ import annotations
 
 import argparse
-import csv
 import math
 import os
 from pathlib import Path
@@ -26,206 +25,21 @@ import sys
 
 import numpy as np
 from rosbags.rosbag2 import WriterError
-from tracked_kinematics.core import identify as ident
-from tracked_kinematics.core.command import CommandLimits
-from tracked_kinematics.core.integration import relative_pose
 from tracked_kinematics.core.kinematics import IcrParams
-from tracked_kinematics.core.models import MotionModel
-from tracked_kinematics.core.plan import (
-    CANONICAL, canonical, path_deviation, Plan, Planner)
-from tracked_kinematics.core.sim.manoeuvres import fink_stump_sweep
-from tracked_kinematics.core.sim.simulation import GroundTruth, Robot, simulate, TwistTable
-from tracked_kinematics.offline.bags import BagWriter
+from tracked_kinematics.core.plan import CANONICAL, canonical, Plan, Planner
+from tracked_kinematics.core.sim.simulation import TwistTable
 from tracked_kinematics.offline.cli.common import positive
 from tracked_kinematics.offline.errors import UsageError
+from tracked_kinematics.offline.planning import (
+    compare, execute, final_error, identify_on_sweep, limits_from, model_from_terrain, MODELS,
+    write_bag, write_csv)
 from tracked_kinematics.offline.vehicle_file import load_vehicle
-from tracked_kinematics.params import icr_from_values, LIMIT_FIELDS, read_params_file
+from tracked_kinematics.params import icr_from_values, read_params_file
 
 PROG = 'plan_trajectory'
-MODELS = ('ideal', 'effective', 'icr', 'general')
-_MODEL_NAMES = {'ideal': 'ideal', 'effective': 'effective_wheel_base', 'icr': 'icr_scales',
-                'general': 'general_slip'}
-# Models --------------------------------------------------------------------------------
 
 
-def model_from_terrain(name: str, icr: IcrParams, values=None) -> tuple[MotionModel, np.ndarray]:
-    """
-    Build the planning model of a terrain file.
-
-    ``ideal``: its track width; ``effective``: ``alpha = chi`` of its ICRs (the effective
-    wheel base equals the symmetric ICR model with that steering efficiency); ``icr``: its
-    ICRs and scales; ``general``: ``identification.parameters.alpha1..alpha9``, which
-    ``identify_icr --model general_slip`` writes.
-
-    Raises
-    ------
-    UsageError
-        For ``general`` without those parameters in the file.
-
-    """
-    model = ident.build_model(_MODEL_NAMES[name], icr.track_width)
-    if name == 'ideal':
-        return model, model.initial()
-    if name == 'effective':
-        return model, np.array([icr.chi])
-    if name == 'icr':
-        return model, model.from_icr(icr)
-    keys = [f'identification.parameters.alpha{i}' for i in range(1, 10)]
-    values = values or {}
-    missing = [k for k in keys if k not in values]
-    if missing:
-        raise UsageError('--model general needs identification.parameters.alpha1..alpha9 in '
-                         'the terrain file (identify_icr --model general_slip writes them)')
-    try:
-        p = np.array([float(values[k]) for k in keys])
-    except (TypeError, ValueError):
-        raise UsageError('identification.parameters.alpha1..alpha9 must be numbers') from None
-    if not np.all(np.isfinite(p)):
-        raise UsageError('identification.parameters.alpha1..alpha9 must be finite')
-    return model, p
-
-
-def limits_from(values, robot: Robot, max_track_speed=None, max_track_accel=None):
-    """Return the translator limits: command line, else terrain file, else drive train."""
-    kwargs = {}
-    for param, field_name in LIMIT_FIELDS.items():
-        if param in values:
-            try:
-                value = float(values[param])
-            except (TypeError, ValueError):
-                raise UsageError(f'{param} must be a number, got {values[param]!r}') from None
-            kwargs[field_name] = math.inf if value == 0.0 else value
-    if max_track_speed is not None:
-        kwargs['max_track_speed'] = max_track_speed
-    if max_track_accel is not None:
-        kwargs['max_track_accel'] = max_track_accel
-    kwargs.setdefault('max_track_speed', robot.drivetrain.max_speed)
-    kwargs.setdefault('max_track_accel', robot.drivetrain.max_accel)
-    try:
-        return CommandLimits(**kwargs)
-    except ValueError as err:
-        raise UsageError(str(err).replace('max_track_', '--max-track-')) from None
-
-
-# Execution on the dynamic simulator ----------------------------------------------------
-
-
-def execute(robot: Robot, plan: Plan, table: TwistTable, start=(0.0, 0.0, 0.0)) -> np.ndarray:
-    """
-    Poses of the truth-like simulator driven by the plan's commands, settling included.
-
-    Returns
-    -------
-    ndarray, shape like ``plan.poses``
-
-    """
-    settle = len(plan.poses) - len(plan.commands)
-    commands = np.vstack([plan.commands, np.zeros((settle, 2))])
-    return simulate(robot, commands, plan.dt, table=table, pose0=tuple(start)).pose
-
-
-def final_error(poses, goal) -> tuple[float, float]:
-    """Return the final position (m) and ``|heading|`` (rad) error of a path to a goal."""
-    ex, ey, eth = relative_pose(*goal, *poses[-1])
-    return math.hypot(ex, ey), abs(float(eth))
-
-
-# Table VI ------------------------------------------------------------------------------
-
-
-def identify_on_sweep(robot: Robot, table: TwistTable, dt: float = 0.02, seed: int = 0):
-    """
-    Planning models of the simulated vehicle, fitted on its Fink & Stump sweep.
-
-    Drives the trapezoidal speed x curvature sweep of sec. IV-B on the dynamic simulator
-    (ground truth at 10 Hz with 2 mm / 2 mrad noise), then fits the effective wheel-base,
-    ICR (with scales) and 9-parameter general slip models by the least squares of
-    :func:`tracked_kinematics.core.identify.fit` on 1 s segments of the encoder travel.
-
-    Returns
-    -------
-    dict
-        ``{'ideal' | 'effective' | 'icr' | 'general': (model, p)}``.
-
-    """
-    b = robot.vehicle.track_width
-    commands = fink_stump_sweep(dt, b, robot.drivetrain.max_speed)
-    run = simulate(robot, commands, dt, table=table,
-                   ground_truth=GroundTruth(10.0, 0.002, 0.002),
-                   rng=np.random.default_rng(seed))
-    radius = robot.encoders.sprocket_radius
-    rec = ident.Recording(run.t, run.joint_position[:, 0] * radius,
-                          run.joint_position[:, 1] * radius, run.gt_t, run.gt_pose[:, 0],
-                          run.gt_pose[:, 1], run.gt_pose[:, 2], name='sweep')
-    segments = ident.build_segments([rec], 1.0)
-    segments = segments.select(segments.travel >= 0.01)
-    models = {'ideal': (ident.build_model('ideal', b), np.zeros(0))}
-    for short in ('effective', 'icr', 'general'):
-        model = ident.build_model(_MODEL_NAMES[short], b)
-        models[short] = (model, ident.fit(model, segments, heading_weight=None, check=False).p)
-    return models
-
-
-def compare(robot: Robot, table: TwistTable, models, limits: CommandLimits, speed: float,
-            dt: float = 0.02, names=CANONICAL, out=sys.stdout):
-    """
-    Plan every canonical trajectory with every model, execute it, tabulate (Table VI).
-
-    Returns
-    -------
-    dict
-        ``{model: {trajectory: (planned position error, executed position error,
-        executed heading error, executed max path deviation, plan seconds)}}``.
-
-    """
-    results = {}
-    for short, (model, p) in models.items():
-        planner = Planner(model, p, robot.drivetrain, limits, dt=dt)
-        results[short] = {}
-        for name in names:
-            ref = canonical(name, dt=dt, speed=speed)
-            plan = planner.follow(ref)
-            driven = execute(robot, plan, table)
-            pos, yaw = final_error(driven, ref.goal)
-            dev = float(np.max(path_deviation(driven, ref.path)))
-            results[short][name] = (plan.position_error, pos, yaw, dev, plan.seconds)
-    print(f'{"model":<10}' + ''.join(f'{n:>12}' for n in names)
-          + f'{"mean":>9}{"max dev":>9}{"mean dev":>9}', file=out)
-    print(f'{"":<10}' + ''.join(f'{"cm / deg":>12}' for _ in names)
-          + f'{"cm":>9}{"m":>9}{"m":>9}', file=out)
-    for short, row in results.items():
-        cells = ''.join(f'{r[1] * 100:>6.1f} /{math.degrees(r[2]):>4.0f}' for r in row.values())
-        mean = np.mean([r[1] for r in row.values()]) * 100
-        devs = [r[3] for r in row.values()]
-        print(f'{short:<10}{cells}{mean:>9.1f}{max(devs):>9.2f}{np.mean(devs):>9.2f}',
-              file=out)
-    return results
-
-
-# Outputs -------------------------------------------------------------------------------
-
-
-def write_csv(path, plan: Plan, icr: IcrParams) -> None:
-    """Write ``t, left, right, v_x, w, x, y, yaw`` per command (setpoints and planned pose)."""
-    v_x, w = plan.twists(icr)
-    with open(path, 'w', newline='', encoding='utf-8') as stream:
-        writer = csv.writer(stream)
-        writer.writerow(['t', 'left', 'right', 'v_x', 'w', 'x', 'y', 'yaw'])
-        for k, t in enumerate(plan.t):
-            x, y, yaw = plan.poses[k]
-            writer.writerow([f'{t:.4f}', f'{plan.commands[k, 0]:.6f}',
-                             f'{plan.commands[k, 1]:.6f}', f'{v_x[k]:.6f}', f'{w[k]:.6f}',
-                             f'{x:.6f}', f'{y:.6f}', f'{yaw:.6f}'])
-
-
-def write_bag(path, plan: Plan, icr: IcrParams, storage: str = 'sqlite3',
-              topic: str = '/cmd_vel') -> int:
-    """Write the plan as geometry_msgs/Twist on ``topic``, one per command; return the count."""
-    v_x, w = plan.twists(icr)
-    with BagWriter(path, storage) as bag:
-        for k, t in enumerate(plan.t):
-            bag.write(topic, int(round(t * 1e9)), bag.twist(v_x[k], w[k]))
-    return len(v_x)
+# Output --------------------------------------------------------------------------------
 
 
 def print_plan(plan: Plan, icr: IcrParams, out=sys.stdout) -> None:
