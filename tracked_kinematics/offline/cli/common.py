@@ -13,7 +13,8 @@ from tracked_kinematics.core.errors import (
     ExcitationError, IdentificationError, TrackedKinematicsError)
 from tracked_kinematics.offline.bags import EncoderSource
 from tracked_kinematics.offline.errors import UsageError
-from tracked_kinematics.params import ENCODER_INPUT_DEFAULTS, INPUT_MODES, SIDE_TOPICS
+from tracked_kinematics.params import (
+    ENCODER_INPUT_DEFAULTS, INPUT_MODES, SIDE_TOPICS, TERRAIN_DEFAULTS)
 
 EXIT_INPUT, EXIT_EXCITATION, EXIT_FIT = 2, 3, 4
 """Exit statuses of the identification tools: bad input, too little excitation, failed fit."""
@@ -61,6 +62,25 @@ class HelpFormatter(argparse.RawDescriptionHelpFormatter,
         if action.default in (None, False, '') or action.required:
             return action.help
         return super()._get_help_string(action)
+
+
+def add_bags_argument(parser) -> None:
+    """Add the positional bags of an identification tool."""
+    parser.add_argument('bags', nargs='+', metavar='BAG',
+                        help='rosbag2 directories (sqlite3, mcap) or ROS 1 .bag files')
+
+
+def add_output_argument(parser) -> None:
+    """Add ``--output``, the terrain file an identification tool writes."""
+    parser.add_argument('--output', '-o', required=True, metavar='OUT.yaml',
+                        help='terrain parameter file to write (ready for --params-file)')
+
+
+def add_sprocket_radius_argument(group) -> None:
+    """Add ``--sprocket-radius``, defaulting to the base terrain file's."""
+    group.add_argument('--sprocket-radius', type=positive, default=None, metavar='R',
+                       help='m; default from --params, else '
+                       f'{TERRAIN_DEFAULTS["sprocket_radius"]}')
 
 
 def add_encoder_arguments(group) -> None:

@@ -28,8 +28,8 @@ from tracked_kinematics.core.errors import InvalidParameters
 from tracked_kinematics.core.identify import fit_drivetrain
 from tracked_kinematics.offline.bags import read_drive_bag, SETPOINT_TOPICS
 from tracked_kinematics.offline.cli.common import (
-    add_encoder_arguments, encoder_source, HelpFormatter, names, non_negative, positive,
-    run_main, write_report)
+    add_bags_argument, add_encoder_arguments, add_output_argument, add_sprocket_radius_argument,
+    encoder_source, HelpFormatter, names, non_negative, positive, run_main, write_report)
 from tracked_kinematics.offline.errors import UsageError
 from tracked_kinematics.offline.terrain_file import terrain_values, write_terrain_file
 from tracked_kinematics.params import (
@@ -60,18 +60,14 @@ def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog=PROG, description=__doc__.split('\n\n')[1], epilog=EPILOG,
         formatter_class=HelpFormatter)
-    parser.add_argument('bags', nargs='+', metavar='BAG',
-                        help='rosbag2 directories (sqlite3, mcap) or ROS 1 .bag files')
-    parser.add_argument('--output', '-o', required=True, metavar='OUT.yaml',
-                        help='terrain parameter file to write (ready for --params-file)')
+    add_bags_argument(parser)
+    add_output_argument(parser)
     parser.add_argument('--setpoint-topics', type=_topic_pair, default=','.join(SETPOINT_TOPICS),
                         metavar='LEFT,RIGHT',
                         help='std_msgs/Float64 commanded track speeds, m/s')
     enc = parser.add_argument_group('encoders (measured speeds)')
     add_encoder_arguments(enc)
-    enc.add_argument('--sprocket-radius', type=positive, default=None, metavar='R',
-                     help='m; default from --params, else '
-                     f'{TERRAIN_DEFAULTS["sprocket_radius"]}')
+    add_sprocket_radius_argument(enc)
     fit = parser.add_argument_group('fit')
     fit.add_argument('--params', default=None, metavar='BASE.yaml',
                      help='terrain file to start from: sprocket radius, starting point, fixed '

@@ -27,8 +27,8 @@ from tracked_kinematics.core.errors import InvalidParameters
 from tracked_kinematics.core.kinematics import IcrParams
 from tracked_kinematics.offline.bags import GroundTruthSource, read_bags
 from tracked_kinematics.offline.cli.common import (
-    add_encoder_arguments, encoder_source, HelpFormatter, names, non_negative, positive,
-    run_main, write_report)
+    add_bags_argument, add_encoder_arguments, add_output_argument, add_sprocket_radius_argument,
+    encoder_source, HelpFormatter, names, non_negative, positive, run_main, write_report)
 from tracked_kinematics.offline.errors import UsageError
 from tracked_kinematics.offline.terrain_file import terrain_values, write_terrain_file
 from tracked_kinematics.params import (
@@ -56,19 +56,15 @@ def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog=PROG, description=__doc__.split('\n\n')[1], epilog=EPILOG,
         formatter_class=HelpFormatter)
-    parser.add_argument('bags', nargs='+', metavar='BAG',
-                        help='rosbag2 directories (sqlite3, mcap) or ROS 1 .bag files')
+    add_bags_argument(parser)
     parser.add_argument('--ground-truth-topic', required=True, metavar='TOPIC',
                         help='ground-truth pose of the vehicle: Odometry, PoseStamped, '
                         'PoseWithCovarianceStamped or TFMessage')
-    parser.add_argument('--output', '-o', required=True, metavar='OUT.yaml',
-                        help='terrain parameter file to write (ready for --params-file)')
+    add_output_argument(parser)
     enc = parser.add_argument_group('encoders')
     add_encoder_arguments(enc)
     veh = parser.add_argument_group('vehicle')
-    veh.add_argument('--sprocket-radius', type=positive, default=None, metavar='R',
-                     help='m; default from --params, else '
-                     f'{TERRAIN_DEFAULTS["sprocket_radius"]}')
+    add_sprocket_radius_argument(veh)
     veh.add_argument('--track-width', type=positive, default=None, metavar='L',
                      help=f'm; default from --params, else {TERRAIN_DEFAULTS["track_width"]}')
     veh.add_argument('--params', default=None, metavar='BASE.yaml',
