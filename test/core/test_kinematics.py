@@ -17,7 +17,7 @@ AURIGA_GA = IcrParams.from_paper(-0.353, 0.425, 0.032, track_width=0.42,
 
 
 def test_auriga_ga_maps_to_interface_example():
-    # ../shared/INTERFACE.md: icr.y_left 0.353, icr.y_right -0.425, icr.x 0.032.
+    # docs/model.md: icr.y_left 0.353, icr.y_right -0.425, icr.x 0.032.
     assert AURIGA_GA.y_left == pytest.approx(0.353)
     assert AURIGA_GA.y_right == pytest.approx(-0.425)
     assert AURIGA_GA.x == pytest.approx(0.032)

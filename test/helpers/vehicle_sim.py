@@ -10,7 +10,7 @@ import numpy as np
 
 from tracked_kinematics.core.identify import Recording
 
-# Auriga-alpha on hard floor, Martinez sec. 5.3 and 6, in ROS axes (INTERFACE.md).
+# Auriga-alpha on hard floor, Martinez sec. 5.3 and 6, in ROS axes (docs/model.md).
 B = 0.42
 AURIGA = (0.353, -0.425, 0.032, 1.0072, 1.0275)
 
