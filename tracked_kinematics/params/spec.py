@@ -14,6 +14,7 @@ from __future__ import annotations
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 import math
+import re
 from typing import Any
 
 
@@ -66,6 +67,77 @@ def one_of(choices) -> Callable[[Any], str | None]:
     return check
 
 
+def in_range(value, low: float | None, high: float | None, unit: str = '') -> str | None:
+    """
+    Check: a number within ``[low, high]`` (either bound may be None).
+
+    Not a number, and NaN, fail too; the message gives the range with its unit.
+    """
+    problem = finite(value) if not _is_inf(value) else None
+    if problem:
+        return problem
+    lo = -math.inf if low is None else low
+    hi = math.inf if high is None else high
+    if lo <= value <= hi:
+        return None
+    unit = f' {unit}' if unit else ''
+    if low is None:
+        return f'must be <= {hi:g}{unit}, got {value!r}'
+    if high is None:
+        return f'must be >= {lo:g}{unit}, got {value!r}'
+    return f'must be in [{lo:g}, {hi:g}]{unit}, got {value!r}'
+
+
+def _is_inf(value) -> bool:
+    return isinstance(value, float) and math.isinf(value)
+
+
+_NAME_TOKEN = re.compile(r'[A-Za-z_][A-Za-z0-9_]*\Z')
+
+
+def ros_name(value) -> str | None:
+    """
+    Check: a valid ROS 2 topic or service name (relative, absolute or private ``~/``).
+
+    The rules of rcl's name validation: tokens of letters, digits and underscores that do
+    not start with a digit, separated by single slashes, no double underscore, no trailing
+    slash.
+    """
+    if not isinstance(value, str) or not value:
+        return f'must be a non-empty ROS name, got {value!r}'
+    if value == '~':
+        return None
+    body = value[2:] if value.startswith('~/') else value[1:] if value[0] == '/' else value
+    if '__' not in body and all(_NAME_TOKEN.match(token) for token in body.split('/')):
+        return None
+    return (f'must be a valid ROS name (letters, digits, _ and /, no token starting with a '
+            f'digit, no "__", no trailing /), got {value!r}')
+
+
+def node_name(value) -> str | None:
+    """Check: a valid ROS 2 node name, optionally with its namespace (``/ns/node``)."""
+    problem = ros_name(value)
+    if problem or value.startswith('~'):
+        return problem or f'must be a node name, not a private name, got {value!r}'
+    return None
+
+
+def frame_id(value) -> str | None:
+    """
+    Check: a usable tf2 frame id.
+
+    Non-empty, printable, no whitespace, no leading ``/`` (tf2 rejects it) and at most 255
+    characters.
+    """
+    if not isinstance(value, str) or not value:
+        return f'must be a non-empty frame id, got {value!r}'
+    if value.startswith('/'):
+        return f'must not start with "/" (tf2 frame ids are relative), got {value!r}'
+    if len(value) > 255 or not value.isprintable() or any(c.isspace() for c in value):
+        return f'must be printable, without spaces, at most 255 characters, got {value!r}'
+    return None
+
+
 @dataclass(frozen=True)
 class ParamSpec:
     """
@@ -85,6 +157,11 @@ class ParamSpec:
         ``check(value) -> message or None``; the message says what is wrong.
     read_only : bool
         Fixed after start (topics, modes).
+    low, high : float, optional
+        Physically meaningful range of a number, inclusive; published as the parameter's
+        ``FloatingPointRange`` / ``IntegerRange`` (``ros2 param describe`` shows it) and
+        checked after ``check``. A value outside is refused at start and at runtime: a rate
+        of 1e-10 Hz or a radius of 5e-324 m is a number, not a vehicle.
 
     """
 
@@ -94,13 +171,20 @@ class ParamSpec:
     unit: str = ''
     check: Callable[[Any], str | None] | None = None
     read_only: bool = False
+    low: float | None = None
+    high: float | None = None
 
     def validate(self, value) -> str | None:
         """Return an error message naming the parameter, or None when ``value`` is valid."""
-        if self.check is None:
-            return None
-        problem = self.check(value)
+        problem = None if self.check is None else self.check(value)
+        if problem is None and self.has_range:
+            problem = in_range(value, self.low, self.high, self.unit)
         return None if problem is None else f'{self.name} {problem}'
+
+    @property
+    def has_range(self) -> bool:
+        """Whether the spec bounds its (numeric) value."""
+        return self.low is not None or self.high is not None
 
     @property
     def full_description(self) -> str:

@@ -212,4 +212,4 @@ class CmdVelTranslator(Node):
 
 def main(args=None):
     """Run the node (console script ``cmd_vel_translator``)."""
-    raise SystemExit(run(CmdVelTranslator, NODE_NAME, args))
+    raise SystemExit(run(CmdVelTranslator, NODE_NAME, args, TRANSLATOR_PARAMS, __doc__))

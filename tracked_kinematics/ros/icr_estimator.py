@@ -440,4 +440,4 @@ class IcrEstimatorNode(Node):
 
 def main(args=None):
     """Run icr_estimator (console script ``icr_estimator``)."""
-    sys.exit(run(IcrEstimatorNode, NODE_NAME, args))
+    sys.exit(run(IcrEstimatorNode, NODE_NAME, args, PARAMS, __doc__))

@@ -227,4 +227,4 @@ def _long_lived_node() -> OdometryNode:
 
 def main(args=None):
     """Run odometry_node (console script ``odometry_node``)."""
-    sys.exit(run(_long_lived_node, NODE_NAME, args))
+    sys.exit(run(_long_lived_node, NODE_NAME, args, PARAMS, __doc__))

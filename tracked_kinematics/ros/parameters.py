@@ -9,9 +9,11 @@ cross-parameter validator, is refused with the reason and the old values stay in
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Mapping
+import math
 from typing import Any
 
-from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
+from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescriptor,
+                                SetParametersResult)
 from rclpy.parameter import Parameter
 from tracked_kinematics.params import ParamSpec
 
@@ -42,6 +44,30 @@ def _type_matches(spec: ParamSpec, value) -> bool:
     if isinstance(default, list):
         return isinstance(value, (list, tuple)) and all(isinstance(v, str) for v in value)
     return True
+
+
+def describe(spec: ParamSpec) -> ParameterDescriptor:
+    """
+    Build the descriptor of a parameter: its text, read-only flag and range.
+
+    A numeric spec with ``low``/``high`` gets a ``FloatingPointRange`` (doubles) or an
+    ``IntegerRange`` (integers), so ``ros2 param describe`` shows the range and rclpy itself
+    refuses a value outside it; doubles accept integers (``dynamic_typing``), which the
+    table's own check then bounds.
+    """
+    descriptor = ParameterDescriptor(
+        description=spec.full_description, read_only=spec.read_only,
+        dynamic_typing=isinstance(spec.default, float))
+    if spec.has_range and isinstance(spec.default, float):
+        descriptor.floating_point_range = [FloatingPointRange(
+            from_value=-math.inf if spec.low is None else float(spec.low),
+            to_value=math.inf if spec.high is None else float(spec.high), step=0.0)]
+    elif (spec.has_range and isinstance(spec.default, int)
+          and not isinstance(spec.default, bool)):
+        descriptor.integer_range = [IntegerRange(
+            from_value=-2**63 if spec.low is None else int(math.ceil(spec.low)),
+            to_value=2**63 - 1 if spec.high is None else int(math.floor(spec.high)), step=0)]
+    return descriptor
 
 
 class ParameterTable:
@@ -78,9 +104,7 @@ class ParameterTable:
         values = {}
         problems = []
         for spec in self.specs.values():
-            descriptor = ParameterDescriptor(
-                description=spec.full_description, read_only=spec.read_only,
-                dynamic_typing=isinstance(spec.default, float))
+            descriptor = describe(spec)
             default = spec.default
             if isinstance(default, list) and not default:
                 default = Parameter.Type.STRING_ARRAY

@@ -1,0 +1,142 @@
+"""ros/main.run: --help, one FATAL line and exit 2 for any start-up failure, typo warnings."""
+
+import signal
+import time
+
+from helpers.ros_helpers import ConsoleScript
+import pytest
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from tracked_kinematics.params import ParamSpec, positive
+from tracked_kinematics.ros.main import params_file_keys, run, StartupError, unknown_parameters
+from tracked_kinematics.ros.parameters import ParameterTable
+
+SPECS = (ParamSpec('rate', 50.0, 'Publish rate', 'Hz', positive, low=0.1, high=1000.0),
+         ParamSpec('count', 3, 'A count', low=1, high=10),
+         ParamSpec('track_width', 0.42, 'Track width', 'm', positive))
+
+
+def never_called():
+    raise AssertionError('the node must not be built')
+
+
+def fatal_lines(capfd):
+    err = capfd.readouterr().err
+    lines = [line for line in err.splitlines() if line.strip()]
+    assert len(lines) == 1 and '[FATAL]' in lines[0], err
+    return lines[0]
+
+
+@pytest.mark.parametrize('content, message', [
+    ('a: [\n', 'is not valid YAML'),
+    ('- 1\n- 2\n', 'is not a mapping'),
+    ('/**:\n  rate: 1\n', 'has no "ros__parameters:" section'),
+    (b'\xff\xfe\x00', 'is not valid YAML'),
+])
+def test_broken_params_file_is_one_fatal_line(tmp_path, capfd, content, message):
+    path = tmp_path / 'p.yaml'
+    path.write_bytes(content if isinstance(content, bytes) else content.encode())
+    assert run(never_called, 'probe', ['probe', '--ros-args', '--params-file', str(path)]) == 2
+    assert message in fatal_lines(capfd)
+
+
+@pytest.mark.parametrize('where, message', [('missing.yaml', 'does not exist'),
+                                            ('.', 'is not a regular file')])
+def test_missing_params_file_or_directory(tmp_path, capfd, where, message):
+    path = tmp_path / where
+    assert run(never_called, 'probe', ['probe', '--ros-args', '--params-file', str(path)]) == 2
+    assert message in fatal_lines(capfd)
+
+
+def test_help_prints_usage_and_parameters(capsys):
+    assert run(never_called, 'probe', ['probe', '--help'], SPECS, 'Probe: does things.') == 0
+    out = capsys.readouterr().out
+    assert out.startswith('usage: ros2 run tracked_kinematics probe')
+    assert 'rate (default 50.0): Publish rate [Hz]' in out and 'docs/nodes/probe.md' in out
+
+
+def test_construction_failure_is_one_fatal_line(capfd):
+    def factory():
+        raise RuntimeError('cannot open the device\n  really')
+    assert run(factory, 'probe', ['probe']) == 2
+    assert 'cannot start: RuntimeError: cannot open the device really' in fatal_lines(capfd)
+
+
+def test_parameter_argument_without_assignment(capfd):
+    assert run(never_called, 'probe', ['probe', '--ros-args', '-p', 'no_assignment']) == 2
+    assert "-p needs NAME:=VALUE, got 'no_assignment'" in fatal_lines(capfd)
+
+
+def test_rcl_argument_error_is_a_fatal_line(capfd):
+    # rcl logs its own ERROR line before refusing; ours is the FATAL one with the reason.
+    assert run(never_called, 'probe', ['probe', '--ros-args', '-r', 'broken']) == 2
+    assert '[FATAL]' in capfd.readouterr().err
+
+
+def test_params_file_keys_of_this_node(tmp_path):
+    path = tmp_path / 'p.yaml'
+    path.write_text('/**:\n  ros__parameters:\n    icr: {y_left: 0.3}\n'
+                    'probe:\n  ros__parameters:\n    rate: 5.0\n'
+                    'other:\n  ros__parameters:\n    nope: 1\n')
+    assert params_file_keys(str(path), 'probe') == ['icr.y_left', 'rate']
+    with pytest.raises(StartupError):
+        params_file_keys(str(tmp_path / 'none.yaml'), 'probe')
+
+
+def test_unknown_parameters_name_the_closest():
+    messages = unknown_parameters(['track_widht', 'rate', 'use_sim_time', 'zzz'], SPECS)
+    assert messages == ["unknown parameter 'track_widht' ignored (did you mean "
+                        "'track_width'?)", "unknown parameter 'zzz' ignored"]
+
+
+def test_ranges_are_descriptors_and_enforced(ros_context):
+    node = Node('range_test', context=ros_context)
+    table = ParameterTable(node, SPECS)
+    desc = node.describe_parameter('rate')
+    assert desc.floating_point_range[0].from_value == 0.1
+    assert desc.floating_point_range[0].to_value == 1000.0
+    assert node.describe_parameter('count').integer_range[0].to_value == 10
+    for value in (1e-10, 5e-324, 1e6):
+        assert not node.set_parameters([Parameter('rate', value=value)])[0].successful
+    assert not node.set_parameters([Parameter('rate', value=0)])[0].successful  # int path
+    assert not node.set_parameters([Parameter('count', value=11)])[0].successful
+    assert table['rate'] == 50.0 and table['count'] == 3
+    assert node.set_parameters([Parameter('rate', value=200.0)])[0].successful
+    assert table['rate'] == 200.0
+    node.destroy_node()
+
+
+@pytest.mark.ros
+@pytest.mark.parametrize('name', ['odometry_node', 'cmd_vel_translator', 'icr_estimator'])
+def test_node_help_does_not_start_ros(tmp_path, name):
+    with ConsoleScript(name, '--help', tmp_path=tmp_path) as script:
+        assert script.wait(30) == 0
+    assert script.output.startswith(f'usage: ros2 run tracked_kinematics {name}')
+
+
+@pytest.mark.ros
+def test_typo_in_params_file_is_named(tmp_path):
+    params = tmp_path / 'p.yaml'
+    params.write_text('/**:\n  ros__parameters:\n    track_width: 0.42\n'
+                      '    sprocket_radius: 0.1\n    track_widht: 0.5\n')
+    with ConsoleScript('odometry_node', '--ros-args', '--params-file', params,
+                       tmp_path=tmp_path) as script:
+        deadline = time.monotonic() + 30
+        while 'track_widht' not in script.output and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert script.stop() == 0
+    assert "unknown parameter 'track_widht' ignored (did you mean 'track_width'?)" \
+        in script.output
+
+
+@pytest.mark.ros
+@pytest.mark.parametrize('sig', [signal.SIGINT, signal.SIGTERM])
+def test_signal_is_a_clean_exit(tmp_path, sig):
+    with ConsoleScript('odometry_node', '--ros-args', '-p', 'track_width:=0.42',
+                       tmp_path=tmp_path) as script:
+        deadline = time.monotonic() + 30
+        while 'ICR model' not in script.output and time.monotonic() < deadline:
+            time.sleep(0.05)
+        script.process.send_signal(sig)
+        assert script.wait(30) == 0
+    assert 'Traceback' not in script.output
