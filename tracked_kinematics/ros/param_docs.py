@@ -103,6 +103,10 @@ def _check(spec: ParamSpec) -> str:
                 f'{spec.name}: its check {spec.check.__qualname__} has no words; decorate it '
                 'with tracked_kinematics.params.described_as')
         parts.append(words)
+    if spec.has_range:
+        low = '' if spec.low is None else f'{spec.low:g}'
+        high = '' if spec.high is None else f'{spec.high:g}'
+        parts.append(f'in [{low or "-inf"}, {high or "inf"}]')
     if spec.read_only:
         parts.append('read-only')
     return '; '.join(parts)
