@@ -248,6 +248,12 @@ def test_section_found_by_keys_in_plain_and_wildcard_forms(tmp_path):
      '    enable_odom_tf: maybe\n', 'enable_odom_tf must be true or false'),
     ('base:\n  ros__parameters:\n    wheel_separation: 0.5\n    wheel_radius: 0.1\n'
      '    odom_frame_id: /odom\n', 'odom_frame_id must not start with "/"'),
+    # rcl refuses anchors and aliases; a recursive one must not hang or crash the tool.
+    ('a: &x\n  b: *x\n', 'line 2: YAML alias *x'),
+    ('base:\n  ros__parameters: &p\n    wheel_separation: 0.5\n    wheel_radius: 0.1\n'
+     '    linear: *p\n', 'anchors and aliases'),
+    ('[' * 3000 + ']' * 3000 + '\n', 'nested too deeply'),
+    ('a: ' + '{k: ' * 1500 + '1' + '}' * 1500 + '\n', 'nested too deeply'),
 ])
 def test_bad_input_is_one_line_exit_2_and_writes_nothing(capsys, tmp_path, text, fragment):
     path = write(tmp_path, text)
@@ -502,3 +508,16 @@ def test_console_script(tmp_path):
         f'{PROG}: error: --output {output} exists; use --force to replace it']
     helped = subprocess.run([str(script), '--help'], capture_output=True, text=True, timeout=60)
     assert helped.returncode == 0 and '--controller NAME' in helped.stdout
+
+
+def test_values_the_nodes_would_refuse_are_refused(monkeypatch):
+    # The converted values are checked with the parameter tables the nodes declare, ranges
+    # included: a range on track_width (as a table may add) refuses a 1e-300 m vehicle.
+    from tracked_kinematics.params import ddc, ParamSpec, positive, TERRAIN_PARAMS
+    ranged = tuple(ParamSpec(s.name, s.default, s.description, s.unit, s.check, low=0.01)
+                   if s.name == 'track_width' else s for s in TERRAIN_PARAMS)
+    monkeypatch.setattr(ddc, 'TERRAIN_PARAMS', ranged)
+    assert positive(1e-300) is None
+    with pytest.raises(DdcError, match=r'would not start the nodes: track_width must be >= '):
+        convert({**GEOMETRY, 'wheel_separation': 1e-300})
+    assert convert(GEOMETRY).values['track_width'] == 0.4

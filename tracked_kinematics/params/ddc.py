@@ -42,7 +42,9 @@ from tracked_kinematics.core.errors import TrackedKinematicsError
 import yaml
 
 from .files import flatten, nest
-from .spec import frame_id
+from .spec import check_values, frame_id
+from .tables import COMMAND_LIMIT_PARAMS, ENCODER_INPUT_PARAMS, TERRAIN_PARAMS
+from .values import icr_from_values
 
 DDC_TYPE = 'diff_drive_controller/DiffDriveController'
 AXES = ('linear.x', 'angular.z')
@@ -123,6 +125,23 @@ class _NoAliasDumper(yaml.SafeDumper):
 
 class DdcError(TrackedKinematicsError):
     """A controllers file that cannot be converted; the message is one line for the user."""
+
+
+class _NoAliasLoader(yaml.SafeLoader):
+    """
+    Safe loader that refuses anchors and aliases, as rcl's parameter file parser does.
+
+    Without this a recursive alias (``a: &x {b: *x}``) would send every walk of the tree
+    into endless recursion, and a chain of aliases could make it exponentially large.
+    """
+
+    def compose_node(self, parent, index):
+        if self.check_event(yaml.AliasEvent):
+            event = self.peek_event()
+            raise DdcError(f'line {event.start_mark.line + 1}: YAML alias *{event.anchor}: '
+                           'ROS 2 parameter files cannot use anchors and aliases (rcl refuses '
+                           'them)')
+        return super().compose_node(parent, index)
 
 
 @dataclass
@@ -206,7 +225,11 @@ def load_controllers(path: str | os.PathLike) -> Any:
         raise DdcError(f'{path}: not a regular file')
     try:
         with open(path, encoding='utf-8') as stream:
-            doc = yaml.safe_load(stream)
+            doc = yaml.load(stream, Loader=_NoAliasLoader)  # noqa: S506 -- a SafeLoader
+    except DdcError as err:
+        raise DdcError(f'{path}: {err}') from None
+    except RecursionError:
+        raise DdcError(f'{path}: nested too deeply to be a parameter file') from None
     except OSError as err:
         raise DdcError(f'{path}: cannot be read: {err.strerror}') from None
     except UnicodeDecodeError:
@@ -507,17 +530,36 @@ def convert(params: Mapping[str, Any], controller: str = '', found_by: str = '',
         _limits(p, conv, axis, 'acceleration')
         _jerk(p, conv, axis)
     _the_rest(p, conv)
+    _check_for_the_nodes(conv)
     return conv
+
+
+def _check_for_the_nodes(conv: Conversion) -> None:
+    """Refuse values the nodes would refuse at start, with their own messages."""
+    problems = check_values(TERRAIN_PARAMS + ENCODER_INPUT_PARAMS + COMMAND_LIMIT_PARAMS,
+                            conv.values)
+    if not problems:
+        try:
+            icr_from_values(conv.values)
+        except ValueError as err:
+            problems = [str(err)]
+    if problems:
+        raise DdcError('the converted values would not start the nodes: ' + '; '.join(problems))
 
 
 def convert_file(path: str | os.PathLike, controller: str | None = None) -> Conversion:
     """Read a controllers file, find its DDC section and convert it (see :func:`convert`)."""
     source = os.fspath(path)
-    section = find_controller(load_controllers(source), controller, source)
+    doc = load_controllers(source)
     try:
-        return convert(section.params, section.name, section.found_by, section.namespace)
+        section = find_controller(doc, controller, source)
+    except RecursionError:
+        raise DdcError(f'{source}: nested too deeply to be a parameter file') from None
+    try:
+        conversion = convert(section.params, section.name, section.found_by, section.namespace)
     except DdcError as err:
         raise DdcError(f'{source}: controller {section.name!r}: {err}') from None
+    return conversion
 
 
 def _geometry(p: dict, conv: Conversion) -> None:
