@@ -37,6 +37,8 @@ setup(
             'icr_map = tracked_kinematics.offline.cli.icr_map:main',
             'icr_estimator = tracked_kinematics.ros.icr_estimator:main',
             'plan_trajectory = tracked_kinematics.offline.cli.plan_trajectory:main',
+            'convert_diff_drive_params ='
+            ' tracked_kinematics.offline.cli.convert_diff_drive_params:main',
         ],
     },
 )

@@ -1,0 +1,93 @@
+"""
+``convert_diff_drive_params``: a diff_drive_controller configuration -> a terrain file.
+
+Reads a ros2_control controllers file, finds its diff_drive_controller (DDC) section and
+writes the parameter file that odometry_node and cmd_vel_translator load with
+``--ros-args --params-file``: the vehicle (track width, sprocket radius, the ICRs from
+``wheel_separation_multiplier``, the scales from the radius multipliers) for every node, and
+the joints, frames, TF, timeout and limits for the node that declares them. The mapping is
+:mod:`tracked_kinematics.params.ddc`; docs/tools/convert_diff_drive_params.md lists it.
+
+Prints what it mapped (``DDC key = value -> our key = value``) and what it could not map and
+why; warnings (the converted robot differs from the DDC one) go to stderr. Exit status 0
+written; 2 for bad input (missing or unreadable file, not YAML, no DDC section or several
+without ``--controller``, no ``wheel_separation`` / ``wheel_radius``, invalid values) or an
+output that may not be written; nothing is written then.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+
+from tracked_kinematics.offline.outputs import OutputError, Outputs
+from tracked_kinematics.params.ddc import convert_file, DdcError, report_lines
+
+PROG = 'convert_diff_drive_params'
+EXIT_INPUT = 2
+
+_EPILOG = """\
+examples:
+  convert_diff_drive_params controllers.yaml --output terrain.yaml
+  convert_diff_drive_params controllers.yaml --controller diff_drive_base_controller \\
+      --output terrain.yaml --force
+  ros2 run tracked_kinematics odometry_node --ros-args --params-file terrain.yaml
+"""
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """Return the command line of ``convert_diff_drive_params``."""
+    parser = argparse.ArgumentParser(
+        prog=PROG, formatter_class=argparse.RawDescriptionHelpFormatter, epilog=_EPILOG,
+        description='Convert the diff_drive_controller section of a ros2_control controllers '
+                    'file into a parameter file for odometry_node and cmd_vel_translator, and '
+                    'say what was mapped and what not.')
+    parser.add_argument('controllers', metavar='CONTROLLERS.yaml',
+                        help='ros2_control controllers file (controller_manager and '
+                             'controller sections)')
+    parser.add_argument('--controller', metavar='NAME',
+                        help='name of the DiffDriveController section, when the file has '
+                             'several (or to pick one by name)')
+    parser.add_argument('--output', '-o', metavar='TERRAIN.yaml', required=True,
+                        help='parameter file to write')
+    parser.add_argument('--force', action='store_true',
+                        help='replace --output if it exists')
+    return parser
+
+
+def _same_file(a: str, b) -> bool:
+    try:
+        return os.path.samefile(a, b)
+    except OSError:
+        return False
+
+
+def main(argv=None) -> int:
+    """Run ``convert_diff_drive_params``; return the exit status."""
+    args = build_parser().parse_args(argv)
+    try:
+        with Outputs(force=args.force) as out:
+            target = out.add('--output', args.output)
+            if _same_file(args.controllers, target):
+                raise OutputError(f'--output {target} is the input file; choose another path')
+            conversion = convert_file(args.controllers, args.controller)
+            out.write_text('--output', conversion.yaml_text(source=args.controllers))
+    except (DdcError, OutputError) as err:
+        print(f'{PROG}: error: {" ".join(str(err).split())}', file=sys.stderr)
+        return EXIT_INPUT
+    except KeyboardInterrupt:
+        print(f'{PROG}: interrupted; nothing written', file=sys.stderr)
+        return 130
+    print('\n'.join(report_lines(conversion)))
+    print(f'\nwrote {target}: ' + ', '.join(
+        f'{section} {len(values)} parameters'
+        for section, values in conversion.sections().items()))
+    sys.stdout.flush()
+    for warning in conversion.warnings:
+        print(f'{PROG}: warning: {warning}', file=sys.stderr)
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())
