@@ -17,7 +17,9 @@ NODE_EXECUTABLES = ('odometry_node', 'cmd_vel_translator', 'icr_estimator')
 
 
 def _exit_quietly(signum, frame):
-    raise SystemExit(0)
+    # Nothing has started yet (no ROS context, no output): leave at once. An exception
+    # raised here could surface inside a C extension's initialisation as an ImportError.
+    os._exit(0)
 
 
 if (os.path.basename(sys.argv[0] if sys.argv else '') in NODE_EXECUTABLES
