@@ -159,8 +159,9 @@ class Odometry:
         twist : tuple of float
             ``(v_x, v_y, w)`` in base_link: m/s, m/s, rad/s; zeros for an empty window.
         covariance_upper : tuple of float
-            Upper triangle of its covariance (:func:`.covariance.twist_covariance`); an
-            empty window gives that of standing still (the floor).
+            Upper triangle of its covariance (:func:`.covariance.twist_covariance`, plus the
+            floor on ``v_y``, so that no variance is zero); an empty window gives that of
+            standing still (the floor).
 
         """
         d_left, d_right, abs_left, abs_right, samples, duration = self._window
@@ -174,4 +175,7 @@ class Odometry:
         v_right = d_right / duration
         twist = (b0l * v_left + b0r * v_right, b1l * v_left + b1r * v_right,
                  b2l * v_left + b2r * v_right)
-        return twist, twist_covariance(self._body, var_left, var_right, TWIST_TIME)
+        xx, xy, xt, yy, yt, tt = twist_covariance(self._body, var_left, var_right, TWIST_TIME)
+        # With icr.x = 0 the model says v_y = 0 exactly; no model is exact, and a filter
+        # should never be handed a zero variance: v_y is known to the floor's precision.
+        return twist, (xx, xy, xt, yy + self.noise.floor / (TWIST_TIME * TWIST_TIME), yt, tt)
