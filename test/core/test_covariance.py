@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from tracked_kinematics.core.covariance import (
-    arc_step, body_jacobian, full_matrix, propagate, ros_covariance, TrackNoise,
-    twist_covariance, UNOBSERVED_VARIANCE)
+    arc_step, body_jacobian, full_matrix, MAX_VARIANCE, propagate, ros_covariance, saturate,
+    TrackNoise, twist_covariance, TWIST_TIME, twist_variances, UNOBSERVED_VARIANCE)
 from tracked_kinematics.core.integration import arc_chord, compose
 from tracked_kinematics.core.kinematics import forward, IcrParams, true_speeds
 from tracked_kinematics.core.odometry import Odometry
@@ -176,6 +176,49 @@ def test_twist_covariance_of_the_noise_model():
     got = full_matrix(twist_covariance(body, 2e-6, 3e-6, 0.02))
     b = np.array(body)
     np.testing.assert_allclose(got, b @ np.diag([2e-6, 3e-6]) @ b.T / 0.02 ** 2, rtol=1e-12)
+
+
+@pytest.mark.parametrize('rate', [10.0, 50.0, 100.0, 1000.0])
+def test_twist_covariance_is_rate_independent_and_realistic(rate):
+    # Issue 15: at 100 Hz sigma(v_x) was 0.12 m/s at v_x = 0.3 m/s. Driving straight at
+    # 0.3 m/s and taking the twist at every step, sigma(v_x) no longer depends on the rate.
+    icr = IcrParams.ideal(0.42)
+    odometry = Odometry(icr, TrackNoise())
+    for _ in range(int(rate)):
+        odometry.update(0.3 / rate, 0.3 / rate, 1.0 / rate)
+        twist, covariance = odometry.take_twist()
+    assert twist[0] == pytest.approx(0.3)
+    # var(v_l) = (k |v| tau + floor) / tau^2 for each track; v_x is their mean.
+    var_track = (1e-3 * 0.3 * TWIST_TIME + 1e-9) / TWIST_TIME ** 2
+    assert covariance[0] == pytest.approx(var_track / 2, rel=1e-9)
+    assert 0.005 < covariance[0] ** 0.5 < 0.02
+    # Standing still, the twist is known to the floor only.
+    odometry.update(0.0, 0.0, 1.0 / rate)
+    assert odometry.take_twist()[1][0] == pytest.approx(1e-9 / 2, rel=1e-9)
+
+
+def test_twist_variances_of_the_noise_model():
+    noise = TrackNoise(2e-3, 1e-3, 1e-8)
+    assert twist_variances(noise, 0.5, 0.25) == pytest.approx(
+        ((2e-3 * 0.5 * TWIST_TIME + 1e-8) / TWIST_TIME ** 2 * TWIST_TIME ** 2,
+         (1e-3 * 0.25 * TWIST_TIME + 1e-8)))
+
+
+def test_saturate_caps_variances_and_keeps_psd():
+    rng = np.random.default_rng(3)
+    for _ in range(100):
+        a = rng.normal(size=(3, 3)) * 10.0 ** rng.uniform(-3, 9, size=(3, 1))
+        p = a @ a.T
+        upper = (p[0, 0], p[0, 1], p[0, 2], p[1, 1], p[1, 2], p[2, 2])
+        got = full_matrix(saturate(upper, 1e6))
+        assert np.all(np.diag(got) <= 1e6 * (1 + 1e-12))
+        assert np.linalg.eigvalsh(got / np.abs(got).max()).min() > -1e-9
+        small = np.diag(p) <= 1e6
+        np.testing.assert_allclose(np.diag(got)[small], np.diag(p)[small], rtol=1e-12)
+    small = (1.0, 0.1, 0.0, 2.0, 0.0, 0.5)
+    assert saturate(small) is small
+    capped = saturate((np.inf, 0.0, 0.0, 1.0, np.nan, 1.0))
+    assert all(map(np.isfinite, capped)) and capped[0] == MAX_VARIANCE
 
 
 def test_ros_covariance_layout():

@@ -5,7 +5,8 @@ import math
 import numpy as np
 import pytest
 
-from tracked_kinematics.core.covariance import body_jacobian, full_matrix, TrackNoise
+from tracked_kinematics.core.covariance import (body_jacobian, full_matrix, MAX_VARIANCE,
+                                                TrackNoise, TWIST_TIME)
 from tracked_kinematics.core.integration import integrate
 from tracked_kinematics.core.kinematics import forward, IcrParams, true_speeds
 from tracked_kinematics.core.odometry import Odometry
@@ -98,13 +99,56 @@ def test_twist_is_the_mean_over_the_window():
     duration = d[:, 2].sum()
     expected = np.array(forward(*true_speeds(d[:, 0].sum(), d[:, 1].sum(), AURIGA), AURIGA))
     np.testing.assert_allclose(twist, expected / duration, rtol=1e-12)
+    # The covariance: the noise model's travel variance over TWIST_TIME at the window's
+    # distance rates, as speeds.
     b = np.array(body_jacobian(AURIGA))
-    q = np.diag([1e-3 * np.abs(d[:, 0]).sum() + 3e-9, 2e-3 * np.abs(d[:, 1]).sum() + 3e-9])
-    np.testing.assert_allclose(full_matrix(cov), b @ q @ b.T / duration ** 2, rtol=1e-12)
+    rates = np.abs(d[:, :2]).sum(axis=0) / duration
+    q = np.diag([1e-3 * rates[0] * TWIST_TIME + 1e-9, 2e-3 * rates[1] * TWIST_TIME + 1e-9])
+    expected = b @ q @ b.T / TWIST_TIME ** 2
+    expected[1, 1] += 1e-9 / TWIST_TIME ** 2  # the floor on v_y: never a zero variance
+    np.testing.assert_allclose(full_matrix(cov), expected, rtol=1e-12)
     # The window restarted: nothing since, so no motion and the floor's covariance.
     twist, cov = odo.take_twist()
     assert twist == (0.0, 0.0, 0.0)
-    assert full_matrix(cov)[2, 2] > 0.0
+    assert np.all(np.diag(full_matrix(cov)) > 0.0)
+
+
+def test_absurd_travel_never_freezes_the_state():
+    # Issue 14 item 6, in the core: absurd steps are refused whole, the covariance cannot
+    # overflow, and a 90 degree spin afterwards turns the heading by 90 degrees.
+    odo = Odometry(IcrParams.ideal(0.42))
+    for d_left in (1e100, 3e99, 0.0, 1e10):
+        odo.update(d_left, 0.0, 0.01)
+    assert all(map(math.isfinite, odo.pose + odo.covariance_upper))
+    heading = odo.pose[2]
+    quarter = 0.5 * math.pi * 0.21  # track travel of a 90 degree spin
+    for _ in range(10):
+        assert odo.update(-quarter / 10, quarter / 10, 0.01)
+    assert odo.pose[2] - heading == pytest.approx(0.5 * math.pi, abs=1e-9)
+
+
+def test_a_step_whose_twist_overflows_is_not_integrated():
+    # Finite travel over a tiny dt would publish an infinite twist: no hidden jump.
+    odo = Odometry(AURIGA)
+    assert not odo.update(1e10, 1e10, 1e-300)
+    assert not odo.update(1e300, 0.0, 1.0)
+    assert odo.pose == (0.0, 0.0, 0.0) and odo.steps == 0
+    twist, cov = odo.take_twist()
+    assert twist == (0.0, 0.0, 0.0) and all(map(math.isfinite, cov))
+
+
+def test_covariance_saturates_instead_of_overflowing():
+    odo = Odometry(IcrParams.ideal(0.42), TrackNoise(1.0, 1.0, 1.0))
+    for _ in range(200):
+        assert odo.update(1e8, -1e8, 10.0)   # huge spins: the heading variance explodes
+        assert odo.update(1e8, 1e8, 10.0)    # huge straights: position variance too
+    assert max(odo.covariance_upper) <= MAX_VARIANCE
+    assert np.linalg.eigvalsh(odo.covariance / MAX_VARIANCE).min() > -1e-9
+    # Still integrating: a small step moves the pose by its length.
+    x, y, theta = odo.pose
+    assert abs(theta) <= 2e6
+    assert odo.update(0.1, 0.1, 0.1)
+    assert math.hypot(odo.pose[0] - x, odo.pose[1] - y) == pytest.approx(0.1, rel=1e-6)
 
 
 def test_set_model_keeps_the_pose_and_applies_from_the_next_step():

@@ -76,6 +76,10 @@ class Stderr:
 
     def warnings(self, name, text):
         """Return the WARN lines of logger ``name`` containing ``text`` written so far."""
+        return self.lines('WARN', name, text)
+
+    def lines(self, level, name, text):
+        """Return the lines of ``level`` (INFO, WARN, ...) of logger ``name`` with ``text``."""
         self.text += self.capfd.readouterr().err
         return [line for line in self.text.splitlines()
-                if line.startswith('[WARN]') and f'[{name}]' in line and text in line]
+                if line.startswith(f'[{level}]') and f'[{name}]' in line and text in line]

@@ -124,14 +124,6 @@ def test_ground_truth_offset_moves_to_base_link(tmp_path, rec):
     assert_same_recording(got, rec)
 
 
-def test_wrapped_joint_angles_are_unwrapped():
-    angles = np.angle(np.exp(1j * np.linspace(0, 20, 400)))
-    np.testing.assert_allclose(reader._unwrap_if_wrapped(angles), np.linspace(0, 20, 400),
-                               atol=1e-9)
-    cumulative = np.linspace(0, 20, 400)
-    assert reader._unwrap_if_wrapped(cumulative) is cumulative
-
-
 def test_missing_bag(tmp_path):
     with pytest.raises(BagError, match='^bag not found: .*nowhere$'):
         read_bag(tmp_path / 'nowhere', EncoderSource(), GT)

@@ -4,8 +4,9 @@ import os
 
 import pytest
 from tracked_kinematics.params import (
-    check_values, flatten, icr_from_values, nest, read_params_file, TERRAIN_DEFAULTS,
-    TERRAIN_PARAMS, values_from_icr, write_params_file)
+    check_values, Derived, ENCODER_INPUT_PARAMS, flatten, icr_from_values, nest, ParamSpec,
+    read_params_file, resolve, TERRAIN_DEFAULTS, TERRAIN_PARAMS, values_from_icr,
+    write_params_file)
 from tracked_kinematics.share import config_file
 import yaml
 
@@ -18,10 +19,53 @@ def test_shipped_terrain_file_loads_with_interface_values():
     assert values['sprocket_radius'] == 0.1
 
 
-def test_defaults_are_valid_ideal_drive():
-    icr = icr_from_values({})
-    assert icr.chi == pytest.approx(1.0)
-    assert icr.eccentricity == pytest.approx(0.0)
+VEHICLE = {'track_width': 0.42, 'sprocket_radius': 0.1}
+
+
+def test_no_default_vehicle():
+    # Issue 15 item 1: track_width has no default (as DDC's wheel_separation).
+    with pytest.raises(ValueError, match='^track_width has no default'):
+        icr_from_values({})
+    with pytest.raises(ValueError, match='^track_width has no default'):
+        icr_from_values({'icr.y_left': 0.3, 'icr.y_right': -0.3})
+    required = [spec.name for spec in TERRAIN_PARAMS if spec.required]
+    assert required == ['track_width', 'sprocket_radius']
+
+
+@pytest.mark.parametrize('width', [0.3, 0.42, 0.5, 2.0])
+def test_icrs_default_to_the_ideal_drive_of_the_given_width(width):
+    icr = icr_from_values({'track_width': width})
+    assert (icr.y_left, icr.y_right, icr.x) == (width / 2, -width / 2, 0.0)
+    assert (icr.scale_left, icr.scale_right) == (1.0, 1.0)
+    assert icr.chi == pytest.approx(1.0) and icr.eccentricity == pytest.approx(0.0)
+    # One ICR given: only the other follows the width.
+    icr = icr_from_values({'track_width': width, 'icr.y_left': width})
+    assert (icr.y_left, icr.y_right) == (width, -width / 2)
+
+
+def test_resolve_applies_the_default_rule():
+    values, missing = resolve(TERRAIN_PARAMS, {'track_width': 0.6, 'terrain': 'grass'})
+    assert missing == ['sprocket_radius'] and 'terrain' not in values
+    assert values == {'track_width': 0.6, 'icr.y_left': 0.3, 'icr.y_right': -0.3,
+                      'icr.x': 0.0, 'scale.left': 1.0, 'scale.right': 1.0}
+    # A derived default is left out while what it derives from is missing or invalid.
+    assert 'icr.y_left' not in resolve(TERRAIN_PARAMS, {})[0]
+    assert 'icr.y_left' not in resolve(TERRAIN_PARAMS, {'track_width': 'wide'})[0]
+
+
+def test_spec_default_texts():
+    by_name = {spec.name: spec for spec in TERRAIN_PARAMS}
+    assert by_name['track_width'].default_text == 'required, no default'
+    assert by_name['icr.y_right'].default_text == 'default -track_width / 2 unless set'
+    assert by_name['icr.x'].default_text == 'default 0.0'
+    assert '(required, no default)' in by_name['sprocket_radius'].full_description
+    specs = (ParamSpec('w', 2.0, 'Width'),
+             ParamSpec('half', 1.0, 'Half', derived=Derived('w / 2', lambda v: v['w'] / 2)))
+    assert not specs[1].has_default
+    assert resolve(specs, {'w': 3.0})[0] == {'w': 3.0, 'half': 1.5}
+    assert resolve(specs, {})[0] == {'w': 2.0, 'half': 1.0}
+    assert resolve(specs, {'half': 7.0})[0] == {'w': 2.0, 'half': 7.0}
+    # The offline tools' command-line defaults still read the examples (their engineer's).
     assert set(TERRAIN_DEFAULTS) == {spec.name for spec in TERRAIN_PARAMS}
 
 
@@ -29,13 +73,23 @@ def test_defaults_are_valid_ideal_drive():
     ({'icr.y_left': -0.5}, r'icr\.y_left .* must be greater than icr\.y_right'),
     ({'icr.y_left': 0.1, 'icr.y_right': -0.1}, 'chi .* outside'),
     ({'scale.left': 0.0}, r'scale\.left must be > 0'),
+    ({'scale.left': 1e-300}, r'scale\.left must be in \[0.1, 10\]'),
     ({'sprocket_radius': -0.1}, 'sprocket_radius must be > 0'),
+    ({'sprocket_radius': 5e-324}, r'sprocket_radius must be in \[1e-05, 10\] m'),
     ({'icr.x': float('nan')}, r'icr\.x must be finite'),
+    ({'icr.x': 1e6}, r'icr\.x must be in \[-100, 100\] m'),
     ({'track_width': True}, 'track_width must be a number'),
+    ({'track_width': 1e-9}, r'track_width must be in \[0.01, 20\] m'),
 ])
 def test_invalid_values_named_in_ros_terms(values, match):
     with pytest.raises(ValueError, match=match):
-        icr_from_values(values)
+        icr_from_values({**VEHICLE, **values})
+
+
+def test_every_numeric_parameter_has_a_range():
+    for spec in TERRAIN_PARAMS + ENCODER_INPUT_PARAMS:
+        if isinstance(spec.default, (int, float)) and not isinstance(spec.default, bool):
+            assert spec.low is not None and spec.high is not None, spec.name
 
 
 def test_check_values_ignores_unknown_names():
@@ -51,7 +105,7 @@ def test_flatten_nest_round_trip():
 
 
 def test_write_then_read_round_trip(tmp_path):
-    icr = icr_from_values({'icr.y_left': 0.3, 'icr.y_right': -0.35, 'icr.x': 0.01})
+    icr = icr_from_values({**VEHICLE, 'icr.y_left': 0.3, 'icr.y_right': -0.35, 'icr.x': 0.01})
     out = tmp_path / 'terrain.yaml'
     write_params_file(out, {**values_from_icr(icr, 0.12), 'terrain': 'turf'},
                       comment='fitted by a test')

@@ -23,6 +23,9 @@ AURIGA_FILE = config_file('auriga_alpha_hard_floor.yaml')
 AURIGA_VALUES = read_params_file(AURIGA_FILE)
 AURIGA = icr_from_values(AURIGA_VALUES)
 TIMEOUT = 5.0  # s, deadline of every wait on the graph
+# The vehicle every node must be given (issue 15: no default vehicle); ICRs ideal.
+VEHICLE = {'track_width': 0.42, 'sprocket_radius': 0.1}
+VEHICLE_PARAMS = [Parameter(name, value=value) for name, value in VEHICLE.items()]
 
 
 class Probe:
@@ -73,7 +76,8 @@ def graph(ros_context, executor):
     made = []
 
     def make(**params):
-        overrides = [Parameter(name, value=value) for name, value in params.items()]
+        overrides = [Parameter(name, value=value)
+                     for name, value in {**VEHICLE, **params}.items()]
         node = CmdVelTranslator(context=ros_context, parameter_overrides=overrides)
         probe = Probe(ros_context, stamped=params.get('use_stamped', False),
                       joint_topic=params.get('joint_velocity_topic'))
@@ -191,7 +195,7 @@ def test_twist_velocity_limits_keep_curvature(graph, executor):
 
 def test_non_finite_commands_dropped_with_throttled_warning(graph, executor, capfd):
     _, probe = graph(cmd_timeout=1.0)
-    target = track_setpoints(0.3, 0.1, icr_from_values({}))
+    target = track_setpoints(0.3, 0.1, icr_from_values(VEHICLE))
     assert drive(executor, probe, 0.3, 0.1, reaches(target))
     probe.clear()
     bad = [(math.nan, 0.0, 0.0), (0.0, math.inf, 0.0), (0.0, 0.0, -math.inf)] * 10
@@ -209,7 +213,7 @@ def test_non_finite_commands_dropped_with_throttled_warning(graph, executor, cap
 
 def test_lateral_velocity_ignored_with_one_note(graph, executor, capfd):
     _, probe = graph()
-    target = track_setpoints(0.2, 0.0, icr_from_values({}))
+    target = track_setpoints(0.2, 0.0, icr_from_values(VEHICLE))
     assert drive(executor, probe, 0.2, 0.0, reaches(target), v_y=0.3)
     for _ in range(5):
         probe.send(0.2, 0.0, 0.3)
@@ -222,7 +226,7 @@ def test_stamped_mode_uses_arrival_time(graph, executor):
     # The stamps are 0 (1970): by their age every command would be stale. By arrival time
     # they are fresh, so the vehicle moves.
     _, probe = graph(use_stamped=True)
-    target = track_setpoints(0.25, -0.2, icr_from_values({}))
+    target = track_setpoints(0.25, -0.2, icr_from_values(VEHICLE))
     assert drive(executor, probe, 0.25, -0.2, reaches(target))
 
 
@@ -237,10 +241,12 @@ def test_joint_velocities_in_rad_per_s(graph, executor):
 def test_invalid_parameters_refused_at_start(ros_context):
     with pytest.raises(ParameterError, match='max_track_speed must be >= 0'):
         CmdVelTranslator(context=ros_context,
-                         parameter_overrides=[Parameter('max_track_speed', value=-1.0)])
+                         parameter_overrides=VEHICLE_PARAMS + [
+                             Parameter('max_track_speed', value=-1.0)])
     with pytest.raises(ParameterError, match='chi'):
         CmdVelTranslator(context=ros_context,
-                         parameter_overrides=[Parameter('icr.y_left', value=0.1)])
+                         parameter_overrides=VEHICLE_PARAMS + [
+                             Parameter('icr.y_left', value=0.1)])
 
 
 def test_runtime_parameters_validated_and_applied(graph, executor):
@@ -251,7 +257,7 @@ def test_runtime_parameters_validated_and_applied(graph, executor):
             ('cmd_timeout', 0.0, 'cmd_timeout must be > 0'),
             ('icr.y_left', -0.01, 'chi'),
             ('icr.y_left', -0.5, 'icr.y_left'),
-            ('scale.right', 0.0, 'scale.right must be > 0')]:
+            ('scale.right', 0.0, 'scale.right out of range Min: 0.1')]:
         result = node.set_parameters([Parameter(name, value=value)])[0]
         assert not result.successful and reason in result.reason, name
     assert node.get_parameter('max_track_speed').value == 0.0
@@ -315,7 +321,7 @@ def test_simulated_time_paused_holds_setpoints(graph, executor):
         clock.publish(msg)
 
     tick(100)
-    target = track_setpoints(0.3, 0.0, icr_from_values({}))
+    target = track_setpoints(0.3, 0.0, icr_from_values(VEHICLE))
     assert drive(executor, probe, 0.3, 0.0, reaches(target))
     # The simulation is paused: however long it stays so in wall time, the command is not
     # stale (15 publishes = 0.3 s of wall time = 3 timeouts).
@@ -330,11 +336,11 @@ def test_publisher_thread_ends_with_node_and_context(ros_context, executor):
     def publisher_threads():
         return [t for t in threading.enumerate() if t.name == 'setpoint_publisher']
 
-    node = CmdVelTranslator(context=ros_context)
+    node = CmdVelTranslator(context=ros_context, parameter_overrides=VEHICLE_PARAMS)
     assert len(publisher_threads()) == 1
     node.destroy_node()
     assert publisher_threads() == []
-    CmdVelTranslator(context=ros_context)
+    CmdVelTranslator(context=ros_context, parameter_overrides=VEHICLE_PARAMS)
     ros_context.try_shutdown()  # e.g. Ctrl-C: the thread stops without destroy_node
     thread, = publisher_threads() or [None]
     if thread is not None:

@@ -3,8 +3,12 @@
 import math
 
 from helpers.encoder_stream import Driver, joint_state, LEFT, RIGHT, Stderr
+from helpers.ros_helpers import spin_until
+import numpy as np
 import pytest
 from rclpy.node import Node
+from rclpy.qos import qos_profile_sensor_data, QoSProfile, ReliabilityPolicy
+from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64, Int32, Int64
 from tracked_kinematics.params import ENCODER_INPUT_DEFAULTS, TERRAIN_DEFAULTS
 from tracked_kinematics.ros.encoder_input import EncoderInput
@@ -18,6 +22,7 @@ class Harness:
     """A bare node with an EncoderInput, recording its callbacks, and a driver."""
 
     def __init__(self, ros_context, executor, capfd, namespace='', **values):
+        self.executor = executor
         self.stderr = Stderr(capfd)
         self.node = Node('encoder_probe', namespace=namespace, context=ros_context)
         self.steps = []
@@ -30,13 +35,16 @@ class Harness:
         assert self.driver.send(msg, topic)
 
     def warned(self, text):
-        return self.stderr.warnings('encoder_probe', text)
+        return self.stderr.warnings(self.node.get_logger().name, text)
+
+    def logged(self, level, text):
+        return self.stderr.lines(level, self.node.get_logger().name, text)
 
 
 @pytest.fixture
 def harness(ros_context, executor, capfd):
-    def make(**values):
-        return Harness(ros_context, executor, capfd, **values)
+    def make(namespace='', **values):
+        return Harness(ros_context, executor, capfd, namespace, **values)
     return make
 
 
@@ -114,13 +122,122 @@ def test_time_going_back_restarts_from_the_new_message(harness, t2):
     assert h.warned('time did not advance')
 
 
-def test_gap_longer_than_max_dt_is_not_integrated(harness):
+def test_positions_integrate_across_any_gap_with_a_note(harness):
+    # Issue 15 item 2: the travel of positions is exact, however long the gap.
     h = harness(sprocket_radius=1.0, max_dt=0.2)
     h.send(joint_state(1.0, [0.0, 0.0]))
-    h.send(joint_state(1.5, [3.0, 3.0]))
-    h.send(joint_state(1.6, [3.1, 3.1]))
-    assert len(h.steps) == 1 and h.steps[0][1:] == pytest.approx((0.1, 0.1, 0.1))
-    assert h.input.counts['gap'] == 1 and h.warned('without encoder data')
+    h.send(joint_state(1.7, [0.7, 0.7]))
+    h.send(joint_state(1.8, [0.8, 0.8]))
+    assert [step[1:] for step in h.steps] == [pytest.approx((0.7, 0.7, 0.7)),
+                                              pytest.approx((0.1, 0.1, 0.1))]
+    assert h.input.counts['long_step'] == 1
+    (line,) = h.logged('INFO', 'without encoder data')
+    assert '0.7 s' in line and 'integrated' in line
+
+
+def test_velocities_bridge_up_to_max_dt_and_warn_beyond(harness):
+    h = harness(sprocket_radius=1.0, max_dt=0.5)
+    h.send(joint_state(1.0, velocity=[1.0, 1.0]))
+    h.send(joint_state(1.4, velocity=[1.0, 1.0]))   # 0.4 s: bridged
+    h.send(joint_state(2.1, velocity=[1.0, 1.0]))   # 0.7 s: unknown travel, restart
+    h.send(joint_state(2.2, velocity=[1.0, 1.0]))
+    assert [step[1:] for step in h.steps] == [pytest.approx((0.4, 0.4, 0.4)),
+                                              pytest.approx((0.1, 0.1, 0.1))]
+    assert h.input.counts['gap'] == 1
+    (line,) = h.warned('without encoder data')
+    assert 'only velocities' in line and 'not integrated' in line
+
+
+def test_implausible_steps_are_skipped_with_a_warning_naming_them(harness):
+    h = harness(sprocket_radius=0.1, max_plausible_speed=5.0)
+    h.send(joint_state(1.0, [0.0, 0.0]))
+    h.send(joint_state(1.01, [1e100, 0.0]))
+    h.send(joint_state(1.02, [3e99, 0.0]))
+    h.send(joint_state(1.03, [0.0, 0.0]))
+    h.send(joint_state(1.04, [0.1, 0.1]))
+    assert h.input.counts['implausible'] == 2
+    assert [step[1:3] for step in h.steps] == [pytest.approx((0.0, 0.0)),
+                                               pytest.approx((0.01, 0.01))]
+    (line,) = h.warned('implausible encoder input skipped')
+    assert '1e+99' in line and 'max_plausible_speed 5 m/s' in line
+
+
+def test_duplicated_samples_are_ignored_silently(harness):
+    h = harness(sprocket_radius=1.0)
+    for msg in (joint_state(1.0, [0.0, 0.0]), joint_state(1.1, [0.1, 0.1]),
+                joint_state(1.1, [0.1, 0.1]), joint_state(1.2, [0.2, 0.2])):
+        h.send(msg)
+    assert [step[1] for step in h.steps] == pytest.approx([0.1, 0.1])
+    assert h.input.counts['duplicate'] == 1 and not h.warned('did not advance')
+
+
+def test_wrapped_joint_positions_are_unwrapped(harness):
+    # Issue 15 item 3: continuous joints reported in [-pi, pi]; 1 m at r = 0.1 m.
+    h = harness(sprocket_radius=0.1)
+    truth = np.linspace(0.0, 10.0, 51)
+    for i, angle in enumerate(np.angle(np.exp(1j * truth))):
+        h.send(joint_state(1.0 + 0.02 * i, [angle, angle]))
+    travel = np.sum([step[1:3] for step in h.steps], axis=0)
+    np.testing.assert_allclose(travel, [1.0, 1.0], atol=1e-12)
+
+
+def test_reliable_publishers_get_a_reliable_deep_queue(harness):
+    # Issue 15 item 2: no sample a reliable publisher sends is dropped. A burst of 600
+    # messages published while nobody spins all arrive.
+    h = harness(sprocket_radius=0.1)
+    topic, = h.input.inputs
+    pub = h.driver.node.create_publisher(JointState, 'joint_states', QoSProfile(
+        depth=1000, reliability=ReliabilityPolicy.RELIABLE))
+    assert spin_until(h.executor, lambda: topic.reliability == ReliabilityPolicy.RELIABLE
+                      and pub.get_subscription_count() >= 1, 5.0)
+    qos = topic.subscription.qos_profile
+    assert (qos.reliability, qos.depth) == (ReliabilityPolicy.RELIABLE, 1000)
+    for i in range(600):
+        pub.publish(joint_state(1.0 + 0.001 * i, [0.001 * i, 0.001 * i]))
+    assert spin_until(h.executor, lambda: h.input.received >= 600, 10.0)
+    assert h.input.received == 600 and len(h.steps) == 599
+
+
+def test_best_effort_publishers_still_match(harness):
+    h = harness(sprocket_radius=0.1)
+    topic, = h.input.inputs
+    pub = h.driver.node.create_publisher(JointState, 'joint_states', qos_profile_sensor_data)
+    assert spin_until(h.executor, lambda: pub.get_subscription_count() == 1, 5.0)
+    topic.check()
+    assert topic.reliability == ReliabilityPolicy.BEST_EFFORT
+    for i in range(3):
+        pub.publish(joint_state(1.0 + 0.01 * i, [0.0, 0.0]))
+        spin_until(h.executor, lambda: h.input.received > i, 2.0)
+    assert h.input.received >= 2
+
+
+def test_wrong_message_type_is_named(ros_context, executor, capfd):
+    # Fast DDS keeps a topic's type per participant: the wrong publisher is another context.
+    import rclpy
+    other = rclpy.Context()
+    rclpy.init(context=other)
+    try:
+        h = Harness(ros_context, executor, capfd, namespace='wrong')
+        stranger = Node('stranger', namespace='wrong', context=other)
+        stranger.create_publisher(Float64, 'joint_states', 10)
+        assert spin_until(executor, lambda: h.warned('another message type'), 5.0)
+        (line,) = h.warned('another message type')
+        assert '/wrong/joint_states' in line and 'std_msgs/msg/Float64' in line
+        assert 'sensor_msgs/msg/JointState' in line and '/wrong/stranger' in line
+        stranger.destroy_node()
+    finally:
+        rclpy.try_shutdown(context=other)
+
+
+def test_a_silent_side_is_named(harness):
+    # Issue 14 item 13: one side silent in track_speeds mode gave no odom and no word.
+    h = harness(input_mode='track_speeds', namespace='silent')
+    for _ in range(3):
+        h.send(Float64(data=0.5), 'left_track/speed')
+    assert spin_until(h.executor, lambda: h.warned('no message on'), 5.0)
+    (line,) = h.warned('no message on')
+    assert '/silent/right_track/speed' in line and '/silent/left_track/speed had' in line
+    assert 'right encoder' in line and h.steps == []
 
 
 def test_track_speeds_paired_by_arrival(harness):

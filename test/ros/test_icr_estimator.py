@@ -210,14 +210,20 @@ def test_bad_parameters_refuse_to_start(ros_context):
 
 def test_console_script_starts_and_exits_cleanly(tmp_path):
     with ConsoleScript('icr_estimator', '--ros-args', '-p', 'track_width:=0.5', '-p',
-                       'icr.y_left:=0.3', '-p', 'icr.y_right:=-0.3',
-                       tmp_path=tmp_path) as proc:
+                       'sprocket_radius:=0.1', '-p', 'icr.y_left:=0.3', '-p',
+                       'icr.y_right:=-0.3', tmp_path=tmp_path) as proc:
         assert _wait_for(lambda: 'estimating icr' in proc.output)
         assert proc.stop() == 0
-    bad = ConsoleScript('icr_estimator', '--ros-args', '-p', 'process_std:=-1.0',
-                        tmp_path=tmp_path)
-    assert bad.wait() == 2
-    assert 'process_std must be >= 0' in bad.output
+    for args, text in ((['-p', 'process_std:=-1.0'], 'process_std must be >= 0'),
+                       (['-p', 'publish_rate:=1e-11'], 'publish_rate must be in [0.01, 1000]'),
+                       (['-p', 'push_to:=[1odometry_node]'], 'push_to [0] must be a valid'),
+                       ([], 'track_width and sprocket_radius have no default')):
+        bad = ConsoleScript('icr_estimator', '--ros-args', '-p', 'track_width:=0.5', '-p',
+                            'sprocket_radius:=0.1', *args, tmp_path=tmp_path) if args else \
+            ConsoleScript('icr_estimator', tmp_path=tmp_path)
+        assert bad.wait() == 2, bad.output
+        fatal = [line for line in bad.output.splitlines() if 'FATAL' in line]
+        assert len(fatal) == 1 and text in fatal[0], bad.output
 
 
 def _wait_for(condition, timeout=20.0):
@@ -274,3 +280,79 @@ def test_runtime_parameters_and_reset(ros_context, executor, capfd, scenario):
     np.testing.assert_allclose(g.node.estimator.p, [1.5, -1.5, 0.0])
     assert g.node.set_parameters([P('track_width', value=2.0)])[0].successful
     assert g.node.estimator.model.track_width == 2.0
+
+
+def test_absurd_encoder_positions_do_not_kill_it(graph, scenario):
+    # Issue 14 item 5: JointState positions of +-1e308 killed the node (core ValueError).
+    g = graph()
+    g.feed(scenario, until=2.0)
+    t = 100.0 + scenario.enc_t[scenario.enc_t <= 2.0][-1]
+    for i, position in enumerate(([1e308, -1e308], [-1e308, 1e308], [1e308, 1e308])):
+        assert g.encoders.send(joint_state(t + 0.01 * (i + 1), position,
+                                           names=('left', 'right')))
+    assert g.stderr.warnings('icr_estimator', 'implausible encoder input skipped')
+    g.wait_outputs()
+    assert all(map(math.isfinite, g.icr[-1].data))
+    assert np.all(np.isfinite(g.node.estimator.p))
+
+
+@pytest.mark.parametrize('push_to', [['bad name'], ['1odometry_node'], ['ok', ''],
+                                     ['odometry_node/'], ['~/private']])
+def test_invalid_push_targets_are_refused(ros_context, push_to):
+    # Issue 14 item 5: ['bad name'] was accepted and killed the node seconds later.
+    with pytest.raises(ParameterError, match='push_to'):
+        IcrEstimatorNode(context=ros_context, parameter_overrides=[
+            Parameter(k, value=v) for k, v in {**BASE, 'push_to': push_to}.items()])
+    node = IcrEstimatorNode(context=ros_context, parameter_overrides=[
+        Parameter(k, value=v) for k, v in BASE.items()])
+    result = node.set_parameters([Parameter('push_to', value=push_to)])[0]
+    assert not result.successful and 'push_to' in result.reason
+    assert node.set_parameters([Parameter('push_to', value=['/robot/odometry_node',
+                                                            'cmd_vel_translator'])])[0].successful
+    node.destroy_node()
+
+
+@pytest.mark.parametrize('name, value', [
+    ('publish_rate', 1e-11), ('publish_rate', 1e9), ('prediction.dt', 1e-9),
+    ('prediction.horizon', 1e6), ('window', 1e300), ('pose_std_xy', 5e-324),
+    ('max_outliers', 10**12), ('track_width', 5e-324), ('max_plausible_speed', -1.0)])
+def test_absurd_values_are_refused(ros_context, name, value):
+    node = IcrEstimatorNode(context=ros_context, parameter_overrides=[
+        Parameter(k, value=v) for k, v in BASE.items()])
+    result = node.set_parameters([Parameter(name, value=value)])[0]
+    assert not result.successful and name in result.reason
+    node.destroy_node()
+
+
+def test_publish_rate_change_takes_effect_at_once(graph):
+    g = graph({'publish_rate': 0.01})
+    assert g.node.set_parameters([Parameter('publish_rate', value=50.0)])[0].successful
+    assert g.node._timer.timer_period_ns == 20_000_000
+    # Outputs (the timer also runs without an estimate) come at once, not after 100 s.
+    ticks = []
+    original = g.node._timer.callback
+    g.node._timer.callback = lambda: (ticks.append(1), original())
+    assert spin_until(g.executor, lambda: len(ticks) >= 5, 5.0)
+
+
+def test_wrong_pose_type_is_named(ros_context, executor, capfd):
+    import rclpy
+    from rclpy.node import Node
+    other = rclpy.Context()
+    rclpy.init(context=other)
+    try:
+        node = IcrEstimatorNode(context=ros_context, namespace='typed', parameter_overrides=[
+            Parameter(k, value=v) for k, v in BASE.items()])
+        executor.add_node(node)
+        stranger = Node('stranger', namespace='typed', context=other)
+        stranger.create_publisher(PoseStamped, 'pose', 10)
+        stderr = Stderr(capfd)
+        assert spin_until(executor, lambda: stderr.warnings('typed.icr_estimator',
+                                                            'another message type'), 5.0)
+        (line,) = stderr.warnings('typed.icr_estimator', 'another message type')
+        assert 'geometry_msgs/msg/PoseStamped' in line and 'nav_msgs/msg/Odometry' in line
+        stranger.destroy_node()
+        executor.remove_node(node)
+        node.destroy_node()
+    finally:
+        rclpy.try_shutdown(context=other)

@@ -133,7 +133,7 @@ def test_typo_in_params_file_is_named(tmp_path):
 @pytest.mark.parametrize('sig', [signal.SIGINT, signal.SIGTERM])
 def test_signal_is_a_clean_exit(tmp_path, sig):
     with ConsoleScript('odometry_node', '--ros-args', '-p', 'track_width:=0.42',
-                       tmp_path=tmp_path) as script:
+                       '-p', 'sprocket_radius:=0.1', tmp_path=tmp_path) as script:
         deadline = time.monotonic() + 30
         while 'ICR model' not in script.output and time.monotonic() < deadline:
             time.sleep(0.05)

@@ -53,3 +53,25 @@ def test_successive_messages_do_not_leak_values():
     np.testing.assert_array_equal(msg.pose.covariance, ros_covariance((0.0,) * 6))
     np.testing.assert_array_equal(msg.twist.covariance, ros_covariance((0.5,) * 6))
     assert msg.child_frame_id == 'base_link'
+
+
+frame_text = st.text(st.characters(blacklist_categories=('Cs',), blacklist_characters='\x00'),
+                     max_size=40)
+
+
+@given(st.tuples(frame_text, frame_text), st.integers(-2**31, 2**31 - 1),
+       st.integers(0, 2**32 - 1), number, upper)
+def test_any_frame_ids_serialise(frames, sec, nanosec, x, pose_cov):
+    # Issue 14 item 4: 'ZZZZ<<<<' (the bytes of the old stamp sentinel) killed the node.
+    values = (sec, nanosec, x, -x, 0.6, 0.8, pose_cov, (x, 0.5, -x), pose_cov)
+    data = OdometrySerializer(*frames).serialize(*values)
+    assert deserialize_message(data, Odometry) == reference(frames, *values)
+
+
+@pytest.mark.parametrize('frames', [('ZZZZ<<<<', 'base_ZZZZ<<<<'), ('odom_ZZZZ<<<<', 'b'),
+                                    ('\u00e9' * 300, '<' * 8 + 'Z' * 4)])
+def test_sentinel_like_frames(frames):
+    values = (7, 9, 1.0, 2.0, 0.0, 1.0, (1.0,) * 6, (3.0, 4.0, 5.0), (2.0,) * 6)
+    for _ in range(20):  # CDR padding is not initialised: a different garbage each time
+        data = OdometrySerializer(*frames).serialize(*values)
+        assert deserialize_message(data, Odometry) == reference(frames, *values)

@@ -176,7 +176,7 @@ def test_publish_rate_caps_output_and_averages_the_twist(graph):
 
 
 def test_bad_input_never_publishes_non_finite_and_keeps_the_pose(graph):
-    g = graph({'max_dt': 0.2})
+    g = graph()
     t, angle_left, angle_right = manoeuvre('turn', seconds=0.4)
     g.stream(t, angle_left, angle_right)
     last = g.odom[-1]
@@ -185,13 +185,16 @@ def test_bad_input_never_publishes_non_finite_and_keeps_the_pose(graph):
         joint_state(10.44, [math.nan, 0.0], velocity=[math.inf, 1.0]),
         joint_state(10.46, [1.0, 1.0], names=['wheel_a', 'wheel_b']),
         joint_state(5.0, [100.0, 100.0]),  # time jumps back: restart, pose kept
-        joint_state(9.0, [200.0, 200.0]),  # a gap of 4 s > max_dt: restart, pose kept
+        joint_state(5.01, [1e100, 3e99]),  # implausible: skipped, pose kept
+        joint_state(5.02, [-1e308, 1e308]),
+        joint_state(5.03, [100.0, 100.0]),  # back to the baseline: a step of nothing
     ]
     for msg in bad:
         g.send(msg)
-    assert len(g.odom) == len(t) - 1  # nothing was published for any of them
-    g.send(joint_state(9.02, [200.1, 200.1]))
-    assert spin_until(g.executor, lambda: len(g.odom) == len(t))
+    assert spin_until(g.executor, lambda: len(g.odom) >= len(t))
+    assert len(g.odom) == len(t)  # only the step of nothing was published
+    g.send(joint_state(5.05, [100.1, 100.1]))
+    assert spin_until(g.executor, lambda: len(g.odom) == len(t) + 1)
     # One step of 0.1 rad per sprocket from the pose before the bad input.
     d = np.array([0.1 * RADIUS])
     pose0 = (last.pose.pose.position.x, last.pose.pose.position.y, yaw(last))
@@ -204,7 +207,7 @@ def test_bad_input_never_publishes_non_finite_and_keeps_the_pose(graph):
                   *msg.pose.covariance, *msg.twist.covariance]
         assert all(map(math.isfinite, values))
     for text in ('non-finite encoder reading', 'lacks the joints', 'time did not advance',
-                 'without encoder data'):
+                 'implausible encoder input skipped'):
         assert g.warned(text), text
 
 
@@ -250,13 +253,18 @@ def test_runtime_parameters(graph):
     assert msgs[-1].header.frame_id == 'map_odom'
 
 
+VEHICLE = [Parameter('track_width', value=0.42), Parameter('sprocket_radius', value=0.1)]
+
+
 def test_invalid_parameters_at_start_raise(ros_context):
     with pytest.raises(ParameterError, match='scale.left must be > 0'):
         OdometryNode(context=ros_context,
-                     parameter_overrides=[Parameter('scale.left', value=0.0)])
+                     parameter_overrides=VEHICLE + [Parameter('scale.left', value=0.0)])
     with pytest.raises(ParameterError, match='input_mode must be one of'):
         OdometryNode(context=ros_context,
-                     parameter_overrides=[Parameter('input_mode', value='wheels')])
+                     parameter_overrides=VEHICLE + [Parameter('input_mode', value='wheels')])
+    with pytest.raises(ParameterError, match='track_width and sprocket_radius have no default'):
+        OdometryNode(context=ros_context)
 
 
 def test_track_speeds_mode(graph):
@@ -295,11 +303,11 @@ def test_encoder_ticks_mode_wraps(graph):
               namespace='ticks')
     assert '1591.55 ticks per metre' in g.node.encoder.describe()  # 1000 / (2 pi 0.1 m)
     top = 2**31 - 1
-    for left, right in [(top - 499, top - 499), (-top + 499, -top + 499)]:  # +1000 ticks
+    for left, right in [(top - 9, top - 9), (-top + 9, -top + 9)]:  # +20 ticks
         g.send(Int32(data=left), 'left_track/ticks')
         g.send(Int32(data=right), 'right_track/ticks')
     assert spin_until(g.executor, lambda: len(g.odom) == 1)
-    travel = np.array([2 * math.pi * RADIUS])  # one sprocket revolution
+    travel = np.array([0.02 * 2 * math.pi * RADIUS])  # 2 % of a sprocket revolution
     x, y, _ = integrate(*forward(*true_speeds(travel, travel, AURIGA), AURIGA))
     position = g.odom[0].pose.pose.position
     assert (position.x, position.y) == pytest.approx((x[0], y[0]), rel=1e-9)
@@ -372,10 +380,186 @@ def test_console_script_with_params_file(tmp_path, ros_context, executor):
 
 def test_console_script_refuses_invalid_parameters(tmp_path):
     bad = tmp_path / 'bad.yaml'
-    bad.write_text('/**:\n  ros__parameters:\n    track_width: 0.42\n'
+    bad.write_text('/**:\n  ros__parameters:\n    track_width: 0.42\n    sprocket_radius: 0.1\n'
                    '    icr: {y_left: 0.1, y_right: -0.1}\n')
     script = ConsoleScript('odometry_node', '--ros-args', '--params-file', bad,
                            tmp_path=tmp_path)
     assert script.wait(30.0) == 2
     lines = [line for line in script.output.splitlines() if 'FATAL' in line]
     assert len(lines) == 1 and 'chi' in lines[0] and 'outside (0, 1]' in lines[0]
+
+
+def _position(msg):
+    return msg.pose.pose.position.x, msg.pose.pose.position.y
+
+
+@pytest.mark.parametrize('frames', [('ZZZZ<<<<', 'base_ZZZZ<<<<'), ('odom', 'ZZZZ<<<<')])
+def test_any_frame_ids_publish(graph, frames):
+    # Issue 14 item 4: frames equal to the old serializer's sentinel killed the node.
+    g = graph({'odom_frame': frames[0], 'base_frame': frames[1]})
+    msgs = g.stream(*manoeuvre('turn', seconds=0.1))
+    assert {(m.header.frame_id, m.child_frame_id) for m in msgs} == {frames}
+    assert g.node.set_parameters_atomically([Parameter('odom_frame', value='odom_ZZZZ<<<<'),
+                                             Parameter('base_frame', value='b')]).successful
+    t, angle_left, angle_right = manoeuvre('turn', seconds=0.1)
+    msgs = g.stream(t + 1.0, angle_left, angle_right)
+    assert (msgs[-1].header.frame_id, msgs[-1].child_frame_id) == ('odom_ZZZZ<<<<', 'b')
+
+
+@pytest.mark.parametrize('name, value, reason', [
+    ('publish_rate', 5e-324, 'publish_rate must be 0 or >= 0.01 Hz'),
+    ('publish_rate', 1e9, 'publish_rate'),
+    ('odom_frame', '/odom', 'must not start with "/"'),
+    ('base_frame', 'base link', 'without spaces'),
+    ('base_frame', '', 'non-empty frame id'),
+    ('track_width', 5e-324, 'track_width'),
+    ('sprocket_radius', 1e300, 'sprocket_radius'),
+    ('max_plausible_speed', 0.0, 'max_plausible_speed'),
+    ('covariance.k_left', 1e300, 'covariance.k_left'),
+    ('max_dt', 1e-300, 'max_dt'),
+])
+def test_absurd_values_are_refused_and_the_node_keeps_running(graph, name, value, reason):
+    g = graph()
+    result = g.node.set_parameters([Parameter(name, value=value)])[0]
+    assert not result.successful and reason in result.reason
+    assert g.node.get_parameter(name).value == g.node.params[name]
+    assert len(g.stream(*manoeuvre('straight', seconds=0.1))) == 5
+
+
+def test_absurd_positions_do_not_freeze_the_heading(graph):
+    # Issue 14 item 6: after left 1e100, 3e99, 0 rad, a 90 degree spin publishes 90 degrees.
+    g = graph({'icr.y_left': 0.21, 'icr.y_right': -0.21, 'icr.x': 0.0, 'scale.left': 1.0,
+               'scale.right': 1.0})
+    for i, left in enumerate((0.0, 1e100, 3e99, 0.0)):
+        g.send(joint_state(10.0 + 0.02 * i, [left, 0.0]))
+    assert g.warned('implausible encoder input skipped')
+    quarter = 0.5 * math.pi * 0.21 / RADIUS  # sprocket angle of a 90 degree spin
+    t = 10.06 + 0.02 * np.arange(1, 26)
+    k = np.arange(1, 26) / 25
+    g.stream(t, -quarter * k, quarter * k)
+    assert spin_until(g.executor, lambda: g.odom[-1].header.stamp == stamp(t[-1]))
+    msgs = g.odom
+    assert yaw(msgs[-1]) == pytest.approx(0.5 * math.pi, abs=1e-9)
+    covariance = np.asarray(msgs[-1].pose.covariance).reshape(6, 6)[np.ix_([0, 1, 5], [0, 1, 5])]
+    assert np.all(np.isfinite(covariance)) and np.abs(covariance).max() < 0.01
+
+
+def test_a_gap_in_a_straight_drive_keeps_the_travel(graph):
+    # Issue 15 item 2: a 0.7 s gap in a straight 1 m drive gave x = 0.860 m.
+    g = graph({'icr.y_left': 0.21, 'icr.y_right': -0.21, 'icr.x': 0.0, 'scale.left': 1.0,
+               'scale.right': 1.0})
+    t = 10.0 + np.arange(101) / RATE           # 2 s at 0.5 m/s
+    angle = 0.5 * (t - t[0]) / RADIUS
+    keep = (t < 10.6) | (t > 11.3)             # nothing from 10.6 to 11.3 s
+    msgs = g.stream(t[keep], angle[keep], angle[keep])
+    assert msgs[-1].pose.pose.position.x == pytest.approx(1.0, abs=1e-9)
+    (line,) = g.stderr.lines('INFO', 'odometry_node', 'without encoder data')
+    assert 'integrated' in line
+
+
+def test_wrapped_joints_give_the_true_travel(graph):
+    # Issue 15 item 3: continuous joints reported in [-pi, pi] gave x = -0.257 m for 1 m.
+    g = graph({'icr.y_left': 0.21, 'icr.y_right': -0.21, 'icr.x': 0.0, 'scale.left': 1.0,
+               'scale.right': 1.0})
+    t = 10.0 + np.arange(101) / RATE
+    wrapped = np.angle(np.exp(1j * 0.5 * (t - t[0]) / RADIUS))
+    msgs = g.stream(t, wrapped, wrapped)
+    assert msgs[-1].pose.pose.position.x == pytest.approx(1.0, abs=1e-9)
+
+
+def test_icrs_follow_the_track_width_until_set(ros_context, executor, capfd):
+    node = OdometryNode(context=ros_context, parameter_overrides=VEHICLE)
+    assert (node.odometry.icr.y_left, node.odometry.icr.y_right) == (0.21, -0.21)
+    assert 'icr.y_left and icr.y_right from track_width' in capfd.readouterr().err
+    assert node.set_parameters([Parameter('track_width', value=0.6)])[0].successful
+    assert (node.odometry.icr.y_left, node.odometry.icr.y_right) == (0.3, -0.3)
+    assert node.get_parameter('icr.y_left').value == 0.3
+    assert node.set_parameters([Parameter('icr.y_left', value=0.4)])[0].successful
+    assert node.set_parameters([Parameter('track_width', value=0.7)])[0].successful
+    assert (node.odometry.icr.y_left, node.odometry.icr.y_right) == (0.4, -0.35)
+    node.destroy_node()
+
+
+def test_a_second_instance_on_the_same_topic_is_named(ros_context, executor, capfd):
+    # Issue 14 item 13: two odometry_node instances doubled /odom without a word.
+    first = OdometryNode(context=ros_context, namespace='dup', parameter_overrides=VEHICLE)
+    second = OdometryNode(context=ros_context, namespace='robot2',
+                          cli_args=['--ros-args', '-r', 'odom:=/dup/odom'],
+                          parameter_overrides=VEHICLE)
+    for node in (first, second):
+        executor.add_node(node)
+    stderr = Stderr(capfd)
+
+    def warned(logger):
+        return stderr.warnings(logger, '2 publishers on /dup/odom')
+    assert spin_until(executor, lambda: warned('dup.odometry_node')
+                      and warned('robot2.odometry_node'), 5.0)
+    (line,) = warned('dup.odometry_node')
+    assert '/dup/odometry_node' in line and '/robot2/odometry_node' in line
+    for node in (first, second):
+        executor.remove_node(node)
+        node.destroy_node()
+
+
+def test_console_script_refuses_to_start_without_a_vehicle(tmp_path):
+    # Issue 15 item 1: as diff_drive_controller without wheel_separation and wheel_radius.
+    script = ConsoleScript('odometry_node', '--ros-args', '-p', 'publish_tf:=false',
+                           tmp_path=tmp_path)
+    assert script.wait(30.0) == 2
+    lines = [line for line in script.output.splitlines() if line.strip()]
+    assert len(lines) == 1 and '[FATAL]' in lines[0], script.output
+    assert 'track_width and sprocket_radius have no default' in lines[0]
+    script = ConsoleScript('odometry_node', '--ros-args', '--params-file', TERRAIN, '-p',
+                           'publish_rate:=1e-300', tmp_path=tmp_path)
+    assert script.wait(30.0) == 2
+    assert 'publish_rate must be 0 or >= 0.01 Hz' in script.output
+
+
+def _flood(ros_context, stop, msg_type=None):
+    """Publish JointState as fast as possible until ``stop`` is set (a thread's body)."""
+    from rclpy.node import Node
+    from sensor_msgs.msg import JointState
+    node = Node('flooder', context=ros_context)
+    pub = node.create_publisher(JointState, 'joint_states', QoSProfile(
+        depth=10, reliability=ReliabilityPolicy.RELIABLE))
+    i = 0
+    while not stop.is_set():
+        i += 1
+        pub.publish(joint_state(10.0 + 1e-3 * i, [1e-3 * i, 1.2e-3 * i]))
+        stop.wait(2e-4)
+    node.destroy_node()
+
+
+@pytest.mark.parametrize('name', ['odometry_node', 'icr_estimator'])
+def test_signals_during_input_exit_cleanly(tmp_path, ros_context, name):
+    # Issue 14 item 7: SIGTERM while joint_states flood in gave "RCLError: Failed to publish:
+    # publisher's context is invalid" and exit 1 in 3 of 7 runs. Signals at several moments,
+    # from while the modules import to well into the input.
+    import signal
+    import threading
+    import time
+    stop = threading.Event()
+    flooder = threading.Thread(target=_flood, args=(ros_context, stop), daemon=True)
+    flooder.start()
+    try:
+        for run, (sig, delay) in enumerate([(signal.SIGTERM, 0.2), (signal.SIGINT, 0.6),
+                                            (signal.SIGTERM, None), (signal.SIGINT, None),
+                                            (signal.SIGTERM, None)]):
+            (tmp_path / str(run)).mkdir()
+            script = ConsoleScript(name, '--ros-args', '--params-file', TERRAIN, '-p',
+                                   'publish_tf:=false', tmp_path=tmp_path / str(run))
+            if delay is None:  # well into the input: after the start-up line, then a while
+                deadline = time.monotonic() + 30.0
+                while ('ICR model' not in script.output and 'estimating' not in script.output
+                       and time.monotonic() < deadline):
+                    time.sleep(0.05)
+                time.sleep(0.2 + 0.1 * run)
+            else:
+                time.sleep(delay)
+            script.process.send_signal(sig)
+            assert script.wait(30.0) == 0, script.output
+            assert 'Traceback' not in script.output and 'Error' not in script.output, (
+                script.output)
+    finally:
+        stop.set()
+        flooder.join(5.0)

@@ -15,8 +15,12 @@ SPECS = TERRAIN_PARAMS + (
 )
 
 
-def make(ros_context, overrides=(), changes=None):
-    node = Node('table_test', context=ros_context, parameter_overrides=list(overrides))
+VEHICLE = [Parameter('track_width', value=0.42), Parameter('sprocket_radius', value=0.1)]
+
+
+def make(ros_context, overrides=(), changes=None, vehicle=VEHICLE):
+    node = Node('table_test', context=ros_context,
+                parameter_overrides=list(vehicle) + list(overrides))
     table = ParameterTable(node, SPECS, validate=icr_from_values,
                            on_change=(changes.append if changes is not None else None))
     return node, table
@@ -67,6 +71,46 @@ def test_runtime_change_validated_as_a_whole(ros_context):
     bad = node.set_parameters([Parameter('rate', Parameter.Type.STRING, 'x')])[0]
     assert not bad.successful
     assert table['rate'] == 50.0
+    node.destroy_node()
+
+
+def test_required_parameters_missing_at_start_are_named(ros_context):
+    with pytest.raises(ParameterError, match='track_width and sprocket_radius have no '
+                                             'default'):
+        make(ros_context, vehicle=())
+    with pytest.raises(ParameterError, match='^invalid parameters: sprocket_radius has no'):
+        make(ros_context, vehicle=VEHICLE[:1])
+
+
+def test_derived_icrs_follow_track_width_until_set(ros_context):
+    changes = []
+    node, table = make(ros_context, changes=changes)
+    assert (table['icr.y_left'], table['icr.y_right']) == (0.21, -0.21)
+    assert node.get_parameter('icr.y_right').value == -0.21  # ros2 param get shows it
+    assert 'track_width / 2 unless set' in node.describe_parameter('icr.y_left').description
+    # A runtime change of track_width (as `ros2 param set` does it, one parameter) moves
+    # both derived ICRs with it: the model stays the ideal drive of the new width.
+    assert node.set_parameters([Parameter('track_width', value=0.5)])[0].successful
+    assert (table['icr.y_left'], table['icr.y_right']) == (0.25, -0.25)
+    assert node.get_parameter('icr.y_left').value == 0.25
+    assert changes[-1]['icr.y_right'] == -0.25
+    # Once set explicitly, an ICR stays where it was put.
+    assert node.set_parameters([Parameter('icr.y_left', value=0.4)])[0].successful
+    assert node.set_parameters([Parameter('track_width', value=0.6)])[0].successful
+    assert (table['icr.y_left'], table['icr.y_right']) == (0.4, -0.3)
+    assert table.explicit == {'icr.y_left'}
+    # A width the explicit ICR does not allow (chi > 1) is refused as a whole.
+    result = node.set_parameters([Parameter('track_width', value=1.0)])[0]
+    assert not result.successful and 'chi' in result.reason
+    assert (table['track_width'], table['icr.y_right']) == (0.6, -0.3)
+    node.destroy_node()
+
+
+def test_icrs_given_at_start_are_explicit(ros_context):
+    node, table = make(ros_context, [Parameter('icr.y_right', value=-0.3)])
+    assert table.explicit == {'icr.y_right'}
+    assert node.set_parameters_atomically([Parameter('track_width', value=0.5)]).successful
+    assert (table['icr.y_left'], table['icr.y_right']) == (0.25, -0.3)
     node.destroy_node()
 
 

@@ -27,6 +27,24 @@ applied to this kinematic model. The product of the ``F`` of many steps keeps th
 with ``Delta`` the displacement over all of them: an early heading error moves the later
 pose sideways by the distance travelled since, so the covariance grows with distance and
 with turning.
+
+Twist: the body twist published with the pose is the mean over the steps since the last
+message, so its error is that of a mean speed. Taking the random walk above literally at
+the message rate (travel variance ``k |v| T`` over a window of ``T`` seconds, divided by
+``T^2``) gives a speed variance ``k |v| / T`` that grows with the publish rate: at 100 Hz
+sigma(v_x) = 0.12 m/s at 0.3 m/s, which a filter rightly ignores. Slip and encoder errors
+are not white at the message rate; they are correlated over about a second of driving. The
+twist variance is therefore that of the mean speed over :data:`TWIST_TIME` at the current
+speeds, from the same noise model (:func:`twist_variances`)::
+
+    var(v_left) = (k_left |v_left| tau + floor) / tau^2,    tau = TWIST_TIME
+
+independent of the publish rate: sigma(v_x) = 0.012 m/s at 0.3 m/s with the default noise.
+This is our modelling choice, not an equation of the papers.
+
+Bounds: a variance beyond :data:`MAX_VARIANCE` says nothing more than "unknown", and a
+covariance that grew to overflow would freeze the odometry; :func:`saturate` caps each
+variance there (keeping the matrix positive semi-definite).
 """
 
 from __future__ import annotations
@@ -42,6 +60,14 @@ from .kinematics import IcrParams
 # and their rates): large, so that a filter such as robot_localization ignores them, but
 # not infinite and never zero.
 UNOBSERVED_VARIANCE = 1e6
+
+# Time over which the travel noise of the model is taken to be correlated, s: the twist
+# covariance is that of the mean speed over this long (module docstring).
+TWIST_TIME = 1.0
+
+# Largest variance of a pose coordinate (m^2) or of the heading (rad^2): a standard
+# deviation of 1000 km, or of 10^6 rad, is "unknown" already.
+MAX_VARIANCE = 1e12
 
 # Below this |dtheta| the derivatives of the arc chord use their Taylor series (the
 # closed forms lose digits to cancellation); the truncation error is below 2e-13.
@@ -269,6 +295,65 @@ def twist_covariance(body, var_left, var_right, duration):
     return (xl * xl * ql + xr * xr * qr, xl * yl * ql + xr * yr * qr,
             xl * tl * ql + xr * tr * qr, yl * yl * ql + yr * yr * qr,
             yl * tl * ql + yr * tr * qr, tl * tl * ql + tr * tr * qr)
+
+
+def twist_variances(noise: TrackNoise, distance_rate_left: float,
+                    distance_rate_right: float):
+    """
+    Variances of the mean nominal speed of each track, rate-independent (module docstring).
+
+    Parameters
+    ----------
+    noise : TrackNoise
+        The travel noise model.
+    distance_rate_left, distance_rate_right : float
+        Mean distance travelled per second by each track, m/s (``|v|`` at a constant speed).
+
+    Returns
+    -------
+    var_left, var_right : float
+        (m/s)^2, for :func:`twist_covariance` with ``duration = TWIST_TIME``.
+
+    """
+    return noise.travel_variances(distance_rate_left * TWIST_TIME,
+                                  distance_rate_right * TWIST_TIME)
+
+
+def saturate(p, limit: float = MAX_VARIANCE):
+    """
+    Cap every variance of a covariance at ``limit``, keeping it positive semi-definite.
+
+    Scales the rows and columns of the over-large variances, ``P' = D P D`` with
+    ``D_ii = min(1, sqrt(limit / P_ii))``: correlations are kept and the result stays a
+    covariance. Non-finite variances become ``limit`` with no correlation.
+
+    Parameters
+    ----------
+    p : tuple of float, 6
+        Upper triangle ``(xx, xy, xt, yy, yt, tt)``.
+    limit : float
+        Largest variance.
+
+    Returns
+    -------
+    tuple of float, 6
+
+    """
+    xx, xy, xt, yy, yt, tt = p
+    if xx <= limit and yy <= limit and tt <= limit:  # False for NaN and inf too
+        return p  # the correlations are bounded by the variances
+    scales = []
+    for variance in (xx, yy, tt):
+        scales.append(math.sqrt(limit / variance) if variance > limit else 1.0)
+    sx, sy, st = scales
+    out = [min(xx * sx * sx, limit), xy * sx * sy, xt * sx * st, min(yy * sy * sy, limit),
+           yt * sy * st, min(tt * st * st, limit)]
+    for diagonal, index in ((0, 0), (3, 1), (5, 2)):
+        if not math.isfinite(out[diagonal]):
+            out[diagonal] = limit
+            for off in ((1, 2), (1, 4), (2, 4))[index]:
+                out[off] = 0.0
+    return tuple(0.0 if not math.isfinite(v) else v for v in out)
 
 
 def full_matrix(upper) -> np.ndarray:

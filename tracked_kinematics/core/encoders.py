@@ -3,7 +3,9 @@ From encoder readings to nominal track travel, for the three input kinds drivers
 
 - joint positions (rad, cumulative): exact travel ``radius * delta angle``;
 - joint or track velocities: travel by the trapezoidal rule between samples;
-- tick counters (integers that wrap around at 2^bits): unwrapped increments.
+- tick counters (integers that wrap around at 2^bits): unwrapped increments;
+- joint angles a driver wraps into [-pi, pi] (continuous joints): unwrapped
+  (:func:`unwrap_if_wrapped`, one rule for logs and live streams).
 
 Everything is vectorised over samples (for logs); :class:`IncrementTracker` is the same
 arithmetic one sample at a time, with the checks a live stream needs (for nodes).
@@ -135,15 +137,86 @@ def travel_from_ticks(tick_increments, ticks_per_revolution: float, radius: floa
                                                        / ticks_per_revolution)
 
 
+# Joint angles a driver reports wrapped into [-pi, pi] (a continuous joint) are recognised by
+# staying within this bound; cumulative ones leave it as soon as the joint turns half a turn.
+WRAP_LIMIT = math.pi + 1e-6
+
+
+def unwrap_increments(increments):
+    """
+    Read increments of a wrapped angle as the smallest equivalent ones.
+
+    An increment larger than pi in magnitude is taken to have crossed the +-pi boundary:
+    it is replaced by the one of the same angle within [-pi, pi] (``np.unwrap``'s rule).
+    Works on scalars and arrays.
+
+    Parameters
+    ----------
+    increments : float or array_like
+        Differences of consecutive angles, rad.
+
+    Returns
+    -------
+    float or ndarray
+
+    """
+    delta = np.asarray(increments, dtype=float)
+    out = np.where(np.abs(delta) > np.pi, np.remainder(delta + np.pi, 2.0 * np.pi) - np.pi,
+                   delta)
+    return float(out) if out.ndim == 0 else out
+
+
+def unwrap_if_wrapped(positions) -> np.ndarray:
+    """
+    Unwrap joint angles that a driver reports wrapped into [-pi, pi] (continuous joints).
+
+    The rule, shared by the bag reader and the nodes' :class:`IncrementTracker`: a series of
+    angles that stays within [-pi, pi] (:data:`WRAP_LIMIT`) is wrapped when it jumps by
+    more than pi between two samples, and each such jump is read as the smallest equivalent
+    increment (:func:`unwrap_increments`); a series that leaves [-pi, pi] is cumulative and
+    kept as it is.
+
+    Parameters
+    ----------
+    positions : array_like, shape (N,)
+        Joint angles, rad.
+
+    Returns
+    -------
+    ndarray, shape (N,)
+        The angles unwrapped, or ``positions`` itself when it is not wrapped.
+
+    """
+    if len(positions) < 2 or np.max(np.abs(positions)) > WRAP_LIMIT:
+        return positions
+    steps = np.diff(positions)
+    if not np.any(np.abs(steps) > math.pi):
+        return positions
+    return positions[0] + np.concatenate([[0.0], np.cumsum(unwrap_increments(steps))])
+
+
+# Timing jitter allowed by the plausibility gate, s: a step may travel up to
+# max_plausible_speed x (dt + this), so that messages timed on arrival (track_speeds,
+# encoder_ticks), which may come in bursts, are not refused for it.
+PLAUSIBILITY_SLACK = 0.02
+
+
 class Status:
     """What :meth:`IncrementTracker.update` did with a sample."""
 
     STEP = 'step'              # a step of travel was produced
+    LONG_STEP = 'long_step'    # a step over a gap longer than max_dt (positions, ticks: exact)
+    RESUMED = 'resumed'        # a step from the sample after an implausible one (a restart)
     FIRST = 'first'            # first sample: it became the baseline
     KIND_CHANGED = 'kind'      # positions <-> velocities: restarted from this sample
     NON_FINITE = 'non_finite'  # NaN or inf: skipped, the baseline kept
     TIME_BACK = 'time_back'    # stamp not after the baseline's: restarted from this sample
-    GAP = 'gap'                # longer than max_dt since the baseline: restarted, gap skipped
+    DUPLICATE = 'duplicate'    # the baseline again (same stamp and readings): ignored
+    GAP = 'gap'                # velocities, longer than max_dt: restarted, gap not bridged
+    IMPLAUSIBLE = 'implausible'  # faster than max_plausible_speed: skipped, baseline kept
+
+    # The statuses that produce a step of travel.
+    STEPS = frozenset((STEP, LONG_STEP, RESUMED))
 
 
 class IncrementTracker:
@@ -156,25 +229,66 @@ class IncrementTracker:
 
     - A sample with a non-finite value is skipped and the baseline kept, so that cumulative
       positions still give the exact travel across it.
-    - A stamp not after the baseline's (a sim-time reset, a bag loop, a duplicate) or a gap
-      longer than ``max_dt`` restarts from the new sample without producing a step: the
-      travel over the gap is unknown or meaningless, and the odometry keeps its pose.
+    - Positions and tick counters are cumulative: their travel across a gap of any length
+      is exact, and is integrated (``Status.LONG_STEP`` beyond ``max_dt``). Velocities are
+      bridged by the trapezoidal rule up to ``max_dt``; a longer gap restarts from the new
+      sample (``Status.GAP``): the travel over it is unknown.
+    - Angles reported wrapped into [-pi, pi] are unwrapped (the rule of
+      :func:`unwrap_if_wrapped`, decided sample by sample: a side is cumulative from its
+      first reading outside [-pi, pi] on).
+    - The plausibility gate: a step in which a track travels more than ``max_speed x (dt +
+      PLAUSIBILITY_SLACK)`` (or a velocity sample faster than ``max_speed``) is skipped
+      (``Status.IMPLAUSIBLE``) and the baseline kept, so a glitch costs nothing: the next
+      sample is measured from the baseline. When the next sample is not plausible from the
+      baseline either but is from the skipped one (a counter restarted from 0, a driver that
+      re-zeroed its positions), integration resumes from there (``Status.RESUMED``): the
+      jump itself is never integrated. Garbage (int64 noise, 1e100 rad) is never plausible.
+    - A stamp not after the baseline's (a sim-time reset, a bag loop) restarts from the new
+      sample without producing a step; the odometry keeps its pose. The baseline itself
+      again (same stamp and readings: a sample delivered twice) is ignored.
     - Switching between positions and velocities restarts the same way.
 
     Parameters
     ----------
     max_dt : float
-        Longest step integrated, s.
+        Longest gap bridged between velocity samples, s.
+    max_speed : float
+        Fastest plausible track speed, m/s.
 
     """
 
-    def __init__(self, max_dt: float = 0.5):
+    def __init__(self, max_dt: float = 0.5, max_speed: float = 10.0):
         self.max_dt = float(max_dt)
+        self.max_speed = float(max_speed)
         self.reset()
 
     def reset(self) -> None:
         """Forget the baseline: the next sample starts afresh."""
         self._last = None
+        self._skipped = None
+        self._wrapped = [True, True]
+
+    def _travel(self, kind, left, right, base, factor, bits):
+        """Nominal travel of both tracks from the sample ``base`` to this one."""
+        base_left, base_right = base[2], base[3]
+        if kind == 'position':
+            d_left = left - base_left
+            d_right = right - base_right
+            wrapped = self._wrapped
+            if wrapped[0] and abs(d_left) > math.pi:
+                d_left = unwrap_increments(d_left)
+            if wrapped[1] and abs(d_right) > math.pi:
+                d_right = unwrap_increments(d_right)
+            return d_left * factor, d_right * factor
+        modulus = 1 << bits
+        half_range = 1 << (bits - 1)
+        return (((left - base_left + half_range) % modulus - half_range) * factor,
+                ((right - base_right + half_range) % modulus - half_range) * factor)
+
+    def _plausible(self, d_left, d_right, dt) -> bool:
+        allowed = self.max_speed * (dt + PLAUSIBILITY_SLACK)
+        # Also False for NaN and inf (a difference of huge readings overflows).
+        return abs(d_left) <= allowed and abs(d_right) <= allowed
 
     def update(self, stamp_ns: int, kind: str, left, right, factor: float, bits: int = 64):
         """
@@ -199,34 +313,58 @@ class IncrementTracker:
         Returns
         -------
         status : str
-            One of :class:`Status`.
+            One of :class:`Status`; ``Status.STEPS`` produce a step.
         d_left, d_right : float
-            Nominal travel over the step, m (0 unless the status is ``Status.STEP``).
+            Nominal travel over the step, m; for ``IMPLAUSIBLE`` the travel (or, for
+            velocities, the speeds in m/s) that was refused; 0 otherwise.
         dt : float
-            The step's duration, s; for ``TIME_BACK`` and ``GAP`` the offending interval.
+            The step's duration, s; for ``TIME_BACK``, ``GAP`` and ``IMPLAUSIBLE`` the
+            offending interval.
 
         """
         if kind != 'ticks' and not (math.isfinite(left) and math.isfinite(right)):
             return Status.NON_FINITE, 0.0, 0.0, 0.0
+        if kind == 'position':
+            wrapped = self._wrapped
+            if wrapped[0] and abs(left) > WRAP_LIMIT:
+                wrapped[0] = False
+            if wrapped[1] and abs(right) > WRAP_LIMIT:
+                wrapped[1] = False
+        elif kind == 'velocity':
+            max_speed = self.max_speed
+            if abs(left * factor) > max_speed or abs(right * factor) > max_speed:
+                dt = 0.0 if self._last is None else (stamp_ns - self._last[0]) * 1e-9
+                return Status.IMPLAUSIBLE, left * factor, right * factor, dt
+        sample = (stamp_ns, kind, left, right)
         last = self._last
-        self._last = (stamp_ns, kind, left, right)
         if last is None:
+            self._last = sample
             return Status.FIRST, 0.0, 0.0, 0.0
-        last_ns, last_kind, last_left, last_right = last
-        dt = (stamp_ns - last_ns) * 1e-9
-        if last_kind != kind:
+        dt = (stamp_ns - last[0]) * 1e-9
+        if last[1] != kind:
+            self._last, self._skipped = sample, None
             return Status.KIND_CHANGED, 0.0, 0.0, dt
         if dt <= 0.0:
+            if dt == 0.0 and left == last[2] and right == last[3]:
+                return Status.DUPLICATE, 0.0, 0.0, 0.0
+            self._last, self._skipped = sample, None
             return Status.TIME_BACK, 0.0, 0.0, dt
-        if dt > self.max_dt:
-            return Status.GAP, 0.0, 0.0, dt
-        if kind == 'position':
-            return Status.STEP, (left - last_left) * factor, (right - last_right) * factor, dt
         if kind == 'velocity':
+            self._last = sample
+            if dt > self.max_dt:
+                return Status.GAP, 0.0, 0.0, dt
             half = 0.5 * dt * factor
-            return Status.STEP, (left + last_left) * half, (right + last_right) * half, dt
-        modulus = 1 << bits
-        half_range = 1 << (bits - 1)
-        ticks_left = (left - last_left + half_range) % modulus - half_range
-        ticks_right = (right - last_right + half_range) % modulus - half_range
-        return Status.STEP, ticks_left * factor, ticks_right * factor, dt
+            return Status.STEP, (left + last[2]) * half, (right + last[3]) * half, dt
+        d_left, d_right = self._travel(kind, left, right, last, factor, bits)
+        if self._plausible(d_left, d_right, dt):
+            self._last, self._skipped = sample, None
+            return (Status.STEP if dt <= self.max_dt else Status.LONG_STEP), d_left, d_right, dt
+        skipped = self._skipped
+        if skipped is not None and stamp_ns > skipped[0]:
+            resumed_dt = (stamp_ns - skipped[0]) * 1e-9
+            r_left, r_right = self._travel(kind, left, right, skipped, factor, bits)
+            if self._plausible(r_left, r_right, resumed_dt):
+                self._last, self._skipped = sample, None
+                return Status.RESUMED, r_left, r_right, resumed_dt
+        self._skipped = sample
+        return Status.IMPLAUSIBLE, d_left, d_right, dt

@@ -8,6 +8,12 @@ of :func:`.integration.integrate`) and propagates the covariance (:mod:`.covaria
 Nothing here knows about ROS: the node feeds it numbers and copies the numbers out. One
 step costs a few microseconds in plain Python floats, which is what a node handling one
 encoder message at a time needs.
+
+The state can never be corrupted into a frozen one: a step whose travel, speed, pose or
+covariance would not be finite is refused whole (no hidden jump: a step is integrated only
+if its twist can be published), the covariance saturates at
+:data:`~.covariance.MAX_VARIANCE`, and the heading stays within a range where a turn still
+registers.
 """
 
 from __future__ import annotations
@@ -17,11 +23,20 @@ import math
 import numpy as np
 
 from .covariance import (
-    arc_step, body_jacobian, full_matrix, propagate, TrackNoise, travel_jacobian,
-    twist_covariance)
+    arc_step, body_jacobian, full_matrix, propagate, saturate, TrackNoise, travel_jacobian,
+    twist_covariance, TWIST_TIME, twist_variances)
 from .kinematics import IcrParams
 
 _ZERO_COVARIANCE = (0.0,) * 6
+
+# Largest travel of a track in one step, m: beyond it a step is refused whatever its
+# duration (a plausibility gate upstream refuses far less; this bound keeps the state
+# finite and meaningful for any caller).
+MAX_STEP_TRAVEL = 1e9
+
+# Beyond this |theta| (rad, 160,000 turns) the heading is brought back into [-pi, pi]: a
+# continuous heading that grew without bound would lose the resolution to turn at all.
+_HEADING_WRAP = 1e6
 
 
 class Odometry:
@@ -89,12 +104,14 @@ class Odometry:
         Returns
         -------
         bool
-            False, with the state unchanged, when the input or the result is not finite,
-            or ``dt <= 0``.
+            False, with the state unchanged, when the input, its speed or the result is not
+            finite, ``dt <= 0``, or a track travels more than :data:`MAX_STEP_TRAVEL`.
 
         """
         if not (math.isfinite(d_left) and math.isfinite(d_right) and math.isfinite(dt)
-                and dt > 0.0):
+                and dt > 0.0 and abs(d_left) <= MAX_STEP_TRAVEL
+                and abs(d_right) <= MAX_STEP_TRAVEL
+                and math.isfinite(d_left / dt) and math.isfinite(d_right / dt)):
             return False
         (b0l, b0r), (b1l, b1r), (b2l, b2r) = self._body
         x, y, theta = self.pose
@@ -105,10 +122,14 @@ class Odometry:
             return False
         delta_x, delta_y, m = arc_step(theta, dx, dy, dtheta)
         var_left, var_right = self.noise.travel_variances(d_left, d_right)
-        covariance = propagate(self.covariance_upper, delta_x, delta_y,
-                               travel_jacobian(m, self._body), var_left, var_right)
-        pose = (x + delta_x, y + delta_y, theta + dtheta)
-        if not all(map(math.isfinite, pose + covariance)):
+        covariance = saturate(propagate(self.covariance_upper, delta_x, delta_y,
+                                        travel_jacobian(m, self._body), var_left, var_right))
+        theta += dtheta
+        if abs(theta) > _HEADING_WRAP:
+            theta = math.remainder(theta, 2.0 * math.pi)
+        pose = (x + delta_x, y + delta_y, theta)
+        if not (math.isfinite(pose[0]) and math.isfinite(pose[1])
+                and math.isfinite(covariance[0]) and math.isfinite(covariance[3])):
             return False
         self.pose = pose
         self.covariance_upper = covariance
@@ -127,27 +148,34 @@ class Odometry:
         Mean body twist over the steps since the last call, and its covariance.
 
         The kinematics are linear in the travel, so the mean twist over a window is the
-        twist of the summed travel divided by the window's duration; its covariance is
-        ``B Q B^T / T^2`` with the travel variances of the same noise model summed over
-        the window's samples. The window then restarts.
+        twist of the summed travel divided by the window's duration. Its covariance is
+        ``B Q B^T / tau^2`` with ``Q`` the travel variances of the same noise model over
+        ``tau = TWIST_TIME`` at the window's mean distance rates
+        (:func:`.covariance.twist_variances`): independent of the publish rate. The window
+        then restarts.
 
         Returns
         -------
         twist : tuple of float
             ``(v_x, v_y, w)`` in base_link: m/s, m/s, rad/s; zeros for an empty window.
         covariance_upper : tuple of float
-            Upper triangle of its covariance (:func:`.covariance.twist_covariance`); an
-            empty window gives that of one still sample over one second (the floor).
+            Upper triangle of its covariance (:func:`.covariance.twist_covariance`, plus the
+            floor on ``v_y``, so that no variance is zero); an empty window gives that of
+            standing still (the floor).
 
         """
         d_left, d_right, abs_left, abs_right, samples, duration = self._window
         self._clear_window()
         if samples == 0:
-            samples, duration = 1, 1.0
-        var_left, var_right = self.noise.travel_variances(abs_left, abs_right, samples)
+            duration = 1.0
+        var_left, var_right = twist_variances(self.noise, abs_left / duration,
+                                              abs_right / duration)
         (b0l, b0r), (b1l, b1r), (b2l, b2r) = self._body
         v_left = d_left / duration
         v_right = d_right / duration
         twist = (b0l * v_left + b0r * v_right, b1l * v_left + b1r * v_right,
                  b2l * v_left + b2r * v_right)
-        return twist, twist_covariance(self._body, var_left, var_right, duration)
+        xx, xy, xt, yy, yt, tt = twist_covariance(self._body, var_left, var_right, TWIST_TIME)
+        # With icr.x = 0 the model says v_y = 0 exactly; no model is exact, and a filter
+        # should never be handed a zero variance: v_y is known to the floor's precision.
+        return twist, (xx, xy, xt, yy + self.noise.floor / (TWIST_TIME * TWIST_TIME), yt, tt)

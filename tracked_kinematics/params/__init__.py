@@ -8,7 +8,9 @@ ring; it imports only ``core/``. docs/parameters.md is generated from the tables
 """
 
 from .files import flatten, nest, read_params_file, write_params_file
-from .spec import check_values, described_as, finite, non_negative, one_of, ParamSpec, positive
+from .spec import (check_values, Derived, described_as, each, finite, frame_id, in_range,
+                   missing_message, node_name, non_negative, one_of, ParamSpec, positive,
+                   resolve, ros_name, zero_or_at_least)
 from .tables import (COMMAND_LIMIT_PARAMS, DRIVETRAIN_DEFAULTS, DRIVETRAIN_PARAMS,
                      ENCODER_INPUT_DEFAULTS, ENCODER_INPUT_PARAMS, INPUT_MODES,
                      JOINT_STATES_TOPIC, LIMIT_FIELDS, limit_value, SIDE_TOPICS,
@@ -17,10 +19,12 @@ from .values import (drivetrain_from_values, icr_from_values, limits_from_values
                      values_from_drivetrain, values_from_icr)
 
 __all__ = [
-    'COMMAND_LIMIT_PARAMS', 'DRIVETRAIN_DEFAULTS', 'DRIVETRAIN_PARAMS', 'ENCODER_INPUT_DEFAULTS',
-    'ENCODER_INPUT_PARAMS', 'INPUT_MODES', 'JOINT_STATES_TOPIC', 'LIMIT_FIELDS', 'ParamSpec',
-    'SIDE_TOPICS', 'TERRAIN_DEFAULTS', 'TERRAIN_PARAMS', 'TICKS_TYPES', 'check_values',
-    'described_as', 'drivetrain_from_values', 'finite', 'flatten', 'icr_from_values',
-    'limit_value', 'limits_from_values', 'nest', 'non_negative', 'one_of', 'positive',
-    'read_params_file', 'values_from_drivetrain', 'values_from_icr', 'write_params_file',
+    'COMMAND_LIMIT_PARAMS', 'DRIVETRAIN_DEFAULTS', 'DRIVETRAIN_PARAMS', 'Derived',
+    'ENCODER_INPUT_DEFAULTS', 'ENCODER_INPUT_PARAMS', 'INPUT_MODES', 'JOINT_STATES_TOPIC',
+    'LIMIT_FIELDS', 'ParamSpec', 'SIDE_TOPICS', 'TERRAIN_DEFAULTS', 'TERRAIN_PARAMS',
+    'TICKS_TYPES', 'check_values', 'described_as', 'drivetrain_from_values', 'each', 'finite',
+    'flatten', 'frame_id', 'icr_from_values', 'in_range', 'limit_value', 'limits_from_values',
+    'missing_message', 'nest', 'node_name', 'non_negative', 'one_of', 'positive',
+    'read_params_file', 'resolve', 'ros_name', 'values_from_drivetrain', 'values_from_icr',
+    'write_params_file', 'zero_or_at_least',
 ]

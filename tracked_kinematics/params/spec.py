@@ -7,6 +7,11 @@ parameters from the tables of :mod:`.tables` (with descriptors, so ``ros2 param 
 explains them) and validate with the same checks at start and in their set-parameters
 callback; the command lines validate terrain files with them. Every check carries its rule
 in words (``check.words``, set by :func:`described_as`) for the generated parameter reference.
+
+A parameter has a default, or none (``required``: the user must give it, as
+diff_drive_controller needs ``wheel_separation``), or a default computed from the others
+(``derived``: ``icr.y_left`` is ``+track_width / 2`` unless set). :func:`resolve` applies that
+rule to a mapping of given values, for the nodes and the offline tools alike.
 """
 
 from __future__ import annotations
@@ -88,6 +93,27 @@ def in_range(value, low: float | None, high: float | None, unit: str = '') -> st
     return f'must be in [{lo:g}, {hi:g}]{unit}, got {value!r}'
 
 
+def zero_or_at_least(low: float, unit: str = '') -> Callable[[Any], str | None]:
+    """Return a check: 0 (a switch: off, every step, ...) or a number >= ``low``."""
+    def check(value) -> str | None:
+        problem = finite(value)
+        if problem or value == 0 or value >= low:
+            return problem
+        return f'must be 0 or >= {low:g}{" " + unit if unit else ""}, got {value!r}'
+    return check
+
+
+def each(check: Callable[[Any], str | None]) -> Callable[[Any], str | None]:
+    """Return a check of a list: ``check`` on every element, the first problem named."""
+    def check_all(values) -> str | None:
+        for i, value in enumerate(values):
+            problem = check(value)
+            if problem:
+                return f'[{i}] {problem}'
+        return None
+    return check_all
+
+
 def _is_inf(value) -> bool:
     return isinstance(value, float) and math.isinf(value)
 
@@ -139,6 +165,26 @@ def frame_id(value) -> str | None:
 
 
 @dataclass(frozen=True)
+class Derived:
+    """
+    A default computed from other parameters.
+
+    Attributes
+    ----------
+    text : str
+        The rule as users read it (``+track_width / 2``).
+    value : callable
+        ``value(values) -> default`` from the other (resolved) values; it may raise
+        ``KeyError``, ``TypeError`` or ``ValueError`` when they are missing or invalid, and the
+        default is then left out (the other values' own checks report the problem).
+
+    """
+
+    text: str
+    value: Callable[[Mapping[str, Any]], Any]
+
+
+@dataclass(frozen=True)
 class ParamSpec:
     """
     One parameter: ROS name, default (its type is the parameter's type), meaning, check.
@@ -148,7 +194,8 @@ class ParamSpec:
     name : str
         ROS parameter name, dots for nesting (``icr.y_left``).
     default : bool, int, float, str or list of str
-        Default value; its Python type is the parameter's type.
+        Default value; its Python type is the parameter's type. For a ``required`` or
+        ``derived`` parameter it is only an example of the type (never used as a value).
     description : str
         What it means, shown by ``ros2 param describe``.
     unit : str
@@ -162,6 +209,11 @@ class ParamSpec:
         ``FloatingPointRange`` / ``IntegerRange`` (``ros2 param describe`` shows it) and
         checked after ``check``. A value outside is refused at start and at runtime: a rate
         of 1e-10 Hz or a radius of 5e-324 m is a number, not a vehicle.
+    required : bool
+        No default: a value must be given (a node refuses to start without it).
+    derived : Derived, optional
+        Default computed from the other parameters unless the parameter is set; a node
+        recomputes it when they change, until the parameter is set explicitly.
 
     """
 
@@ -173,6 +225,8 @@ class ParamSpec:
     read_only: bool = False
     low: float | None = None
     high: float | None = None
+    required: bool = False
+    derived: Derived | None = None
 
     def validate(self, value) -> str | None:
         """Return an error message naming the parameter, or None when ``value`` is valid."""
@@ -187,9 +241,24 @@ class ParamSpec:
         return self.low is not None or self.high is not None
 
     @property
+    def has_default(self) -> bool:
+        """Whether ``default`` is the value used when none is given."""
+        return not self.required and self.derived is None
+
+    @property
+    def default_text(self) -> str:
+        """Return the default as users read it: a value, ``required`` or the derivation."""
+        if self.required:
+            return 'required, no default'
+        if self.derived is not None:
+            return f'default {self.derived.text} unless set'
+        return f'default {self.default!r}'
+
+    @property
     def full_description(self) -> str:
-        """Return the description with the unit, as shown to users."""
-        return f'{self.description} [{self.unit}]' if self.unit else self.description
+        """Return the description with the unit (and the default rule), as shown to users."""
+        text = f'{self.description} [{self.unit}]' if self.unit else self.description
+        return text if self.has_default else f'{text} ({self.default_text})'
 
 
 def check_values(specs, values: Mapping[str, Any]) -> list[str]:
@@ -203,3 +272,55 @@ def check_values(specs, values: Mapping[str, Any]) -> list[str]:
             if problem:
                 problems.append(problem)
     return problems
+
+
+def resolve(specs, given: Mapping[str, Any]) -> tuple[dict[str, Any], list[str]]:
+    """
+    Apply the default rule of ``specs`` to the values ``given``.
+
+    Given values are kept as they are (unchecked); a missing parameter takes its default,
+    or its derived default computed from the others; a missing required one is reported.
+    Names that no spec declares are left out.
+
+    Parameters
+    ----------
+    specs : iterable of ParamSpec
+        The parameters; derived defaults are computed from the values of the others.
+    given : mapping
+        Parameter names to values (a params file, a node's overrides, ...).
+
+    Returns
+    -------
+    values : dict
+        A value for every spec that has one.
+    missing : list of str
+        Required parameters without a value, in table order.
+
+    """
+    specs = tuple(specs)
+    values: dict[str, Any] = {}
+    missing = []
+    for spec in specs:
+        if spec.name in given:
+            values[spec.name] = given[spec.name]
+        elif spec.required:
+            missing.append(spec.name)
+        elif spec.has_default:
+            values[spec.name] = spec.default
+    for spec in specs:
+        if spec.derived is not None and spec.name not in values:
+            try:
+                values[spec.name] = spec.derived.value(values)
+            except (KeyError, TypeError, ValueError):
+                pass
+    return values, missing
+
+
+def missing_message(missing) -> str:
+    """Return the one line that names required parameters without a value."""
+    names = ' and '.join(missing) if len(missing) <= 2 else (
+        ', '.join(missing[:-1]) + f' and {missing[-1]}')
+    verb = 'has' if len(missing) == 1 else 'have'
+    return (f"{names} {verb} no default: give the vehicle's own values (-p NAME:=VALUE or a "
+            'terrain file with --params-file), as diff_drive_controller needs wheel_separation '
+            'and wheel_radius')

@@ -24,28 +24,41 @@ from typing import Any
 
 from tracked_kinematics.core.drivetrain import LOOP_KINDS
 
-from .spec import described_as, finite, non_negative, one_of, ParamSpec, positive
+from .spec import Derived, described_as, finite, non_negative, one_of, ParamSpec, positive
+
+
+def _half_track(sign: float) -> Derived:
+    return Derived(f'{"+" if sign > 0 else "-"}track_width / 2',
+                   lambda values: sign * 0.5 * float(values['track_width']))
 
 
 TERRAIN_PARAMS: tuple[ParamSpec, ...] = (
     ParamSpec('track_width', 0.42, 'Distance between the track centrelines (L, B)', 'm',
-              positive),
+              positive, low=0.01, high=20.0, required=True),
     ParamSpec('sprocket_radius', 0.1,
               'Drive sprocket radius: joint angle (rad) x radius = nominal track travel', 'm',
-              positive),
+              positive, low=1e-5, high=10.0, required=True),
     ParamSpec('icr.y_left', 0.21,
               'Lateral coordinate of the left tread ICR in base_link (> 0; track_width / 2 '
-              'is ideal differential drive)', 'm', finite),
+              'is ideal differential drive)', 'm', finite, low=-100.0, high=100.0,
+              derived=_half_track(1.0)),
     ParamSpec('icr.y_right', -0.21,
-              'Lateral coordinate of the right tread ICR in base_link (< 0)', 'm', finite),
+              'Lateral coordinate of the right tread ICR in base_link (< 0)', 'm', finite,
+              low=-100.0, high=100.0, derived=_half_track(-1.0)),
     ParamSpec('icr.x', 0.0,
-              'Longitudinal coordinate of both tread ICRs in base_link (+ ahead)', 'm', finite),
+              'Longitudinal coordinate of both tread ICRs in base_link (+ ahead)', 'm', finite,
+              low=-100.0, high=100.0),
     ParamSpec('scale.left', 1.0, 'Left encoder correction: true speed = scale x nominal', '',
-              positive),
+              positive, low=0.1, high=10.0),
     ParamSpec('scale.right', 1.0, 'Right encoder correction: true speed = scale x nominal', '',
-              positive),
+              positive, low=0.1, high=10.0),
 )
 
+# The ``default`` of each terrain spec. Only icr.x and the scales have real defaults:
+# track_width and sprocket_radius are required and icr.y_* derived (see
+# :func:`~tracked_kinematics.params.spec.resolve` and :func:`.values.icr_from_values`); their
+# entries here are the Auriga's example values, kept for the offline tools' own command-line
+# defaults until those follow the same rule. Nodes never use them.
 TERRAIN_DEFAULTS: dict[str, Any] = {spec.name: spec.default for spec in TERRAIN_PARAMS}
 
 
@@ -53,22 +66,27 @@ DRIVETRAIN_PARAMS: tuple[ParamSpec, ...] = (
     ParamSpec('drivetrain.loop', 'first_order',
               'Speed loop: ideal, first_order (time_constant) or pid_dc_motor (pid, motor)', '',
               one_of(LOOP_KINDS)),
-    ParamSpec('drivetrain.delay', 0.0, 'Command delay', 's', non_negative),
+    ParamSpec('drivetrain.delay', 0.0, 'Command delay', 's', non_negative, low=0.0, high=10.0),
     ParamSpec('drivetrain.max_accel', 0.0, 'Acceleration limit of the input shaping; 0 = none',
-              'm/s^2', non_negative),
+              'm/s^2', non_negative, low=0.0, high=1000.0),
     ParamSpec('drivetrain.time_constant', 0.1, 'Time constant of the first-order loop', 's',
-              positive),
+              positive, low=1e-4, high=100.0),
     ParamSpec('drivetrain.pid.kp', 56.49, 'Proportional gain K_p (Fink & Stump eq. 6)', '',
-              non_negative),
-    ParamSpec('drivetrain.pid.ki', 1.11, 'Integral gain K_i', '', non_negative),
-    ParamSpec('drivetrain.pid.kd', 2.77, 'Derivative gain K_d', '', non_negative),
+              non_negative, low=0.0, high=1e6),
+    ParamSpec('drivetrain.pid.ki', 1.11, 'Integral gain K_i', '', non_negative, low=0.0,
+              high=1e6),
+    ParamSpec('drivetrain.pid.kd', 2.77, 'Derivative gain K_d', '', non_negative, low=0.0,
+              high=1e6),
     ParamSpec('drivetrain.motor.inertia', 0.059, 'Rotor inertia J (Fink & Stump eq. 7)',
-              'kg m^2', positive),
-    ParamSpec('drivetrain.motor.damping', 0.456, 'Viscous friction b', 'N m s', non_negative),
-    ParamSpec('drivetrain.motor.resistance', 0.254, 'Armature resistance R', 'Ohm', positive),
-    ParamSpec('drivetrain.motor.inductance', 0.253, 'Armature inductance L', 'H', positive),
+              'kg m^2', positive, low=1e-9, high=1e3),
+    ParamSpec('drivetrain.motor.damping', 0.456, 'Viscous friction b', 'N m s', non_negative,
+              low=0.0, high=1e3),
+    ParamSpec('drivetrain.motor.resistance', 0.254, 'Armature resistance R', 'Ohm', positive,
+              low=1e-6, high=1e3),
+    ParamSpec('drivetrain.motor.inductance', 0.253, 'Armature inductance L', 'H', positive,
+              low=1e-9, high=1e3),
     ParamSpec('drivetrain.motor.constant', 0.0294, 'Torque / back-EMF constant K', 'N m/A',
-              positive),
+              positive, low=1e-6, high=1e3),
 )
 
 DRIVETRAIN_DEFAULTS: dict[str, Any] = {spec.name: spec.default for spec in DRIVETRAIN_PARAMS}
@@ -106,10 +124,16 @@ ENCODER_INPUT_PARAMS: tuple[ParamSpec, ...] = (
               check=one_of(TICKS_TYPES), read_only=True),
     ParamSpec('ticks_per_revolution', 4096.0,
               'Encoder ticks per sprocket revolution (after any gearing)', 'ticks/rev',
-              positive),
+              positive, low=1.0, high=1e9),
     ParamSpec('max_dt', 0.5,
-              'Longest gap between two encoder samples that is integrated; a longer one '
-              'restarts the integration from the new sample', 's', positive),
+              'Longest gap between two velocity samples that is bridged (trapezoidal rule); '
+              'a longer one restarts from the new sample. Positions and tick counters '
+              'integrate across any gap: their travel is exact', 's', positive, low=1e-3,
+              high=60.0),
+    ParamSpec('max_plausible_speed', 10.0,
+              'Fastest plausible track speed: an encoder step that implies a faster one (a '
+              'counter restart, a glitch, garbage) is skipped with a warning', 'm/s', positive,
+              low=0.01, high=1000.0),
 )
 
 ENCODER_INPUT_DEFAULTS: dict[str, Any] = {spec.name: spec.default

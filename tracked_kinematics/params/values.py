@@ -19,9 +19,8 @@ from tracked_kinematics.core.drivetrain import DriveTrain, FirstOrderLag, PidMot
 from tracked_kinematics.core.errors import InvalidParameters
 from tracked_kinematics.core.kinematics import IcrParams
 
-from .spec import check_values
-from .tables import (DRIVETRAIN_DEFAULTS, DRIVETRAIN_PARAMS, LIMIT_FIELDS, TERRAIN_DEFAULTS,
-                     TERRAIN_PARAMS)
+from .spec import check_values, missing_message, resolve
+from .tables import DRIVETRAIN_DEFAULTS, DRIVETRAIN_PARAMS, LIMIT_FIELDS, TERRAIN_PARAMS
 
 
 _DRIVE_FIELDS = {'time_constant': 'drivetrain.time_constant', 'delay': 'drivetrain.delay',
@@ -121,11 +120,16 @@ def icr_from_values(values: Mapping[str, Any]) -> IcrParams:
     """
     Build and validate the kinematic model from terrain parameter values.
 
+    The vehicle rule of every node and tool (docs/parameters.md): ``track_width`` has no
+    default; ``icr.y_left`` / ``icr.y_right`` default to ``+-track_width / 2`` (ideal drive
+    for the given width) and ``icr.x`` to 0 unless set; the scales default to 1.
+    ``sprocket_radius`` is not part of the model: it is checked when given.
+
     Parameters
     ----------
     values : mapping
-        ROS parameter names (``track_width``, ``icr.y_left``, ...) to values; missing ones
-        take their defaults.
+        ROS parameter names (``track_width``, ``icr.y_left``, ...) to values; other names
+        are ignored.
 
     Returns
     -------
@@ -134,10 +138,12 @@ def icr_from_values(values: Mapping[str, Any]) -> IcrParams:
     Raises
     ------
     InvalidParameters
-        With every problem found, in ROS parameter names.
+        With every problem found, in ROS parameter names (also a missing ``track_width``).
 
     """
-    merged = {**TERRAIN_DEFAULTS, **{k: v for k, v in values.items() if k in TERRAIN_DEFAULTS}}
+    merged, missing = resolve(TERRAIN_PARAMS, values)
+    if 'track_width' in missing:
+        raise InvalidParameters(missing_message(['track_width']))
     problems = check_values(TERRAIN_PARAMS, merged)
     if problems:
         raise InvalidParameters('; '.join(problems))

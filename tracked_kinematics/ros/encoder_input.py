@@ -22,6 +22,11 @@ Modes and topics (relative names, remap as usual):
     ``left_track/ticks`` and ``right_track/ticks`` (std_msgs/Int32 or Int64 by
     ``ticks_type``), wrapping counters of ``ticks_per_revolution`` per sprocket turn,
     paired by arrival, timed by the node's clock.
+
+Every input topic follows its publishers' QoS (:class:`~tracked_kinematics.ros.input_topic.
+InputTopic`: reliable publishers lose no sample, sensor-data ones still match). Once a second
+the input is checked: a side that stays silent in the per-side modes, and publishers of
+another message type on an input topic, are named in a throttled warning.
 """
 
 from __future__ import annotations
@@ -32,18 +37,20 @@ import math
 from typing import Any
 
 from builtin_interfaces.msg import Time
-from rclpy.qos import qos_profile_sensor_data
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64, Int32, Int64
 from tracked_kinematics.core.encoders import IncrementTracker, Status
 from tracked_kinematics.core.integration import stamp_ns
 from tracked_kinematics.params import JOINT_STATES_TOPIC, SIDE_TOPICS
+from tracked_kinematics.ros.input_topic import (CHECK_PERIOD, InputTopic, steady_timer,
+                                                WARN_PERIOD)
+
+__all__ = ['check_encoder_values', 'EncoderInput', 'WARN_PERIOD']
 
 # Message type and bit width of each ticks_type.
 _TICKS_MESSAGES = {'int32': (Int32, 32), 'int64': (Int64, 64)}
-
-# Seconds between two warnings about the same kind of bad input.
-WARN_PERIOD = 5.0
+_STEP = Status.STEP
+_SIDES = ('left', 'right')
 
 
 def check_encoder_values(values: Mapping[str, Any]) -> None:
@@ -73,15 +80,13 @@ class EncoderInput:
     Parameters
     ----------
     node : rclpy.node.Node
-        Node that owns the subscriptions and the logger.
+        Node that owns the subscriptions, the check timer and the logger.
     values : mapping
         Parameter values: those of :data:`tracked_kinematics.params.ENCODER_INPUT_PARAMS`
         and ``sprocket_radius``.
     callback : callable
         ``callback(stamp_s, d_left, d_right, dt)``: nominal travel of each track (m) over a
         step of ``dt`` s ending at ``stamp_s``.
-    qos : rclpy.qos.QoSProfile
-        Subscription QoS; sensor data (best effort) by default, like diff_drive_controller.
 
     Attributes
     ----------
@@ -94,12 +99,13 @@ class EncoderInput:
     counts : collections.Counter
         Samples seen per :class:`~tracked_kinematics.core.encoders.Status` (and
         ``'missing_joints'``, ``'no_readings'``, ``'zero_stamp'``).
+    inputs : tuple of InputTopic
+        The input topics (one, or left and right).
 
     """
 
     def __init__(self, node, values: Mapping[str, Any],
-                 callback: Callable[[float, float, float, float], None],
-                 qos=qos_profile_sensor_data):
+                 callback: Callable[[float, float, float, float], None]):
         self._node = node
         self._logger = node.get_logger()
         self._callback = callback
@@ -113,25 +119,28 @@ class EncoderInput:
         self._index = None
         self._missing: list[str] = []
         self._pending = [None, None]
+        self._side_counts = [0, 0]
         self._bits = 64
         self.configure(values)
         if self.mode == 'joint_states':
-            self.topics = (node.create_subscription(
-                JointState, JOINT_STATES_TOPIC, self._on_joint_state, qos).topic_name,)
-            return
-        if self.mode == 'track_speeds':
-            msg_type = Float64
+            self.inputs = (InputTopic(node, JointState, JOINT_STATES_TOPIC,
+                                      self._on_joint_state),)
         else:
-            msg_type, self._bits = _TICKS_MESSAGES[values['ticks_type']]
-        self.topics = tuple(
-            node.create_subscription(msg_type, topic,
-                                     lambda msg, i=i: self._on_side(i, msg.data), qos).topic_name
-            for i, topic in enumerate(SIDE_TOPICS[self.mode]))
+            if self.mode == 'track_speeds':
+                msg_type = Float64
+            else:
+                msg_type, self._bits = _TICKS_MESSAGES[values['ticks_type']]
+            self.inputs = tuple(
+                InputTopic(node, msg_type, topic, lambda msg, i=i: self._on_side(i, msg.data))
+                for i, topic in enumerate(SIDE_TOPICS[self.mode]))
+        self.topics = tuple(topic.topic_name for topic in self.inputs)
+        self._timer = steady_timer(node, CHECK_PERIOD, self.check)
 
     def configure(self, values: Mapping[str, Any]) -> None:
         """Apply (new) parameter values from the next message on."""
         radius = values['sprocket_radius']
         self.tracker.max_dt = values['max_dt']
+        self.tracker.max_speed = values['max_plausible_speed']
         if self.mode == 'joint_states':
             self._factor = radius
             joints = (list(values['left_joints']), list(values['right_joints']))
@@ -145,13 +154,28 @@ class EncoderInput:
             self._factor = 2.0 * math.pi * radius / values['ticks_per_revolution']
 
     def describe(self) -> str:
-        """Return one line for the start-up log: mode, topics, joints or ticks."""
+        """Return one line for the start-up log: mode, topics, joints or ticks, QoS."""
         text = f'input {self.mode} on {", ".join(self.topics)}'
         if self.mode == 'joint_states':
             text += f' (left {self._joints[0]}, right {self._joints[1]})'
         elif self.mode == 'encoder_ticks':
             text += f' ({1.0 / self._factor:.6g} ticks per metre)'
-        return text
+        return text + (f', steps faster than {self.tracker.max_speed:g} m/s skipped')
+
+    def check(self) -> None:
+        """Check the input once a second: publishers (QoS, types) and silent sides."""
+        for topic in self.inputs:
+            topic.check()
+        if self.mode == 'joint_states':
+            return
+        counts, self._side_counts = self._side_counts, [0, 0]
+        for side in (0, 1):
+            if counts[side] == 0 and counts[1 - side] > 0:
+                self._logger.warning(
+                    f'no message on {self.topics[side]} for {CHECK_PERIOD:g} s while '
+                    f'{self.topics[1 - side]} had {counts[1 - side]}: without both sides there '
+                    f'is no step (is the {_SIDES[side]} encoder publishing, on this topic, as '
+                    f'{self.inputs[side].type_name}?)', throttle_duration_sec=WARN_PERIOD)
 
     # --- joint_states ---------------------------------------------------------------------
 
@@ -204,6 +228,7 @@ class EncoderInput:
 
     def _on_side(self, side: int, value) -> None:
         self.received += 1
+        self._side_counts[side] += 1
         pending = self._pending
         pending[side] = value
         if pending[0] is None or pending[1] is None:
@@ -220,24 +245,58 @@ class EncoderInput:
         status, d_left, d_right, dt = self.tracker.update(
             now_ns, kind, left, right, self._factor, self._bits)
         self.counts[status] += 1
-        if status == Status.STEP:
+        if status == _STEP:
             self.stamp = stamp
             self._callback(now_ns * 1e-9, d_left, d_right, dt)
+            return
+        if status in Status.STEPS:
+            self._note(status, kind, left, right, d_left, d_right, dt)
+            self.stamp = stamp
+            self._callback(now_ns * 1e-9, d_left, d_right, dt)
+            return
+        if status != Status.DUPLICATE:
+            self._note(status, kind, left, right, d_left, d_right, dt)
+
+    def _note(self, status, kind, left, right, d_left, d_right, dt) -> None:
+        """Log what happened to a sample that was not a plain step (throttled per kind)."""
+        log = self._logger
+        speed = self.tracker.max_speed
+        if status == Status.LONG_STEP:
+            log.info(
+                f'{dt:.6g} s without encoder data (more than max_dt {self.tracker.max_dt:g} s): '
+                f'the travel across the gap ({d_left:.6g}, {d_right:.6g} m) is exact and was '
+                'integrated as one step', throttle_duration_sec=WARN_PERIOD)
+        elif status == Status.RESUMED:
+            log.warning(
+                f'encoder jump skipped: the counters or positions restarted ({self.mode}); '
+                'integration resumed from the sample after the jump',
+                throttle_duration_sec=WARN_PERIOD)
+        elif status == Status.IMPLAUSIBLE:
+            if kind == 'velocity':
+                what = f'track speeds {d_left:.6g}, {d_right:.6g} m/s'
+            else:
+                what = (f'a step of {d_left:.6g}, {d_right:.6g} m in {dt:.6g} s (readings '
+                        f'{left!r}, {right!r})')
+            log.warning(
+                f'implausible encoder input skipped in {self.mode}: {what}, faster than '
+                f'max_plausible_speed {speed:g} m/s (a glitch, a counter restart or garbage); '
+                'integration continues from the next plausible sample',
+                throttle_duration_sec=WARN_PERIOD)
         elif status == Status.NON_FINITE:
-            self._logger.warning(
+            log.warning(
                 f'non-finite encoder reading (left {left}, right {right}) in {self.mode}: '
                 'message skipped', throttle_duration_sec=WARN_PERIOD)
         elif status == Status.TIME_BACK:
-            self._logger.warning(
+            log.warning(
                 f'encoder time did not advance ({dt:+.6g} s; sim time reset or bag loop?): '
                 'integration restarted from this message, pose kept',
                 throttle_duration_sec=WARN_PERIOD)
         elif status == Status.GAP:
-            self._logger.warning(
-                f'{dt:.6g} s without encoder data (max_dt {self.tracker.max_dt:g} s): '
-                'integration restarted from this message, the gap is not integrated',
-                throttle_duration_sec=WARN_PERIOD)
+            log.warning(
+                f'{dt:.6g} s without encoder data (max_dt {self.tracker.max_dt:g} s) and only '
+                'velocities to bridge it: integration restarted from this message, the gap '
+                'is not integrated', throttle_duration_sec=WARN_PERIOD)
         elif status == Status.KIND_CHANGED:
-            self._logger.warning(
-                f'joint_states switched to {kind}s: integration restarted from this message',
-                throttle_duration_sec=WARN_PERIOD)
+            log.warning(
+                'joint_states switched between positions and velocities: integration '
+                'restarted from this message', throttle_duration_sec=WARN_PERIOD)

@@ -15,6 +15,11 @@ PoseWithCovarianceStamped, or sensor_msgs/Imu for heading only), and publishes
 
 and, when ``push_to`` names nodes, sets their ``icr.*`` parameters (``odometry_node``,
 ``cmd_vel_translator``) through their ``set_parameters_atomically`` services.
+
+``track_width`` and ``sprocket_radius`` must be given (there is no default vehicle); the
+initial ICRs default to the ideal drive of that width. Every numeric parameter has a range
+(``ros2 param describe``); an input the core refuses is skipped with a throttled warning and
+never stops the node. Reference: docs/nodes/icr_estimator.md.
 """
 
 from __future__ import annotations
@@ -28,10 +33,10 @@ from typing import Any
 from builtin_interfaces.msg import Time
 from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped, Twist
 from nav_msgs.msg import Odometry, Path
+import numpy as np
 from rcl_interfaces.msg import Parameter as ParameterMsg, ParameterType
 from rcl_interfaces.srv import SetParametersAtomically
 from rclpy.node import Node
-from rclpy.qos import qos_profile_sensor_data
 from sensor_msgs.msg import Imu
 from std_msgs.msg import Float64MultiArray, MultiArrayDimension
 from std_srvs.srv import Trigger
@@ -43,10 +48,12 @@ from tracked_kinematics.core.models import AdaptiveIcr, ConstantIcr
 from tracked_kinematics.core.prediction import (
     commands_from_twist, hold_speeds, predict_from_commands, predict_path)
 from tracked_kinematics.params import (
-    described_as, drivetrain_from_values, DRIVETRAIN_PARAMS, ENCODER_INPUT_PARAMS,
-    icr_from_values, non_negative, one_of, ParamSpec, positive, TERRAIN_PARAMS)
+    described_as, drivetrain_from_values, DRIVETRAIN_PARAMS, each, ENCODER_INPUT_PARAMS,
+    icr_from_values, node_name, non_negative, one_of, ParamSpec, positive, ros_name,
+    TERRAIN_PARAMS)
 from tracked_kinematics.ros.encoder_input import (
     check_encoder_values, EncoderInput, WARN_PERIOD)
+from tracked_kinematics.ros.input_topic import CHECK_PERIOD, InputTopic, steady_timer
 from tracked_kinematics.ros.main import run
 from tracked_kinematics.ros.parameters import ParameterTable
 
@@ -66,9 +73,8 @@ def _probability(value):
     return positive(value) or (None if value < 1.0 else f'must be < 1, got {value!r}')
 
 
-@described_as('no empty names')
-def _names(value):
-    return None if all(name.strip() for name in value) else f'has an empty name: {value!r}'
+# Longest predicted_path, in poses (prediction.horizon / prediction.dt).
+MAX_PATH_POSES = 10_000
 
 
 _DEFAULTS = EstimatorConfig()
@@ -78,50 +84,61 @@ ESTIMATOR_PARAMS: tuple[ParamSpec, ...] = (
               'Slip model estimated: icr (constant tread ICRs, what odometry_node uses) or '
               'adaptive_icr (ICRs over lateral acceleration and curvature, EKF paper eq. 11)',
               check=one_of(MODELS), read_only=True),
-    ParamSpec('pose_topic', 'pose', 'Pose measurements topic', read_only=True),
+    ParamSpec('pose_topic', 'pose', 'Pose measurements topic', check=ros_name, read_only=True),
     ParamSpec('pose_type', 'odometry',
               'Message type on pose_topic: odometry, pose_stamped, pose_with_covariance, or '
               'imu (heading only)', check=one_of(POSE_TYPES), read_only=True),
     ParamSpec('heading_only', False,
               'Use only the heading of the pose messages (e.g. while RTK GPS is out)'),
     ParamSpec('pose_std_xy', _DEFAULTS.pose_std_xy,
-              'Standard deviation of each measured position coordinate', 'm', positive),
+              'Standard deviation of each measured position coordinate', 'm', positive,
+              low=1e-6, high=1000.0),
     ParamSpec('pose_std_yaw', _DEFAULTS.pose_std_yaw,
-              'Standard deviation of each measured heading', 'rad', positive),
+              'Standard deviation of each measured heading', 'rad', positive, low=1e-6,
+              high=10.0),
     ParamSpec('travel_std', _DEFAULTS.travel_std,
-              'Model and encoder error per metre travelled in a window', 'm/m', non_negative),
+              'Model and encoder error per metre travelled in a window', 'm/m', non_negative,
+              low=0.0, high=10.0),
     ParamSpec('process_std', _DEFAULTS.process_std,
               'Random-walk standard deviation of the parameters per sqrt(second): larger '
-              'follows terrain changes faster', '1/sqrt(s)', non_negative),
+              'follows terrain changes faster', '1/sqrt(s)', non_negative, low=0.0,
+              high=100.0),
     ParamSpec('initial_std', _DEFAULTS.initial_std,
-              'Standard deviation of the initial parameters', '', positive),
+              'Standard deviation of the initial parameters', '', positive, low=1e-6,
+              high=1000.0),
     ParamSpec('window', _DEFAULTS.window,
-              'Each pose is compared with the accepted pose this much older', 's', positive),
-    ParamSpec('min_window', _DEFAULTS.min_window, 'Shortest window', 's', non_negative),
+              'Each pose is compared with the accepted pose this much older', 's', positive,
+              low=0.01, high=3600.0),
+    ParamSpec('min_window', _DEFAULTS.min_window, 'Shortest window', 's', non_negative,
+              low=0.0, high=3600.0),
     ParamSpec('max_window', _DEFAULTS.max_window,
               'Poses older than this are forgotten (outages restart the window)', 's',
-              positive),
+              positive, low=0.01, high=86400.0),
     ParamSpec('gate_probability', _DEFAULTS.gate_probability,
               'Chi-square probability of the innovation gate against pose jumps', '',
-              _probability),
+              _probability, low=0.0, high=1.0),
     ParamSpec('max_outliers', _DEFAULTS.max_outliers,
               'Consecutive refused windows after which the filter re-anchors', '',
-              positive),
+              positive, low=1, high=1000),
     ParamSpec('publish_rate', 10.0, 'Rate of icr_estimate and predicted_path', 'Hz',
-              positive),
+              positive, low=0.01, high=1000.0),
     ParamSpec('prediction.horizon', 2.0, 'Length of predicted_path (0: not published)', 's',
-              non_negative),
-    ParamSpec('prediction.dt', 0.05, 'Step of predicted_path', 's', positive),
+              non_negative, low=0.0, high=600.0),
+    ParamSpec('prediction.dt', 0.05, 'Step of predicted_path', 's', positive, low=1e-3,
+              high=10.0),
     ParamSpec('prediction.source', 'speeds',
               'Future track speeds: speeds (hold the current ones) or cmd_vel (the latest '
               'command through the inverse kinematics and the drive-train model)',
               check=one_of(SOURCES), read_only=True),
     ParamSpec('push_to', [],
               'Nodes whose icr.* parameters are set to the estimate (e.g. odometry_node, '
-              'cmd_vel_translator)', check=_names),
-    ParamSpec('push_period', 1.0, 'Shortest time between two pushes', 's', positive),
+              'cmd_vel_translator): valid node names, optionally with their namespace',
+              check=each(node_name)),
+    ParamSpec('push_period', 1.0, 'Shortest time between two pushes', 's', positive,
+              low=0.01, high=3600.0),
     ParamSpec('push_min_change', 0.01,
-              'Push only when an ICR coordinate moved by more than this', 'm', non_negative),
+              'Push only when an ICR coordinate moved by more than this', 'm', non_negative,
+              low=0.0, high=10.0),
 )
 
 PARAMS = TERRAIN_PARAMS + DRIVETRAIN_PARAMS + ENCODER_INPUT_PARAMS + ESTIMATOR_PARAMS
@@ -141,8 +158,11 @@ def validate(values: Mapping[str, Any]) -> None:
     drivetrain_from_values(values)
     check_encoder_values(values)
     _config(values)
-    if values['max_outliers'] != int(values['max_outliers']):
-        raise ValueError(f'max_outliers must be a whole number, got {values["max_outliers"]}')
+    poses = values['prediction.horizon'] / values['prediction.dt']
+    if poses > MAX_PATH_POSES:
+        raise ValueError(f'prediction.horizon / prediction.dt must be <= {MAX_PATH_POSES} '
+                         f'poses, got {values["prediction.horizon"]:g} s / '
+                         f'{values["prediction.dt"]:g} s = {poses:.6g}')
 
 
 def _config(values: Mapping[str, Any]) -> EstimatorConfig:
@@ -201,10 +221,11 @@ class IcrEstimatorNode(Node):
         self._apply(values)
         self.encoder = EncoderInput(self, values, self._on_step)
         pose_type = POSE_TYPES[values['pose_type']]
-        self._pose_sub = self.create_subscription(
-            pose_type, values['pose_topic'], self._on_pose, qos_profile_sensor_data)
+        self._inputs = [InputTopic(self, pose_type, values['pose_topic'], self._on_pose)]
+        self._pose_sub = self._inputs[0]
         if values['prediction.source'] == 'cmd_vel':
-            self.create_subscription(Twist, 'cmd_vel', self._on_cmd_vel, 10)
+            self._inputs.append(InputTopic(self, Twist, 'cmd_vel', self._on_cmd_vel, 10))
+        self._check_timer = steady_timer(self, CHECK_PERIOD, self._check_inputs)
         self._icr_pub = self.create_publisher(Float64MultiArray, 'icr_estimate', 10)
         self._path_pub = self.create_publisher(Path, 'predicted_path', 10)
         self._timer = self.create_timer(1.0 / values['publish_rate'], self._on_timer)
@@ -251,16 +272,41 @@ class IcrEstimatorNode(Node):
                 self.estimator.set_initial(self.estimator.model.from_icr(icr))
         if self.encoder is not None:
             self.encoder.configure(values)
-        if self._timer is not None:
-            self._timer.timer_period_ns = round(1e9 / values['publish_rate'])
+        period_ns = round(1e9 / values['publish_rate'])
+        if self._timer is not None and self._timer.timer_period_ns != period_ns:
+            # rclpy cannot change a timer's period: a new timer takes effect at once.
+            self.destroy_timer(self._timer)
+            self._timer = self.create_timer(period_ns * 1e-9, self._on_timer)
 
     # --- inputs -------------------------------------------------------------------------
 
+    def _check_inputs(self) -> None:
+        for topic in self._inputs:
+            topic.check()
+
     def _on_step(self, stamp_s: float, d_left: float, d_right: float, dt: float) -> None:
-        outcome = self.estimator.add_step(stamp_s, self._scales[0] * d_left,
-                                          self._scales[1] * d_right, dt)
+        try:
+            with np.errstate(all='ignore'):
+                outcome = self.estimator.add_step(stamp_s, self._scales[0] * d_left,
+                                                  self._scales[1] * d_right, dt)
+        except (ValueError, ArithmeticError) as err:
+            self.get_logger().warning(f'encoder step skipped by the estimator: {err}',
+                                      throttle_duration_sec=WARN_PERIOD)
+            return
         if outcome is not None:
             self._report(outcome)
+        self._check_estimate()
+
+    def _check_estimate(self) -> None:
+        """Restart a filter whose state is no longer finite (it would never recover)."""
+        estimator = self.estimator
+        if np.all(np.isfinite(estimator.p)) and np.all(np.isfinite(estimator.P)):
+            return
+        estimator.reset()
+        self.counts['restarted'] += 1
+        self.get_logger().warning('the estimate became non-finite (absurd input): restarted '
+                                  'from the initial parameters',
+                                  throttle_duration_sec=WARN_PERIOD)
 
     def _on_pose(self, msg) -> None:
         self.counts['received'] += 1
@@ -278,11 +324,18 @@ class IcrEstimatorNode(Node):
             yaw = _yaw(pose.orientation)
             position = (pose.position.x, pose.position.y)
         self._frame = msg.header.frame_id
-        if position is None or self._heading_only:
-            outcome = self.estimator.add_heading(t, yaw)
-        else:
-            outcome = self.estimator.add_pose(t, position[0], position[1], yaw)
+        try:
+            with np.errstate(all='ignore'):
+                if position is None or self._heading_only:
+                    outcome = self.estimator.add_heading(t, yaw)
+                else:
+                    outcome = self.estimator.add_pose(t, position[0], position[1], yaw)
+        except (ValueError, ArithmeticError) as err:
+            self.get_logger().warning(f'pose measurement skipped by the estimator: {err}',
+                                      throttle_duration_sec=WARN_PERIOD)
+            return
         self._report(outcome)
+        self._check_estimate()
 
     def _report(self, outcome) -> None:
         """Count an outcome; log refusals, at most once per WARN_PERIOD for each kind."""
@@ -319,6 +372,10 @@ class IcrEstimatorNode(Node):
     # --- outputs ------------------------------------------------------------------------
 
     def _on_timer(self) -> None:
+        with np.errstate(all='ignore'):
+            self._publish_outputs()
+
+    def _publish_outputs(self) -> None:
         icr = self._current_icr()
         if icr is not None:
             self._publish_icr(icr)
@@ -329,8 +386,8 @@ class IcrEstimatorNode(Node):
 
     def _current_icr(self):
         try:
-            y_left, y_right, x = self.estimator.icr()
-        except ValueError:
+            y_left, y_right, x = (float(v) for v in self.estimator.icr())
+        except (ValueError, ArithmeticError):
             return None
         if not all(map(math.isfinite, (y_left, y_right, x))) or y_left <= y_right:
             return None
@@ -338,11 +395,14 @@ class IcrEstimatorNode(Node):
 
     def _publish_icr(self, icr) -> None:
         y_left, y_right, x = icr
+        data = [y_left, y_right, x,
+                steering_efficiency(self.estimator.model.track_width, y_left, y_right),
+                eccentricity(y_left, y_right)]
+        if not all(map(math.isfinite, data)):
+            return
         msg = Float64MultiArray()
         msg.layout.dim = [MultiArrayDimension(label=','.join(ICR_LAYOUT), size=5, stride=5)]
-        msg.data = [y_left, y_right, x,
-                    steering_efficiency(self.estimator.model.track_width, y_left, y_right),
-                    eccentricity(y_left, y_right)]
+        msg.data = data
         self._icr_pub.publish(msg)
 
     def _publish_path(self) -> None:
@@ -366,7 +426,7 @@ class IcrEstimatorNode(Node):
             else:
                 left, right = hold_speeds(*est.last_speeds, horizon, dt)
                 pred = predict_path(est.model, est.p, left, right, dt, pose0=(x, y, yaw))
-        except ValueError as err:
+        except (ValueError, ArithmeticError) as err:
             self.get_logger().warning(f'no prediction: {err}', throttle_duration_sec=WARN_PERIOD)
             return
         if not pred.poses.size or not bool(

@@ -19,9 +19,12 @@ What a user sees at the edges of a node's life is decided here, once for the thr
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Sequence
+import contextlib
 import difflib
 import os
+import signal
 import sys
+import threading
 
 import rclpy
 from rclpy.executors import ExternalShutdownException
@@ -132,7 +135,8 @@ def _usage(name: str, summary: str, specs: Sequence[ParamSpec]) -> str:
     if specs:
         lines.append('parameters:')
         for spec in specs:
-            lines.append(f'  {spec.name} (default {spec.default!r}): {spec.full_description}')
+            unit = f' [{spec.unit}]' if spec.unit else ''
+            lines.append(f'  {spec.name} ({spec.default_text}): {spec.description}{unit}')
         lines.append('')
     lines.append(f'Reference: docs/nodes/{name}.md (parameters: docs/parameters.md).')
     return '\n'.join(lines)
@@ -170,6 +174,14 @@ def run(node_factory: Callable[[], 'rclpy.node.Node'], name: str, args=None,
     if '--help' in plain or '-h' in plain:
         print(_usage(name, summary, specs))
         return 0
+    with _signals_interrupt():
+        try:
+            return _run(node_factory, name, user_args, argv, specs)
+        except KeyboardInterrupt:
+            return 0
+
+
+def _run(node_factory, name, user_args, argv, specs) -> int:
     logger = rclpy.logging.get_logger(name)
     ros_args = _ros_args(user_args)
     try:
@@ -198,6 +210,8 @@ def run(node_factory: Callable[[], 'rclpy.node.Node'], name: str, args=None,
         except (KeyboardInterrupt, ExternalShutdownException):
             return 0
         except Exception as err:  # noqa: BLE001 -- any failure to start is one FATAL line
+            if not rclpy.ok():
+                return 0  # a signal shut the context down while the node was being built
             logger.fatal(f'cannot start: {type(err).__name__}: {" ".join(str(err).split())}')
             return EXIT_STARTUP
         for message in unknown_parameters(given, specs):
@@ -211,10 +225,49 @@ def run(node_factory: Callable[[], 'rclpy.node.Node'], name: str, args=None,
         if rclpy.ok():
             raise
     finally:
-        if node is not None:
+        with _signals_ignored():
+            if node is not None:
+                try:
+                    node.destroy_node()
+                except Exception:  # noqa: BLE001 -- destroying after a signal may fail
+                    pass
             try:
-                node.destroy_node()
-            except Exception:  # noqa: BLE001 -- destroying after a signal may fail; harmless
+                rclpy.try_shutdown()
+            except Exception:  # noqa: BLE001 -- a signal's shutdown may have raced this one
                 pass
-        rclpy.try_shutdown()
     return 0
+
+
+_SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+
+@contextlib.contextmanager
+def _signal_handlers(handler):
+    """Install ``handler`` for SIGINT and SIGTERM (main thread only), restore on exit."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = {sig: signal.getsignal(sig) for sig in _SIGNALS}
+    for sig in _SIGNALS:
+        signal.signal(sig, handler)
+    try:
+        yield
+    finally:
+        for sig, old in previous.items():
+            signal.signal(sig, old)
+
+
+def _signals_interrupt():
+    """
+    SIGINT and SIGTERM raise KeyboardInterrupt in the main thread, whatever it is doing.
+
+    rclpy's own handler (installed by ``rclpy.init``) shuts the context down and then calls
+    this one, so a signal ends ``spin`` the same way at any moment, and one that arrives
+    before ``rclpy.init`` or while the node is built ends the node quietly too.
+    """
+    return _signal_handlers(signal.default_int_handler)
+
+
+def _signals_ignored():
+    """Ignore further signals while the node is destroyed: one signal is enough."""
+    return _signal_handlers(signal.SIG_IGN)

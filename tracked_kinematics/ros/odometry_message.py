@@ -4,10 +4,12 @@ nav_msgs/Odometry, serialised by patching a template: the odometry node's hot pa
 Filling a Python Odometry message and letting rclpy convert it costs about 50 us per
 message here, half of the node's whole callback. The message's layout never changes while
 the frame ids stay the same, so :class:`OdometrySerializer` serialises one template with
-rclpy, finds where each field that changes lies in the bytes (by writing a distinct
-sentinel value into each and searching for it), and from then on writes the numbers in
-place with :func:`struct.pack_into`; the publisher sends the bytes as they are. The test
-suite checks the result against rclpy's own serialisation of the same message.
+rclpy, finds where each field that changes lies in the bytes, and from then on writes the
+numbers in place with :func:`struct.pack_into`; the publisher sends the bytes as they are.
+A field is located by serialising the template twice with two distinct values in that field
+only: it is the one place holding the first value's bytes in the first and the second's in
+the second, so no frame id (whatever its text) and no CDR padding can be mistaken for it.
+The test suite checks the result against rclpy's own serialisation of the same message.
 """
 
 from __future__ import annotations
@@ -22,6 +24,19 @@ from tracked_kinematics.core.covariance import ros_covariance, ROS_LAYOUT
 _DOUBLE = struct.Struct('=d')
 _PAIR = struct.Struct('=dd')
 _STAMP = struct.Struct('=iI')
+_INT = struct.Struct('=i')
+_UINT = struct.Struct('=I')
+# Two values of each kind, distinct in every byte and with no zero byte: written into a field
+# of the template, they can be told from anything else in the bytes.
+_MARKS = tuple(struct.unpack('=d', bytes(range(start, start + 8)))[0] for start in (0x31, 0x41))
+_INTS = (-0x5A5A5A5B, 0x3C3C3C3C)
+_UINTS = (0xA5A5A5A5, 0x3C3C3C3C)
+
+
+def _mark_first(with_covariance, value) -> None:
+    covariance = ros_covariance((0.0,) * 6)
+    covariance[0] = value
+    with_covariance.covariance = covariance
 
 
 class OdometrySerializer:
@@ -42,40 +57,31 @@ class OdometrySerializer:
     ------
     RuntimeError
         If a field cannot be located in the template (a layout this class does not know).
+        Any frame ids work, whatever their text.
 
     """
 
     def __init__(self, frame_id: str, child_frame_id: str):
         self.frames = (frame_id, child_frame_id)
-        msg = Odometry()
-        msg.header.frame_id = frame_id
-        msg.child_frame_id = child_frame_id
-        sentinels = iter(range(1, 100))
-
-        def mark():
-            # Distinct doubles whose bytes cannot occur elsewhere in the template.
-            return -1.2345678901234567e-300 * next(sentinels)
-
-        msg.header.stamp.sec = 0x5A5A5A5A
-        msg.header.stamp.nanosec = 0x3C3C3C3C
-        doubles = {}
-        pose = msg.pose.pose
-        for name, owner, field in (('x', pose.position, 'x'), ('qz', pose.orientation, 'z'),
-                                   ('vx', msg.twist.twist.linear, 'x'),
-                                   ('wz', msg.twist.twist.angular, 'z')):
-            doubles[name] = mark()
-            setattr(owner, field, doubles[name])
-        pose_covariance = ros_covariance((0.0,) * 6)
-        twist_covariance = ros_covariance((0.0,) * 6)
-        doubles['pose_cov'] = pose_covariance[0] = mark()
-        doubles['twist_cov'] = twist_covariance[0] = mark()
-        msg.pose.covariance = pose_covariance
-        msg.twist.covariance = twist_covariance
-        data = serialize_message(msg)
-        offsets = {name: self._find(data, _DOUBLE.pack(value), name)
-                   for name, value in doubles.items()}
-        self._stamp = self._find(data, _STAMP.pack(0x5A5A5A5A, 0x3C3C3C3C), 'header.stamp')
-        # Fields that follow each other in the message definition are contiguous doubles.
+        data = serialize_message(self._message())
+        pose = (lambda m: m.pose.pose)
+        fields = {
+            # name: (setter of a value, format, two distinct values none of whose bytes is 0)
+            'sec': (lambda m, v: setattr(m.header.stamp, 'sec', v), _INT, _INTS),
+            'nanosec': (lambda m, v: setattr(m.header.stamp, 'nanosec', v), _UINT, _UINTS),
+            'x': (lambda m, v: setattr(pose(m).position, 'x', v), _DOUBLE, _MARKS),
+            'y': (lambda m, v: setattr(pose(m).position, 'y', v), _DOUBLE, _MARKS),
+            'qz': (lambda m, v: setattr(pose(m).orientation, 'z', v), _DOUBLE, _MARKS),
+            'qw': (lambda m, v: setattr(pose(m).orientation, 'w', v), _DOUBLE, _MARKS),
+            'vx': (lambda m, v: setattr(m.twist.twist.linear, 'x', v), _DOUBLE, _MARKS),
+            'vy': (lambda m, v: setattr(m.twist.twist.linear, 'y', v), _DOUBLE, _MARKS),
+            'wz': (lambda m, v: setattr(m.twist.twist.angular, 'z', v), _DOUBLE, _MARKS),
+            'pose_cov': (lambda m, v: _mark_first(m.pose, v), _DOUBLE, _MARKS),
+            'twist_cov': (lambda m, v: _mark_first(m.twist, v), _DOUBLE, _MARKS),
+        }
+        offsets = {name: self._locate(name, *field) for name, field in fields.items()}
+        self._check_contiguous(offsets)
+        self._stamp = offsets['sec']             # sec, nanosec
         self._position = offsets['x']           # position.x, position.y
         self._orientation = offsets['qz']       # orientation.z, orientation.w
         self._linear = offsets['vx']            # twist.linear.x, twist.linear.y
@@ -90,12 +96,47 @@ class OdometrySerializer:
             _DOUBLE.pack_into(self._buffer, offset, 0.0)
         _DOUBLE.pack_into(self._buffer, self._angular, 0.0)
 
-    @staticmethod
-    def _find(data: bytes, pattern: bytes, name: str) -> int:
-        offset = data.find(pattern)
-        if offset < 0 or data.find(pattern, offset + 1) >= 0:
+    def _message(self) -> Odometry:
+        """Return the template: frames set, covariances in the layout, everything else 0."""
+        msg = Odometry()
+        msg.header.frame_id, msg.child_frame_id = self.frames
+        msg.pose.covariance = ros_covariance((0.0,) * 6)
+        msg.twist.covariance = ros_covariance((0.0,) * 6)
+        return msg
+
+    def _locate(self, name: str, change, form: struct.Struct, values) -> int:
+        """
+        Return the offset of a field: where the bytes of each of two values written into it are.
+
+        The template is serialised once with each value; the field is the one place that
+        holds the first value's bytes in the first and the second's in the second. Text in
+        a frame id that happens to equal a value is the same in both, and the padding bytes
+        of CDR (not initialised) hold neither, so neither can be mistaken for the field.
+        """
+        serialised = []
+        for value in values:
+            msg = self._message()
+            change(msg, value)
+            serialised.append(serialize_message(msg))
+        first, second = serialised
+        pattern_a, pattern_b = (form.pack(value) for value in values)
+        found = []
+        offset = first.find(pattern_a)
+        while offset >= 0:
+            if second[offset:offset + form.size] == pattern_b:
+                found.append(offset)
+            offset = first.find(pattern_a, offset + 1)
+        if len(found) != 1:
             raise RuntimeError(f'cannot locate {name} in a serialised nav_msgs/Odometry')
-        return offset
+        return found[0]
+
+    @staticmethod
+    def _check_contiguous(offsets) -> None:
+        """Check that the fields written as pairs follow each other, as the definition says."""
+        for first, second, size in (('sec', 'nanosec', 4), ('x', 'y', 8), ('qz', 'qw', 8),
+                                    ('vx', 'vy', 8)):
+            if offsets[second] != offsets[first] + size:
+                raise RuntimeError(f'unexpected layout of nav_msgs/Odometry ({first}, {second})')
 
     def serialize(self, sec: int, nanosec: int, x: float, y: float, qz: float, qw: float,
                   pose_covariance, twist, twist_covariance) -> bytes:

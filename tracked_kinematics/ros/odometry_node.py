@@ -6,6 +6,10 @@ messages into steps of nominal track travel; :class:`~tracked_kinematics.core.od
 Odometry` integrates them and propagates the covariance; this node copies the numbers into
 ``odom`` (and the odom -> base_link transform) and answers ``~/reset``. Documented in
 docs/nodes/odometry_node.md (topics, input modes, bad input, covariance).
+
+``track_width`` and ``sprocket_radius`` must be given (there is no default vehicle); the
+tread ICRs default to the ideal drive of that width. Once a second the node checks its
+output topic: another publisher of odometry there (a second instance) is named in a warning.
 """
 
 from __future__ import annotations
@@ -24,10 +28,12 @@ from std_srvs.srv import Trigger
 from tracked_kinematics.core.covariance import TrackNoise
 from tracked_kinematics.core.integration import quaternion_from_yaw, stamp_ns
 from tracked_kinematics.core.odometry import Odometry
-from tracked_kinematics.params import (described_as, ENCODER_INPUT_PARAMS, icr_from_values,
-                                       non_negative, ParamSpec, TERRAIN_PARAMS)
+from tracked_kinematics.params import (described_as, ENCODER_INPUT_PARAMS, frame_id,
+                                       icr_from_values, non_negative, ParamSpec,
+                                       TERRAIN_PARAMS, zero_or_at_least)
 from tracked_kinematics.ros.encoder_input import (
     check_encoder_values, EncoderInput, WARN_PERIOD)
+from tracked_kinematics.ros.input_topic import CHECK_PERIOD, steady_timer
 from tracked_kinematics.ros.main import run
 from tracked_kinematics.ros.odometry_message import OdometrySerializer
 from tracked_kinematics.ros.parameters import ParameterTable
@@ -35,30 +41,26 @@ from tracked_kinematics.ros.parameters import ParameterTable
 NODE_NAME = 'odometry_node'
 
 
-@described_as('not empty, no leading or trailing blanks')
-def _frame(value):
-    return None if value.strip() and value.strip() == value else (
-        f'must be a frame id without blanks, got {value!r}')
-
-
 _DEFAULT_NOISE = TrackNoise()
 
 ODOMETRY_PARAMS: tuple[ParamSpec, ...] = (
     ParamSpec('odom_frame', 'odom', 'Frame of the published pose (header.frame_id)',
-              check=_frame),
+              check=frame_id),
     ParamSpec('base_frame', 'base_link', 'Frame of the vehicle (child_frame_id)',
-              check=_frame),
+              check=frame_id),
     ParamSpec('publish_tf', True, 'Also broadcast the odom_frame -> base_frame transform'),
     ParamSpec('publish_rate', 0.0,
               'Highest rate of odom messages, by message time; 0 publishes on every encoder '
-              'step', 'Hz', non_negative),
+              'step', 'Hz', zero_or_at_least(0.01, 'Hz'), low=0.0, high=10000.0),
     ParamSpec('covariance.k_left', _DEFAULT_NOISE.k_left,
-              'Variance of the left track travel per metre travelled', 'm^2/m', non_negative),
+              'Variance of the left track travel per metre travelled', 'm^2/m', non_negative,
+              low=0.0, high=1.0),
     ParamSpec('covariance.k_right', _DEFAULT_NOISE.k_right,
               'Variance of the right track travel per metre travelled', 'm^2/m',
-              non_negative),
+              non_negative, low=0.0, high=1.0),
     ParamSpec('covariance.floor', _DEFAULT_NOISE.floor,
-              'Variance added to each track travel per encoder sample', 'm^2', non_negative),
+              'Variance added to each track travel per encoder sample', 'm^2', non_negative,
+              low=0.0, high=1.0),
 )
 
 PARAMS = TERRAIN_PARAMS + ENCODER_INPUT_PARAMS + ODOMETRY_PARAMS
@@ -119,17 +121,41 @@ class OdometryNode(Node):
         self._apply(values)
         self.encoder = EncoderInput(self, values, self._on_step)
         self.create_service(Trigger, '~/reset', self._on_reset)
+        self._check_timer = steady_timer(self, CHECK_PERIOD, self._check_output)
+        self._warned_publishers = 0
         icr = self.odometry.icr
+        derived = [name for name in ('icr.y_left', 'icr.y_right')
+                   if name not in self.params.explicit]
         self.get_logger().info(
             f'ICR model: chi {icr.chi:.3f}, e {icr.eccentricity:.3f} (icr.y_left '
             f'{icr.y_left:g} m, icr.y_right {icr.y_right:g} m, icr.x {icr.x:g} m, '
-            f'track_width {icr.track_width:g} m), scales {icr.scale_left:g} / '
-            f'{icr.scale_right:g}, sprocket_radius {values["sprocket_radius"]:g} m; '
-            f'{self.encoder.describe()}; publishing {self._publisher.topic_name} '
-            f'({values["odom_frame"]} -> {values["base_frame"]}) '
+            f'track_width {icr.track_width:g} m'
+            + (f'; {" and ".join(derived)} from track_width' if derived else '')
+            + f'), scales {icr.scale_left:g} / {icr.scale_right:g}, sprocket_radius '
+            f'{values["sprocket_radius"]:g} m; {self.encoder.describe()}; publishing '
+            f'{self._publisher.topic_name} ({values["odom_frame"]} -> {values["base_frame"]}) '
             + (f'at up to {values["publish_rate"]:g} Hz' if values['publish_rate'] > 0
                else 'at the input rate')
             + ('' if self._broadcaster is None else ' with TF'))
+
+    def _check_output(self) -> None:
+        """Warn when another node publishes on the odometry topic too (two instances)."""
+        try:
+            infos = self.get_publishers_info_by_topic(self._publisher.topic_name)
+        except Exception:  # noqa: BLE001 -- the graph is gone during shutdown
+            return
+        if len(infos) <= 1:
+            self._warned_publishers = 0
+            return
+        if len(infos) == self._warned_publishers:
+            return
+        self._warned_publishers = len(infos)
+        names = ', '.join(sorted(f'{info.node_namespace.rstrip("/")}/{info.node_name}'
+                                 for info in infos))
+        self.get_logger().warning(
+            f'{len(infos)} publishers on {self._publisher.topic_name} ({names}): another node '
+            'publishes odometry there too, so consumers see both (two odometry_node '
+            'instances? remap one, or stop it)')
 
     def _apply(self, values: Mapping[str, Any]) -> None:
         """Take (new) parameter values into use from the next encoder step on."""
@@ -168,8 +194,9 @@ class OdometryNode(Node):
     def _on_step(self, stamp_s: float, d_left: float, d_right: float, dt: float) -> None:
         if not self.odometry.update(d_left, d_right, dt):
             self.get_logger().warning(
-                f'encoder step rejected (travel {d_left!r}, {d_right!r} m over {dt!r} s gives '
-                'a non-finite pose): skipped', throttle_duration_sec=WARN_PERIOD)
+                f'encoder step refused by the odometry (travel {d_left!r}, {d_right!r} m over '
+                f'{dt!r} s: beyond 1e9 m, or a speed or pose that is not finite): skipped, '
+                'nothing integrated or published', throttle_duration_sec=WARN_PERIOD)
             return
         # Rate cap by message time, in integer nanoseconds so that it is exact; a stamp
         # before the last published one (time went back) publishes at once.

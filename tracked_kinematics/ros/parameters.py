@@ -4,6 +4,11 @@ Declare a node's parameters from a table of :class:`~tracked_kinematics.params.P
 The same table gives ``ros2 param describe`` its text, checks the values at start, and
 answers runtime ``set_parameters`` requests: a change that fails a check, or the node's own
 cross-parameter validator, is refused with the reason and the old values stay in force.
+
+The default rule of the specs (:func:`tracked_kinematics.params.resolve`) holds here too: a
+``required`` parameter that is not given stops the node at start, naming it; a ``derived``
+one not given takes its computed value (``ros2 param get`` shows it) and follows the
+parameters it is derived from at runtime until it is set explicitly.
 """
 
 from __future__ import annotations
@@ -15,7 +20,7 @@ from typing import Any
 from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescriptor,
                                 SetParametersResult)
 from rclpy.parameter import Parameter
-from tracked_kinematics.params import ParamSpec
+from tracked_kinematics.params import missing_message, ParamSpec
 
 
 class ParameterError(ValueError):
@@ -103,23 +108,41 @@ class ParameterTable:
         self._on_change = on_change
         values = {}
         problems = []
+        missing = []
+        # Derived parameters given at start or set at runtime by a user: they no longer
+        # follow the parameters they are derived from.
+        self.explicit: set[str] = set()
         for spec in self.specs.values():
             descriptor = describe(spec)
-            default = spec.default
-            if isinstance(default, list) and not default:
-                default = Parameter.Type.STRING_ARRAY
             try:
-                value = node.declare_parameter(spec.name, default, descriptor).value
+                value = node.declare_parameter(spec.name, self._declared_default(spec, descriptor),
+                                               descriptor).value
             except Exception as err:  # noqa: BLE001 -- rclpy raises several types here
-                problems.append(f'{spec.name}: {err}')
+                problems.append(self._declare_problem(spec, err))
                 continue
             if value is None and isinstance(spec.default, list):
                 value = []
+            if value is None:
+                if spec.required:
+                    missing.append(spec.name)
+                continue  # derived: computed below
+            if spec.derived is not None:
+                self.explicit.add(spec.name)
             problem = self._check(spec, value)
             if problem:
                 problems.append(problem)
             else:
                 values[spec.name] = _coerce(spec, value)
+        if missing:
+            problems.insert(0, missing_message(missing))
+        derived: dict[str, Any] = {}
+        if not problems:
+            derived = self._derive(values, set(values))
+            for name, value in derived.items():
+                problem = self._check(self.specs[name], value)
+                if problem:
+                    problems.append(f'{problem} (derived: {self.specs[name].default_text})')
+            values.update(derived)
         if not problems and validate is not None:
             try:
                 validate(values)
@@ -127,10 +150,48 @@ class ParameterTable:
                 problems.append(str(err))
         if problems:
             raise ParameterError('invalid parameters: ' + '; '.join(problems))
+        if derived:
+            node.set_parameters([Parameter(name, value=value) for name, value in derived.items()])
         self.values: dict[str, Any] = values
         self._pending: dict[str, Any] | None = None
+        self._derived_now: set[str] = set()
+        node.add_pre_set_parameters_callback(self._pre_set)
         node.add_on_set_parameters_callback(self._on_set)
         node.add_post_set_parameters_callback(self._post_set)
+
+    def _declare_problem(self, spec: ParamSpec, err: Exception) -> str:
+        """Say why a value given at start was refused, in the table's words if possible."""
+        # rclpy refuses a value outside the descriptor's range before the table sees it;
+        # its message does not say what was given, the table's check does.
+        override = getattr(self._node, '_parameter_overrides', {}).get(spec.name)
+        if override is not None and override.value is not None:
+            problem = self._check(spec, override.value)
+            if problem:
+                return problem
+        return f'{spec.name}: {" ".join(str(err).split())}'
+
+    @staticmethod
+    def _declared_default(spec: ParamSpec, descriptor: ParameterDescriptor):
+        """Return the default to declare: the spec's, or none (only an override gives one)."""
+        if spec.has_default:
+            default = spec.default
+            return Parameter.Type.STRING_ARRAY if isinstance(default, list) and not default \
+                else default
+        if descriptor.dynamic_typing:
+            return None
+        return Parameter.Type.from_parameter_value(spec.default)
+
+    def _derive(self, values: Mapping[str, Any], given: set[str]) -> dict[str, Any]:
+        """Return the values of derived specs not in ``given`` nor explicit, from ``values``."""
+        out = {}
+        for spec in self.specs.values():
+            if spec.derived is None or spec.name in given or spec.name in self.explicit:
+                continue
+            try:
+                out[spec.name] = _coerce(spec, spec.derived.value(values))
+            except (KeyError, TypeError, ValueError):
+                continue
+        return out
 
     @staticmethod
     def _check(spec: ParamSpec, value) -> str | None:
@@ -142,7 +203,7 @@ class ParameterTable:
         """Return the current value of a parameter."""
         return self.values[name]
 
-    def _on_set(self, params) -> SetParametersResult:
+    def _proposed(self, params) -> tuple[dict[str, Any], list[str]]:
         proposed = dict(self.values)
         problems = []
         for param in params:
@@ -154,6 +215,22 @@ class ParameterTable:
                 problems.append(problem)
             else:
                 proposed[param.name] = _coerce(spec, param.value)
+        return proposed, problems
+
+    def _pre_set(self, params):
+        """Add the derived parameters that follow a change of those they derive from."""
+        proposed, problems = self._proposed(params)
+        self._derived_now = set()
+        if problems:
+            return params
+        derived = self._derive(proposed, {param.name for param in params})
+        changed = [Parameter(name, value=value) for name, value in derived.items()
+                   if value != self.values.get(name)]
+        self._derived_now = {param.name for param in changed}
+        return list(params) + changed
+
+    def _on_set(self, params) -> SetParametersResult:
+        proposed, problems = self._proposed(params)
         if not problems and self._validate is not None:
             try:
                 self._validate(proposed)
@@ -171,5 +248,9 @@ class ParameterTable:
         if self._pending is None:
             return
         self.values, self._pending = self._pending, None
+        self.explicit |= {param.name for param in params
+                          if param.name in self.specs and self.specs[param.name].derived
+                          and param.name not in self._derived_now}
+        self._derived_now = set()
         if self._on_change is not None:
             self._on_change(self.values)

@@ -22,7 +22,7 @@ import struct
 import numpy as np
 from rosbags.highlevel import AnyReader
 from tracked_kinematics.core.encoders import (
-    counter_increments, travel_from_ticks, travel_from_velocities)
+    counter_increments, travel_from_ticks, travel_from_velocities, unwrap_if_wrapped)
 from tracked_kinematics.core.identify import DriveData, Recording
 from tracked_kinematics.core.integration import compose, stamp_ns, yaw_from_quaternion
 from tracked_kinematics.offline.errors import BagError
@@ -76,15 +76,6 @@ def _sort_unique(columns: np.ndarray) -> np.ndarray:
 
 def _strip(frame: str) -> str:
     return frame.lstrip('/')
-
-
-def _unwrap_if_wrapped(positions: np.ndarray) -> np.ndarray:
-    """Unwrap joint angles that a driver reports wrapped into [-pi, pi]."""
-    if len(positions) < 2 or np.max(np.abs(positions)) > math.pi + 1e-6:
-        return positions
-    if not np.any(np.abs(np.diff(positions)) > math.pi):
-        return positions
-    return np.unwrap(positions)
 
 
 class _Progress:
@@ -308,8 +299,8 @@ class _JointStates:
         positions = np.isfinite(pos_l) & np.isfinite(pos_r)
         if np.count_nonzero(positions) >= 2 and np.count_nonzero(positions) >= 0.5 * len(t):
             t = t[positions]
-            return (t, _unwrap_if_wrapped(pos_l[positions]) * radius,
-                    _unwrap_if_wrapped(pos_r[positions]) * radius)
+            return (t, unwrap_if_wrapped(pos_l[positions]) * radius,
+                    unwrap_if_wrapped(pos_r[positions]) * radius)
         ok = np.isfinite(vel_l) & np.isfinite(vel_r)
         t, vel_l, vel_r = t[ok], vel_l[ok], vel_r[ok]
         if len(t) < 2:
