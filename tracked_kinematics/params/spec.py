@@ -100,6 +100,7 @@ def zero_or_at_least(low: float, unit: str = '') -> Callable[[Any], str | None]:
         if problem or value == 0 or value >= low:
             return problem
         return f'must be 0 or >= {low:g}{" " + unit if unit else ""}, got {value!r}'
+    check.words = f'0 or >= {low:g}{" " + unit if unit else ""}'
     return check
 
 
@@ -111,6 +112,7 @@ def each(check: Callable[[Any], str | None]) -> Callable[[Any], str | None]:
             if problem:
                 return f'[{i}] {problem}'
         return None
+    check_all.words = f'each: {getattr(check, "words", "checked")}'
     return check_all
 
 
@@ -121,6 +123,7 @@ def _is_inf(value) -> bool:
 _NAME_TOKEN = re.compile(r'[A-Za-z_][A-Za-z0-9_]*\Z')
 
 
+@described_as('a valid ROS name')
 def ros_name(value) -> str | None:
     """
     Check: a valid ROS 2 topic or service name (relative, absolute or private ``~/``).
@@ -140,6 +143,7 @@ def ros_name(value) -> str | None:
             f'digit, no "__", no trailing /), got {value!r}')
 
 
+@described_as('a valid node name')
 def node_name(value) -> str | None:
     """Check: a valid ROS 2 node name, optionally with its namespace (``/ns/node``)."""
     problem = ros_name(value)
@@ -148,6 +152,7 @@ def node_name(value) -> str | None:
     return None
 
 
+@described_as('a tf2 frame id (no leading /, no blanks)')
 def frame_id(value) -> str | None:
     """
     Check: a usable tf2 frame id.

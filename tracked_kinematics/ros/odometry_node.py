@@ -28,9 +28,9 @@ from std_srvs.srv import Trigger
 from tracked_kinematics.core.covariance import TrackNoise
 from tracked_kinematics.core.integration import quaternion_from_yaw, stamp_ns
 from tracked_kinematics.core.odometry import Odometry
-from tracked_kinematics.params import (described_as, ENCODER_INPUT_PARAMS, frame_id,
-                                       icr_from_values, non_negative, ParamSpec,
-                                       TERRAIN_PARAMS, zero_or_at_least)
+from tracked_kinematics.params import (ENCODER_INPUT_PARAMS, frame_id, icr_from_values,
+                                       non_negative, ParamSpec, TERRAIN_PARAMS,
+                                       zero_or_at_least)
 from tracked_kinematics.ros.encoder_input import (
     check_encoder_values, EncoderInput, WARN_PERIOD)
 from tracked_kinematics.ros.input_topic import CHECK_PERIOD, steady_timer

@@ -46,7 +46,7 @@ SHARED = (
      'of the gains > 0 and a stable closed speed loop.'),
     ('Encoder input', 'ENCODER_INPUT_PARAMS', ENCODER_INPUT_PARAMS,
      'Which encoder messages a node subscribes to '
-     '([input modes](nodes/odometry_node.md#input-modes)); the '
+     '([input modes](nodes/odometry_node.md#encoder-input)); the '
      'offline tools take the same choices as `--encoder-input` and flags.',
      'Checked together: no joint in both `left_joints` and `right_joints`.'),
     ('Command limits', 'COMMAND_LIMIT_PARAMS', COMMAND_LIMIT_PARAMS,
