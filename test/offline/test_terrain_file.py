@@ -42,7 +42,8 @@ def test_drivetrain_values_drop_the_old_drive_train_and_record():
 def test_an_invalid_model_is_a_fit_error():
     with pytest.raises(FitError, match='^the identified model is invalid, nothing written: '
                        'icr.y_left'):
-        terrain_values({}, {'icr.y_left': -1.0, 'icr.y_right': 1.0}, record='identification',
+        terrain_values({'track_width': 0.42, 'sprocket_radius': 0.1},
+                       {'icr.y_left': -1.0, 'icr.y_right': 1.0}, record='identification',
                        check=icr_from_values, extras={})
 
 
