@@ -7,12 +7,13 @@ drive train, encoder input, command limits), :mod:`.values` turns values into co
 ring; it imports only ``core/``. docs/parameters.md is generated from the tables.
 """
 
-from .files import flatten, nest, read_params_file, write_params_file
-from .spec import check_values, described_as, finite, non_negative, one_of, ParamSpec, positive
+from .files import flatten, nest, params_text, read_params_file, write_params_file
+from .spec import (check_values, described_as, finite, non_negative, one_of, ParamSpec,
+                   positive, unknown_parameters)
 from .tables import (COMMAND_LIMIT_PARAMS, DRIVETRAIN_DEFAULTS, DRIVETRAIN_PARAMS,
                      ENCODER_INPUT_DEFAULTS, ENCODER_INPUT_PARAMS, INPUT_MODES,
                      JOINT_STATES_TOPIC, LIMIT_FIELDS, limit_value, SIDE_TOPICS,
-                     TERRAIN_DEFAULTS, TERRAIN_PARAMS, TICKS_TYPES)
+                     TERRAIN_DEFAULTS, TERRAIN_PARAMS, TICKS_TYPES, unknown_terrain_parameters)
 from .values import (drivetrain_from_values, icr_from_values, limits_from_values,
                      values_from_drivetrain, values_from_icr)
 
@@ -21,6 +22,7 @@ __all__ = [
     'ENCODER_INPUT_PARAMS', 'INPUT_MODES', 'JOINT_STATES_TOPIC', 'LIMIT_FIELDS', 'ParamSpec',
     'SIDE_TOPICS', 'TERRAIN_DEFAULTS', 'TERRAIN_PARAMS', 'TICKS_TYPES', 'check_values',
     'described_as', 'drivetrain_from_values', 'finite', 'flatten', 'icr_from_values',
-    'limit_value', 'limits_from_values', 'nest', 'non_negative', 'one_of', 'positive',
-    'read_params_file', 'values_from_drivetrain', 'values_from_icr', 'write_params_file',
+    'limit_value', 'limits_from_values', 'nest', 'non_negative', 'one_of', 'params_text',
+    'positive', 'read_params_file', 'unknown_parameters', 'unknown_terrain_parameters',
+    'values_from_drivetrain', 'values_from_icr', 'write_params_file',
 ]
