@@ -145,3 +145,25 @@ def test_write_report_goes_through_outputs(tmp_path):
         write_report(path, {})
     write_report(path, {}, force=True)
     assert path.read_text() == '{}\n'
+
+
+def test_a_second_signal_does_not_interrupt_the_clean_up(tmp_path, capsys, monkeypatch):
+    from tracked_kinematics.offline import outputs as outputs_module
+    from tracked_kinematics.offline.outputs import Outputs
+    real = outputs_module._discard
+
+    def discard_after_another_signal(tmp, directory):
+        os.kill(os.getpid(), signal.SIGINT)   # impatient Ctrl-C during the clean-up
+        real(tmp, directory)
+    monkeypatch.setattr(outputs_module, '_discard', discard_after_another_signal)
+
+    def run(args, out):
+        with Outputs() as outputs:
+            for name in ('a.yaml', 'b.json'):
+                outputs.add(name, tmp_path / name)
+                outputs.write_text(name, 'x')
+            os.kill(os.getpid(), signal.SIGTERM)
+    assert run_main('tool', run, None) == 143
+    assert capsys.readouterr().err == 'tool: error: terminated by SIGTERM\n'
+    assert list(tmp_path.iterdir()) == []
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler

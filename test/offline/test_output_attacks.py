@@ -171,6 +171,22 @@ def test_an_input_bag_is_never_an_output(tool, tmp_path, capsys):
     assert bag.read_bytes() == b'#ROSBAG V2.0\n'
 
 
+@pytest.mark.parametrize('tool', ['identify_icr', 'identify_drivetrain'])
+def test_a_file_of_an_input_bag_is_never_an_output(tool, tmp_path, capsys):
+    bag = tmp_path / 'bag'
+    bag.mkdir()
+    (bag / 'metadata.yaml').write_text('rosbag2_bagfile_information: {}\n')
+    module, base, _, _ = TOOLS[tool]
+    for flag in ('--output', '--report'):
+        extra = ['--output', str(tmp_path / 'o.yaml')] if flag == '--report' else []
+        argv = [str(bag)] + [str(a) for a in base[1:]] + extra
+        argv += [flag, str(bag / 'metadata.yaml'), '--force']
+        assert module.main(argv) == 2
+        assert f'{flag} {bag / "metadata.yaml"} is inside the input BAG' in \
+            capsys.readouterr().err
+    assert (bag / 'metadata.yaml').read_text() == 'rosbag2_bagfile_information: {}\n'
+
+
 def test_the_automatic_truth_file_is_checked_first(tmp_path, capsys):
     bag = tmp_path / 'run'
     truth_path(bag).write_text('my truth\n')

@@ -242,6 +242,20 @@ def test_inputs_are_not_outputs(tmp_path):
         out.refuse_inputs('--params', [tmp_path / 'base.yaml'])
 
 
+def test_a_file_inside_an_input_bag_is_not_an_output(tmp_path):
+    bag = tmp_path / 'bag'
+    bag.mkdir()
+    (bag / 'metadata.yaml').write_text('m\n')
+    out = Outputs(force=True)
+    out.add('--report', bag / 'metadata.yaml')
+    out.refuse_inputs('--params', [tmp_path / 'other.yaml'])
+    with pytest.raises(OutputError, match=r'--report .*bag/metadata.yaml is inside the input '
+                                          r'BAG .*bag; choose another output path'):
+        out.refuse_inputs('BAG', [tmp_path / 'other', tmp_path / '.' / 'bag'])
+    with pytest.raises(OutputError, match='an empty path is not a file name'):
+        check_output('--output', '')
+
+
 def test_an_error_inside_path_removes_the_bag_and_its_holder(tmp_path):
     out = Outputs()
     out.add('BAG', tmp_path / 'bag', directory=True)

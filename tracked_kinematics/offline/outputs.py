@@ -81,8 +81,10 @@ def check_output(flag: str, path, force: bool = False, directory: bool = False) 
         With the reason, naming ``flag`` and ``path``.
 
     """
+    if not os.fspath(path):
+        raise OutputError(f'{flag}: an empty path is not a file name')
     path = Path(os.fspath(path))
-    if not str(path) or path.name in ('', '.', '..'):
+    if path.name in ('', '.', '..'):
         raise OutputError(f'{flag} {str(path)!r} is not a file name')
     try:
         info = os.lstat(path)
@@ -180,6 +182,7 @@ class Outputs:
         """
         Refuse an output that is one of the run's inputs (``paths``, named ``label``).
 
+        An output inside an input directory (a file of a rosbag2 bag) is refused too.
         ``allow`` names the outputs that may replace an input (``--output`` may update the
         ``--params`` file it started from, with ``--force``).
 
@@ -192,10 +195,15 @@ class Outputs:
         for path in paths:
             if path is None:
                 continue
+            inside = os.path.isdir(path) and not os.path.islink(path)
+            root = os.path.join(os.path.realpath(path), '')
             for flag, (target, _) in self._targets.items():
                 if flag not in allow and same_file(target, path):
                     raise OutputError(f'{flag} {target} is also the input {label}; choose '
                                       'another output path')
+                if inside and os.path.realpath(target).startswith(root):
+                    raise OutputError(f'{flag} {target} is inside the input {label} {path}; '
+                                      'choose another output path')
 
     def __contains__(self, flag: str) -> bool:
         """Whether an output of this name was asked for."""

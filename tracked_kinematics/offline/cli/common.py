@@ -227,7 +227,15 @@ class Signalled(BaseException):
         self.signum = signum
 
 
+_STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
+
+
 def _raise_signalled(signum, frame):
+    # The first signal ends the run; further ones must not interrupt the clean-up.
+    for other in _STOP_SIGNALS:
+        signal.signal(other, signal.SIG_IGN)
+    if signum == signal.SIGINT:
+        raise KeyboardInterrupt
     raise Signalled(signum)
 
 
@@ -241,8 +249,9 @@ def run_main(prog: str, run, args) -> int:
     parameter or output-path problem) and for an :class:`OSError` (a file the user named, a
     full disk), 130 for Ctrl-C, 143 for SIGTERM (129 for SIGHUP): the signal is raised as an
     exception, so :class:`~tracked_kinematics.offline.outputs.Outputs` removes what the run
-    staged and nothing new is left behind. Any other exception is a bug: it is not caught,
-    and surfaces as a traceback.
+    staged and nothing new is left behind; further signals are ignored until the run has
+    ended (a second Ctrl-C cannot interrupt the clean-up). Any other exception is a bug: it
+    is not caught, and surfaces as a traceback.
     """
     def fail(status, err):
         print(f'{prog}: error: {" ".join(str(err).split())}', file=sys.stderr)
@@ -250,7 +259,7 @@ def run_main(prog: str, run, args) -> int:
 
     previous = {}
     if threading.current_thread() is threading.main_thread():
-        for signum in (signal.SIGTERM, signal.SIGHUP):
+        for signum in _STOP_SIGNALS:
             previous[signum] = signal.signal(signum, _raise_signalled)
     try:
         return run(args, sys.stdout)
