@@ -226,3 +226,24 @@ def test_demo_output_directory_attacks(tmp_path, capsys, make, pattern):
     err = capsys.readouterr().err
     assert_refused(status, err, '--output', pattern)
     assert listing(tmp_path) == before
+
+
+@pytest.mark.parametrize('tool, target, argv', [
+    ('simulate_bag', 'simulate', ['{tmp}/bag', '--vehicle', 'packbot', '--duration', '1']),
+    ('icr_map', 'icr_map', ['packbot', '--n', '3', '--output', '{tmp}/o.yaml']),
+    ('tracked_kinematics_demo', 'TwistTable', ['--output', '{tmp}/demo']),
+])
+def test_a_bug_is_a_traceback_and_still_leaves_nothing(tool, target, argv, tmp_path, capsys,
+                                                       monkeypatch):
+    # These tools caught a bare ValueError with their own format; now only the package's
+    # errors are one line (run_main), a bug is a traceback, and the outputs are cleaned up.
+    module = {'simulate_bag': simulate_bag, 'icr_map': icr_map,
+              'tracked_kinematics_demo': tracked_kinematics_demo}[tool]
+
+    def bug(*args, **kwargs):
+        raise ValueError('bug')
+    monkeypatch.setattr(module, target, bug)
+    with pytest.raises(ValueError, match='^bug$'):
+        module.main([a.format(tmp=tmp_path) for a in argv])
+    assert capsys.readouterr().err == ''
+    assert list(tmp_path.iterdir()) == []

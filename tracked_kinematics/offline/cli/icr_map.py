@@ -34,7 +34,7 @@ from tracked_kinematics.params import params_text, values_from_icr
 
 PROG = 'icr_map'
 MAX_N = 101
-"""Largest --n: 101 x 101 = 10,201 stationary solutions (about 10 s)."""
+"""Largest --n: 101 x 101 = 10,201 stationary solutions (6.4 s, 0.6 GB)."""
 
 
 def build_parser() -> argparse.ArgumentParser:

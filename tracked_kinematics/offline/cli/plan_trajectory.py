@@ -184,6 +184,9 @@ def _plan(args, planner, speed):
         horizon = min(horizon, MAX_HORIZON)
     plan = planner.plan_to(goal, horizon, tolerance=args.tolerance,
                            time_limit=args.time_limit)
+    if not plan.success and 'stopped at its time limit' in plan.message:
+        plan = dataclasses.replace(plan, message=plan.message + (
+            ': give a larger --time-limit, a shorter --horizon or a nearer goal'))
     if not plan.success and args.horizon is None and horizon == MAX_HORIZON:
         plan = dataclasses.replace(plan, message=plan.message.replace(
             'give a longer horizon or a nearer goal',
