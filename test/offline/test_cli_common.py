@@ -1,6 +1,9 @@
 """run_main: the package's errors are one line and a status; anything else is a traceback."""
 
 import errno
+import os
+import re
+import signal
 import subprocess
 import sys
 
@@ -77,3 +80,90 @@ def test_a_bug_in_core_is_a_traceback_a_user_error_is_status_2(tmp_path):
     assert done['user'].stderr.startswith(f'identify_icr: error: {bad}: not valid YAML')
     assert done['user'].stderr.count('\n') == 1
     assert not (tmp_path / 'o.yaml').exists()
+
+
+def test_bounded_numbers():
+    import argparse
+    from tracked_kinematics.offline.cli.common import bounded
+    seconds = bounded(0.01, 600.0, 's', zero=True)
+    assert seconds('0') == 0 and seconds('0.01') == 0.01 and seconds('600') == 600.0
+    assert seconds.words == 'in [0.01, 600] s or 0'
+    for text, message in (('1e-12', 'must be in [0.01, 600] s or 0, got 1e-12'),
+                          ('nan', 'must be a finite number in [0.01, 600] s or 0, got nan'),
+                          ('inf', 'must be a finite number in'), ('abc', 'expected a number')):
+        with pytest.raises(argparse.ArgumentTypeError, match=re.escape(message)):
+            seconds(text)
+    count = bounded(2, 101, integer=True)
+    assert count('7') == 7
+    with pytest.raises(argparse.ArgumentTypeError, match=r'must be in \[2, 101\], got 100000'):
+        count('100000')
+    with pytest.raises(argparse.ArgumentTypeError, match='expected a whole number'):
+        count('7.0')
+
+
+def test_a_usage_error_is_one_line_exit_2(capsys):
+    from tracked_kinematics.offline.cli.common import ArgumentParser, bounded
+    parser = ArgumentParser(prog='tool')
+    parser.add_argument('--n', type=bounded(2, 10, integer=True))
+    parser.add_argument('--need', required=True)
+    with pytest.raises(SystemExit) as exc:
+        parser.parse_args(['--n', '1000', '--need', 'x'])
+    assert exc.value.code == 2
+    assert capsys.readouterr().err == ('tool: error: argument --n: must be in [2, 10], got '
+                                       '1000 (see tool --help)\n')
+
+
+@pytest.mark.parametrize('signum, status, message', [
+    (signal.SIGTERM, 143, 'terminated by SIGTERM'), (signal.SIGHUP, 129, 'terminated by SIGHUP'),
+    (signal.SIGINT, 130, 'interrupted')])
+def test_a_signal_removes_what_was_staged(tmp_path, capsys, signum, status, message):
+    # In-process: the signal arrives while an output is staged; Outputs removes it and the
+    # tool reports one line with 128 + the signal.
+    from tracked_kinematics.offline.outputs import Outputs
+
+    def run(args, out):
+        with Outputs() as outputs:
+            outputs.add('--output', tmp_path / 'o.yaml')
+            outputs.write_text('--output', 'x: 1\n')
+            os.kill(os.getpid(), signum)
+            raise AssertionError('the signal did not arrive')
+    previous = signal.getsignal(signal.SIGTERM)
+    assert run_main('tool', run, None) == status
+    assert capsys.readouterr().err == f'tool: error: {message}\n'
+    assert list(tmp_path.iterdir()) == []
+    assert signal.getsignal(signal.SIGTERM) is previous   # handlers restored
+
+
+def test_write_report_goes_through_outputs(tmp_path):
+    import numpy as np
+    from tracked_kinematics.offline.cli.common import write_report
+    from tracked_kinematics.offline.outputs import OutputError
+    path = tmp_path / 'r.json'
+    write_report(path, {'a': np.arange(2), 'b': np.float64(0.5)})
+    assert path.read_text() == '{\n  "a": [\n    0,\n    1\n  ],\n  "b": 0.5\n}\n'
+    with pytest.raises(OutputError, match='exists; use --force'):
+        write_report(path, {})
+    write_report(path, {}, force=True)
+    assert path.read_text() == '{}\n'
+
+
+def test_a_second_signal_does_not_interrupt_the_clean_up(tmp_path, capsys, monkeypatch):
+    from tracked_kinematics.offline import outputs as outputs_module
+    from tracked_kinematics.offline.outputs import Outputs
+    real = outputs_module._discard
+
+    def discard_after_another_signal(tmp, directory):
+        os.kill(os.getpid(), signal.SIGINT)   # impatient Ctrl-C during the clean-up
+        real(tmp, directory)
+    monkeypatch.setattr(outputs_module, '_discard', discard_after_another_signal)
+
+    def run(args, out):
+        with Outputs() as outputs:
+            for name in ('a.yaml', 'b.json'):
+                outputs.add(name, tmp_path / name)
+                outputs.write_text(name, 'x')
+            os.kill(os.getpid(), signal.SIGTERM)
+    assert run_main('tool', run, None) == 143
+    assert capsys.readouterr().err == 'tool: error: terminated by SIGTERM\n'
+    assert list(tmp_path.iterdir()) == []
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler

@@ -3,9 +3,12 @@
 import csv
 import io
 import json
+import os
 from pathlib import Path
+import signal
 import subprocess
 import sys
+import time
 
 import numpy as np
 import pytest
@@ -100,18 +103,6 @@ def test_identified_model_beats_ideal_on_every_held_out_path(demo_run):
     assert f'{mean_ideal:.3f}' in mean_row
 
 
-def test_rerun_replaces_the_previous_outputs_only(tmp_path):
-    out_dir = tmp_path / 'out'
-    demo.prepare_output(out_dir)
-    (out_dir / 'heldout' / 'path1_random').mkdir(parents=True)
-    (out_dir / 'old_terrain.yaml').write_text('x: 1\n')
-    (out_dir / 'notes.txt').write_text('mine\n')
-    demo.prepare_output(out_dir)
-    assert not (out_dir / 'heldout').exists()
-    assert not (out_dir / 'old_terrain.yaml').exists()
-    assert (out_dir / 'notes.txt').read_text() == 'mine\n'
-
-
 def _random_travel(n, seed):
     rng = np.random.default_rng(seed)
     speeds = np.repeat(rng.uniform(-1.0, 1.0, size=(n // 50 + 1, 2)), 50, axis=0)[:n]
@@ -181,12 +172,197 @@ def test_too_short_a_drive_reports_identify_icr_failure(tmp_path, capsys):
     err = capsys.readouterr().err
     assert 'identify_icr: error: too little motion' in err
     assert 'tracked_kinematics_demo: identify_icr failed' in err
+    assert list(tmp_path.iterdir()) == []   # the directory it made, and the bag, removed
 
 
-def test_demo_console_script(tmp_path):
-    result = subprocess.run([str(BIN / 'tracked_kinematics_demo'), '--paths', '1',
-                             '--duration', '90', '--path-duration', '20'], cwd=tmp_path,
-                            capture_output=True, text=True, timeout=120)
-    assert result.returncode == 0, result.stderr
-    assert 'demo_output/hard_floor.yaml' in result.stdout
-    assert (tmp_path / 'demo_output' / 'hard_floor.yaml').is_file()
+def tree(directory):
+    """Every path under ``directory`` (relative), with the bytes of the files."""
+    found = {}
+    for root, dirs, files in os.walk(directory):
+        for name in dirs + files:
+            path = Path(root) / name
+            found[str(path.relative_to(directory))] = (
+                path.read_bytes() if path.is_file() and not path.is_symlink() else None)
+    return found
+
+
+def test_demo_console_script_twice_in_a_row(tmp_path):
+    # `make demo` twice: the second run replaces the outputs its manifest lists, without
+    # --force, and nothing else (the user's files, dotfiles and YAML files included).
+    argv = [str(BIN / 'tracked_kinematics_demo'), '--paths', '1', '--duration', '90',
+            '--path-duration', '20']
+    first = subprocess.run(argv, cwd=tmp_path, capture_output=True, text=True, timeout=120)
+    assert first.returncode == 0, first.stderr
+    assert 'demo_output/hard_floor.yaml' in first.stdout
+    out = tmp_path / 'demo_output'
+    assert (out / 'hard_floor.yaml').is_file()
+    written = set(tree(out))
+    user = {'notes.yaml': b'mine\n', '.hidden.yaml': b'dot\n', 'calibration/mine.yaml': b'c\n',
+            'heldout/readme.txt': b'r\n', '.hard_floor.yaml.tmp-leftover.yaml': b'half'}
+    for name, data in user.items():
+        (out / name).write_bytes(data)
+    second = subprocess.run(argv, cwd=tmp_path, capture_output=True, text=True, timeout=120)
+    assert second.returncode == 0, second.stderr
+    after = tree(out)
+    assert set(after) == written | set(user)
+    assert all(after[name] == data for name, data in user.items())
+    assert (out / 'identify.png').stat().st_size > 10_000
+
+
+# The output directory and its manifest (no simulation) -----------------------------------
+
+PLANNED = demo.planned_outputs('auriga_alpha', 'hard_floor', ['path1_random'])
+
+
+def fake_run(directory, force=False):
+    """Prepare ``directory`` and write every planned output as a run would."""
+    outputs = demo.DemoDirectory(directory, force=force)
+    outputs.prepare(PLANNED)
+    for entry in PLANNED:
+        path = directory / entry.path
+        if entry.kind == 'dir':
+            continue
+        outputs.record(demo.Entry(entry.kind, entry.path))
+        if entry.kind == 'bag':
+            path.mkdir()
+            (path / 'metadata.yaml').write_text('m\n')
+            (path / f'{path.name}.mcap').write_text('data\n')
+        else:
+            path.write_text(f'{entry.path} of run\n')
+    outputs.written()
+    return outputs
+
+
+def test_a_rerun_removes_only_what_the_manifest_lists(tmp_path):
+    out = tmp_path / 'out'
+    fake_run(out)
+    ours = set(tree(out))
+    user = ['notes.yaml', '.dot.yaml', 'calibration/mine.txt', 'heldout/x.yaml']
+    for name in user:
+        (out / name).write_text('user\n')
+    demo.DemoDirectory(out).prepare(PLANNED)
+    left = set(tree(out))
+    assert left == set(user) | {'calibration', 'heldout', demo.MANIFEST}
+    assert all((out / name).read_text() == 'user\n' for name in user)
+    fake_run(out)
+    assert set(tree(out)) == ours | set(user)
+
+
+def test_a_listed_file_the_user_changed_is_theirs(tmp_path, capsys):
+    out = tmp_path / 'out'
+    fake_run(out)
+    (out / 'hard_floor.yaml').write_text('edited by hand, longer than before\n')
+    with pytest.raises(demo.DemoError, match='hard_floor.yaml was changed since the demo wrote '
+                                             'it; use --force'):
+        demo.DemoDirectory(out).prepare(PLANNED)
+    assert (out / 'hard_floor.yaml').read_text().startswith('edited')
+    assert (out / 'identify.png').exists()          # refused before anything was removed
+    # With --force it is replaced; an unlisted file in the way likewise.
+    outputs = demo.DemoDirectory(out, force=True)
+    outputs.prepare(PLANNED)
+    assert (out / 'hard_floor.yaml').read_text().startswith('edited')   # until replaced
+    assert not (out / 'identify.png').exists()
+    # A failed forced run leaves the user's file it did not get to replace.
+    outputs.record(demo.Entry('file', 'hard_floor.yaml'))
+    outputs.fail()
+    assert (out / 'hard_floor.yaml').read_text().startswith('edited')
+
+
+def test_an_unlisted_file_in_the_way_needs_force(tmp_path):
+    out = tmp_path / 'out'
+    out.mkdir()
+    (out / demo.MANIFEST).write_text('{"entries": []}\n')
+    (out / 'heldout.csv').write_text('mine\n')
+    with pytest.raises(demo.DemoError, match='heldout.csv exists; use --force'):
+        demo.DemoDirectory(out).prepare(PLANNED)
+    demo.DemoDirectory(out, force=True).prepare(PLANNED)
+    assert (out / 'heldout.csv').read_text() == 'mine\n'   # replaced only when written
+
+
+@pytest.mark.parametrize('entry', [
+    {'kind': 'file', 'path': '../outside.yaml'}, {'kind': 'file', 'path': '/etc/hostname'},
+    {'kind': 'dir', 'path': '..'}, {'kind': 'bag', 'path': 'b', 'files': ['../outside.yaml']},
+    {'kind': 'file', 'path': 'link/victim.yaml'}])
+def test_the_manifest_never_reaches_outside(tmp_path, entry):
+    out = tmp_path / 'out'
+    out.mkdir()
+    (tmp_path / 'outside.yaml').write_text('keep\n')
+    (tmp_path / 'elsewhere').mkdir()
+    (tmp_path / 'elsewhere' / 'victim.yaml').write_text('keep\n')
+    (out / 'link').symlink_to(tmp_path / 'elsewhere')
+    (out / 'b').mkdir()
+    (out / demo.MANIFEST).write_text(json.dumps({'entries': [entry]}))
+    demo.DemoDirectory(out).prepare(PLANNED)
+    assert (tmp_path / 'outside.yaml').read_text() == 'keep\n'
+    assert (tmp_path / 'elsewhere' / 'victim.yaml').read_text() == 'keep\n'
+    assert (out / 'link').is_symlink()
+
+
+@pytest.mark.parametrize('setup, pattern', [
+    (lambda out, tmp: (out / 'calibration').symlink_to(tmp),
+     r'calibration is a symbolic link; the demo neither follows'),
+    (lambda out, tmp: (out / 'hard_floor.yaml').symlink_to(tmp / 'nowhere.yaml'),
+     r'hard_floor.yaml is a symbolic link; the demo neither follows nor replaces it'),
+    (lambda out, tmp: (out / 'identify.png').symlink_to(tmp / 'precious.png'),
+     r'identify.png is a symbolic link'),
+    (lambda out, tmp: (out / 'calibration' / 'auriga_alpha_hard_floor' / 'notes.txt')
+     .write_text('x'), r'auriga_alpha_hard_floor holds files the demo did not write '
+                       r'\(notes.txt\)'),
+    (lambda out, tmp: os.mkfifo(out / 'heldout.csv'), r'heldout.csv is a FIFO'),
+])
+def test_links_and_foreign_files_in_a_demo_directory_are_refused(tmp_path, setup, pattern):
+    out = tmp_path / 'out'
+    fake_run(out)
+    (tmp_path / 'precious.png').write_text('precious\n')
+    for name in ('hard_floor.yaml', 'identify.png', 'heldout.csv'):
+        (out / name).unlink()
+    if pattern.startswith('calibration is a symbolic'):
+        import shutil
+        shutil.rmtree(out / 'calibration')
+    setup(out, tmp_path)
+    before = tree(out)
+    for force in (False, True):
+        with pytest.raises(demo.DemoError, match=pattern):
+            demo.DemoDirectory(out, force=force).prepare(PLANNED)
+    assert tree(out) == before
+    assert (tmp_path / 'precious.png').read_text() == 'precious\n'
+    assert not (tmp_path / 'nowhere.yaml').exists()
+
+
+def test_an_older_demos_marker_is_not_a_manifest(tmp_path):
+    out = tmp_path / 'out'
+    out.mkdir()
+    (out / demo.MANIFEST).write_text('written by tracked_kinematics_demo; reruns replace its '
+                                     'outputs\n')
+    (out / 'hard_floor.yaml').write_text('x\n')
+    with pytest.raises(demo.DemoError, match='older demo that kept no list of its files'):
+        demo.DemoDirectory(out).prepare(PLANNED)
+    assert (out / 'hard_floor.yaml').read_text() == 'x\n'
+
+
+def test_a_failed_first_run_removes_its_directory(tmp_path):
+    out = tmp_path / 'a' / 'b' / 'out'
+    outputs = fake_run(out)
+    outputs.fail()
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_sigterm_mid_run_exits_143_and_leaves_nothing(tmp_path):
+    proc = subprocess.Popen([str(BIN / 'tracked_kinematics_demo'), '--paths', '1',
+                             '--duration', '1200', '--path-duration', '5'], cwd=tmp_path,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    calibration = tmp_path / 'demo_output' / 'calibration'
+    deadline = time.monotonic() + 120
+    try:
+        while time.monotonic() < deadline and not (
+                calibration.is_dir()
+                and any(p.name.startswith('.') for p in calibration.iterdir())):
+            time.sleep(0.01)
+        assert calibration.is_dir(), 'the calibration bag was never being written'
+        proc.send_signal(signal.SIGTERM)
+        _, err = proc.communicate(timeout=120)
+    finally:
+        proc.kill()
+    assert proc.returncode == 143, err
+    assert err == 'tracked_kinematics_demo: error: terminated by SIGTERM\n'
+    assert list(tmp_path.iterdir()) == []

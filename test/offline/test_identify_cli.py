@@ -123,18 +123,22 @@ def one_line_error(err, status, expected_status, pattern):
      r'joint left_wheel, left_idler not in /joint_states; joint names present: '
      r'left_sprocket_joint, right_sprocket_joint'),
     (['--max-nfev', '1'], 4, r'the icr_scales fit did not converge'),
-    (['--track-width', '-1'], 2, r'argument --track-width: must be a finite number > 0'),
+    (['--track-width', '-1'], 2, r'argument --track-width: must be in \[0.05, 20\] m, got -1 '
+                                 r'\(see identify_icr --help\)$'),
 ])
 def test_error_paths_leave_no_file(bag, tmp_path, capsys, extra, status, pattern):
+    # Even with --force, a failed run leaves the old file and adds nothing (no report, no
+    # temporary file).
     out = tmp_path / 'out.yaml'
     out.write_text('old: contents\n')
+    argv = [bag, *ARGS, '--output', out, '--report', tmp_path / 'r.json', '--force', *extra]
     if extra[0] == '--track-width':
         with pytest.raises(SystemExit) as exc:
-            identify_icr.main([str(bag), *ARGS, '--output', str(out), *extra])
-        got, err = exc.value.code, capsys.readouterr().err.strip().splitlines()[-1]
-        assert got == status and re.search(pattern, err)
+            identify_icr.main([str(a) for a in argv])
+        got, err = exc.value.code, capsys.readouterr().err
+        one_line_error(err.strip(), got, status, pattern)
     else:
-        got, _, err = run([bag, *ARGS, '--output', out, *extra], capsys)
+        got, _, err = run(argv, capsys)
         one_line_error(err, got, status, pattern)
     assert out.read_text() == 'old: contents\n'
     assert [p.name for p in tmp_path.iterdir()] == ['out.yaml']
@@ -171,8 +175,7 @@ def test_too_little_excitation(tmp_path, capsys, legs, pattern):
     ('a: [1, 2\n', [], r'base.yaml: not valid YAML \(while parsing'),
     (b'\x89PNG\r\n\x1a\n\xff\xfe', [], r"'utf-8' codec can't decode byte 0x89"),
     ('- 1\n- 2\n', [], r'base.yaml: expected a mapping of parameters$'),
-    ('scale:\n  left: -1\n', [], r'scale_left must be > 0, got -1.0$'),
-    (None, ['--max-nfev', '-3'], r'--max-nfev must not be negative, got -3$'),
+    ('scale:\n  left: -1\n', [], r'base.yaml: scale.left must be > 0, got -1$'),
 ])
 def test_user_errors_are_bad_input_not_tracebacks(bag, tmp_path, capsys, params, extra,
                                                   pattern):
@@ -187,11 +190,13 @@ def test_user_errors_are_bad_input_not_tracebacks(bag, tmp_path, capsys, params,
 
 
 def test_plot_format_matplotlib_cannot_write_is_bad_input(bag, tmp_path, capsys):
+    # Checked with the other outputs before any work: nothing is written.
     out = tmp_path / 'o.yaml'
     got, _, err = run([bag, *ARGS, '--output', out, '--holdout', '0', '--plot',
                        tmp_path / 'fit.xyz'], capsys)
-    one_line_error(err, got, 2, r"Format 'xyz' is not supported \(supported formats: .*png")
-    assert out.exists()   # as before: the terrain file is written before the plot
+    one_line_error(err, got, 2, r"--plot .*fit.xyz: Format 'xyz' is not supported "
+                                r'\(supported formats: .*png')
+    assert list(tmp_path.iterdir()) == []
 
 
 def test_a_bug_in_the_core_surfaces_as_a_traceback(bag, tmp_path, capsys, monkeypatch):
@@ -227,3 +232,157 @@ def test_plot_shows_the_segments_of_the_fit(bag, tmp_path, capsys, monkeypatch, 
     every = ident.build_segments(seen['recordings'], result.segment_length)
     assert np.count_nonzero(every.travel >= 0.01) > len(segments)   # 0.4 m left some out
     assert plot.read_bytes()[:8] == b'\x89PNG\r\n\x1a\n'
+
+
+@pytest.mark.parametrize('params, pattern', [
+    ('track_width: abc\n', r"base.yaml: track_width must be a number, got 'abc'$"),
+    ('sprocket_radius: [1]\n', r'base.yaml: sprocket_radius must be a number, got \[1\]$'),
+    ('scale: {left: 1.0, right: x}\n', r"base.yaml: scale.right must be a number, got 'x'$"),
+])
+def test_a_base_value_that_is_not_a_number_is_one_line(bag, tmp_path, capsys, params,
+                                                       pattern):
+    # track_width: abc was a TypeError traceback (issue 14 item 13).
+    path = tmp_path / 'base.yaml'
+    path.write_text(params)
+    got, _, err = run([bag, '--ground-truth-topic', '/mocap/pose', '--params', path,
+                       '--output', tmp_path / 'o.yaml'], capsys)
+    one_line_error(err, got, 2, pattern)
+    assert not (tmp_path / 'o.yaml').exists()
+
+
+def test_a_typo_in_the_base_file_is_named_with_the_closest_name(bag, tmp_path, capsys):
+    path = tmp_path / 'base.yaml'
+    path.write_text('track_widht: 0.5\nicr:\n  yleft: 0.3\nodom_frame: odom\n'
+                    'identification:\n  model: icr\n')
+    got, _, err = run([bag, *ARGS, '--params', path, '--output', tmp_path / 'o.yaml',
+                       '--holdout', '0'], capsys)
+    assert got == 0, err
+    assert err.splitlines() == [
+        f"identify_icr: warning: {path}: unknown parameter 'icr.yleft' is not used (did you "
+        "mean 'icr.y_left'?)",
+        f"identify_icr: warning: {path}: unknown parameter 'track_widht' is not used (did you "
+        "mean 'track_width'?)"]
+    # Copied on as before (it is the user's file), but not taken for the track width.
+    values = read_params_file(tmp_path / 'o.yaml')
+    assert values['track_widht'] == 0.5 and values['track_width'] == B
+
+
+@pytest.mark.parametrize('argv, pattern', [
+    (['--segment-length', '1e-12'], r'--segment-length: must be in \[0.01, 600\] s or 0, '
+                                    r'got 1e-12'),
+    (['--segment-length', '1e-9'], r'--segment-length: must be in'),
+    (['--ground-truth-offset', '1e300', '0', '0'], r'--ground-truth-offset: must be in '
+                                                   r'\[-10, 10\], got 1e300'),
+    (['--ground-truth-offset', '0', 'nan', '0'], r'--ground-truth-offset: must be a finite '
+                                                 r'number in'),
+    (['--holdout', '1'], r'--holdout: must be in \[0, 0.9\]'),
+    (['--max-nfev', '-3'], r'--max-nfev: must be in \[0, 1,000,000\], got -3'),
+    (['--max-nfev', '2.5'], r"--max-nfev: expected a whole number, got '2.5'"),
+    (['--heading-weight', '1e-30'], r'--heading-weight: must be in \[0.001, 1000\] m/rad'),
+    (['--sprocket-radius', '5e-324'], r'--sprocket-radius: must be in \[0.005, 5\] m'),
+    (['--ticks-per-revolution', '0.5'], r'--ticks-per-revolution: must be in \[1, 1e\+09\]'),
+])
+def test_absurd_numbers_are_refused_before_any_work(tmp_path, capsys, argv, pattern):
+    # MemoryError / OverflowError tracebacks before (issue 14 item 12); now one line, exit 2,
+    # before the bag is even looked for.
+    with pytest.raises(SystemExit) as exc:
+        identify_icr.main(['no_such_bag', *ARGS, '--output', str(tmp_path / 'o.yaml'), *argv])
+    err = capsys.readouterr().err
+    one_line_error(err.strip(), exc.value.code, 2, pattern)
+    assert list(tmp_path.iterdir()) == []
+
+
+# Outputs: all or none, --force, full disk, signals (issue 14 items 9-11) ------------------
+
+
+def outputs_argv(bag, tmp_path):
+    return [bag, *ARGS, '--holdout', '0', '--output', tmp_path / 'o.yaml', '--report',
+            tmp_path / 'fit.json', '--plot', tmp_path / 'fit.png']
+
+
+def test_force_replaces_existing_outputs_and_keeps_their_mode(bag, tmp_path, capsys):
+    for name in ('o.yaml', 'fit.json'):
+        (tmp_path / name).write_text('old\n')
+        (tmp_path / name).chmod(0o600)
+    got, out, err = run(outputs_argv(bag, tmp_path), capsys)
+    assert got == 2 and 'o.yaml exists; use --force to replace it' in err
+    assert (tmp_path / 'o.yaml').read_text() == 'old\n' and not (tmp_path / 'fit.png').exists()
+    got, out, err = run(outputs_argv(bag, tmp_path) + ['--force'], capsys)
+    assert got == 0, err
+    assert f'wrote {tmp_path / "o.yaml"}, {tmp_path / "fit.json"}, {tmp_path / "fit.png"}' in out
+    assert read_params_file(tmp_path / 'o.yaml')['identification.model'] == 'icr_scales'
+    assert json.loads((tmp_path / 'fit.json').read_text())['tool'] == 'identify_icr'
+    for name in ('o.yaml', 'fit.json'):
+        assert (tmp_path / name).stat().st_mode & 0o777 == 0o600
+    assert sorted(p.name for p in tmp_path.iterdir()) == ['fit.json', 'fit.png', 'o.yaml']
+
+
+def test_a_failing_plot_leaves_no_yaml_and_no_report(bag, tmp_path, capsys, monkeypatch):
+    from tracked_kinematics.offline import plots
+    from tracked_kinematics.offline.errors import UsageError
+
+    def broken(path, *args):
+        path.write_bytes(b'\x89PNG half')
+        raise UsageError('the plot failed')
+    monkeypatch.setattr(plots, 'plot_identification', broken)
+    got, _, err = run(outputs_argv(bag, tmp_path), capsys)
+    one_line_error(err, got, 2, 'the plot failed')
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize('victim', ['o.yaml', 'fit.json', 'fit.png'])
+def test_a_full_disk_leaves_nothing(bag, tmp_path, capsys, monkeypatch, victim):
+    # ENOSPC when a file is flushed (where a full disk shows with delayed allocation).
+    import errno
+    from tracked_kinematics.offline import outputs
+    real = outputs._fsync_file
+
+    def full(path):
+        if path.name.startswith(f'.{victim}.tmp-'):
+            raise OSError(errno.ENOSPC, 'No space left on device')
+        real(path)
+    monkeypatch.setattr(outputs, '_fsync_file', full)
+    got, _, err = run(outputs_argv(bag, tmp_path), capsys)
+    one_line_error(err, got, 2, r'No space left on device')
+    assert list(tmp_path.iterdir()) == []
+
+
+KILLER = """
+import os, signal, sys
+from tracked_kinematics.offline import plots
+def save(fig, path, dpi):
+    with open(path, 'wb') as stream:     # half a PNG, then the signal
+        stream.write(b'\\x89PNG\\r\\n\\x1a\\n half')
+    os.kill(os.getpid(), getattr(signal, sys.argv[1]))
+plots.save = save
+from tracked_kinematics.offline.cli import identify_icr
+sys.exit(identify_icr.main(sys.argv[2:]))
+"""
+
+
+def test_sigkill_mid_write_leaves_only_hidden_temporary_files(bag, tmp_path, capsys):
+    argv = [str(a) for a in outputs_argv(bag, tmp_path)]
+    done = subprocess.run([sys.executable, '-c', KILLER, 'SIGKILL', *argv],
+                          capture_output=True, text=True, timeout=120)
+    assert done.returncode == -9
+    left = sorted(p.name for p in tmp_path.iterdir())
+    assert left and all(re.match(r'^\.(o\.yaml|fit\.json|fit\.png)\.tmp-\w+\.(yaml|json|png)$',
+                                 name) for name in left), left
+    # No 0-byte PNG, no half file at a target; a rerun ignores the leftovers (no --force).
+    got, _, err = run(argv, capsys)
+    assert got == 0, err
+    assert (tmp_path / 'fit.png').read_bytes()[:8] == b'\x89PNG\r\n\x1a\n'
+    assert (tmp_path / 'fit.png').stat().st_size > 10_000
+
+
+@pytest.mark.parametrize('signal_name, status', [('SIGTERM', 143), ('SIGINT', 130),
+                                                 ('SIGHUP', 129)])
+def test_a_signal_mid_write_exits_with_one_line_and_leaves_nothing(bag, tmp_path, signal_name,
+                                                                   status):
+    argv = [str(a) for a in outputs_argv(bag, tmp_path)]
+    done = subprocess.run([sys.executable, '-c', KILLER, signal_name, *argv],
+                          capture_output=True, text=True, timeout=120)
+    assert done.returncode == status, done.stderr
+    reason = 'interrupted' if signal_name == 'SIGINT' else f'terminated by {signal_name}'
+    assert done.stderr == f'identify_icr: error: {reason}\n'
+    assert list(tmp_path.iterdir()) == []

@@ -82,3 +82,54 @@ def test_a_bug_in_the_core_surfaces_as_a_traceback(sim_bag, tmp_path, capsys, mo
     with pytest.raises(ValueError, match='^bug$'):
         cli.main([str(sim_bag), '-o', str(tmp_path / 'o.yaml')])
     assert capsys.readouterr().err == ''
+
+
+@pytest.mark.parametrize('argv, pattern', [
+    (['--dt', '1e-7'], r'--dt: must be in \[0.001, 0.1\] s, got 1e-7'),
+    (['--max-delay', '1e9'], r'--max-delay: must be in \[0, 2\] s'),
+    (['--max-gap', '-1'], r'--max-gap: must be in \[0, 60\] s'),
+    (['--sprocket-radius', '5e-324'], r'--sprocket-radius: must be in \[0.005, 5\] m'),
+])
+def test_absurd_numbers_are_refused_before_any_work(tmp_path, capsys, argv, pattern):
+    with pytest.raises(SystemExit) as exc:
+        cli.main(['no_such_bag', '-o', str(tmp_path / 'o.yaml'), *argv])
+    err = capsys.readouterr().err
+    assert exc.value.code == 2
+    assert_one_line(err, pattern)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_the_grid_is_bounded_before_the_fit(sim_bag, tmp_path, capsys, monkeypatch):
+    monkeypatch.setattr(cli, 'MAX_GRID_SAMPLES', 10_000)
+    status, err = run([sim_bag, '-o', tmp_path / 'o.yaml', '--dt', '0.001'], capsys)
+    assert status == 2
+    assert_one_line(err, r'--dt 0.001 s over 20 s of data is a grid of 20,\d{3} samples '
+                         r'\(at most 10,000\); give a larger --dt or fewer bags$')
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_existing_output_needs_force_and_all_outputs_come_together(sim_bag, tmp_path, capsys):
+    out, report = tmp_path / 'o.yaml', tmp_path / 'r.json'
+    out.write_text('old\n')
+    status, err = run([sim_bag, '-o', out, '--report', report], capsys)
+    assert status == 2
+    assert_one_line(err, r'--output .*o.yaml exists; use --force to replace it$')
+    assert out.read_text() == 'old\n' and not report.exists()
+    status, err = run([sim_bag, '-o', out, '--report', report, '--force'], capsys)
+    assert status == 0, err
+    assert out.read_text().startswith('# Terrain parameters with the drive train written by')
+    assert report.read_text().startswith('{')
+
+
+def test_base_file_typos_and_non_numbers(sim_bag, tmp_path, capsys):
+    base = tmp_path / 'base.yaml'
+    base.write_text('sprocket_radius: abc\n')
+    status, err = run([sim_bag, '-o', tmp_path / 'o.yaml', '--params', base], capsys)
+    assert status == 2
+    assert_one_line(err, r"base.yaml: sprocket_radius must be a finite number > 0, got 'abc'$")
+    base.write_text('drivetrain:\n  time_constnt: 0.2\n')
+    status, err = run([sim_bag, '-o', tmp_path / 'o.yaml', '--params', base], capsys)
+    assert status == 0, err
+    assert err.splitlines()[0] == (
+        f"identify_drivetrain: warning: {base}: unknown parameter 'drivetrain.time_constnt' is "
+        "not used (did you mean 'drivetrain.time_constant'?)")

@@ -115,7 +115,10 @@ def test_directory_output_must_be_new_and_is_renamed_whole(tmp_path):
     with Outputs() as out:
         out.add('BAG', tmp_path / 'bag', directory=True)
         with out.path('BAG') as tmp:
-            assert not tmp.exists() and tmp.parent == tmp_path
+            # A hidden holder directory with the bag under its own name, which does not exist
+            # yet: rosbags creates it (and names its files after it).
+            assert not tmp.exists() and tmp.name == 'bag' and tmp.parent.parent == tmp_path
+            assert tmp.parent.name.startswith('.bag.tmp-')
             tmp.mkdir()
             (tmp / 'metadata.yaml').write_text('m')
     assert listing(tmp_path) == ['bag', 'old_bag']
@@ -151,3 +154,132 @@ def test_permissions_follow_umask(tmp_path):
     finally:
         os.umask(old)
     assert stat.S_IMODE(os.stat(tmp_path / 'a.yaml').st_mode) == 0o644
+
+
+def test_temporary_files_keep_the_extension_for_writers_that_read_it(tmp_path):
+    out = Outputs()
+    out.add('--plot', tmp_path / 'fit.png')
+    with out.path('--plot') as tmp:
+        assert tmp.parent == tmp_path and tmp.name.startswith('.fit.png.tmp-')
+        assert tmp.suffix == '.png' and tmp.exists()
+        tmp.write_bytes(b'png')
+    out.commit()
+    assert listing(tmp_path) == ['fit.png']
+
+
+def test_a_ros1_bag_file_is_a_new_path_too(tmp_path):
+    (tmp_path / 'old.bag').write_bytes(b'old')
+    with pytest.raises(OutputError, match='exists; choose a new path for the bag'):
+        Outputs(force=True).add('OUT', tmp_path / 'old.bag', directory=True)
+    with Outputs() as out:
+        out.add('OUT', tmp_path / 'run.bag', directory=True)
+        with out.path('OUT') as tmp:
+            assert not tmp.exists() and tmp.name == 'run.bag'
+            tmp.write_bytes(b'#ROSBAG V2.0')
+    assert listing(tmp_path) == ['old.bag', 'run.bag']
+
+
+def test_every_target_is_checked_before_the_first_rename(tmp_path):
+    out = Outputs()
+    out.add('--output', tmp_path / 'a.yaml')
+    out.add('--report', tmp_path / 'b.json')
+    out.write_text('--output', 'a')
+    out.write_text('--report', 'b')
+    (tmp_path / 'b.json').symlink_to(tmp_path / 'elsewhere')   # appears meanwhile
+    with pytest.raises(OutputError, match='--report .*b.json is a symbolic link'):
+        out.commit()
+    assert listing(tmp_path) == ['b.json']   # a.yaml was not renamed either
+    assert not (tmp_path / 'elsewhere').exists()
+
+
+def test_a_rename_that_fails_removes_the_new_files_renamed_before(tmp_path, monkeypatch):
+    out = Outputs()
+    for flag, name in (('--output', 'a.yaml'), ('--new', 'n.yaml'), ('--report', 'b.json')):
+        out.add(flag, tmp_path / name)
+        out.write_text(flag, f'new {flag}')
+    real = os.link
+
+    def flaky(src, dst):
+        if str(dst).endswith('b.json'):
+            raise FileExistsError(17, 'File exists')   # appeared at the last moment
+        return real(src, dst)
+    monkeypatch.setattr(os, 'link', flaky)
+    with pytest.raises(OutputError, match='b.json appeared while the tool ran'):
+        out.commit()
+    monkeypatch.undo()
+    assert listing(tmp_path) == []
+
+
+def test_a_forced_replacement_is_restored_when_a_later_rename_fails(tmp_path, monkeypatch):
+    (tmp_path / 'a.yaml').write_text('old a')
+    out = Outputs(force=True)
+    out.add('--output', tmp_path / 'a.yaml')
+    out.add('--report', tmp_path / 'b.json')
+    out.write_text('--output', 'new a')
+    out.write_text('--report', 'new b')
+    real = os.link
+
+    def flaky(src, dst):
+        if str(dst).endswith('b.json'):
+            raise OSError(5, 'Input/output error')
+        return real(src, dst)
+    monkeypatch.setattr(os, 'link', flaky)
+    monkeypatch.setattr(os, 'rename', lambda *a: (_ for _ in ()).throw(OSError(5, 'EIO')))
+    with pytest.raises(OSError):
+        out.commit()
+    monkeypatch.undo()
+    assert listing(tmp_path) == ['a.yaml']
+    assert (tmp_path / 'a.yaml').read_text() == 'old a'
+
+
+def test_inputs_are_not_outputs(tmp_path):
+    (tmp_path / 'base.yaml').write_text('x: 1\n')
+    out = Outputs(force=True)
+    out.add('--output', tmp_path / 'base.yaml')
+    out.add('--report', tmp_path / 'r.json')
+    out.refuse_inputs('--params', [tmp_path / 'base.yaml'], allow=('--output',))
+    with pytest.raises(OutputError, match='--output .*base.yaml is also the input --params'):
+        out.refuse_inputs('--params', [tmp_path / 'base.yaml'])
+
+
+def test_a_file_inside_an_input_bag_is_not_an_output(tmp_path):
+    bag = tmp_path / 'bag'
+    bag.mkdir()
+    (bag / 'metadata.yaml').write_text('m\n')
+    out = Outputs(force=True)
+    out.add('--report', bag / 'metadata.yaml')
+    out.refuse_inputs('--params', [tmp_path / 'other.yaml'])
+    with pytest.raises(OutputError, match=r'--report .*bag/metadata.yaml is inside the input '
+                                          r'BAG .*bag; choose another output path'):
+        out.refuse_inputs('BAG', [tmp_path / 'other', tmp_path / '.' / 'bag'])
+    with pytest.raises(OutputError, match='an empty path is not a file name'):
+        check_output('--output', '')
+
+
+def test_an_error_inside_path_removes_the_bag_and_its_holder(tmp_path):
+    out = Outputs()
+    out.add('BAG', tmp_path / 'bag', directory=True)
+    with pytest.raises(RuntimeError):
+        with out.path('BAG') as tmp:
+            tmp.mkdir()
+            (tmp / 'bag.db3').write_bytes(b'half')
+            raise RuntimeError('killed')
+    out.commit()
+    assert listing(tmp_path) == []
+
+
+def test_a_hard_link_to_another_output_is_the_same_file(tmp_path):
+    (tmp_path / 'a.yaml').write_text('a')
+    os.link(tmp_path / 'a.yaml', tmp_path / 'b.yaml')
+    out = Outputs(force=True)
+    out.add('--output', tmp_path / 'a.yaml')
+    with pytest.raises(OutputError, match='--report and --output name the same file'):
+        out.add('--report', tmp_path / 'b.yaml')
+
+
+def test_a_name_too_long_for_its_temporary_file_is_refused_first(tmp_path):
+    name = 'x' * 240 + '.yaml'   # a valid name, but .NAME.tmp-XXXXXXXX.yaml is not
+    with pytest.raises(OutputError, match='the file name is too long for its temporary file '
+                                          r'\(at most 236 bytes here\)'):
+        check_output('--output', tmp_path / name)
+    check_output('--output', tmp_path / ('x' * 231 + '.yaml'))

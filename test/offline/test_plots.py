@@ -37,7 +37,7 @@ def test_heldout_paths_plot(tmp_path, no_pyplot):
 
 def test_a_format_matplotlib_cannot_write_is_a_usage_error(tmp_path):
     fig = plots._figure()
-    with pytest.raises(UsageError, match=r"^Format 'xyz' is not supported \(supported "
+    with pytest.raises(UsageError, match=r"p.xyz: Format 'xyz' is not supported \(supported "
                                          r'formats: .*png'):
         plots.save(fig, tmp_path / 'p.xyz', dpi=50)
     assert not (tmp_path / 'p.xyz').exists()

@@ -1,6 +1,7 @@
 """simulate_bag and icr_map: vehicle files, bags that rosbags reads back, the true model."""
 
 from pathlib import Path
+import signal
 import subprocess
 import sys
 
@@ -193,18 +194,47 @@ def test_cli_writes_bag_and_prints_the_true_model(tmp_path, capsys):
     (['--set', 'mass=-3'], 'mass must be > 0'),
     (['--storage', 'rosbag1'], 'needs a .bag file name'),
     (['--setpoint-rate', '200'], 'must not exceed the encoder rate'),
-    (['--duration', '0'], 'duration must be'),
 ])
 def test_cli_errors_are_one_line(tmp_path, capsys, argv, message):
     assert simulate_cli.main([str(tmp_path / 'out')] + argv) == 2
     err = capsys.readouterr().err.strip()
-    assert err.startswith('simulate_bag: ') and '\n' not in err and message in err
+    assert err.startswith('simulate_bag: error: ') and '\n' not in err and message in err
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize('argv, message', [
+    (['--duration', '0'], '--duration: must be in [0.1, 36000] s, got 0'),
+    (['--duration', '1e9'], '--duration: must be in [0.1, 36000] s, got 1e9'),
+    (['--rate', '1e9'], '--rate: must be in [1, 2000] Hz, got 1e9'),
+    (['--gt-rate', '0'], '--gt-rate: must be in [0.1, 1000] Hz'),
+    (['--seed', '-1'], '--seed: must be in [0, 4,294,967,295], got -1'),
+    (['--gt-noise-xy', 'inf'], '--gt-noise-xy: must be a finite number in [0, 1] m'),
+    (['--mu-y', '0'], '--mu-y: must be in [0.01, 5], got 0'),
+])
+def test_absurd_numbers_are_one_line_before_any_work(tmp_path, capsys, argv, message):
+    with pytest.raises(SystemExit) as exc:
+        simulate_cli.main([str(tmp_path / 'out')] + argv)
+    err = capsys.readouterr().err
+    assert exc.value.code == 2 and err.count('\n') == 1 and message in err, err
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_sample_count_is_bounded_before_allocating(tmp_path, capsys):
+    # Each within its range, together 72 million samples: refused, naming both flags.
+    assert simulate_cli.main([str(tmp_path / 'out'), '--duration', '36000', '--rate',
+                              '2000', '--setpoint-rate', '50']) == 2
+    err = capsys.readouterr().err
+    assert err == ('simulate_bag: error: --duration 36000 s at --rate 2000 Hz is 72,000,000 '
+                   'samples (at most 1,000,000); shorten --duration or lower --rate\n')
+    assert list(tmp_path.iterdir()) == []
 
 
 def test_cli_refuses_to_overwrite(tmp_path, capsys):
     (tmp_path / 'out').mkdir()
-    assert simulate_cli.main([str(tmp_path / 'out'), '--duration', '1']) == 2
-    assert 'already exists' in capsys.readouterr().err
+    assert simulate_cli.main([str(tmp_path / 'out'), '--duration', '1', '--force']) == 2
+    assert 'OUT {} exists; choose a new path for the bag'.format(tmp_path / 'out') in \
+        capsys.readouterr().err
+    assert list((tmp_path / 'out').iterdir()) == []
 
 
 def test_console_scripts_run(tmp_path):
@@ -235,6 +265,118 @@ def test_icr_map_outputs(tmp_path, capsys):
 
 def test_icr_map_errors(capsys):
     assert icr_map.main(['tank']) == 2
-    assert capsys.readouterr().err.startswith('icr_map: no vehicle file')
-    assert icr_map.main(['packbot', '--n', '1']) == 2
-    assert '--n must be >= 2' in capsys.readouterr().err
+    assert capsys.readouterr().err.startswith('icr_map: error: no vehicle file')
+    for argv, message in ((['--n', '1'], '--n: must be in [2, 101], got 1'),
+                          (['--n', '100000'], '--n: must be in [2, 101], got 100000'),
+                          (['--max-speed', '-1'], '--max-speed: must be in [0.01, 20] m/s'),
+                          (['--max-speed', 'nan'], '--max-speed: must be a finite number')):
+        with pytest.raises(SystemExit) as exc:
+            icr_map.main(['packbot', *argv])
+        err = capsys.readouterr().err
+        assert exc.value.code == 2 and err.count('\n') == 1 and message in err, err
+
+
+# Outputs: the truth file, --force, signals, a full disk (issue 14 items 9-11) -----------
+
+
+def test_truth_file_needs_force_and_never_becomes_the_bag(tmp_path, capsys):
+    truth = tmp_path / 'true.yaml'
+    truth.write_text('mine\n')
+    argv = [str(tmp_path / 'bag'), '--vehicle', 'packbot', '--duration', '2', '--truth',
+            str(truth)]
+    assert simulate_cli.main(argv) == 2
+    assert f'--truth {truth} exists; use --force to replace it' in capsys.readouterr().err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ['true.yaml']
+    assert simulate_cli.main(argv + ['--force']) == 0
+    assert read_params_file(truth)['vehicle'] == 'packbot'
+    assert sorted(p.name for p in tmp_path.iterdir()) == ['bag', 'true.yaml']
+    assert simulate_cli.main([str(tmp_path / 'b2'), '--truth', str(tmp_path / 'b2')]) == 2
+    assert '--truth and OUT name the same file' in capsys.readouterr().err
+
+
+def test_a_full_disk_while_writing_the_bag_leaves_nothing(tmp_path, capsys, monkeypatch):
+    import errno
+    from tracked_kinematics.offline import outputs
+
+    def full(path):
+        raise OSError(errno.ENOSPC, 'No space left on device')
+    monkeypatch.setattr(outputs, '_fsync_file', full)
+    assert simulate_cli.main([str(tmp_path / 'bag'), '--vehicle', 'packbot', '--duration',
+                              '2']) == 2
+    assert capsys.readouterr().err.endswith('No space left on device\n')
+    assert list(tmp_path.iterdir()) == []
+
+
+def wait_for(condition, timeout=120.0):
+    """Poll ``condition`` until it holds or the deadline passes; return whether it held."""
+    import time
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if condition():
+            return True
+        time.sleep(0.01)
+    return False
+
+
+def start_long_run(tmp_path):
+    """Start a simulate_bag console script that writes its bag for several seconds."""
+    proc = subprocess.Popen([str(BIN / 'simulate_bag'), 'bag', '--vehicle', 'packbot',
+                             '--duration', '1500'], cwd=tmp_path, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    writing = wait_for(lambda: any(p.name.startswith('.bag.tmp-') for p in tmp_path.iterdir()))
+    return proc, writing
+
+
+@pytest.mark.parametrize('signum, status, reason', [
+    (signal.SIGTERM, 143, 'terminated by SIGTERM'), (signal.SIGINT, 130, 'interrupted')])
+def test_a_signal_while_writing_the_bag_leaves_nothing(tmp_path, signum, status, reason):
+    proc, writing = start_long_run(tmp_path)
+    try:
+        assert writing, 'the bag was never being written'
+        proc.send_signal(signum)
+        _, err = proc.communicate(timeout=120)
+    finally:
+        proc.kill()
+    assert proc.returncode == status, err
+    assert err == f'simulate_bag: error: {reason}\n'
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_sigkill_while_writing_leaves_no_bag_that_blocks_a_rerun(tmp_path):
+    proc, writing = start_long_run(tmp_path)
+    try:
+        assert writing, 'the bag was never being written'
+        proc.kill()
+        proc.communicate(timeout=120)
+    finally:
+        proc.kill()
+    names = [p.name for p in tmp_path.iterdir()]
+    # Only the hidden temporary directory: no bag without metadata.yaml at the target.
+    assert len(names) == 1 and names[0].startswith('.bag.tmp-'), names
+    rerun = subprocess.run([str(BIN / 'simulate_bag'), 'bag', '--vehicle', 'packbot',
+                            '--duration', '2'], cwd=tmp_path, capture_output=True, text=True,
+                           timeout=120)
+    assert rerun.returncode == 0, rerun.stderr
+    assert (tmp_path / 'bag' / 'metadata.yaml').is_file()
+    assert (tmp_path / 'bag' / 'bag.db3').is_file()   # named after the bag, not the temp
+
+
+def test_icr_map_writes_all_outputs_or_none(tmp_path, capsys, monkeypatch):
+    from tracked_kinematics.offline import plots
+
+    def broken(path, *args):
+        raise OSError(28, 'No space left on device')
+    monkeypatch.setattr(plots, 'plot_icr_map', broken)
+    argv = ['packbot', '--n', '5', '--csv', str(tmp_path / 'map.csv'), '--output',
+            str(tmp_path / 'avg.yaml'), '--plot', str(tmp_path / 'map.png')]
+    assert icr_map.main(argv) == 2
+    assert capsys.readouterr().err == 'icr_map: error: [Errno 28] No space left on device\n'
+    assert list(tmp_path.iterdir()) == []
+    monkeypatch.undo()
+    assert icr_map.main(argv) == 0
+    out = capsys.readouterr().out
+    assert f'map written to {tmp_path / "map.csv"}' in out
+    assert sorted(p.name for p in tmp_path.iterdir()) == ['avg.yaml', 'map.csv', 'map.png']
+    assert icr_map.main(argv) == 2   # all exist now: --force needed
+    assert 'exists; use --force' in capsys.readouterr().err
+    assert icr_map.main(argv + ['--force']) == 0

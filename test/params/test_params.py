@@ -3,6 +3,7 @@
 import os
 
 import pytest
+from tracked_kinematics.core.errors import InvalidParameters
 from tracked_kinematics.params import (
     check_values, Derived, ENCODER_INPUT_PARAMS, flatten, icr_from_values, nest, ParamSpec,
     read_params_file, resolve, TERRAIN_DEFAULTS, TERRAIN_PARAMS, values_from_icr,
@@ -142,3 +143,33 @@ def test_bad_yaml_is_a_value_error(tmp_path, text):
     path.write_text(text)
     with pytest.raises(ValueError, match='p.yaml'):
         read_params_file(path)
+
+
+def test_unknown_parameters_name_the_closest_known_one():
+    from tracked_kinematics.params import unknown_parameters
+    assert unknown_parameters(['track_widht', 'zzz', 'track_width', 'zzz'], TERRAIN_PARAMS) == [
+        "unknown parameter 'track_widht' ignored (did you mean 'track_width'?)",
+        "unknown parameter 'zzz' ignored"]
+    assert unknown_parameters(['track_widht', 'odom_frame'], ['track_width'], only_close=True,
+                              ignored=' is not used') == [
+        "unknown parameter 'track_widht' is not used (did you mean 'track_width'?)"]
+
+
+def test_unknown_terrain_parameters():
+    from tracked_kinematics.params import unknown_terrain_parameters
+    values = {'track_widht': 0.4, 'icr.yleft': 0.3, 'icr.zzz': 1, 'scale.left': 1.0,
+              'odom_frame': 'odom', 'identification.anything': 1, 'drivetrain_fit.rms': 0.1,
+              'terrain': 'grass', 'max_track_speed': 1.0, 'left_joints': ['a'],
+              'drivetrain.pid.kp': 1.0}
+    assert unknown_terrain_parameters(values) == [
+        "unknown parameter 'icr.yleft' is not used (did you mean 'icr.y_left'?)",
+        "unknown parameter 'icr.zzz' is not used (did you mean 'icr.x'?)",
+        "unknown parameter 'track_widht' is not used (did you mean 'track_width'?)"]
+
+
+def test_a_fifo_is_not_read_as_a_params_file(tmp_path):
+    # open() on a FIFO would block until a writer comes; refused at once instead.
+    fifo = tmp_path / 'params.yaml'
+    os.mkfifo(fifo)
+    with pytest.raises(InvalidParameters, match='params.yaml: not a regular file'):
+        read_params_file(fifo)

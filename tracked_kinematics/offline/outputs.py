@@ -6,6 +6,7 @@ Every tool that writes files (YAML, JSON, CSV, PNG, bags) goes through :class:`O
     with Outputs(force=args.force) as out:
         out.add('--output', args.output)              # checked now, before any work
         out.add('--report', args.report)
+        out.add('--bag', args.bag, directory=True)     # a bag: a new path the writer creates
         ...                                           # the work
         out.write_text('--output', yaml_text)         # staged next to the target
         with out.path('--plot') as tmp:               # for writers that want a path
@@ -16,13 +17,20 @@ Every tool that writes files (YAML, JSON, CSV, PNG, bags) goes through :class:`O
 The rules (docs/output-files.md):
 
 - a target is a regular file or a new path in an existing, writable directory; a symbolic
-  link, a directory (unless the output is a directory, as a bag is), a device, a FIFO or a
-  socket is refused with a message naming the flag;
-- an existing file is replaced only with ``--force``; an existing directory never is;
-- two outputs of one run may not be the same file;
-- data are written to a temporary file in the target's directory, flushed and fsynced, and
-  renamed onto the target only when the whole run succeeded; without ``--force`` the rename
-  never replaces a file that appeared meanwhile.
+  link (even a dangling one), a directory (unless the output is a directory, as a bag is),
+  a device, a FIFO or a socket is refused with a message naming the flag;
+- an existing file is replaced only with ``--force``; an existing directory or bag never is;
+- two outputs of one run may not be the same file, nor an output one of the run's inputs;
+- data are written to a hidden temporary file in the target's directory
+  (``.NAME.tmp-XXXXXXXX.EXT``; a bag to ``.NAME.tmp-XXXXXXXX/NAME``), flushed and fsynced,
+  and renamed onto the targets only when the whole run succeeded: every target is checked
+  again first, and if a rename still fails the targets already renamed are put back;
+  without ``--force`` the rename never replaces a file that appeared meanwhile;
+- a replaced file keeps its permission bits; a new one gets ``0666 & ~umask``.
+
+A run killed with SIGKILL can leave only such hidden temporary files behind, never a
+truncated file or a bag without its ``metadata.yaml`` at a target path; a rerun ignores
+them (they can be deleted at any time).
 """
 
 from __future__ import annotations
@@ -39,6 +47,8 @@ from tracked_kinematics.core.errors import TrackedKinematicsError
 _KINDS = {stat.S_IFDIR: 'a directory', stat.S_IFCHR: 'a character device',
           stat.S_IFBLK: 'a block device', stat.S_IFIFO: 'a FIFO', stat.S_IFSOCK: 'a socket',
           stat.S_IFLNK: 'a symbolic link'}
+TEMP_MARK = '.tmp-'
+"""Part of the name of every temporary output (``.NAME.tmp-XXXXXXXX``)."""
 
 
 class OutputError(TrackedKinematicsError):
@@ -62,7 +72,8 @@ def check_output(flag: str, path, force: bool = False, directory: bool = False) 
     force : bool
         Whether an existing regular file may be replaced.
     directory : bool
-        The output is a directory (a rosbag2 bag): it must not exist.
+        The output is a bag (a rosbag2 directory or a ROS 1 file) that its writer
+        creates: the path must not exist.
 
     Raises
     ------
@@ -70,8 +81,10 @@ def check_output(flag: str, path, force: bool = False, directory: bool = False) 
         With the reason, naming ``flag`` and ``path``.
 
     """
+    if not os.fspath(path):
+        raise OutputError(f'{flag}: an empty path is not a file name')
     path = Path(os.fspath(path))
-    if not str(path) or path.name in ('', '.', '..'):
+    if path.name in ('', '.', '..'):
         raise OutputError(f'{flag} {str(path)!r} is not a file name')
     try:
         info = os.lstat(path)
@@ -82,7 +95,7 @@ def check_output(flag: str, path, force: bool = False, directory: bool = False) 
     if info is not None:
         if stat.S_ISLNK(info.st_mode):
             raise OutputError(f'{flag} {path} is a symbolic link; give the path of the file '
-                              'itself')
+                              'itself (a link is neither followed nor replaced)')
         if directory:
             raise OutputError(f'{flag} {path} exists; choose a new path for the bag')
         if not stat.S_ISREG(info.st_mode):
@@ -94,7 +107,26 @@ def check_output(flag: str, path, force: bool = False, directory: bool = False) 
         raise OutputError(f'{flag} {path}: directory {parent} does not exist')
     if not os.access(parent, os.W_OK | os.X_OK):
         raise OutputError(f'{flag} {path}: directory {parent} is not writable')
+    try:
+        longest = os.pathconf(parent, 'PC_NAME_MAX')
+    except (OSError, ValueError):
+        longest = 255
+    temporary = len(os.fsencode(f'.{path.name}{TEMP_MARK}XXXXXXXX{path.suffix}'))
+    if temporary > longest:
+        raise OutputError(f'{flag} {path}: the file name is too long for its temporary file '
+                          f'(at most {longest - temporary + len(os.fsencode(path.name))} '
+                          'bytes here)')
     return path
+
+
+def same_file(a, b) -> bool:
+    """Whether two paths name the same file (through links of their directories, hard links)."""
+    if os.path.realpath(a) == os.path.realpath(b):
+        return True
+    try:
+        return os.path.samefile(a, b)
+    except OSError:   # one of them does not exist (yet)
+        return False
 
 
 class Outputs:
@@ -119,6 +151,16 @@ class Outputs:
         """
         Check an output (``None`` = not asked for) and reserve it; return its path.
 
+        Parameters
+        ----------
+        flag : str
+            The option that names it (``--output``), in messages and as its key here.
+        path : path-like or None
+            The target.
+        directory : bool
+            A bag, which its writer creates: the path must not exist, and :meth:`path`
+            yields a path that does not exist yet.
+
         Raises
         ------
         OutputError
@@ -127,13 +169,41 @@ class Outputs:
         """
         if path is None:
             return None
+        if flag in self._targets:
+            raise KeyError(f'output {flag} added twice')
         target = check_output(flag, path, self.force, directory)
-        key = os.path.realpath(target)
         for other, (other_path, _) in self._targets.items():
-            if os.path.realpath(other_path) == key:
+            if same_file(other_path, target):
                 raise OutputError(f'{flag} and {other} name the same file {target}')
         self._targets[flag] = (target, directory)
         return target
+
+    def refuse_inputs(self, label: str, paths, allow=()) -> None:
+        """
+        Refuse an output that is one of the run's inputs (``paths``, named ``label``).
+
+        An output inside an input directory (a file of a rosbag2 bag) is refused too.
+        ``allow`` names the outputs that may replace an input (``--output`` may update the
+        ``--params`` file it started from, with ``--force``).
+
+        Raises
+        ------
+        OutputError
+            Naming the output and the input.
+
+        """
+        for path in paths:
+            if path is None:
+                continue
+            inside = os.path.isdir(path) and not os.path.islink(path)
+            root = os.path.join(os.path.realpath(path), '')
+            for flag, (target, _) in self._targets.items():
+                if flag not in allow and same_file(target, path):
+                    raise OutputError(f'{flag} {target} is also the input {label}; choose '
+                                      'another output path')
+                if inside and os.path.realpath(target).startswith(root):
+                    raise OutputError(f'{flag} {target} is inside the input {label} {path}; '
+                                      'choose another output path')
 
     def __contains__(self, flag: str) -> bool:
         """Whether an output of this name was asked for."""
@@ -142,6 +212,11 @@ class Outputs:
     def target(self, flag: str) -> Path:
         """Return the final path of an output."""
         return self._targets[flag][0]
+
+    @property
+    def targets(self) -> list[Path]:
+        """Every output path, in the order added."""
+        return [target for target, _ in self._targets.values()]
 
     # --- writing ---------------------------------------------------------------------------
 
@@ -152,17 +227,18 @@ class Outputs:
             raise RuntimeError(f'output {flag} written twice')
         target, directory = self._targets[flag]
         parent = target.parent if str(target.parent) else Path('.')
-        prefix = f'.{target.name}.tmp-'
+        prefix = f'.{target.name}{TEMP_MARK}'
         if directory:
-            tmp = Path(tempfile.mkdtemp(prefix=prefix, dir=parent))
-            os.rmdir(tmp)  # writers (rosbags) create the directory themselves
+            # A hidden directory holding the bag under its own name, so that the bag's files
+            # (NAME.db3, NAME.mcap) and metadata.yaml are those the final path needs.
+            holder = Path(tempfile.mkdtemp(prefix=prefix, dir=parent))
+            tmp = holder / target.name
         else:
-            fd, name = tempfile.mkstemp(prefix=prefix, dir=parent)
+            # The target's extension last: writers that pick the format by it (matplotlib).
+            fd, name = tempfile.mkstemp(prefix=prefix, suffix=target.suffix, dir=parent)
             os.close(fd)
             tmp = Path(name)
-            umask = os.umask(0)
-            os.umask(umask)
-            os.chmod(tmp, 0o666 & ~umask)
+            os.chmod(tmp, _mode_for(target))
         self._staged[flag] = tmp
         return tmp
 
@@ -171,18 +247,18 @@ class Outputs:
         """
         Yield a temporary path for ``flag`` for a writer that wants a file name.
 
-        The file (or directory, for a directory output) is renamed onto the target when
-        the run commits; an exception inside the block removes it at once.
+        For a file the path exists (empty); for a bag (``directory=True``) it does not, and
+        the writer creates it. It is renamed onto the target when the run commits; an
+        exception inside the block removes it at once.
         """
         tmp = self._stage(flag)
         try:
             yield tmp
+            _fsync_tree(tmp)
         except BaseException:
-            _remove(tmp)
+            _discard(tmp, self._targets[flag][1])
             self._staged.pop(flag, None)
             raise
-        if not self._targets[flag][1]:
-            _fsync_file(tmp)
 
     def write_bytes(self, flag: str, data: bytes) -> None:
         """Stage ``data`` for ``flag``: written and fsynced now, renamed at commit."""
@@ -200,36 +276,55 @@ class Outputs:
         """
         Rename every staged output onto its target; return the targets written.
 
+        Every target is checked again before the first rename; if a rename fails, the
+        targets renamed before it are put back as they were (removed, or the replaced file
+        restored).
+
         Raises
         ------
         OutputError
             When a target appeared meanwhile (without ``--force``) or turned into something
-            that is not a regular file; staged files not yet renamed are removed.
+            that is not a regular file; nothing is renamed then, and the staged files are
+            removed.
 
         """
-        written = []
+        done: list[tuple[Path, Path | None]] = []
         try:
-            for flag, tmp in list(self._staged.items()):
+            for flag in self._staged:
                 target, directory = self._targets[flag]
                 check_output(flag, target, self.force, directory)
+            for flag, tmp in list(self._staged.items()):
+                target, directory = self._targets[flag]
+                backup = None
                 if directory:
-                    os.rename(tmp, target)
-                elif self.force:
+                    _rename_new(flag, tmp, target)
+                    _remove(tmp.parent)
+                elif self.force and os.path.lexists(target):
+                    backup = _backup(target)
                     os.replace(tmp, target)
                 else:
                     _rename_no_replace(flag, tmp, target)
                 del self._staged[flag]
-                written.append(target)
+                done.append((target, backup))
+            for target, backup in done:
                 _fsync_dir(target.parent)
+                if backup is not None:
+                    _remove(backup)
         except BaseException:
+            for target, backup in reversed(done):
+                with contextlib.suppress(OSError):
+                    if backup is not None:
+                        os.replace(backup, target)
+                    else:
+                        _remove(target)
             self.abort()
             raise
-        return written
+        return [target for target, _ in done]
 
     def abort(self) -> None:
         """Remove every staged output (the targets are left as they were)."""
-        for tmp in self._staged.values():
-            _remove(tmp)
+        for flag, tmp in self._staged.items():
+            _discard(tmp, self._targets[flag][1])
         self._staged.clear()
 
     def __enter__(self) -> Outputs:
@@ -244,6 +339,19 @@ class Outputs:
             self.abort()
 
 
+def _mode_for(target: Path) -> int:
+    """Permission bits of a new output: the replaced file's, else 0666 & ~umask."""
+    try:
+        info = os.lstat(target)
+    except OSError:
+        info = None
+    if info is not None and stat.S_ISREG(info.st_mode):
+        return stat.S_IMODE(info.st_mode)
+    umask = os.umask(0)
+    os.umask(umask)
+    return 0o666 & ~umask
+
+
 def _rename_no_replace(flag: str, tmp: Path, target: Path) -> None:
     try:
         os.link(tmp, target)  # fails if target exists: never replaces a file
@@ -252,11 +360,42 @@ def _rename_no_replace(flag: str, tmp: Path, target: Path) -> None:
                           'replace it') from None
     except OSError:
         # No hard links on this file system: check and rename (a narrow race remains).
-        if os.path.lexists(target):
-            raise OutputError(f'{flag} {target} exists; use --force to replace it') from None
-        os.rename(tmp, target)
+        _rename_new(flag, tmp, target)
         return
     os.unlink(tmp)
+
+
+def _rename_new(flag: str, tmp: Path, target: Path) -> None:
+    """Rename onto a target that must not exist (a narrow race remains for directories)."""
+    if os.path.lexists(target):
+        raise OutputError(f'{flag} {target} appeared while the tool ran; nothing was '
+                          'replaced')
+    os.rename(tmp, target)
+
+
+def _backup(target: Path) -> Path | None:
+    """Hard-link the file a forced rename replaces, to put it back if the commit fails."""
+    backup = target.with_name(f'.{target.name}{TEMP_MARK}old-{os.getpid()}')
+    with contextlib.suppress(FileNotFoundError):
+        os.unlink(backup)
+    try:
+        os.link(target, backup)
+    except OSError:
+        return None
+    return backup
+
+
+def _fsync_tree(path: Path) -> None:
+    """Fsync a written file, or every file of a written bag directory and the directory."""
+    if not os.path.lexists(path):
+        return
+    if path.is_dir() and not path.is_symlink():
+        for root, _, files in os.walk(path):
+            for name in files:
+                _fsync_file(Path(root) / name)
+            _fsync_dir(Path(root))
+    else:
+        _fsync_file(path)
 
 
 def _fsync_file(path: Path) -> None:
@@ -274,6 +413,14 @@ def _fsync_dir(path: Path) -> None:
             os.fsync(fd)
         finally:
             os.close(fd)
+
+
+def _discard(tmp: Path, directory: bool) -> None:
+    """Remove a staged output (a bag: its hidden holder directory too)."""
+    _remove(tmp)
+    if directory:
+        with contextlib.suppress(OSError):
+            os.rmdir(tmp.parent)
 
 
 def _remove(path: Path) -> None:

@@ -4,14 +4,15 @@ Planning with an identified model: the library behind ``plan_trajectory``.
 The planning model of a terrain file and the translator limits (:func:`model_from_terrain`,
 :func:`limits_from`), a plan executed on the truth-like dynamic simulator
 (:func:`execute`, :func:`final_error`), the comparison of Fink & Stump Table VI on a
-simulated vehicle (:func:`identify_on_sweep`, :func:`compare`), and a plan written as a CSV
-or as a ``/cmd_vel`` bag (:func:`write_csv`, :func:`write_bag`). The planner itself is
+simulated vehicle (:func:`identify_on_sweep`, :func:`compare`), and a plan as a CSV or as a
+``/cmd_vel`` bag (:func:`csv_text`, :func:`write_csv`, :func:`write_bag`). The planner itself is
 :mod:`tracked_kinematics.core.plan`; the command line, docs/tools/plan_trajectory.md.
 """
 
 from __future__ import annotations
 
 import csv
+import io
 import math
 import sys
 
@@ -26,6 +27,7 @@ from tracked_kinematics.core.sim.manoeuvres import fink_stump_sweep
 from tracked_kinematics.core.sim.simulation import GroundTruth, Robot, simulate, TwistTable
 from tracked_kinematics.offline.bags import BagWriter
 from tracked_kinematics.offline.errors import UsageError
+from tracked_kinematics.offline.outputs import Outputs
 from tracked_kinematics.params import LIMIT_FIELDS
 
 MODELS = ('ideal', 'effective', 'icr', 'general')
@@ -193,22 +195,35 @@ def compare(robot: Robot, table: TwistTable, models, limits: CommandLimits, spee
 # Outputs -------------------------------------------------------------------------------
 
 
-def write_csv(path, plan: Plan, icr: IcrParams) -> None:
-    """Write ``t, left, right, v_x, w, x, y, yaw`` per command (setpoints and planned pose)."""
+def csv_text(plan: Plan, icr: IcrParams) -> str:
+    """Return ``t, left, right, v_x, w, x, y, yaw`` per command (setpoints, planned pose)."""
     v_x, w = plan.twists(icr)
-    with open(path, 'w', newline='', encoding='utf-8') as stream:
-        writer = csv.writer(stream)
-        writer.writerow(['t', 'left', 'right', 'v_x', 'w', 'x', 'y', 'yaw'])
-        for k, t in enumerate(plan.t):
-            x, y, yaw = plan.poses[k]
-            writer.writerow([f'{t:.4f}', f'{plan.commands[k, 0]:.6f}',
-                             f'{plan.commands[k, 1]:.6f}', f'{v_x[k]:.6f}', f'{w[k]:.6f}',
-                             f'{x:.6f}', f'{y:.6f}', f'{yaw:.6f}'])
+    stream = io.StringIO(newline='')
+    writer = csv.writer(stream)
+    writer.writerow(['t', 'left', 'right', 'v_x', 'w', 'x', 'y', 'yaw'])
+    for k, t in enumerate(plan.t):
+        x, y, yaw = plan.poses[k]
+        writer.writerow([f'{t:.4f}', f'{plan.commands[k, 0]:.6f}',
+                         f'{plan.commands[k, 1]:.6f}', f'{v_x[k]:.6f}', f'{w[k]:.6f}',
+                         f'{x:.6f}', f'{y:.6f}', f'{yaw:.6f}'])
+    return stream.getvalue()
+
+
+def write_csv(path, plan: Plan, icr: IcrParams, force: bool = False) -> None:
+    """Write :func:`csv_text` to ``path`` through :class:`Outputs` (atomically)."""
+    with Outputs(force=force) as out:
+        out.add('--csv', path)
+        out.write_text('--csv', csv_text(plan, icr))
 
 
 def write_bag(path, plan: Plan, icr: IcrParams, storage: str = 'sqlite3',
               topic: str = '/cmd_vel') -> int:
-    """Write the plan as geometry_msgs/Twist on ``topic``, one per command; return the count."""
+    """
+    Write the plan as geometry_msgs/Twist on ``topic``, one per command; return the count.
+
+    ``path`` must not exist; plan_trajectory gives the temporary path of an
+    :class:`Outputs` bag, renamed onto ``--bag`` once the bag is closed.
+    """
     v_x, w = plan.twists(icr)
     with BagWriter(path, storage) as bag:
         for k, t in enumerate(plan.t):

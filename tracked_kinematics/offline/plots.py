@@ -38,9 +38,35 @@ def _figure(**kwargs) -> Figure:
     return fig
 
 
+def check_format(flag: str, path) -> None:
+    """
+    Check, before any work, that matplotlib can write the format ``path``'s extension names.
+
+    Raises
+    ------
+    UsageError
+        Naming ``flag`` and the supported formats.
+
+    """
+    if path is None:
+        return
+    fmt = os.path.splitext(os.fspath(path))[1][1:].lower()
+    if not fmt:
+        raise UsageError(f'{flag} {os.fspath(path)}: give a file name with an extension '
+                         '(.png, .pdf, .svg)')
+    if get_registered_canvas_class(fmt) is None:
+        supported = sorted(FigureCanvasAgg.get_supported_filetypes())
+        raise UsageError(f'{flag} {os.fspath(path)}: Format {fmt!r} is not supported '
+                         f'(supported formats: {", ".join(supported)})')
+
+
 def save(fig: Figure, path, dpi: int) -> None:
     """
     Write a figure to ``path``, in the format its extension names.
+
+    The tools give a temporary path of :class:`~tracked_kinematics.offline.outputs.Outputs`
+    (``.NAME.tmp-XXXXXXXX.png``: the same extension), renamed onto the target when the
+    whole run succeeded.
 
     Raises
     ------
@@ -48,10 +74,7 @@ def save(fig: Figure, path, dpi: int) -> None:
         When matplotlib cannot write that format (its own message).
 
     """
-    fmt = os.path.splitext(os.fspath(path))[1][1:].lower()
-    if fmt and get_registered_canvas_class(fmt) is None:
-        raise UsageError(f'Format {fmt!r} is not supported (supported formats: '
-                         f'{", ".join(sorted(fig.canvas.get_supported_filetypes()))})')
+    check_format('plot', path)
     fig.savefig(path, dpi=dpi)
 
 

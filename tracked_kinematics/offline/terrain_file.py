@@ -6,7 +6,8 @@ identify_icr and identify_drivetrain both start from the terrain file given with
 the fitted values and a record of this fit under one prefix (``identification.*``,
 ``drivetrain_fit.*``), check that the result still loads, and write it with a header comment
 as a ``--params-file`` (docs/parameters.md, docs/tools/identify_icr.md,
-docs/tools/identify_drivetrain.md).
+docs/tools/identify_drivetrain.md). The tools stage :func:`terrain_text` through
+:class:`~tracked_kinematics.offline.outputs.Outputs` with their other outputs.
 """
 
 from __future__ import annotations
@@ -16,7 +17,8 @@ import math
 from typing import Any
 
 from tracked_kinematics.core.errors import FitError, InvalidParameters
-from tracked_kinematics.params import write_params_file
+from tracked_kinematics.offline.outputs import Outputs
+from tracked_kinematics.params import params_text
 
 
 def terrain_values(base_values: Mapping[str, Any], fitted: Mapping[str, Any], *, record: str,
@@ -68,15 +70,13 @@ def terrain_values(base_values: Mapping[str, Any], fitted: Mapping[str, Any], *,
     return values
 
 
-def write_terrain_file(path, values: Mapping[str, Any], *, tool: str, date: str,
-                       contents: str = 'Terrain parameters', note: str = '') -> None:
+def terrain_text(values: Mapping[str, Any], *, tool: str, date: str,
+                 contents: str = 'Terrain parameters', note: str = '') -> str:
     """
-    Write terrain values as a ``--params-file``, with a header saying who wrote it and when.
+    Return terrain values as the text of a ``--params-file``, with a header saying who wrote it.
 
     Parameters
     ----------
-    path : path-like
-        Destination (written atomically).
     values : mapping
         From :func:`terrain_values`.
     tool : str
@@ -93,4 +93,19 @@ def write_terrain_file(path, values: Mapping[str, Any], *, tool: str, date: str,
                'Load with: --ros-args --params-file THIS_FILE')
     if note:
         comment += '\n' + note
-    write_params_file(path, values, comment=comment)
+    return params_text(values, comment=comment)
+
+
+def write_terrain_file(path, values: Mapping[str, Any], *, tool: str, date: str,
+                       contents: str = 'Terrain parameters', note: str = '',
+                       force: bool = False) -> None:
+    """
+    Write :func:`terrain_text` to ``path`` through :class:`Outputs` (atomically).
+
+    An existing file is replaced only with ``force``; a symbolic link or a special file
+    never is (:class:`~tracked_kinematics.offline.outputs.OutputError`).
+    """
+    with Outputs(force=force) as out:
+        out.add('--output', path)
+        out.write_text('--output', terrain_text(values, tool=tool, date=date,
+                                                contents=contents, note=note))

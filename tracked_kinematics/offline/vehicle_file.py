@@ -149,6 +149,14 @@ def resolve(name_or_path: str | os.PathLike) -> Path:
         f'vehicles: {", ".join(shipped_vehicles()) or "none found"})')
 
 
+def vehicle_path(name_or_path: str | os.PathLike) -> Path | None:
+    """Return the file :func:`resolve` finds, or None (for an output check)."""
+    try:
+        return resolve(name_or_path)
+    except FileNotFoundError:
+        return None
+
+
 def robot_from_values(values: Mapping[str, Any]) -> Robot:
     """
     Build the simulated robot from vehicle parameter values (dotted names).
@@ -255,6 +263,16 @@ def parse_key_value(text: str):
         raise argparse.ArgumentTypeError(f'cannot read the value of {text!r}') from None
 
 
+def _friction(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f'expected a number, got {text!r}') from None
+    if not 0.01 <= value <= 5.0:   # rubber on dry concrete ~1, ice ~0.05
+        raise argparse.ArgumentTypeError(f'must be in [0.01, 5], got {text}')
+    return value
+
+
 def add_vehicle_arguments(parser, positional: bool = False) -> None:
     """
     Add the vehicle and terrain options to a parser or argument group.
@@ -272,10 +290,12 @@ def add_vehicle_arguments(parser, positional: bool = False) -> None:
         parser.add_argument('vehicle', nargs='?', default='auriga_alpha', help=help_vehicle)
     else:
         parser.add_argument('--vehicle', default='auriga_alpha', help=help_vehicle)
-    parser.add_argument('--mu-x', type=float, default=argparse.SUPPRESS,
-                        help='friction coefficient along the tracks (overrides the file)')
-    parser.add_argument('--mu-y', type=float, default=argparse.SUPPRESS,
-                        help='friction coefficient across the tracks (overrides the file)')
+    parser.add_argument('--mu-x', type=_friction, default=argparse.SUPPRESS,
+                        help='friction coefficient along the tracks, 0.01-5 (overrides the '
+                             'file)')
+    parser.add_argument('--mu-y', type=_friction, default=argparse.SUPPRESS,
+                        help='friction coefficient across the tracks, 0.01-5 (overrides the '
+                             'file)')
     parser.add_argument('--terrain', default=argparse.SUPPRESS,
                         help='terrain name written to the outputs (overrides the file)')
     parser.add_argument('--set', action='append', type=parse_key_value,

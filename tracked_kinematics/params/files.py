@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 import os
+import stat
 import tempfile
 from typing import Any
 
@@ -51,6 +52,9 @@ def read_params_file(path: str | os.PathLike, node_name: str | None = None) -> d
         When it cannot be read.
 
     """
+    if not stat.S_ISREG(os.stat(path).st_mode) and not os.path.isdir(path):
+        # A FIFO or a device would block or stream forever; a directory raises below.
+        raise InvalidParameters(f'{path}: not a regular file')
     with open(path, encoding='utf-8') as stream:
         try:
             doc = yaml.safe_load(stream)
@@ -74,13 +78,34 @@ def read_params_file(path: str | os.PathLike, node_name: str | None = None) -> d
     return flat
 
 
+def params_text(values: Mapping[str, Any], comment: str | None = None) -> str:
+    """
+    Return parameters as the text of a ``/**: ros__parameters:`` file.
+
+    Parameters
+    ----------
+    values : mapping
+        Dotted parameter names to plain values (numbers, strings, lists, nested mappings).
+    comment : str, optional
+        Lines written as a YAML comment at the top.
+
+    """
+    text = yaml.safe_dump({'/**': {'ros__parameters': nest(values)}}, sort_keys=False,
+                          default_flow_style=False)
+    if comment:
+        text = ''.join(f'# {line}\n' for line in comment.splitlines()) + text
+    return text
+
+
 def write_params_file(path: str | os.PathLike, values: Mapping[str, Any],
                       comment: str | None = None) -> None:
     """
     Write parameters as a ``/**: ros__parameters:`` file, atomically.
 
     The file is written next to its destination and renamed over it, so a reader never
-    sees a half-written file and a failure leaves any old file in place.
+    sees a half-written file and a failure leaves any old file in place. The offline tools
+    write through ``offline.outputs.Outputs`` instead, which also refuses symbolic links and
+    special files and never replaces a file without ``--force``.
 
     Parameters
     ----------
@@ -92,10 +117,7 @@ def write_params_file(path: str | os.PathLike, values: Mapping[str, Any],
         Lines written as a YAML comment at the top.
 
     """
-    text = yaml.safe_dump({'/**': {'ros__parameters': nest(values)}}, sort_keys=False,
-                          default_flow_style=False)
-    if comment:
-        text = ''.join(f'# {line}\n' for line in comment.splitlines()) + text
+    text = params_text(values, comment)
     directory = os.path.dirname(os.path.abspath(path))
     fd, tmp = tempfile.mkstemp(prefix='.tmp-', suffix='.yaml', dir=directory)
     try:

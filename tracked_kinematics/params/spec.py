@@ -16,8 +16,9 @@ rule to a mapping of given values, for the nodes and the offline tools alike.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
+import difflib
 import math
 import re
 from typing import Any
@@ -329,3 +330,43 @@ def missing_message(missing) -> str:
     return (f"{names} {verb} no default: give the vehicle's own values (-p NAME:=VALUE or a "
             'terrain file with --params-file), as diff_drive_controller needs wheel_separation '
             'and wheel_radius')
+
+
+def unknown_parameters(given: Iterable[str], known: Iterable[ParamSpec | str], *,
+                       only_close: bool = False, ignored: str = ' ignored') -> list[str]:
+    """
+    One message per name in ``given`` that ``known`` does not hold, with the closest known name.
+
+    The nodes call it for the names a params file or ``-p`` sets (ROS would ignore an
+    undeclared one silently); the offline tools for the keys of a terrain file.
+
+    Parameters
+    ----------
+    given : iterable of str
+        Names set (dotted: ``icr.y_left``); repeated names are reported once.
+    known : iterable of ParamSpec or str
+        The names that are known.
+    only_close : bool
+        Report only the names that have a close known name (a typo): for files that may
+        also hold other programs' parameters.
+    ignored : str
+        What happens to such a name, after it in the message.
+
+    Returns
+    -------
+    list of str
+        ``unknown parameter 'track_widht' ignored (did you mean 'track_width'?)``.
+
+    """
+    names = [k if isinstance(k, str) else k.name for k in known]
+    known_set = set(names)
+    messages = []
+    for name in dict.fromkeys(given):
+        if name in known_set:
+            continue
+        close = difflib.get_close_matches(name, names, n=1, cutoff=0.8 if only_close else 0.6)
+        if only_close and not close:
+            continue
+        hint = f' (did you mean {close[0]!r}?)' if close else ''
+        messages.append(f'unknown parameter {name!r}{ignored}{hint}')
+    return messages

@@ -24,7 +24,8 @@ from typing import Any
 
 from tracked_kinematics.core.drivetrain import LOOP_KINDS
 
-from .spec import Derived, described_as, finite, non_negative, one_of, ParamSpec, positive
+from .spec import (Derived, described_as, finite, non_negative, one_of, ParamSpec, positive,
+                   unknown_parameters)
 
 
 def _half_track(sign: float) -> Derived:
@@ -183,3 +184,34 @@ COMMAND_LIMIT_PARAMS: tuple[ParamSpec, ...] = (
     ParamSpec('angular.z.max_acceleration', 0.0,
               'Largest rate of change of w' + _NO_LIMIT, 'rad/s^2', limit_value),
 )
+
+
+# Names of a terrain file ---------------------------------------------------------------
+
+TERRAIN_FILE_RECORDS = ('identification.', 'drivetrain_fit.', 'run_fit.', 'simulation.')
+"""Prefixes of the records the tools write into a terrain file (provenance, statistics)."""
+TERRAIN_FILE_NOTES = ('terrain', 'source', 'chi', 'eccentricity', 'vehicle',
+                      'ground_truth_delay')
+"""Other keys the tools write into a terrain file."""
+_TERRAIN_GROUPS = ('icr.', 'scale.', 'drivetrain.', 'linear.', 'angular.')
+
+
+def unknown_terrain_parameters(values) -> list[str]:
+    """
+    Warnings for the names of a terrain file that look like typos of its known ones.
+
+    Known: the terrain, drive-train, encoder-input and command-limit tables, the records and
+    notes the tools write. A terrain file may also carry node parameters (``odom_frame``)
+    that an offline tool does not know, so a name outside the groups of the tables is
+    reported only when it is close to a known one (``track_widht``); inside a group
+    (``icr.yleft``) every unknown name is reported.
+    """
+    known = [spec.name for spec in (*TERRAIN_PARAMS, *DRIVETRAIN_PARAMS,
+                                    *ENCODER_INPUT_PARAMS, *COMMAND_LIMIT_PARAMS)]
+    known += list(TERRAIN_FILE_NOTES)
+    names = [name for name in values if not name.startswith(TERRAIN_FILE_RECORDS)]
+    grouped = [name for name in names if name.startswith(_TERRAIN_GROUPS)]
+    other = [name for name in names if not name.startswith(_TERRAIN_GROUPS)]
+    ignored = ' is not used'
+    return (unknown_parameters(grouped, known, ignored=ignored)
+            + unknown_parameters(other, known, only_close=True, ignored=ignored))

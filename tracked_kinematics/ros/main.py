@@ -20,7 +20,6 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Sequence
 import contextlib
-import difflib
 import os
 import signal
 import sys
@@ -28,6 +27,7 @@ import threading
 
 import rclpy
 from rclpy.executors import ExternalShutdownException
+from tracked_kinematics import params
 from tracked_kinematics.params import ParamSpec
 from tracked_kinematics.ros.parameters import ParameterError
 import yaml
@@ -116,15 +116,8 @@ def unknown_parameters(given: Iterable[str], specs: Iterable[ParamSpec]) -> list
 
     ``use_sim_time`` and other parameters every rclpy node declares are known.
     """
-    known = [spec.name for spec in specs] + ['use_sim_time', 'start_type_description_service']
-    messages = []
-    for name in dict.fromkeys(given):
-        if name in known:
-            continue
-        close = difflib.get_close_matches(name, known, n=1, cutoff=0.6)
-        hint = f' (did you mean {close[0]!r}?)' if close else ''
-        messages.append(f'unknown parameter {name!r} ignored{hint}')
-    return messages
+    return params.unknown_parameters(
+        given, [*specs, 'use_sim_time', 'start_type_description_service'])
 
 
 def _usage(name: str, summary: str, specs: Sequence[ParamSpec]) -> str:

@@ -46,6 +46,7 @@ from scipy.spatial import cKDTree
 from .references import Reference
 from ..command import CommandLimits
 from ..drivetrain import DriveTrain
+from ..errors import PlanningError
 from ..integration import integrate_twist, relative_pose
 from ..kinematics import forward, IcrParams
 from ..models import MotionModel
@@ -150,6 +151,10 @@ def _within(z, matrix, bound):
     return z * float(np.min(bound[over] / load[over]))
 
 
+class _OutOfTime(Exception):
+    """The optimiser's time limit passed (raised from the cost, caught around COBYLA)."""
+
+
 def reach(speed: float, accel: float, horizon: float) -> float:
     """Longest travel of a track that starts and ends at rest within ``horizon``, m."""
     if math.isinf(accel):
@@ -194,24 +199,24 @@ class Planner:
         self.model = model
         self.p = np.asarray(p, dtype=float)
         if len(self.p) != model.n_params or not np.all(np.isfinite(self.p)):
-            raise ValueError(f'{model.name} needs {model.n_params} finite parameters, got '
-                             f'{self.p.tolist()}')
+            raise PlanningError(f'{model.name} needs {model.n_params} finite parameters, '
+                                f'got {self.p.tolist()}')
         self.drivetrain = drivetrain
         self.limits = limits or CommandLimits()
         self.command_icr = command_icr or IcrParams.ideal(model.track_width)
         for label, value in (('dt', dt), ('knot_spacing', knot_spacing)):
             if not (math.isfinite(value) and value > 0.0):
-                raise ValueError(f'{label} must be a finite number > 0 s, got {value!r}')
+                raise PlanningError(f'{label} must be a finite number > 0 s, got {value!r}')
         if not (math.isfinite(settle) and settle >= 0.0):
-            raise ValueError(f'settle must be a finite number >= 0 s, got {settle!r}')
+            raise PlanningError(f'settle must be a finite number >= 0 s, got {settle!r}')
         self.dt, self.knot_spacing = float(dt), float(knot_spacing)
         self.smoothing = 1e-4
         self.settle_steps = int(round(settle / dt))
         self.max_speed = min(self.limits.max_track_speed, drivetrain.max_speed)
         self.max_accel = min(self.limits.max_track_accel, drivetrain.max_accel)
         if math.isinf(self.max_speed):
-            raise ValueError('planning needs a finite max_track_speed (or a drive-train '
-                             'speed limit)')
+            raise PlanningError('planning needs a finite max_track_speed (or a drive-train '
+                                'speed limit)')
 
     # Prediction ---------------------------------------------------------------------------
 
@@ -285,18 +290,38 @@ class Planner:
         add(diff @ w * scale, lim.max_angular_acceleration * h)
         return np.vstack(rows), np.concatenate(bounds)
 
-    def _optimise(self, cost, z0, matrix, bound, maxiter, extra=(), tol=1e-4):
-        """COBYLA over the free knots with the linear limits as constraints."""
+    def _optimise(self, cost, z0, matrix, bound, maxiter, extra=(), tol=1e-4,
+                  time_limit=None):
+        """
+        COBYLA over the free knots with the linear limits as constraints.
+
+        Returns the knots (scaled into the limits) and whether the optimiser was stopped at
+        ``time_limit`` (seconds, None = none) before it converged.
+        """
         cons = {'type': 'ineq', 'fun': lambda z: bound - matrix @ z,
                 'jac': lambda z: -matrix}
         # Start inside the limits: shrink the guess toward rest (which is feasible).
         worst = float(np.max(matrix @ z0 / bound)) if len(bound) else 0.0
         if worst > 1.0:
             z0 = z0 / worst * 0.999
-        res = optimize.minimize(cost, z0, method='COBYLA', constraints=[cons, *extra],
-                                options={'rhobeg': 0.1, 'tol': tol, 'maxiter': maxiter,
-                                         'catol': 1e-9})
-        return _within(res.x, matrix, bound)
+        deadline = None if time_limit is None else time.perf_counter() + time_limit
+        best = {'cost': math.inf, 'z': z0}
+
+        def timed(z):
+            if deadline is not None and time.perf_counter() > deadline:
+                raise _OutOfTime
+            value = cost(z)
+            if value < best['cost'] and np.all(matrix @ z <= bound + 1e-9):
+                best.update(cost=value, z=np.array(z, dtype=float))
+            return value
+
+        try:
+            res = optimize.minimize(timed, z0, method='COBYLA', constraints=[cons, *extra],
+                                    options={'rhobeg': 0.1, 'tol': tol, 'maxiter': maxiter,
+                                             'catol': 1e-9})
+        except _OutOfTime:   # the best point within the limits so far
+            return _within(best['z'], matrix, bound), True
+        return _within(res.x, matrix, bound), False
 
     def _commands(self, z, interp, free):
         knots = z.reshape(2, free).T * self.max_speed
@@ -306,7 +331,7 @@ class Planner:
 
     def plan_to(self, goal, horizon: float, start=(0.0, 0.0, 0.0),
                 tolerance=(0.05, 0.05), heading_weight: float = 0.5,
-                maxiter: int = 3000) -> Plan:
+                maxiter: int = 3000, time_limit: float | None = None) -> Plan:
         """
         Setpoints that bring the robot from ``start`` to ``goal`` within ``horizon``.
 
@@ -329,6 +354,9 @@ class Planner:
             ``lambda``, m/rad.
         maxiter : int
             COBYLA's evaluation budget.
+        time_limit : float, optional
+            Seconds after which the optimiser stops with its best point so far (the
+            message says so); None: no limit.
 
         Returns
         -------
@@ -347,7 +375,7 @@ class Planner:
         horizon = self._check_horizon(horizon)
         tol_pos, tol_yaw = (float(v) for v in tolerance)
         if not (tol_pos > 0.0 and tol_yaw > 0.0):
-            raise ValueError(f'tolerance must be > 0, got {tolerance!r}')
+            raise PlanningError(f'tolerance must be > 0, got {tolerance!r}')
         dx, dy, dth = (float(v) for v in relative_pose(*start, *goal))
         distance = math.hypot(dx, dy)
         n, m, interp, h = self._grid(horizon)
@@ -393,13 +421,14 @@ class Planner:
                                     axis=0) ** 2)
             return float(ex * ex + ey * ey + (heading_weight * eth) ** 2 + mu * smooth)
 
-        z = self._optimise(cost, z0, matrix, bound, maxiter)
+        z, stopped = self._optimise(cost, z0, matrix, bound, maxiter, time_limit=time_limit)
         return self._finish(z, interp, free, goal, start, tol_pos, tol_yaw, count[0],
-                            started, None)
+                            started, None, time_limit if stopped else None)
 
     def follow(self, ref: Reference, start=(0.0, 0.0, 0.0), tolerance=(0.05, 0.05),
                path_weight: float = 1.0, goal_weight: float = 10.0,
-               heading_weight: float = 0.5, maxiter: int = 3000) -> Plan:
+               heading_weight: float = 0.5, maxiter: int = 3000,
+               time_limit: float | None = None) -> Plan:
         """
         Setpoints that follow a reference path and end at its final pose (eq. 9 and 10).
 
@@ -422,6 +451,8 @@ class Planner:
             ``lambda``, m/rad.
         maxiter : int
             COBYLA's evaluation budget.
+        time_limit : float, optional
+            Seconds after which the optimiser stops with its best point so far.
 
         Returns
         -------
@@ -470,9 +501,10 @@ class Planner:
             [0.5 * tol_pos - predicted(z)[1], 0.5 * tol_yaw - predicted(z)[2]])}
         # The goal is held by the constraints; the path cost needs less precision than a
         # goal cost (a final trust radius of 1e-3 of max speed halves the time, same paths).
-        z = self._optimise(cost, z0, matrix, bound, maxiter, extra=[goal_cons], tol=1e-3)
+        z, stopped = self._optimise(cost, z0, matrix, bound, maxiter, extra=[goal_cons],
+                                    tol=1e-3, time_limit=time_limit)
         return self._finish(z, interp, free, goal, start, tol_pos, tol_yaw, count[0],
-                            started, ref_path)
+                            started, ref_path, time_limit if stopped else None)
 
     # Helpers ------------------------------------------------------------------------------
 
@@ -501,7 +533,7 @@ class Planner:
         return np.concatenate([left * shape, right * shape]) / self.max_speed
 
     def _finish(self, z, interp, free, goal, start, tol_pos, tol_yaw, nfev, started,
-                ref_path):
+                ref_path, stopped_at=None):
         commands, knots = self._commands(z, interp, free)
         poses = self.predict(commands, start)
         ex, ey, eth = relative_pose(*goal, *poses[-1])
@@ -518,6 +550,9 @@ class Planner:
                        f'{self.model.name} model ends {pos_err:.3f} m and '
                        f'{math.degrees(yaw_err):.1f} deg from the goal (tolerance '
                        f'{tol_pos:g} m, {math.degrees(tol_yaw):.1f} deg)')
+        if stopped_at is not None:
+            message += (f'; the optimiser was stopped at its time limit of {stopped_at:g} s '
+                        f'after {nfev} predictions')
         return Plan(commands=commands, dt=self.dt, poses=poses, goal=np.asarray(goal),
                     position_error=pos_err, yaw_error=yaw_err, success=success,
                     message=message, model=self.model.name, path_deviation=deviation,
@@ -536,15 +571,15 @@ class Planner:
         try:
             pose = np.asarray(pose, dtype=float).reshape(3)
         except (TypeError, ValueError):
-            raise ValueError(f'{label} must be three numbers (x y yaw), got {pose!r}') from None
+            raise PlanningError(f'{label} must be three numbers (x y yaw), got {pose!r}') from None
         if not np.all(np.isfinite(pose)):
-            raise ValueError(f'{label} must be finite, got {pose.tolist()}')
+            raise PlanningError(f'{label} must be finite, got {pose.tolist()}')
         return pose
 
     def _check_horizon(self, horizon):
         horizon = float(horizon)
         if not (math.isfinite(horizon) and horizon >= 2.0 * self.knot_spacing
                 and horizon >= 4 * self.dt):
-            raise ValueError(f'horizon must be a finite number >= {2 * self.knot_spacing:g} s '
-                             f'(two knots), got {horizon!r}')
+            raise PlanningError(f'horizon must be a finite number >= '
+                                f'{2 * self.knot_spacing:g} s (two knots), got {horizon!r}')
         return horizon

@@ -50,6 +50,7 @@ import numpy as np
 from scipy import optimize
 
 from .._checks import require_numbers
+from ..errors import TrackedKinematicsError
 from ..kinematics import IcrParams
 
 GRAVITY = 9.81
@@ -687,7 +688,7 @@ def averaged_icr(icr_map_: IcrMap, weighting: str = 'uniform') -> IcrParams:
     """
     valid = icr_map_.valid
     if not np.any(valid):
-        raise ValueError('the ICR map has no turning pair with a solution')
+        raise TrackedKinematicsError('the ICR map has no turning pair with a solution')
     if weighting == 'uniform':
         weights = np.ones(int(valid.sum()))
     elif weighting == 'turn_rate':

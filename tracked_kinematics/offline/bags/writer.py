@@ -3,7 +3,11 @@ Write rosbags without ROS: rosbag2 (sqlite3 or mcap) and ROS 1 bags, through ``r
 
 Used by the simulator to record synthetic runs and by the tests to make bags of a known
 vehicle. Messages are built from plain numbers with the typestore of the bag's ROS version,
-so the same calls write a Jazzy rosbag2 or a Noetic .bag.
+so the same calls write a Jazzy rosbag2 or a Noetic .bag. :class:`BagWriter` writes where it
+is told; the tools give it the temporary path of an
+:class:`~tracked_kinematics.offline.outputs.Outputs` bag (``directory=True``), which is
+renamed onto the target only once the bag is closed, so a killed run never leaves a bag
+without its ``metadata.yaml`` at the target.
 """
 
 from __future__ import annotations
@@ -13,6 +17,7 @@ from pathlib import Path
 import numpy as np
 from rosbags.typesys import get_types_from_msg, get_typestore, Stores
 from tracked_kinematics.core.integration import quaternion_from_yaw, split_stamp
+from tracked_kinematics.offline.errors import BagError, UsageError
 
 STORAGES = ('sqlite3', 'mcap', 'rosbag1')
 
@@ -28,6 +33,13 @@ class BagWriter:
     storage : {'sqlite3', 'mcap', 'rosbag1'}
         Storage format.
 
+    Raises
+    ------
+    UsageError
+        For an unknown storage.
+    BagError
+        When rosbags refuses the path (it exists).
+
     Examples
     --------
     >>> with BagWriter('run1', 'mcap') as bag:                         # doctest: +SKIP
@@ -37,7 +49,7 @@ class BagWriter:
 
     def __init__(self, path, storage: str = 'sqlite3'):
         if storage not in STORAGES:
-            raise ValueError(f'storage must be one of {", ".join(STORAGES)}, got {storage!r}')
+            raise UsageError(f'storage must be one of {", ".join(STORAGES)}, got {storage!r}')
         self.path = Path(path)
         self.storage = storage
         if storage == 'rosbag1':
@@ -46,17 +58,30 @@ class BagWriter:
             # Noetic's store has no tf2_msgs; its definition is one line.
             self.typestore.register(get_types_from_msg(
                 'geometry_msgs/TransformStamped[] transforms', 'tf2_msgs/msg/TFMessage'))
-            self._writer = Writer(self.path)
+            from rosbags.rosbag1 import WriterError
+            try:
+                self._writer = Writer(self.path)
+            except WriterError as err:
+                raise BagError(f'cannot write bag {self.path}: {err}') from None
         else:
             from rosbags.rosbag2 import StoragePlugin, Writer
             self.typestore = get_typestore(Stores.ROS2_JAZZY)
             plugin = StoragePlugin.MCAP if storage == 'mcap' else StoragePlugin.SQLITE3
-            self._writer = Writer(self.path, version=9, storage_plugin=plugin)
+            from rosbags.rosbag2 import WriterError
+            try:
+                self._writer = Writer(self.path, version=9, storage_plugin=plugin)
+            except WriterError as err:
+                raise BagError(f'cannot write bag {self.path}: {err}') from None
         self._connections = {}
         self._types = self.typestore.types
 
     def __enter__(self):
-        self._writer.open()
+        from rosbags.rosbag1 import WriterError as Rosbag1WriterError
+        from rosbags.rosbag2 import WriterError as Rosbag2WriterError
+        try:
+            self._writer.open()
+        except (Rosbag1WriterError, Rosbag2WriterError) as err:
+            raise BagError(f'cannot write bag {self.path}: {err}') from None
         return self
 
     def __exit__(self, *exc):

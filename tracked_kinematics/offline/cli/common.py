@@ -1,23 +1,42 @@
-"""What the offline command-line tools share: argument types, encoder options, reports."""
+"""
+What the offline command-line tools share: parser, argument types, options, reports, errors.
+
+The parser with one-line usage errors, argument types with ranges, the encoder options,
+``--force``, JSON reports, warnings, and :func:`run_main` (errors, signals, exit status).
+"""
 
 from __future__ import annotations
 
 import argparse
 import json
 import math
-from pathlib import Path
+import signal
 import sys
+import threading
 
 import numpy as np
 from tracked_kinematics.core.errors import (
     ExcitationError, IdentificationError, TrackedKinematicsError)
 from tracked_kinematics.offline.bags import EncoderSource
 from tracked_kinematics.offline.errors import UsageError
+from tracked_kinematics.offline.outputs import Outputs
 from tracked_kinematics.params import (
-    ENCODER_INPUT_DEFAULTS, INPUT_MODES, SIDE_TOPICS, TERRAIN_DEFAULTS)
+    ENCODER_INPUT_DEFAULTS, INPUT_MODES, SIDE_TOPICS, TERRAIN_DEFAULTS,
+    unknown_terrain_parameters)
 
 EXIT_INPUT, EXIT_EXCITATION, EXIT_FIT = 2, 3, 4
 """Exit statuses of the identification tools: bad input, too little excitation, failed fit."""
+EXIT_INTERRUPTED = 130
+"""Exit status after Ctrl-C (SIGINT); after SIGTERM or SIGHUP it is 128 + the signal."""
+
+
+class ArgumentParser(argparse.ArgumentParser):
+    """An argument parser whose usage errors are one line on stderr, exit status 2."""
+
+    def error(self, message):
+        """Print ``PROG: error: MESSAGE (see PROG --help)`` and exit with status 2."""
+        self.exit(EXIT_INPUT, f'{self.prog}: error: {" ".join(message.split())} '
+                              f'(see {self.prog} --help)\n')
 
 
 def names(text: str) -> tuple[str, ...]:
@@ -51,6 +70,44 @@ def non_negative(text: str) -> float:
     return value
 
 
+def _g(value: float) -> str:
+    return f'{value:,}' if isinstance(value, int) else f'{value:g}'
+
+
+def bounded(low: float, high: float, unit: str = '', *, zero: bool = False,
+            integer: bool = False):
+    """
+    Return an argument type: a number in ``[low, high]`` (with ``zero``, 0 too).
+
+    The range is what a real robot needs (docs/tools/*.md list them); a value outside is
+    refused before any work, so that no flag can make a tool allocate or compute without
+    bound. ``integer`` asks for a whole number. The type's ``words`` say the range.
+    """
+    unit_text = f' {unit}' if unit else ''
+    words = f'in [{_g(low)}, {_g(high)}]{unit_text}' + (' or 0' if zero else '')
+
+    def parse(text: str):
+        if integer:
+            try:
+                value = int(text, 10)
+            except ValueError:
+                raise argparse.ArgumentTypeError(
+                    f'expected a whole number, got {text!r}') from None
+        else:
+            value = _number(text)
+        if (zero and value == 0) or (math.isfinite(value) and low <= value <= high):
+            return value
+        finite = '' if math.isfinite(value) else 'a finite number '
+        raise argparse.ArgumentTypeError(f'must be {finite}{words}, got {text}')
+    parse.words = words
+    parse.__name__ = 'integer' if integer else 'number'
+    return parse
+
+
+SEED = bounded(0, 2**32 - 1, integer=True)
+"""Argument type of ``--seed``: a whole number in [0, 2^32 - 1]."""
+
+
 class HelpFormatter(argparse.RawDescriptionHelpFormatter,
                     argparse.ArgumentDefaultsHelpFormatter):
     """Show defaults, except the empty ones; keep the examples' lines."""
@@ -76,9 +133,21 @@ def add_output_argument(parser) -> None:
                         help='terrain parameter file to write (ready for --params-file)')
 
 
+def add_force_argument(parser) -> None:
+    """Add ``--force``, the same flag on every tool (docs/output-files.md)."""
+    parser.add_argument('--force', action='store_true',
+                        help='replace output files that exist (never a directory, a bag, a '
+                        'symbolic link or a special file)')
+
+
+SPROCKET_RADIUS = bounded(0.005, 5.0, 'm')
+TRACK_WIDTH = bounded(0.05, 20.0, 'm')
+TICKS_PER_REVOLUTION = bounded(1.0, 1e9)
+
+
 def add_sprocket_radius_argument(group) -> None:
     """Add ``--sprocket-radius``, defaulting to the base terrain file's."""
-    group.add_argument('--sprocket-radius', type=positive, default=None, metavar='R',
+    group.add_argument('--sprocket-radius', type=SPROCKET_RADIUS, default=None, metavar='R',
                        help='m; default from --params, else '
                        f'{TERRAIN_DEFAULTS["sprocket_radius"]}')
 
@@ -99,7 +168,7 @@ def add_encoder_arguments(group) -> None:
                        'Int32/Int64 counter (encoder_ticks); default '
                        f'{" or ".join("/" + SIDE_TOPICS[m][0] for m in SIDE_TOPICS)}')
     group.add_argument('--right-topic', default=None, help='right track topic, likewise')
-    group.add_argument('--ticks-per-revolution', type=positive,
+    group.add_argument('--ticks-per-revolution', type=TICKS_PER_REVOLUTION,
                        default=ENCODER_INPUT_DEFAULTS['ticks_per_revolution'],
                        help='encoder ticks per sprocket revolution (encoder_ticks)')
 
@@ -126,11 +195,48 @@ def encoder_source(args, radius: float) -> EncoderSource:
         ticks_per_revolution=args.ticks_per_revolution)
 
 
-def write_report(path, report) -> None:
-    """Write a JSON report (numpy arrays as lists, numpy scalars as floats)."""
-    text = json.dumps(report, indent=2, default=lambda o: o.tolist()
-                      if isinstance(o, np.ndarray) else float(o))
-    Path(path).write_text(text + '\n', encoding='utf-8')
+def report_json(report) -> str:
+    """Return a JSON report as text (numpy arrays as lists, numpy scalars as floats)."""
+    return json.dumps(report, indent=2, default=lambda o: o.tolist()
+                      if isinstance(o, np.ndarray) else float(o)) + '\n'
+
+
+def write_report(path, report, force: bool = False) -> None:
+    """Write a JSON report through :class:`~tracked_kinematics.offline.outputs.Outputs`."""
+    with Outputs(force=force) as out:
+        out.add('--report', path)
+        out.write_text('--report', report_json(report))
+
+
+def warn(prog: str, message: str) -> None:
+    """Print ``PROG: warning: MESSAGE`` on stderr (one line)."""
+    print(f'{prog}: warning: {" ".join(str(message).split())}', file=sys.stderr)
+
+
+def warn_unknown_terrain_keys(prog: str, path, values) -> None:
+    """Warn about names of a terrain file that look like typos of known ones."""
+    for message in unknown_terrain_parameters(values):
+        warn(prog, f'{path}: {message}')
+
+
+class Signalled(BaseException):
+    """SIGTERM or SIGHUP arrived; raised in the main thread so that outputs are cleaned up."""
+
+    def __init__(self, signum: int):
+        super().__init__(signum)
+        self.signum = signum
+
+
+_STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
+
+
+def _raise_signalled(signum, frame):
+    # The first signal ends the run; further ones must not interrupt the clean-up.
+    for other in _STOP_SIGNALS:
+        signal.signal(other, signal.SIG_IGN)
+    if signum == signal.SIGINT:
+        raise KeyboardInterrupt
+    raise Signalled(signum)
 
 
 def run_main(prog: str, run, args) -> int:
@@ -139,14 +245,22 @@ def run_main(prog: str, run, args) -> int:
 
     :data:`EXIT_EXCITATION` for too little excitation, :data:`EXIT_FIT` for a fit that
     failed, :data:`EXIT_INPUT` for any other
-    :class:`~tracked_kinematics.core.errors.TrackedKinematicsError` (a bag, option or
-    parameter problem) and for an :class:`OSError` (a file the user named), 130 for Ctrl-C.
-    Any other exception is a bug: it is not caught, and surfaces as a traceback.
+    :class:`~tracked_kinematics.core.errors.TrackedKinematicsError` (a bag, option,
+    parameter or output-path problem) and for an :class:`OSError` (a file the user named, a
+    full disk), 130 for Ctrl-C, 143 for SIGTERM (129 for SIGHUP): the signal is raised as an
+    exception, so :class:`~tracked_kinematics.offline.outputs.Outputs` removes what the run
+    staged and nothing new is left behind; further signals are ignored until the run has
+    ended (a second Ctrl-C cannot interrupt the clean-up). Any other exception is a bug: it
+    is not caught, and surfaces as a traceback.
     """
     def fail(status, err):
         print(f'{prog}: error: {" ".join(str(err).split())}', file=sys.stderr)
         return status
 
+    previous = {}
+    if threading.current_thread() is threading.main_thread():
+        for signum in _STOP_SIGNALS:
+            previous[signum] = signal.signal(signum, _raise_signalled)
     try:
         return run(args, sys.stdout)
     except ExcitationError as err:
@@ -156,4 +270,9 @@ def run_main(prog: str, run, args) -> int:
     except (TrackedKinematicsError, OSError) as err:
         return fail(EXIT_INPUT, err)
     except KeyboardInterrupt:
-        return fail(130, 'interrupted')
+        return fail(EXIT_INTERRUPTED, 'interrupted')
+    except Signalled as sig:
+        return fail(128 + sig.signum, f'terminated by {signal.Signals(sig.signum).name}')
+    finally:
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)

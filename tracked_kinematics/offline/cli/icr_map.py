@@ -7,6 +7,10 @@ et al. (2005) do in sec. 5.2 (Figs. 6-7), prints the spread of the tread ICRs an
 average (the constant-ICR model, with chi and e, in ROS and in the paper's symbols), and
 optionally plots the map, writes it as CSV, and writes the averaged model as a terrain YAML.
 
+Exit status: 0 success; 2 bad input (vehicle, option, an output path that may not be
+written, a file that cannot be written); 130 / 143 interrupted. The outputs are written
+together at the end or not at all (docs/output-files.md).
+
 Documentation: docs/tools/icr_map.md; the model: docs/model.md.
 """
 
@@ -14,22 +18,28 @@ from __future__ import annotations
 
 import argparse
 import csv
+import io
 import sys
 import time
 
 import numpy as np
 from tracked_kinematics.core.kinematics import IcrParams
 from tracked_kinematics.core.sim.dynamics import averaged_icr, icr_map, IcrMap, StationarySolver
+from tracked_kinematics.offline.cli.common import (
+    add_force_argument, ArgumentParser, bounded, run_main)
+from tracked_kinematics.offline.outputs import Outputs
 from tracked_kinematics.offline.vehicle_file import (
-    add_vehicle_arguments, fixed, load_vehicle, overrides_from_args, VehicleFile)
-from tracked_kinematics.params import values_from_icr, write_params_file
+    add_vehicle_arguments, fixed, load_vehicle, overrides_from_args, vehicle_path, VehicleFile)
+from tracked_kinematics.params import params_text, values_from_icr
 
 PROG = 'icr_map'
+MAX_N = 101
+"""Largest --n: 101 x 101 = 10,201 stationary solutions (6.4 s, 0.6 GB)."""
 
 
 def build_parser() -> argparse.ArgumentParser:
     """Argument parser of ``icr_map``."""
-    parser = argparse.ArgumentParser(
+    parser = ArgumentParser(
         prog=PROG, formatter_class=argparse.ArgumentDefaultsHelpFormatter,
         description='Tread ICR map of a vehicle from its stationary track-soil dynamics '
                     '(Martinez et al. 2005, sec. 4.1, 5.2) and the averaged constant-ICR model.',
@@ -38,10 +48,11 @@ def build_parser() -> argparse.ArgumentParser:
                '  icr_map packbot --n 41 --csv map.csv --output packbot_concrete.yaml\n'
                '  icr_map my_robot.yaml --mu-y 0.9 --set centre_of_mass.y=0.03')
     add_vehicle_arguments(parser, positional=True)
-    parser.add_argument('--n', type=int, default=21,
-                        help='track speeds per track in the map (n x n pairs)')
-    parser.add_argument('--max-speed', type=float, default=None,
-                        help="speed range (-S, S), m/s (default: the vehicle's max_track_speed)")
+    parser.add_argument('--n', type=bounded(2, MAX_N, integer=True), default=21,
+                        help=f'track speeds per track in the map (n x n pairs), 2-{MAX_N}')
+    parser.add_argument('--max-speed', type=bounded(0.01, 20.0, 'm/s'), default=None,
+                        help="speed range (-S, S), m/s, 0.01-20 (default: the vehicle's "
+                             'max_track_speed)')
     parser.add_argument('--weighting', choices=('uniform', 'turn_rate'), default='uniform',
                         help='average of the map: plain mean (the paper) or weighted by the '
                              'squared turn rate (least squares of the inverse kinematics)')
@@ -50,6 +61,7 @@ def build_parser() -> argparse.ArgumentParser:
                         help='write every pair: speeds, twist, ICRs')
     parser.add_argument('--output', default=None, metavar='OUT.yaml',
                         help='write the averaged model as a terrain parameter file')
+    add_force_argument(parser)
     return parser
 
 
@@ -85,56 +97,72 @@ def summary(spec: VehicleFile, the_map: IcrMap, icr: IcrParams, seconds: float) 
     return '\n'.join(lines)
 
 
-def write_csv(path, the_map: IcrMap) -> None:
-    """Every pair of the map as a CSV row."""
-    with open(path, 'w', newline='', encoding='utf-8') as stream:
-        writer = csv.writer(stream)
-        writer.writerow(['v_left', 'v_right', 'v_x', 'v_y', 'w', 'icr_y_left', 'icr_y_right',
-                         'icr_x'])
-        rows = np.column_stack([the_map.v_left.ravel(), the_map.v_right.ravel(),
-                                the_map.twist.reshape(-1, 3), the_map.y_left.ravel(),
-                                the_map.y_right.ravel(), the_map.x.ravel()])
-        writer.writerows(rows.tolist())
+def csv_text(the_map: IcrMap) -> str:
+    """Every pair of the map as a CSV row, with a header."""
+    stream = io.StringIO(newline='')
+    writer = csv.writer(stream)
+    writer.writerow(['v_left', 'v_right', 'v_x', 'v_y', 'w', 'icr_y_left', 'icr_y_right',
+                     'icr_x'])
+    rows = np.column_stack([the_map.v_left.ravel(), the_map.v_right.ravel(),
+                            the_map.twist.reshape(-1, 3), the_map.y_left.ravel(),
+                            the_map.y_right.ravel(), the_map.x.ravel()])
+    writer.writerows(rows.tolist())
+    return stream.getvalue()
 
 
-def main(argv=None) -> int:
-    """Run ``icr_map``; return the exit status."""
-    args = build_parser().parse_args(argv)
-    try:
-        if args.n < 2:
-            raise ValueError(f'--n must be >= 2, got {args.n}')
+def write_csv(path, the_map: IcrMap, force: bool = False) -> None:
+    """Write :func:`csv_text` to ``path`` through :class:`Outputs`."""
+    with Outputs(force=force) as out:
+        out.add('--csv', path)
+        out.write_text('--csv', csv_text(the_map))
+
+
+def _outputs(args) -> Outputs:
+    """Check every output path before any work (docs/output-files.md)."""
+    outputs = Outputs(force=args.force)
+    outputs.add('--csv', args.csv)
+    outputs.add('--output', args.output)
+    if args.plot:
+        from tracked_kinematics.offline.plots import check_format
+        outputs.add('--plot', args.plot)
+        check_format('--plot', args.plot)
+    outputs.refuse_inputs('VEHICLE', [vehicle_path(args.vehicle)])
+    return outputs
+
+
+def _run(args, out) -> int:
+    with _outputs(args) as outputs:
         spec = load_vehicle(args.vehicle, overrides_from_args(args))
         start = time.perf_counter()
         veh = spec.robot.vehicle
         the_map = icr_map(veh, args.n, StationarySolver(veh), args.max_speed)
         seconds = time.perf_counter() - start
         icr = averaged_icr(the_map, args.weighting)
-    except (OSError, ValueError) as err:
-        print(f'{PROG}: {err}', file=sys.stderr)
-        return 2
-    print(summary(spec, the_map, icr, seconds))
-    try:
-        if args.csv:
-            write_csv(args.csv, the_map)
-            print(f'map written to {args.csv}')
-        if args.output:
+        print(summary(spec, the_map, icr, seconds), file=out)
+        if '--csv' in outputs:
+            outputs.write_text('--csv', csv_text(the_map))
+        if '--output' in outputs:
             values = values_from_icr(icr, spec.robot.encoders.sprocket_radius)
             values.update({'chi': icr.chi, 'eccentricity': icr.eccentricity,
                            'vehicle': spec.name, 'terrain': spec.terrain,
                            'source': f'icr_map: {args.weighting} average of the {args.n} x '
                                      f'{args.n} stationary ICR map (Martinez sec. 5.2)'})
-            write_params_file(args.output, values, comment=(
+            outputs.write_text('--output', params_text(values, comment=(
                 f'Averaged tread ICRs of {spec.name} on {spec.terrain} from the stationary '
-                'dynamic model; valid as --params-file. Encoder scales are not modelled (1).'))
-            print(f'averaged model written to {args.output}')
-        if args.plot:
+                'dynamic model; valid as --params-file. Encoder scales are not modelled (1).')))
+        if '--plot' in outputs:
             from tracked_kinematics.offline.plots import plot_icr_map
-            plot_icr_map(args.plot, spec, the_map, icr)
-            print(f'plot written to {args.plot}')
-    except OSError as err:
-        print(f'{PROG}: {err}', file=sys.stderr)
-        return 1
+            with outputs.path('--plot') as tmp:
+                plot_icr_map(tmp, spec, the_map, icr)
+    for flag, what in (('--csv', 'map'), ('--output', 'averaged model'), ('--plot', 'plot')):
+        if flag in outputs:
+            print(f'{what} written to {outputs.target(flag)}', file=out)
     return 0
+
+
+def main(argv=None) -> int:
+    """Run ``icr_map``; return the exit status (see the module docstring)."""
+    return run_main(PROG, _run, build_parser().parse_args(argv))
 
 
 if __name__ == '__main__':

@@ -8,8 +8,10 @@ acceleration limit and the speed loop of Fink & Stump sec. III-B, and writes the
 the commands instead of the measured speeds.
 
 Exit status, as identify_icr: 0 success; 2 bad input (missing bag, topic or joint;
-unreadable bag; invalid option); 3 too little data, or commands that hardly change; 4 the fit
-failed (best delay at the search bound, no convergence).
+unreadable bag; invalid option; an output path that may not be written); 3 too little data,
+or commands that hardly change; 4 the fit failed (best delay at the search bound, no
+convergence); 130 / 143 interrupted. The outputs are written together at the end or not at
+all (docs/output-files.md).
 
 Documentation: docs/tools/identify_drivetrain.md; the ``drivetrain.*`` parameters:
 docs/parameters.md.
@@ -28,21 +30,25 @@ from tracked_kinematics.core.errors import InvalidParameters
 from tracked_kinematics.core.identify import fit_drivetrain
 from tracked_kinematics.offline.bags import read_drive_bag, SETPOINT_TOPICS
 from tracked_kinematics.offline.cli.common import (
-    add_bags_argument, add_encoder_arguments, add_output_argument, add_sprocket_radius_argument,
-    encoder_source, HelpFormatter, names, non_negative, positive, run_main, write_report)
+    add_bags_argument, add_encoder_arguments, add_force_argument, add_output_argument,
+    add_sprocket_radius_argument, ArgumentParser, bounded, encoder_source, HelpFormatter, names,
+    report_json, run_main, warn_unknown_terrain_keys)
 from tracked_kinematics.offline.errors import UsageError
-from tracked_kinematics.offline.terrain_file import terrain_values, write_terrain_file
+from tracked_kinematics.offline.outputs import Outputs
+from tracked_kinematics.offline.terrain_file import terrain_text, terrain_values
 from tracked_kinematics.params import (
     drivetrain_from_values, positive as check_positive, read_params_file, TERRAIN_DEFAULTS,
     values_from_drivetrain)
 
 PROG = 'identify_drivetrain'
+MAX_GRID_SAMPLES = 2_000_000
+"""Largest grid (seconds of data / --dt) the fit allocates: 5.5 h of data at 10 ms."""
 _UNITS = {'delay': 's', 'max_accel': 'm/s^2', 'time_constant': 's', 'kp': '', 'ki': '',
           'kd': ''}
 
 EPILOG = """examples:
   identify_drivetrain run1/ run2/ --output drive.yaml --sprocket-radius 0.1
-  identify_drivetrain calib.bag --params hard_floor.yaml --output hard_floor.yaml \\
+  identify_drivetrain calib.bag --params hard_floor.yaml --output hard_floor.yaml --force \\
       --report drive.json --plot drive.png
   identify_drivetrain packbot/ --loop pid_dc_motor --params packbot_base.yaml -o packbot.yaml
 """
@@ -57,7 +63,7 @@ def _topic_pair(text: str) -> tuple[str, str]:
 
 def build_parser() -> argparse.ArgumentParser:
     """Return the command line of identify_drivetrain."""
-    parser = argparse.ArgumentParser(
+    parser = ArgumentParser(
         prog=PROG, description=__doc__.split('\n\n')[1], epilog=EPILOG,
         formatter_class=HelpFormatter)
     add_bags_argument(parser)
@@ -76,29 +82,33 @@ def build_parser() -> argparse.ArgumentParser:
     fit.add_argument('--loop', choices=LOOP_KINDS, default='first_order',
                      help='speed loop to fit: first-order lag, PID gains around the fixed DC '
                      'motor of eq. (8), or none')
-    fit.add_argument('--dt', type=positive, default=None, metavar='SECONDS',
+    fit.add_argument('--dt', type=bounded(0.001, 0.1, 's'), default=None, metavar='SECONDS',
                      help='grid period and delay resolution (default: the encoder period, '
                      'within 0.002-0.02 s)')
-    fit.add_argument('--max-delay', type=non_negative, default=0.5, metavar='SECONDS',
+    fit.add_argument('--max-delay', type=bounded(0.0, 2.0, 's'), default=0.5, metavar='SECONDS',
                      help='largest command delay searched')
-    fit.add_argument('--max-gap', type=non_negative, default=0.5, metavar='SECONDS',
+    fit.add_argument('--max-gap', type=bounded(0.0, 60.0, 's'), default=0.5, metavar='SECONDS',
                      help='longer gaps in either stream cut the data into segments')
     out = parser.add_argument_group('output')
     out.add_argument('--report', default=None, metavar='OUT.json',
                      help='JSON report: values, standard errors, RMS, delay profile')
     out.add_argument('--plot', default=None, metavar='OUT.png',
                      help='commanded, measured and simulated speeds, and the delay profile')
+    add_force_argument(out)
     return parser
 
 
 def _base(args):
     """Read the base terrain values, the sprocket radius and the base drive train (or None)."""
     base_values = read_params_file(args.params) if args.params else {}
+    if args.params:
+        warn_unknown_terrain_keys(PROG, args.params, base_values)
     radius = args.sprocket_radius
     if radius is None:
         radius = base_values.get('sprocket_radius', TERRAIN_DEFAULTS['sprocket_radius'])
     if check_positive(radius):
-        raise UsageError(f'sprocket_radius must be a finite number > 0, got {radius!r}')
+        raise UsageError(f'{args.params}: sprocket_radius must be a finite number > 0, got '
+                         f'{radius!r}')
     base = None
     if any(k.startswith('drivetrain.') for k in base_values):
         try:
@@ -141,12 +151,50 @@ def _print_table(result, recordings, out):
           f'simulations, {result.seconds:.2f} s', file=out)
 
 
+def _outputs(args) -> Outputs:
+    """Check every output path before any work (docs/output-files.md)."""
+    outputs = Outputs(force=args.force)
+    outputs.add('--output', args.output)
+    outputs.add('--report', args.report)
+    if args.plot:
+        from tracked_kinematics.offline.plots import check_format
+        outputs.add('--plot', args.plot)
+        check_format('--plot', args.plot)
+    outputs.refuse_inputs('BAG', args.bags)
+    outputs.refuse_inputs('--params', [args.params], allow=('--output',))
+    return outputs
+
+
+def _check_grid(args, recordings) -> None:
+    """Refuse a --dt whose grid over the data would exceed MAX_GRID_SAMPLES, before the fit."""
+    if args.dt is None:
+        return
+    seconds = 0.0
+    for r in recordings:
+        times = [t for t in (r.command_t, r.speed_t) if len(t)]
+        if times:
+            seconds += max(float(t[-1]) for t in times) - min(float(t[0]) for t in times)
+    samples = seconds / args.dt
+    if samples > MAX_GRID_SAMPLES:
+        raise UsageError(f'--dt {args.dt:g} s over {seconds:.0f} s of data is a grid of '
+                         f'{samples:,.0f} samples (at most {MAX_GRID_SAMPLES:,}); give a '
+                         'larger --dt or fewer bags')
+
+
 def _run(args, out) -> int:
+    with _outputs(args) as outputs:
+        _identify(args, out, outputs)
+    print(f'wrote {", ".join(str(p) for p in outputs.targets)}', file=out)
+    return 0
+
+
+def _identify(args, out, outputs) -> None:
     base_values, radius, base = _base(args)
     encoders = encoder_source(args, radius)
     progress = sys.stderr.isatty()
     recordings = [read_drive_bag(b, encoders, args.setpoint_topics, progress)
                   for b in args.bags]
+    _check_grid(args, recordings)
     result = fit_drivetrain(recordings, loop=args.loop, dt=args.dt, max_delay=args.max_delay,
                             max_gap=args.max_gap, base=base)
     date = datetime.now(timezone.utc).isoformat(timespec='seconds')
@@ -158,10 +206,10 @@ def _run(args, out) -> int:
     extras.update({f'standard_errors.{k}': v for k, v in result.standard_errors.items()})
     values = _yaml_values(base_values, result, radius, extras)
     _print_table(result, recordings, out)
-    write_terrain_file(args.output, values, tool=PROG, date=date,
-                       contents='Terrain parameters with the drive train')
-    if args.report:
-        write_report(args.report, {
+    outputs.write_text('--output', terrain_text(
+        values, tool=PROG, date=date, contents='Terrain parameters with the drive train'))
+    if '--report' in outputs:
+        outputs.write_text('--report', report_json({
             'tool': PROG, 'date': date, 'bags': bags, 'sprocket_radius': radius,
             'loop': result.loop, 'parameters': result.parameters,
             'standard_errors': result.standard_errors, 'fixed': result.fixed,
@@ -173,13 +221,11 @@ def _run(args, out) -> int:
             'segments': len(result.segments), 'delays_fitted': result.delays_fitted,
             'simulations': result.nfev, 'seconds': result.seconds,
             'delay_profile': {'delay': result.delay_profile[0],
-                              'rms': result.delay_profile[1]}})
-    if args.plot:
+                              'rms': result.delay_profile[1]}}))
+    if '--plot' in outputs:
         from tracked_kinematics.offline.plots import plot_drivetrain
-        plot_drivetrain(args.plot, result)
-    print(f'wrote {args.output}' + (f', {args.report}' if args.report else '')
-          + (f', {args.plot}' if args.plot else ''), file=out)
-    return 0
+        with outputs.path('--plot') as tmp:
+            plot_drivetrain(tmp, result)
 
 
 def main(argv=None) -> int:

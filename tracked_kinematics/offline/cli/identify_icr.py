@@ -7,8 +7,10 @@ sec. 4.2, by the least-squares method of Fink & Stump, sec. III-A), compares eve
 held-out time blocks, and writes a terrain parameter file for ``--params-file``.
 
 Exit status: 0 success; 2 bad input (missing bag, topic, joint or transform; unreadable
-bag; invalid option); 3 too little motion, turning or straight driving to identify the
-model; 4 the fit did not converge or gave an invalid model.
+bag; invalid option; an output path that may not be written); 3 too little motion, turning
+or straight driving to identify the model; 4 the fit did not converge or gave an invalid
+model; 130 / 143 interrupted (SIGINT / SIGTERM). The outputs (YAML, report, plot) are
+written together at the end or not at all (docs/output-files.md).
 
 Documentation: docs/tools/identify_icr.md; the models it fits: docs/model.md; the terrain
 file it writes: docs/parameters.md.
@@ -27,12 +29,14 @@ from tracked_kinematics.core.errors import InvalidParameters
 from tracked_kinematics.core.kinematics import IcrParams
 from tracked_kinematics.offline.bags import GroundTruthSource, read_bags
 from tracked_kinematics.offline.cli.common import (
-    add_bags_argument, add_encoder_arguments, add_output_argument, add_sprocket_radius_argument,
-    encoder_source, HelpFormatter, names, non_negative, positive, run_main, write_report)
+    add_bags_argument, add_encoder_arguments, add_force_argument, add_output_argument,
+    add_sprocket_radius_argument, ArgumentParser, bounded, encoder_source, HelpFormatter, names,
+    report_json, run_main, TRACK_WIDTH, warn, warn_unknown_terrain_keys)
 from tracked_kinematics.offline.errors import UsageError
-from tracked_kinematics.offline.terrain_file import terrain_values, write_terrain_file
+from tracked_kinematics.offline.outputs import Outputs
+from tracked_kinematics.offline.terrain_file import terrain_text, terrain_values
 from tracked_kinematics.params import (
-    icr_from_values, positive as check_positive, read_params_file, TERRAIN_DEFAULTS,
+    check_values, icr_from_values, read_params_file, TERRAIN_DEFAULTS, TERRAIN_PARAMS,
     values_from_icr)
 
 PROG = 'identify_icr'
@@ -47,13 +51,16 @@ EPILOG = """examples:
 """
 
 
+_HEADING_WEIGHT = bounded(0.001, 1000.0, 'm/rad')
+
+
 def _heading_weight(text: str):
-    return None if text == 'auto' else positive(text)
+    return None if text == 'auto' else _HEADING_WEIGHT(text)
 
 
 def build_parser() -> argparse.ArgumentParser:
     """Return the command line of identify_icr."""
-    parser = argparse.ArgumentParser(
+    parser = ArgumentParser(
         prog=PROG, description=__doc__.split('\n\n')[1], epilog=EPILOG,
         formatter_class=HelpFormatter)
     add_bags_argument(parser)
@@ -65,7 +72,7 @@ def build_parser() -> argparse.ArgumentParser:
     add_encoder_arguments(enc)
     veh = parser.add_argument_group('vehicle')
     add_sprocket_radius_argument(veh)
-    veh.add_argument('--track-width', type=positive, default=None, metavar='L',
+    veh.add_argument('--track-width', type=TRACK_WIDTH, default=None, metavar='L',
                      help=f'm; default from --params, else {TERRAIN_DEFAULTS["track_width"]}')
     veh.add_argument('--params', default=None, metavar='BASE.yaml',
                      help='terrain file to start from: vehicle values, starting point, fixed '
@@ -75,9 +82,10 @@ def build_parser() -> argparse.ArgumentParser:
                     help='TFMessage: fixed frame (default: the only parent of the child)')
     gt.add_argument('--ground-truth-child-frame', default='base_link', metavar='FRAME',
                     help='TFMessage: the tracked frame')
-    gt.add_argument('--ground-truth-offset', type=float, nargs=3, default=(0.0, 0.0, 0.0),
-                    metavar=('X', 'Y', 'YAW'),
-                    help='pose of the tracked body in base_link (m, m, rad)')
+    gt.add_argument('--ground-truth-offset', type=bounded(-10.0, 10.0), nargs=3,
+                    default=(0.0, 0.0, 0.0), metavar=('X', 'Y', 'YAW'),
+                    help='pose of the tracked body in base_link (m, m, rad; each within '
+                    '+-10)')
     fit = parser.add_argument_group('fit')
     fit.add_argument('--model', choices=MODEL_CHOICES, default='icr_scales',
                      help='model to fit and write')
@@ -87,7 +95,8 @@ def build_parser() -> argparse.ArgumentParser:
     fit.add_argument('--spin-in-place', action='store_true',
                      help='instead of fitting segments, measure the steering efficiency of the '
                      'spin-in-place runs (Martinez eq. 16) and write the symmetric model')
-    fit.add_argument('--segment-length', type=non_negative, default=1.0, metavar='SECONDS',
+    fit.add_argument('--segment-length', type=bounded(0.01, 600.0, 's', zero=True), default=1.0,
+                     metavar='SECONDS',
                      help='segment duration; 0 cuts at every ground-truth sample')
     fit.add_argument('--heading-weight', type=_heading_weight,
                      default=ident.DEFAULT_HEADING_WEIGHT, metavar='M_PER_RAD|auto',
@@ -95,16 +104,17 @@ def build_parser() -> argparse.ArgumentParser:
                      'auto balances the noise of position and heading residuals')
     fit.add_argument('--loss', choices=ident.LOSSES, default='soft_l1',
                      help='robust loss against ground-truth glitches')
-    fit.add_argument('--min-travel', type=non_negative, default=0.01, metavar='M',
+    fit.add_argument('--min-travel', type=bounded(0.0, 100.0, 'm'), default=0.01, metavar='M',
                      help='segments whose tracks travel less are stationary and left out')
-    fit.add_argument('--max-nfev', type=int, default=None, metavar='N',
-                     help='evaluation budget of one optimisation round')
+    fit.add_argument('--max-nfev', type=bounded(0, 1_000_000, integer=True), default=None,
+                     metavar='N', help='evaluation budget of one optimisation round')
     ev = parser.add_argument_group('evaluation')
-    ev.add_argument('--holdout', type=float, default=0.2, metavar='FRACTION',
+    ev.add_argument('--holdout', type=bounded(0.0, 0.9), default=0.2, metavar='FRACTION',
                     help='fraction of time blocks held out to compare the models (0: none)')
-    ev.add_argument('--holdout-block', type=positive, default=30.0, metavar='SECONDS',
+    ev.add_argument('--holdout-block', type=bounded(1.0, 3600.0, 's'), default=30.0,
+                    metavar='SECONDS',
                     help='duration of a time block')
-    ev.add_argument('--window', type=positive, default=10.0, metavar='SECONDS',
+    ev.add_argument('--window', type=bounded(0.1, 3600.0, 's'), default=10.0, metavar='SECONDS',
                     help='duration of the held-out evaluation windows')
     ev.add_argument('--compare', type=names, default=','.join(ident.COMPARE_MODELS),
                     metavar='M1,M2',
@@ -116,6 +126,7 @@ def build_parser() -> argparse.ArgumentParser:
                      help='JSON report: values, chi, e, cost, error statistics')
     out.add_argument('--plot', default=None, metavar='OUT.png',
                      help='paths (ground truth, ideal, fitted) and residual distributions')
+    add_force_argument(out)
     return parser
 
 
@@ -125,12 +136,19 @@ def build_parser() -> argparse.ArgumentParser:
 def _vehicle(args):
     """Read the base terrain values and check the vehicle dimensions."""
     base_values = read_params_file(args.params) if args.params else {}
+    if args.params:
+        warn_unknown_terrain_keys(PROG, args.params, base_values)
     merged = {**TERRAIN_DEFAULTS, **{k: v for k, v in base_values.items()
                                      if k in TERRAIN_DEFAULTS}}
     if args.track_width is not None:
         merged['track_width'] = args.track_width
     if args.sprocket_radius is not None:
         merged['sprocket_radius'] = args.sprocket_radius
+    # The values the fallback below builds a model from: a number each (not 'abc').
+    problems = check_values([s for s in TERRAIN_PARAMS if s.name in (
+        'track_width', 'sprocket_radius', 'scale.left', 'scale.right')], merged)
+    if problems:
+        raise UsageError(f'{args.params or "vehicle"}: {"; ".join(problems)}')
     base = None
     if args.params:
         try:
@@ -143,10 +161,6 @@ def _vehicle(args):
                                  merged['scale.left'], merged['scale.right'])
             except ValueError as err:   # the user's track width or scales
                 raise UsageError(str(err)) from None
-    for name in ('track_width', 'sprocket_radius'):
-        value = merged[name]
-        if check_positive(value):
-            raise UsageError(f'{name} must be a finite number > 0, got {value!r}')
     return base_values, base, float(merged['track_width']), float(merged['sprocket_radius'])
 
 
@@ -274,9 +288,31 @@ def _print_table(result, recordings, out):
 # Main ----------------------------------------------------------------------------------
 
 
+def _outputs(args) -> Outputs:
+    """Check every output path before any work (docs/output-files.md)."""
+    outputs = Outputs(force=args.force)
+    outputs.add('--output', args.output)
+    outputs.add('--report', args.report)
+    if args.plot and args.spin_in_place:
+        warn(PROG, '--plot is not drawn with --spin-in-place')
+    elif args.plot:
+        from tracked_kinematics.offline.plots import check_format
+        outputs.add('--plot', args.plot)
+        check_format('--plot', args.plot)
+    outputs.refuse_inputs('BAG', args.bags)
+    # --output may update the terrain file it starts from (it exists: with --force).
+    outputs.refuse_inputs('--params', [args.params], allow=('--output',))
+    return outputs
+
+
 def _run(args, out) -> int:
-    if not 0.0 <= args.holdout < 1.0:
-        raise UsageError(f'--holdout must be in [0, 1), got {args.holdout}')
+    with _outputs(args) as outputs:
+        _identify(args, out, outputs)
+    print(f'wrote {", ".join(str(p) for p in outputs.targets)}', file=out)
+    return 0
+
+
+def _identify(args, out, outputs) -> None:
     unknown = [m for m in args.compare if m not in ident.COMPARE_MODELS]
     if unknown:
         raise UsageError(f'--compare: unknown model {", ".join(unknown)}; choose from '
@@ -337,18 +373,16 @@ def _run(args, out) -> int:
         note = (f'The {args.model} model has no constant ICRs: icr.* and scale.* are the '
                 f'{values["identification.icr_source"]} fit of the same data;\nthe '
                 f'{args.model} parameters are under identification.parameters.')
-    write_terrain_file(args.output, values, tool=PROG, date=date, note=note)
-    if args.report:
-        write_report(args.report, report)
-    if args.plot and not args.spin_in_place:
+    outputs.write_text('--output', terrain_text(values, tool=PROG, date=date, note=note))
+    if '--report' in outputs:
+        outputs.write_text('--report', report_json(report))
+    if '--plot' in outputs:
         from tracked_kinematics.offline.plots import plot_identification
         # The moving segments the fit used: those of --min-travel.
         segments = ident.build_segments(recordings, result.segment_length)
-        plot_identification(args.plot, recordings, result,
-                            segments.select(segments.travel >= args.min_travel))
-    print(f'wrote {args.output}' + (f', {args.report}' if args.report else '')
-          + (f', {args.plot}' if args.plot and not args.spin_in_place else ''), file=out)
-    return 0
+        with outputs.path('--plot') as tmp:
+            plot_identification(tmp, recordings, result,
+                                segments.select(segments.travel >= args.min_travel))
 
 
 def main(argv=None) -> int:

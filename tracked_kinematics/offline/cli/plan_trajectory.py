@@ -9,8 +9,11 @@ turns back into the same setpoints. ``--plot`` draws the planned path next to th
 truth-like dynamic simulator drives with the same commands. ``--compare`` reproduces the
 comparison of Fink & Stump Table VI on the simulated vehicle.
 
-Exit status: 0 planned; 1 no plan (goal out of reach, or missed by more than the tolerance:
-nothing is written); 2 bad input.
+Exit status: 0 planned; 1 no plan (goal out of reach within the horizon, or missed by more
+than the tolerance, also when the optimiser stopped at ``--time-limit``: nothing is written);
+2 bad input (an option out of its range, a file, an output path that may not be written);
+130 / 143 interrupted. The outputs are written together at the end or not at all
+(docs/output-files.md).
 
 Documentation: docs/tools/plan_trajectory.md.
 """
@@ -18,25 +21,32 @@ Documentation: docs/tools/plan_trajectory.md.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import math
-import os
-from pathlib import Path
 import sys
 
 import numpy as np
-from rosbags.rosbag2 import WriterError
+from tracked_kinematics.core.errors import TrackedKinematicsError
 from tracked_kinematics.core.kinematics import IcrParams
 from tracked_kinematics.core.plan import CANONICAL, canonical, Plan, Planner
 from tracked_kinematics.core.sim.simulation import TwistTable
-from tracked_kinematics.offline.cli.common import positive
+from tracked_kinematics.offline.cli.common import (
+    add_force_argument, ArgumentParser, bounded, run_main, warn, warn_unknown_terrain_keys)
 from tracked_kinematics.offline.errors import UsageError
+from tracked_kinematics.offline.outputs import Outputs
 from tracked_kinematics.offline.planning import (
-    compare, execute, final_error, identify_on_sweep, limits_from, model_from_terrain, MODELS,
-    write_bag, write_csv)
-from tracked_kinematics.offline.vehicle_file import load_vehicle
+    compare, csv_text, execute, final_error, identify_on_sweep, limits_from, model_from_terrain,
+    MODELS, write_bag)
+from tracked_kinematics.offline.vehicle_file import load_vehicle, vehicle_path
 from tracked_kinematics.params import icr_from_values, read_params_file
 
 PROG = 'plan_trajectory'
+MAX_HORIZON = 30.0
+"""Longest horizon, s: 75 knots per track, a plan in well under a minute."""
+MIN_HORIZON = 0.8
+"""Shortest horizon, s: two knots (0.4 s apart)."""
+TIME_LIMIT = 60.0
+"""Default ``--time-limit`` of the optimiser, s."""
 
 
 # Output --------------------------------------------------------------------------------
@@ -61,24 +71,9 @@ def print_plan(plan: Plan, icr: IcrParams, out=sys.stdout) -> None:
 # Command line --------------------------------------------------------------------------
 
 
-def _finite(text):
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f'expected a number, got {text!r}') from None
-    if not math.isfinite(value):
-        raise argparse.ArgumentTypeError(f'expected a finite number, got {text!r}')
-    return value
-
-
-class _Parser(argparse.ArgumentParser):
-    def error(self, message):
-        self.exit(2, f'{self.prog}: {message}\n')
-
-
 def build_parser() -> argparse.ArgumentParser:
     """Argument parser of ``plan_trajectory``."""
-    parser = _Parser(
+    parser = ArgumentParser(
         prog=PROG, formatter_class=argparse.RawDescriptionHelpFormatter,
         description='Plan track-speed commands that bring a tracked robot to a goal pose (or '
                     'along a canonical trajectory of Fink & Stump Table V) through a motion '
@@ -91,8 +86,8 @@ def build_parser() -> argparse.ArgumentParser:
                '--vehicle packbot --bag left_bag\n'
                '  plan_trajectory --compare --vehicle packbot      # Table VI on the simulator')
     what = parser.add_mutually_exclusive_group(required=True)
-    what.add_argument('--goal', nargs=3, type=_finite, metavar=('X', 'Y', 'YAW'),
-                      help='goal pose from the start pose: m, m, rad')
+    what.add_argument('--goal', nargs=3, type=bounded(-1000.0, 1000.0), metavar=('X', 'Y', 'YAW'),
+                      help='goal pose from the start pose: m, m, rad (each within +-1000)')
     what.add_argument('--canonical', choices=CANONICAL,
                       help='follow a canonical trajectory (Table V and ours)')
     what.add_argument('--compare', action='store_true',
@@ -107,23 +102,30 @@ def build_parser() -> argparse.ArgumentParser:
                         help='vehicle YAML or shipped name (auriga_alpha, packbot): drive '
                              'train, and the dynamic simulator of --plot (default '
                              'auriga_alpha)')
-    parser.add_argument('--horizon', type=positive, default=None,
-                        help='time to the goal, s (default 3 s + distance / half the max '
-                             'track speed; canonical: its own duration)')
-    parser.add_argument('--speed', type=positive, default=None,
-                        help='travelling speed of a canonical trajectory, m/s (default half '
-                             'the max track speed: 1 m/s on the packbot as in Table V)')
-    parser.add_argument('--max-track-speed', type=positive, default=None,
-                        help="largest track setpoint, m/s (default: the terrain file's "
-                             "max_track_speed, else the vehicle's)")
-    parser.add_argument('--max-track-accel', type=positive, default=None,
-                        help='largest track setpoint change, m/s^2 (default: the terrain '
-                             "file's max_track_accel, else the vehicle's)")
-    parser.add_argument('--dt', type=positive, default=0.02,
-                        help='command period, s (default 0.02: the translator at 50 Hz)')
-    parser.add_argument('--tolerance', nargs=2, type=positive, default=(0.05, 0.05),
+    parser.add_argument('--horizon', type=bounded(MIN_HORIZON, MAX_HORIZON, 's'), default=None,
+                        help=f'time to the goal, s, {MIN_HORIZON:g}-{MAX_HORIZON:g} (default 3 s '
+                             '+ distance / half the max track speed, at most '
+                             f'{MAX_HORIZON:g} s; canonical: its own duration)')
+    parser.add_argument('--speed', type=bounded(0.01, 10.0, 'm/s'), default=None,
+                        help='travelling speed of a canonical trajectory, m/s, 0.01-10 (default '
+                             'half the max track speed: 1 m/s on the packbot as in Table V)')
+    parser.add_argument('--max-track-speed', type=bounded(0.01, 10.0, 'm/s'), default=None,
+                        help='largest track setpoint, m/s, 0.01-10 (default: the terrain '
+                             "file's max_track_speed, else the vehicle's)")
+    parser.add_argument('--max-track-accel', type=bounded(0.01, 100.0, 'm/s^2'), default=None,
+                        help='largest track setpoint change, m/s^2, 0.01-100 (default: the '
+                             "terrain file's max_track_accel, else the vehicle's)")
+    parser.add_argument('--dt', type=bounded(0.005, 0.1, 's'), default=0.02,
+                        help='command period, s, 0.005-0.1 (default 0.02: the translator at '
+                             '50 Hz)')
+    parser.add_argument('--tolerance', nargs=2, type=bounded(0.001, 10.0), default=(0.05, 0.05),
                         metavar=('METRES', 'RADIANS'),
-                        help='final pose tolerance of a successful plan (default 0.05 0.05)')
+                        help='final pose tolerance of a successful plan, each 0.001-10 '
+                             '(default 0.05 0.05)')
+    parser.add_argument('--time-limit', type=bounded(1.0, 3600.0, 's'), default=TIME_LIMIT,
+                        metavar='SECONDS',
+                        help='the optimiser stops after this long with its best plan, which '
+                             f'must still meet the tolerance (default {TIME_LIMIT:g})')
     parser.add_argument('--csv', help='write the setpoints, cmd_vel and planned poses here')
     parser.add_argument('--bag', help='write a rosbag2 of geometry_msgs/Twist on /cmd_vel '
                                       'here (a directory that must not exist)')
@@ -131,14 +133,12 @@ def build_parser() -> argparse.ArgumentParser:
                         help='bag storage (default sqlite3)')
     parser.add_argument('--plot', help='PNG of the planned path against the path simulated '
                                        'with the dynamic model of --vehicle')
+    add_force_argument(parser)
     return parser
 
 
 def _load(args):
-    try:
-        vehicle = load_vehicle(args.vehicle)
-    except (OSError, ValueError) as err:
-        raise UsageError(str(err)) from None
+    vehicle = load_vehicle(args.vehicle)
     if args.compare:
         return vehicle, None, {}
     if not args.params:
@@ -146,87 +146,114 @@ def _load(args):
     try:
         values = read_params_file(args.params)
         icr = icr_from_values(values)
-    except (OSError, ValueError) as err:
-        raise UsageError(f'{args.params}: {err}') from None
+    except (OSError, TrackedKinematicsError) as err:
+        message = err.strerror if isinstance(err, OSError) and err.strerror else err
+        raise UsageError(f'{args.params}: {message}') from None
+    warn_unknown_terrain_keys(PROG, args.params, values)
     return vehicle, icr, values
 
 
-def _check_outputs(args):
-    for option in ('csv', 'plot'):
-        path = getattr(args, option)
-        if path and not Path(path).resolve().parent.is_dir():
-            raise UsageError(f'--{option}: no directory {str(Path(path).parent)!r}')
-    if args.bag and os.path.exists(args.bag):
-        raise UsageError(f'--bag: {args.bag!r} exists; give a new directory')
-    if args.bag and not Path(args.bag).resolve().parent.is_dir():
-        raise UsageError(f'--bag: no directory {str(Path(args.bag).parent)!r}')
+def _outputs(args) -> Outputs:
+    """Check every output path before any work (docs/output-files.md)."""
+    outputs = Outputs(force=args.force)
+    if args.compare:
+        for flag in ('csv', 'bag', 'plot'):
+            if getattr(args, flag):
+                raise UsageError(f'--{flag} is not written with --compare')
+        return outputs
+    outputs.add('--csv', args.csv)
+    outputs.add('--bag', args.bag, directory=True)
+    if args.plot:
+        from tracked_kinematics.offline.plots import check_format
+        outputs.add('--plot', args.plot)
+        check_format('--plot', args.plot)
+    outputs.refuse_inputs('--params', [args.params])
+    outputs.refuse_inputs('--vehicle', [vehicle_path(args.vehicle)])
+    return outputs
 
 
-def main(argv=None) -> int:
-    """Run ``plan_trajectory``; return the exit status."""
-    args = build_parser().parse_args(argv)
-    try:
-        _check_outputs(args)
+def _plan(args, planner, speed):
+    """Plan to the goal or along the canonical trajectory; refuse what the bounds exclude."""
+    if args.canonical:
+        ref = canonical(args.canonical, dt=args.dt, speed=speed)   # 3-6 s each
+        return ref, planner.follow(ref, tolerance=args.tolerance, time_limit=args.time_limit)
+    goal = np.asarray(args.goal)
+    horizon = args.horizon
+    if horizon is None:
+        horizon = 3.0 + math.hypot(*goal[:2]) / (0.5 * planner.max_speed)
+        horizon = min(horizon, MAX_HORIZON)
+    plan = planner.plan_to(goal, horizon, tolerance=args.tolerance,
+                           time_limit=args.time_limit)
+    if not plan.success and 'stopped at its time limit' in plan.message:
+        plan = dataclasses.replace(plan, message=plan.message + (
+            ': give a larger --time-limit, a shorter --horizon or a nearer goal'))
+    if not plan.success and args.horizon is None and horizon == MAX_HORIZON:
+        plan = dataclasses.replace(plan, message=plan.message.replace(
+            'give a longer horizon or a nearer goal',
+            f'the horizon is at most {MAX_HORIZON:g} s: give a nearer goal'))
+    return None, plan
+
+
+def _run(args, out) -> int:
+    with _outputs(args) as outputs:
         vehicle, icr, values = _load(args)
         robot = vehicle.robot
         limits = limits_from(values, robot, args.max_track_speed, args.max_track_accel)
         speed = args.speed or 0.5 * min(limits.max_track_speed, robot.drivetrain.max_speed)
         if args.compare:
-            return _compare(robot, vehicle.name, limits, speed, args.dt)
+            return _compare(robot, vehicle.name, limits, speed, args.dt, out)
         model, p = model_from_terrain(args.model, icr, values)
         if abs(model.track_width - robot.vehicle.track_width) > 1e-6 and args.plot:
-            print(f'{PROG}: note: the terrain track width {model.track_width} m differs '
-                  f"from the vehicle's {robot.vehicle.track_width} m", file=sys.stderr)
+            warn(PROG, f'note: the terrain track width {model.track_width} m differs from '
+                       f"the vehicle's {robot.vehicle.track_width} m")
         planner = Planner(model, p, robot.drivetrain, limits, command_icr=icr, dt=args.dt)
-        ref = None
-        if args.canonical:
-            ref = canonical(args.canonical, dt=args.dt, speed=speed)
-            plan = planner.follow(ref, tolerance=args.tolerance)
-        else:
-            goal = np.asarray(args.goal)
-            horizon = args.horizon or 3.0 + math.hypot(*goal[:2]) / (0.5 * planner.max_speed)
-            plan = planner.plan_to(goal, horizon, tolerance=args.tolerance)
-    except (UsageError, ValueError) as err:
-        print(f'{PROG}: {err}', file=sys.stderr)
-        return 2
-    if not plan.success:
-        print(f'{PROG}: {plan.message}; nothing written', file=sys.stderr)
-        return 1
-    print_plan(plan, icr)
-    print(plan.message)
-    try:
-        if args.csv:
-            write_csv(args.csv, plan, icr)
-            print(f'csv   {args.csv}')
-        if args.bag:
-            count = write_bag(args.bag, plan, icr, args.storage)
-            print(f'bag   {args.bag} ({count} geometry_msgs/Twist on /cmd_vel, {args.storage})')
-        if args.plot:
+        ref, plan = _plan(args, planner, speed)
+        if not plan.success:
+            print(f'{PROG}: {plan.message}; nothing written', file=sys.stderr)
+            return 1
+        print_plan(plan, icr, out)
+        print(plan.message, file=out)
+        if '--csv' in outputs:
+            outputs.write_text('--csv', csv_text(plan, icr))
+        if '--bag' in outputs:
+            with outputs.path('--bag') as tmp:
+                count = write_bag(tmp, plan, icr, args.storage)
+        if '--plot' in outputs:
             table = TwistTable(robot.vehicle)
             driven = execute(robot, plan, table)
             pos, yaw = final_error(driven, plan.goal)
             print(f'simulated with the dynamics of {vehicle.name}: final pose {pos * 100:.1f} '
-                  f'cm and {math.degrees(yaw):.1f} deg from the goal')
+                  f'cm and {math.degrees(yaw):.1f} deg from the goal', file=out)
             title = (f'{args.canonical or "goal"}: {plan.model} model, vehicle '
                      f'{vehicle.name}; simulated final error {pos * 100:.1f} cm')
             from tracked_kinematics.offline.plots import plot_plan
-            plot_plan(args.plot, plan, driven, ref, title)
-            print(f'plot  {args.plot}')
-    except (OSError, WriterError) as err:
-        print(f'{PROG}: cannot write: {err}', file=sys.stderr)
-        return 2
+            with outputs.path('--plot') as tmp:
+                plot_plan(tmp, plan, driven, ref, title)
+    if '--csv' in outputs:
+        print(f'csv   {args.csv}', file=out)
+    if '--bag' in outputs:
+        print(f'bag   {args.bag} ({count} geometry_msgs/Twist on /cmd_vel, {args.storage})',
+              file=out)
+    if '--plot' in outputs:
+        print(f'plot  {args.plot}', file=out)
     return 0
 
 
-def _compare(robot, name, limits, speed, dt) -> int:
+def main(argv=None) -> int:
+    """Run ``plan_trajectory``; return the exit status (see the module docstring)."""
+    return run_main(PROG, _run, build_parser().parse_args(argv))
+
+
+def _compare(robot, name, limits, speed, dt, out=sys.stdout) -> int:
     table = TwistTable(robot.vehicle)
     models = identify_on_sweep(robot, table, dt)
-    print(f'vehicle {name}: models fitted on a simulated Fink & Stump sweep')
+    print(f'vehicle {name}: models fitted on a simulated Fink & Stump sweep', file=out)
     for short, (model, p) in models.items():
-        print(f'  {short:<10}{", ".join(f"{v:.4f}" for v in p) or "(no parameter)"}')
+        print(f'  {short:<10}{", ".join(f"{v:.4f}" for v in p) or "(no parameter)"}',
+              file=out)
     print(f'canonical trajectories at {speed:g} m/s, executed on the dynamic simulator: final '
-          'position / heading error, and the max path deviation (Table VI)')
-    compare(robot, table, models, limits, speed, dt)
+          'position / heading error, and the max path deviation (Table VI)', file=out)
+    compare(robot, table, models, limits, speed, dt, out=out)
     return 0
 
 

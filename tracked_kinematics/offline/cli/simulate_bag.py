@@ -12,6 +12,11 @@ terrain format (a valid ``--params-file``): the ground truth an identification s
 Python API for scripts and demos: :func:`simulate_bag` does it all in one call;
 :func:`write_run` records any :class:`~tracked_kinematics.core.sim.simulation.Run`.
 
+Exit status: 0 success; 2 bad input (vehicle, option, an output path that may not be
+written, a file that cannot be written); 130 / 143 interrupted. The bag is written to a
+hidden temporary directory and renamed when closed, the truth file likewise, both at the end
+or neither (docs/output-files.md).
+
 Documentation: docs/tools/simulate_bag.md.
 """
 
@@ -19,6 +24,7 @@ from __future__ import annotations
 
 import argparse
 from collections.abc import Mapping, Sequence
+import contextlib
 from dataclasses import dataclass
 import math
 import os
@@ -27,21 +33,30 @@ import sys
 from typing import Any
 
 import numpy as np
-from rosbags.rosbag1 import WriterError as Rosbag1WriterError
-from rosbags.rosbag2 import WriterError as Rosbag2WriterError
+from tracked_kinematics.core.errors import InvalidParameters
 from tracked_kinematics.core.kinematics import IcrParams
 from tracked_kinematics.core.sim.manoeuvres import manoeuvre, MANOEUVRES
 from tracked_kinematics.core.sim.simulation import GroundTruth, Run, simulate, TwistTable
 from tracked_kinematics.offline.bags import BagWriter, STORAGES
+from tracked_kinematics.offline.cli.common import (
+    add_force_argument, ArgumentParser, bounded, run_main, SEED)
+from tracked_kinematics.offline.errors import UsageError
+from tracked_kinematics.offline.outputs import Outputs
 from tracked_kinematics.offline.vehicle_file import (
-    add_vehicle_arguments, fixed, load_vehicle, overrides_from_args, VehicleFile)
-from tracked_kinematics.params import values_from_icr, write_params_file
+    add_vehicle_arguments, fixed, load_vehicle, overrides_from_args, vehicle_path, VehicleFile)
+from tracked_kinematics.params import params_text, values_from_icr
 
 PROG = 'simulate_bag'
 JOINTS = ('left_sprocket_joint', 'right_sprocket_joint')
 START_NS = 1_700_000_000 * 1_000_000_000
 """Stamp of the first sample (fixed, so that the same seed gives the same messages)."""
 GROUND_TRUTH_TOPICS = {'pose': '/ground_truth/pose', 'odometry': '/ground_truth/odom'}
+MAX_SAMPLES = 1_000_000
+"""Most encoder or ground-truth samples of one run (2.8 h at 100 Hz), checked before any work."""
+RATES = {'rate': (1.0, 2000.0), 'setpoint_rate': (1.0, 2000.0), 'gt_rate': (0.1, 1000.0)}
+"""Ranges of the rates, Hz."""
+MAX_DURATION = 36000.0
+"""Longest run, s (10 h; and at most :data:`MAX_SAMPLES`)."""
 
 
 @dataclass(frozen=True)
@@ -118,7 +133,7 @@ def write_run(path: str | os.PathLike, run: Run, storage: str = 'sqlite3',
 
     """
     if ground_truth not in GROUND_TRUTH_TOPICS:
-        raise ValueError(f'ground_truth must be one of {", ".join(GROUND_TRUTH_TOPICS)}, '
+        raise UsageError(f'ground_truth must be one of {", ".join(GROUND_TRUTH_TOPICS)}, '
                          f'got {ground_truth!r}')
     gt_topic = ground_truth_topic or GROUND_TRUTH_TOPICS[ground_truth]
     dt = float(run.t[1] - run.t[0])
@@ -171,15 +186,19 @@ def simulate_bag(output: str | os.PathLike, vehicle: str | os.PathLike = 'auriga
                  gt_position_noise: float = 0.002, gt_yaw_noise: float = 0.002,
                  ground_truth: str = 'pose', ground_truth_topic: str | None = None,
                  storage: str = 'sqlite3', truth: str | os.PathLike | None = None,
-                 table: TwistTable | None = None) -> SimulatedBag:
+                 table: TwistTable | None = None, force: bool = False,
+                 parents: bool = True) -> SimulatedBag:
     """
     Simulate a run of a vehicle, write it as a bag and its true ICR model as YAML.
+
+    Both outputs are checked before the simulation and written through
+    :class:`~tracked_kinematics.offline.outputs.Outputs`: the bag to a hidden temporary
+    directory renamed when it is closed, the YAML atomically, both at the end or neither.
 
     Parameters
     ----------
     output : path-like
         Bag to create (must not exist): a rosbag2 directory, or ``X.bag`` for rosbag1.
-        Missing parent directories are created.
     vehicle : str or path-like
         Vehicle file, or a shipped vehicle's name (``auriga_alpha``, ``packbot``).
     overrides : mapping, optional
@@ -187,11 +206,11 @@ def simulate_bag(output: str | os.PathLike, vehicle: str | os.PathLike = 'auriga
     manoeuvres : {'random', 'sweep', 'spin', 'mixed'}
         Manoeuvre set (:mod:`tracked_kinematics.core.sim.manoeuvres`).
     duration : float
-        Length of the run, s.
+        Length of the run, s (at most :data:`MAX_DURATION`).
     seed : int
-        Seed of every random choice (manoeuvres, sensor noise).
+        Seed of every random choice (manoeuvres, sensor noise), >= 0.
     rate : float
-        Encoder (JointState) rate and simulation rate, Hz.
+        Encoder (JointState) rate and simulation rate, Hz (:data:`RATES`).
     setpoint_rate : float
         Command rate, Hz: commands are generated and recorded at this rate and held.
     gt_rate : float
@@ -208,6 +227,10 @@ def simulate_bag(output: str | os.PathLike, vehicle: str | os.PathLike = 'auriga
         Where to write the true model (default :func:`truth_path` of the bag).
     table : TwistTable, optional
         Precomputed dynamics of this vehicle, to reuse across calls.
+    force : bool
+        Replace an existing truth file (never an existing bag).
+    parents : bool
+        Create missing parent directories of the bag (the command line does not).
 
     Returns
     -------
@@ -215,50 +238,102 @@ def simulate_bag(output: str | os.PathLike, vehicle: str | os.PathLike = 'auriga
 
     Raises
     ------
-    FileNotFoundError, ValueError, FileExistsError
-        For a missing vehicle, invalid parameters or an existing output.
+    FileNotFoundError, InvalidParameters, UsageError, OutputError
+        For a missing vehicle, invalid parameters or settings, or an output that may not be
+        written (an existing bag, an existing truth file without ``force``, a link).
 
     """
     output = Path(output)
     if storage not in STORAGES:
-        raise ValueError(f'storage must be one of {", ".join(STORAGES)}, got {storage!r}')
+        raise UsageError(f'storage must be one of {", ".join(STORAGES)}, got {storage!r}')
     if storage == 'rosbag1' and output.suffix != '.bag':
-        raise ValueError(f'a ROS 1 bag needs a .bag file name, got {os.fspath(output)!r}')
-    if output.exists():
-        raise FileExistsError(f'{output} already exists; choose another output or remove it')
-    for name, value in (('rate', rate), ('setpoint_rate', setpoint_rate), ('gt_rate', gt_rate)):
-        if not (math.isfinite(value) and value > 0):
-            raise ValueError(f'{name} must be a finite number > 0 Hz, got {value!r}')
-    if setpoint_rate > rate:
-        raise ValueError(f'setpoint_rate ({setpoint_rate} Hz) must not exceed the encoder rate '
-                         f'({rate} Hz)')
-    spec = load_vehicle(vehicle, overrides)
-    robot, veh = spec.robot, spec.robot.vehicle
-    rng = np.random.default_rng(seed)
-    dt = 1.0 / rate
-    # Commands at the setpoint rate, held between setpoints, sampled at the encoder rate.
-    cmd = manoeuvre(manoeuvres, duration, 1.0 / setpoint_rate, veh.track_width,
-                    veh.max_track_speed, rng)
-    n = max(2, int(round(duration * rate)) + 1)
-    held = np.minimum(np.floor(np.arange(n) * (dt * setpoint_rate) + 1e-9).astype(int),
-                      len(cmd) - 1)
-    table = table if table is not None else TwistTable(veh)
-    run = simulate(robot, cmd[held], dt, table,
-                   GroundTruth(gt_rate, gt_position_noise, gt_yaw_noise), rng)
-    output.parent.mkdir(parents=True, exist_ok=True)
-    counts = write_run(output, run, storage, setpoint_rate, ground_truth, ground_truth_topic)
-    icr = robot.true_icr()
+        raise UsageError(f'a ROS 1 bag needs a .bag file name, got {os.fspath(output)!r}')
+    check_settings(duration, rate, setpoint_rate, gt_rate)
     truth = Path(truth) if truth is not None else truth_path(output)
-    write_params_file(truth, truth_values(spec, icr, run, {
-        'bag': output.name, 'manoeuvres': manoeuvres, 'duration': float(duration),
-        'seed': int(seed), 'rate': float(rate), 'setpoint_rate': float(setpoint_rate),
-        'gt_rate': float(gt_rate), 'gt_position_noise': float(gt_position_noise),
-        'gt_yaw_noise': float(gt_yaw_noise)}), comment=(
-        f'True kinematic model of the simulated {spec.name} on {spec.terrain}: tread ICRs\n'
-        'averaged over the 21 x 21 stationary ICR map (Martinez et al. 2005, sec. 5.2) and\n'
-        'the simulated encoder scales. run_fit: the constant ICRs that best explain this\n'
-        f"run's true motion. Written by {PROG}; valid as --params-file."))
+    created = []
+    if parents:
+        missing = [p for p in (output.parent, *output.parent.parents) if not p.exists()]
+        for parent in reversed(missing):
+            parent.mkdir()
+            created.append(parent)
+    try:
+        with Outputs(force=force) as out:
+            out.add('OUT', output, directory=True)
+            out.add('--truth', truth)
+            out.refuse_inputs('--vehicle', [vehicle_path(vehicle)])
+            spec = load_vehicle(vehicle, overrides)
+            robot, veh = spec.robot, spec.robot.vehicle
+            rng = np.random.default_rng(seed)
+            dt = 1.0 / rate
+            # Commands at the setpoint rate, held between setpoints, sampled at the encoder
+            # rate.
+            cmd = manoeuvre(manoeuvres, duration, 1.0 / setpoint_rate, veh.track_width,
+                            veh.max_track_speed, rng)
+            n = max(2, int(round(duration * rate)) + 1)
+            held = np.minimum(np.floor(np.arange(n) * (dt * setpoint_rate) + 1e-9).astype(int),
+                              len(cmd) - 1)
+            if table is None:
+                try:
+                    table = TwistTable(veh)
+                except RuntimeError as err:   # the stationary solver fails for this vehicle
+                    raise InvalidParameters(f'{spec.path}: {err}') from None
+            run = simulate(robot, cmd[held], dt, table,
+                           GroundTruth(gt_rate, gt_position_noise, gt_yaw_noise), rng)
+            with out.path('OUT') as tmp:
+                counts = write_run(tmp, run, storage, setpoint_rate, ground_truth,
+                                   ground_truth_topic)
+            icr = robot.true_icr()
+            out.write_text('--truth', params_text(truth_values(spec, icr, run, {
+                'bag': output.name, 'manoeuvres': manoeuvres, 'duration': float(duration),
+                'seed': int(seed), 'rate': float(rate), 'setpoint_rate': float(setpoint_rate),
+                'gt_rate': float(gt_rate), 'gt_position_noise': float(gt_position_noise),
+                'gt_yaw_noise': float(gt_yaw_noise)}), comment=(
+                f'True kinematic model of the simulated {spec.name} on {spec.terrain}: tread '
+                'ICRs\naveraged over the 21 x 21 stationary ICR map (Martinez et al. 2005, '
+                'sec. 5.2) and\nthe simulated encoder scales. run_fit: the constant ICRs that '
+                "best explain this\nrun's true motion. Written by "
+                f'{PROG}; valid as --params-file.')))
+    except BaseException:
+        for parent in reversed(created):
+            with contextlib.suppress(OSError):
+                parent.rmdir()
+        raise
     return SimulatedBag(output, truth, icr, run, counts, spec)
+
+
+def check_settings(duration: float, rate: float, setpoint_rate: float = 1.0,
+                   gt_rate: float = 1.0) -> None:
+    """
+    Check the length and rates of a run before any work: ranges and sample counts.
+
+    Raises
+    ------
+    UsageError
+        Naming the option (``--duration``, ``--rate``, ``--setpoint-rate``, ``--gt-rate``).
+
+    """
+    for name, value in (('duration', duration), ('rate', rate),
+                        ('setpoint_rate', setpoint_rate), ('gt_rate', gt_rate)):
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or \
+                not math.isfinite(value):
+            raise UsageError(f'--{name.replace("_", "-")} must be a finite number, got '
+                             f'{value!r}')
+    if not 0.0 < duration <= MAX_DURATION:
+        raise UsageError(f'--duration must be in (0, {MAX_DURATION:g}] s, got {duration!r}')
+    for name, (low, high) in RATES.items():
+        value = {'rate': rate, 'setpoint_rate': setpoint_rate, 'gt_rate': gt_rate}[name]
+        if not low <= value <= high:
+            raise UsageError(f'--{name.replace("_", "-")} must be in [{low:g}, {high:g}] Hz, '
+                             f'got {value!r}')
+    if setpoint_rate > rate:
+        raise UsageError(f'--setpoint-rate ({setpoint_rate:g} Hz) must not exceed the encoder '
+                         f'rate ({rate:g} Hz)')
+    for flag, value in (('--rate', rate), ('--gt-rate', gt_rate)):
+        samples = duration * value
+        if samples > MAX_SAMPLES:
+            raise UsageError(f'--duration {duration:g} s at {flag} {value:g} Hz is '
+                             f'{samples:,.0f} samples (at most {MAX_SAMPLES:,}); shorten '
+                             f'--duration or lower {flag}')
 
 
 def truth_values(spec: VehicleFile, icr: IcrParams, run: Run,
@@ -282,7 +357,7 @@ def truth_values(spec: VehicleFile, icr: IcrParams, run: Run,
 
 def build_parser() -> argparse.ArgumentParser:
     """Argument parser of ``simulate_bag``."""
-    parser = argparse.ArgumentParser(
+    parser = ArgumentParser(
         prog=PROG, formatter_class=argparse.ArgumentDefaultsHelpFormatter,
         description='Simulate a tracked vehicle (stationary track-soil dynamics, drive train, '
                     'encoders, ground truth) and write the run as a bag, with the true ICR '
@@ -293,29 +368,35 @@ def build_parser() -> argparse.ArgumentParser:
                '  simulate_bag turf --vehicle packbot --mu-y 0.9 --terrain turf '
                '--ground-truth odometry --storage mcap')
     parser.add_argument('output', help='bag to create: a rosbag2 directory, or X.bag with '
-                                       '--storage rosbag1 (must not exist)')
+                                       '--storage rosbag1 (must not exist; its directory must)')
     add_vehicle_arguments(parser.add_argument_group('vehicle and terrain'))
     run = parser.add_argument_group('run')
     run.add_argument('--manoeuvres', choices=MANOEUVRES, default='mixed',
                      help='random: manual-like driving; sweep: Fink & Stump speed x curvature '
                           'grid; spin: spins in place; mixed: all three')
-    run.add_argument('--duration', type=float, default=180.0, help='length of the run, s')
-    run.add_argument('--seed', type=int, default=0, help='seed of every random choice')
+    run.add_argument('--duration', type=bounded(0.1, MAX_DURATION, 's'), default=180.0,
+                     help=f'length of the run, s, 0.1-{MAX_DURATION:g} (and at most '
+                          f'{MAX_SAMPLES:,} samples at --rate and --gt-rate)')
+    run.add_argument('--seed', type=SEED, default=0, help='seed of every random choice')
     sensors = parser.add_argument_group('sensors')
-    sensors.add_argument('--rate', type=float, default=100.0,
-                         help='encoder (joint_states) and simulation rate, Hz')
-    sensors.add_argument('--setpoint-rate', type=float, default=50.0,
-                         help='rate of the track speed commands, Hz')
-    sensors.add_argument('--ticks-per-rev', type=float, default=argparse.SUPPRESS,
+    sensors.add_argument('--rate', type=bounded(*RATES['rate'], 'Hz'), default=100.0,
+                         help='encoder (joint_states) and simulation rate, Hz, 1-2000')
+    sensors.add_argument('--setpoint-rate', type=bounded(*RATES['setpoint_rate'], 'Hz'),
+                         default=50.0, help='rate of the track speed commands, Hz, 1-2000 '
+                                            '(at most --rate)')
+    sensors.add_argument('--ticks-per-rev', type=bounded(0.0, 1e9), default=argparse.SUPPRESS,
                          help='encoder ticks per sprocket revolution, 0 for none (overrides '
                               'the file)')
-    sensors.add_argument('--encoder-noise', type=float, default=argparse.SUPPRESS,
-                         help='white noise on the joint velocities, rad/s (overrides the file)')
-    sensors.add_argument('--gt-rate', type=float, default=10.0, help='ground-truth rate, Hz')
-    sensors.add_argument('--gt-noise-xy', type=float, default=0.002,
-                         help='ground-truth position noise (standard deviation), m')
-    sensors.add_argument('--gt-noise-yaw', type=float, default=0.002,
-                         help='ground-truth heading noise (standard deviation), rad')
+    sensors.add_argument('--encoder-noise', type=bounded(0.0, 100.0, 'rad/s'),
+                         default=argparse.SUPPRESS,
+                         help='white noise on the joint velocities, rad/s, 0-100 (overrides '
+                              'the file)')
+    sensors.add_argument('--gt-rate', type=bounded(*RATES['gt_rate'], 'Hz'), default=10.0,
+                         help='ground-truth rate, Hz, 0.1-1000')
+    sensors.add_argument('--gt-noise-xy', type=bounded(0.0, 1.0, 'm'), default=0.002,
+                         help='ground-truth position noise (standard deviation), m, 0-1')
+    sensors.add_argument('--gt-noise-yaw', type=bounded(0.0, 1.0, 'rad'), default=0.002,
+                         help='ground-truth heading noise (standard deviation), rad, 0-1')
     output = parser.add_argument_group('output')
     output.add_argument('--ground-truth', choices=tuple(GROUND_TRUTH_TOPICS), default='pose',
                         help='ground truth as geometry_msgs/PoseStamped or nav_msgs/Odometry')
@@ -325,36 +406,38 @@ def build_parser() -> argparse.ArgumentParser:
     output.add_argument('--storage', choices=STORAGES, default='sqlite3', help='bag format')
     output.add_argument('--truth', default=argparse.SUPPRESS,
                         help='where to write the true ICR model (default OUT.truth.yaml)')
+    add_force_argument(output)
     return parser
 
 
-def main(argv=None) -> int:
-    """Run ``simulate_bag``; return the exit status."""
-    args = build_parser().parse_args(argv)
-    try:
-        result = simulate_bag(
-            args.output, args.vehicle, overrides=overrides_from_args(args),
-            manoeuvres=args.manoeuvres, duration=args.duration, seed=args.seed,
-            rate=args.rate, setpoint_rate=args.setpoint_rate, gt_rate=args.gt_rate,
-            gt_position_noise=args.gt_noise_xy, gt_yaw_noise=args.gt_noise_yaw,
-            ground_truth=args.ground_truth, ground_truth_topic=getattr(args, 'gt_topic', None),
-            storage=args.storage, truth=getattr(args, 'truth', None))
-    except (OSError, ValueError, RuntimeError, Rosbag1WriterError, Rosbag2WriterError) as err:
-        print(f'{PROG}: {err}', file=sys.stderr)
-        return 2
+def _run(args, out) -> int:
+    result = simulate_bag(
+        args.output, args.vehicle, overrides=overrides_from_args(args),
+        manoeuvres=args.manoeuvres, duration=args.duration, seed=args.seed,
+        rate=args.rate, setpoint_rate=args.setpoint_rate, gt_rate=args.gt_rate,
+        gt_position_noise=args.gt_noise_xy, gt_yaw_noise=args.gt_noise_yaw,
+        ground_truth=args.ground_truth, ground_truth_topic=getattr(args, 'gt_topic', None),
+        storage=args.storage, truth=getattr(args, 'truth', None), force=args.force,
+        parents=False)
     run, icr = result.run, result.truth_icr
     print(f'vehicle      {result.vehicle.name} on {result.vehicle.terrain} '
-          f'({result.vehicle.path})')
+          f'({result.vehicle.path})', file=out)
     print(f'run          {args.manoeuvres}, {run.duration:.1f} s, {run.distance:.1f} m, '
-          f'seed {args.seed}')
-    print(f'bag          {result.bag} ({args.storage})')
+          f'seed {args.seed}', file=out)
+    print(f'bag          {result.bag} ({args.storage})', file=out)
     for topic, count in result.messages.items():
-        print(f'  {topic:<26}{count:>8} messages')
-    print(f'true model   {result.truth}')
+        print(f'  {topic:<26}{count:>8} messages', file=out)
+    print(f'true model   {result.truth}', file=out)
     print(f'  icr.y_left {fixed(icr.y_left, 4)}  icr.y_right {fixed(icr.y_right, 4)}  '
-          f'icr.x {fixed(icr.x, 4)} m  scale {icr.scale_left:.4f} / {icr.scale_right:.4f}')
-    print(f'  chi {fixed(icr.chi)}  e {fixed(icr.eccentricity)}')
+          f'icr.x {fixed(icr.x, 4)} m  scale {icr.scale_left:.4f} / {icr.scale_right:.4f}',
+          file=out)
+    print(f'  chi {fixed(icr.chi)}  e {fixed(icr.eccentricity)}', file=out)
     return 0
+
+
+def main(argv=None) -> int:
+    """Run ``simulate_bag``; return the exit status (see the module docstring)."""
+    return run_main(PROG, _run, build_parser().parse_args(argv))
 
 
 if __name__ == '__main__':

@@ -15,6 +15,15 @@ Four steps, each the code path a user would run:
    20-21); compare the final poses with the simulator's true poses;
 4. say where every output is and how to use the YAML with ``odometry_node``.
 
+Its output directory holds a manifest (``.tracked_kinematics_demo``, JSON) of exactly the
+files, bags and directories the demo created there. A rerun removes what the manifest lists
+and nothing else (never following a symbolic link), so ``make demo`` twice works without
+``--force``; any other file in the way is replaced only with ``--force`` (a bag or a
+directory never). A failed or interrupted run removes what it wrote.
+
+Exit status: 0 success; 2 bad input or an output that may not be written; identify_icr's
+status (3, 4) when the calibration drive cannot be identified; 130 / 143 interrupted.
+
 Documentation: docs/tools/tracked_kinematics_demo.md; the model: docs/model.md.
 """
 
@@ -23,43 +32,45 @@ from __future__ import annotations
 import argparse
 import contextlib
 import csv
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 import io
+import json
 import math
-from pathlib import Path
+import os
+from pathlib import Path, PurePosixPath
 import shlex
-import shutil
+import stat
 import sys
 import textwrap
 import time
 
 import numpy as np
-from rosbags.rosbag2 import WriterError as Rosbag2WriterError
 from tracked_kinematics.core.integration import wrap_angle
 from tracked_kinematics.core.kinematics import IcrParams
 from tracked_kinematics.core.models import ConstantIcr
 from tracked_kinematics.core.sim.simulation import TwistTable
-from tracked_kinematics.offline.bags import (
-    BagError, EncoderSource, GroundTruthSource, read_bag)
+from tracked_kinematics.offline.bags import EncoderSource, GroundTruthSource, read_bag
 from tracked_kinematics.offline.cli import identify_icr
-from tracked_kinematics.offline.cli.common import positive
+from tracked_kinematics.offline.cli.common import (
+    add_force_argument, ArgumentParser, bounded, run_main, SEED)
 from tracked_kinematics.offline.cli.simulate_bag import GROUND_TRUTH_TOPICS, JOINTS, simulate_bag
+from tracked_kinematics.offline.errors import UsageError
+from tracked_kinematics.offline.outputs import check_output, OutputError, Outputs
 from tracked_kinematics.offline.vehicle_file import (
     add_vehicle_arguments, fixed, load_vehicle, overrides_from_args)
 from tracked_kinematics.params import icr_from_values, read_params_file
 
 PROG = 'tracked_kinematics_demo'
-MARKER = '.tracked_kinematics_demo'
-"""File that marks an output directory as the demo's, so that a rerun may replace it."""
-OUTPUTS = ('calibration', 'heldout', 'identify_report.json', 'identify.png', 'heldout.csv',
-           'heldout.png')
-"""What the demo writes in its directory besides the terrain YAML (replaced on a rerun)."""
+MANIFEST = '.tracked_kinematics_demo'
+"""The manifest in the output directory: what the demo created there (JSON)."""
+MARKER = MANIFEST
+"""Former name of the manifest (older demos wrote a one-line marker under this name)."""
 HELDOUT_MANOEUVRES = ('random', 'sweep', 'random', 'mixed', 'random')
 """Manoeuvre set of held-out path k (cycled)."""
 GT_TOPIC = GROUND_TRUTH_TOPICS['pose']
 
 
-class DemoError(Exception):
+class DemoError(UsageError):
     """A bad argument or an output that cannot be written (exit status 2, one line)."""
 
 
@@ -145,42 +156,316 @@ def dead_reckon(icr: IcrParams, left, right) -> np.ndarray:
 # Output directory ------------------------------------------------------------------------
 
 
-def prepare_output(directory: Path) -> None:
+@dataclass
+class Entry:
     """
-    Create the output directory, or clear the outputs of a previous demo run in it.
+    One thing the demo created in its output directory.
 
-    Raises
-    ------
-    DemoError
-        When it cannot be created or written, or holds other files than a demo's.
+    Attributes
+    ----------
+    kind : {'file', 'bag', 'dir'}
+        A regular file, a rosbag2 directory (with the names of its files), a directory.
+    path : str
+        Relative to the output directory, ``/``-separated.
+    files : list of str
+        A bag's files (metadata.yaml and its storage files); empty otherwise.
+    stamp : list of int
+        A file's size and modification time (ns) once written: a file changed since is
+        the user's, not the demo's.
+    before : list of int
+        The stamp of a file that was in the way when the entry was recorded (replaced with
+        ``--force``): until it changes, it is not the demo's.
 
     """
-    if directory.exists() and not directory.is_dir():
-        raise DemoError(f'--output {directory} exists and is not a directory')
-    if directory.is_dir() and any(directory.iterdir()) and not (directory / MARKER).exists():
-        raise DemoError(f'--output {directory} is not empty and was not written by the demo; '
-                        'choose another directory')
+
+    kind: str
+    path: str
+    files: list = field(default_factory=list)
+    stamp: list = field(default_factory=list)
+    before: list = field(default_factory=list)
+
+    def to_json(self) -> dict:
+        """Return the entry as the manifest stores it."""
+        entry = {'kind': self.kind, 'path': self.path}
+        if self.kind == 'bag':
+            entry['files'] = list(self.files)
+        if self.stamp:
+            entry['stamp'] = list(self.stamp)
+        if self.before:
+            entry['before'] = list(self.before)
+        return entry
+
+    def matches(self, info) -> bool:
+        """Whether the file ``info`` describes is the demo's: as it wrote it, or new."""
+        now = _stamp(info)
+        if self.stamp:
+            return self.stamp == now
+        return not self.before or self.before != now
+
+
+def _stamp(info) -> list:
+    return [info.st_size, info.st_mtime_ns]
+
+
+def planned_outputs(vehicle: str, terrain: str, heldout: list[str]) -> list[Entry]:
+    """Return what a run will create, relative to its output directory, parents first."""
+    calibration = f'calibration/{vehicle}_{terrain}'
+    entries = [Entry('dir', 'calibration'), Entry('bag', calibration),
+               Entry('file', f'{calibration}.truth.yaml'),
+               Entry('file', f'{terrain}.yaml'), Entry('file', 'identify_report.json'),
+               Entry('file', 'identify.png'), Entry('dir', 'heldout')]
+    for name in heldout:
+        entries += [Entry('bag', f'heldout/{name}'),
+                    Entry('file', f'heldout/{name}.truth.yaml')]
+    return entries + [Entry('file', 'heldout.csv'), Entry('file', 'heldout.png')]
+
+
+def _lstat(path: Path):
     try:
-        directory.mkdir(parents=True, exist_ok=True)
-        (directory / MARKER).write_text(f'written by {PROG}; reruns replace its outputs\n',
-                                        encoding='utf-8')
-        for name in OUTPUTS:
-            path = directory / name
-            if path.is_dir():
-                shutil.rmtree(path)
-            elif path.exists():
-                path.unlink()
-        for path in directory.glob('*.yaml'):
-            path.unlink()
-    except OSError as err:
-        reason = err.strerror or str(err)
-        raise DemoError(f'cannot write to --output {directory}: {reason}') from None
+        return os.lstat(path)
+    except FileNotFoundError:
+        return None
+
+
+def _plain(rel: str) -> bool:
+    """Whether a manifest path is a plain relative path (no '..', not absolute)."""
+    parts = PurePosixPath(rel).parts
+    return bool(parts) and not PurePosixPath(rel).is_absolute() and all(
+        part not in ('', '.', '..') and '\\' not in part for part in parts)
+
+
+def _real_parents(directory: Path, rel: str) -> bool:
+    """Whether no directory between ``directory`` and ``rel`` is a link or a file (or absent)."""
+    path = directory
+    for part in PurePosixPath(rel).parts[:-1]:
+        path = path / part
+        info = _lstat(path)
+        if info is None:
+            return True
+        if not stat.S_ISDIR(info.st_mode):
+            return False
+    return True
+
+
+class DemoDirectory:
+    """
+    The demo's output directory and its manifest.
+
+    :meth:`prepare` checks, before any work, that the run may write every output; removes
+    what the previous run's manifest lists (and nothing else); creates the directories.
+    :meth:`record` adds an output to the manifest before it is written, so that a killed run
+    leaves a manifest a rerun can clean; :meth:`fail` removes what this run created.
+
+    Parameters
+    ----------
+    directory : path-like
+        ``--output``.
+    force : bool
+        ``--force``: files in the way that the demo did not write may be replaced.
+
+    """
+
+    def __init__(self, directory, force: bool = False):
+        self.directory = Path(directory)
+        self.force = force
+        self.entries: list[Entry] = []
+        self.created: list[Path] = []   # the output directory and parents made by this run
+
+    @property
+    def manifest(self) -> Path:
+        """Path of the manifest."""
+        return self.directory / MANIFEST
+
+    def _error(self, message: str) -> DemoError:
+        return DemoError(f'--output {self.directory}: {message}')
+
+    def read_manifest(self) -> list[Entry]:
+        """
+        Return the entries of the previous run (none for a new or empty directory).
+
+        Raises
+        ------
+        DemoError
+            When the directory is a link or not a directory, or holds files but no manifest
+            of the demo.
+
+        """
+        info = _lstat(self.directory)
+        if info is None:
+            return []
+        if stat.S_ISLNK(info.st_mode):
+            raise self._error('is a symbolic link; the demo does not follow it, give the '
+                              'directory itself')
+        if not stat.S_ISDIR(info.st_mode):
+            raise self._error('exists and is not a directory')
+        manifest = _lstat(self.manifest)
+        if manifest is None:
+            if any(self.directory.iterdir()):
+                raise self._error('is not empty and was not written by the demo; choose '
+                                  'another directory')
+            return []
+        if not stat.S_ISREG(manifest.st_mode):
+            raise self._error(f'{MANIFEST} is not a regular file; the directory was not '
+                              'written by the demo')
+        try:
+            text = self.manifest.read_text(encoding='utf-8')
+        except (OSError, UnicodeDecodeError) as err:
+            raise self._error(f'cannot read {MANIFEST}: {err}') from None
+        if text.startswith(f'written by {PROG}'):
+            raise self._error('was written by an older demo that kept no list of its files; '
+                              'remove the directory or choose another --output')
+        try:
+            doc = json.loads(text)
+            entries = [Entry(e['kind'], e['path'], [str(f) for f in e.get('files', ())],
+                             [int(v) for v in e.get('stamp', ())],
+                             [int(v) for v in e.get('before', ())]) for e in doc['entries']]
+            return [e for e in entries if e.kind in ('file', 'bag', 'dir') and _plain(e.path)
+                    and all(_plain(f) and '/' not in f for f in e.files)]
+        except (ValueError, KeyError, TypeError, AttributeError):
+            raise self._error(f'{MANIFEST} is not a manifest of the demo; choose another '
+                              'directory') from None
+
+    def _check(self, planned: list[Entry], old: list[Entry]) -> None:
+        """Refuse, before any work, an output in the way that the demo may not replace."""
+        ours = {(e.kind, e.path): e for e in old}
+        for entry in planned:
+            path = self.directory / entry.path
+            if not _real_parents(self.directory, entry.path):
+                raise self._error(f'{entry.path.rsplit("/", 1)[0]} is not a directory (a '
+                                  'symbolic link is not followed)')
+            info = _lstat(path)
+            if info is None:
+                continue
+            mine = ours.get((entry.kind, entry.path))
+            if stat.S_ISLNK(info.st_mode):
+                raise self._error(f'{entry.path} is a symbolic link; the demo neither follows '
+                                  'nor replaces it')
+            if entry.kind == 'dir':
+                if not stat.S_ISDIR(info.st_mode):
+                    raise self._error(f'{entry.path} exists and is not a directory')
+            elif entry.kind == 'bag':
+                if mine is None:
+                    raise self._error(f'{entry.path} exists and was not written by the demo; '
+                                      'remove it or choose another --output')
+                extra = sorted(set(os.listdir(path)) - set(mine.files)) \
+                    if stat.S_ISDIR(info.st_mode) else ['(not a directory)']
+                if extra:
+                    raise self._error(f'{entry.path} holds files the demo did not write '
+                                      f'({", ".join(extra)}); remove them or choose another '
+                                      '--output')
+            elif mine is not None and stat.S_ISREG(info.st_mode) and not mine.matches(info):
+                if not self.force:
+                    raise self._error(f'{entry.path} was changed since the demo wrote it; use '
+                                      '--force to replace it')
+            elif mine is None or not stat.S_ISREG(info.st_mode):
+                try:
+                    check_output('--output', path, force=self.force)
+                except OutputError as err:
+                    raise DemoError(str(err)) from None
+
+    def _remove(self, entries: list[Entry]) -> None:
+        """Remove what ``entries`` list, files before directories; never follow a link."""
+        for entry in sorted(entries, key=lambda e: (e.kind == 'dir', -e.path.count('/'))):
+            if not _real_parents(self.directory, entry.path):
+                continue
+            path = self.directory / entry.path
+            info = _lstat(path)
+            if info is None:
+                continue
+            if entry.kind == 'file' and stat.S_ISREG(info.st_mode):
+                if entry.matches(info):
+                    path.unlink()   # else: the user's file now, left alone
+            elif entry.kind in ('bag', 'dir') and stat.S_ISDIR(info.st_mode):
+                for name in entry.files:
+                    inner = _lstat(path / name)
+                    if inner is not None and stat.S_ISREG(inner.st_mode):
+                        (path / name).unlink()
+                with contextlib.suppress(OSError):   # not empty: someone else's files
+                    path.rmdir()
+
+    def save(self) -> None:
+        """Write the manifest atomically (every entry of this run so far)."""
+        with Outputs(force=True) as out:
+            out.add(MANIFEST, self.manifest)
+            out.write_text(MANIFEST, json.dumps({
+                'tool': PROG, 'note': 'what the demo created in this directory; a rerun '
+                'removes exactly these', 'entries': [e.to_json() for e in self.entries]},
+                indent=1) + '\n')
+
+    def prepare(self, planned: list[Entry]) -> None:
+        """
+        Make the directory ready for ``planned``: check, clear the previous run, create.
+
+        Raises
+        ------
+        DemoError
+            When an output may not be written (nothing was changed then).
+
+        """
+        old = self.read_manifest()
+        self._check(planned, old)
+        if not self.directory.exists():
+            try:
+                missing = [p for p in (self.directory, *self.directory.parents)
+                           if not os.path.lexists(p)]
+                for parent in reversed(missing):
+                    parent.mkdir()
+                    self.created.append(parent)
+            except OSError as err:
+                self.fail()
+                raise self._error(f'cannot create it: {err.strerror or err}') from None
+        if not os.access(self.directory, os.W_OK | os.X_OK):
+            raise self._error('is not writable')
+        self._remove(old)
+        self.entries = []
+        for entry in planned:
+            if entry.kind == 'dir' and _lstat(self.directory / entry.path) is None:
+                self.record(entry)
+                (self.directory / entry.path).mkdir()
+        self.save()
+
+    def record(self, entry: Entry) -> None:
+        """Add an output to the manifest, before it is written."""
+        info = _lstat(self.directory / entry.path)
+        if entry.kind == 'file' and info is not None and stat.S_ISREG(info.st_mode):
+            entry.before = _stamp(info)   # a file in the way, replaced with --force
+        self.entries.append(entry)
+        self.save()
+
+    def written(self) -> None:
+        """Record the files of the bags and the stamps of the files written so far."""
+        for entry in self.entries:
+            path = self.directory / entry.path
+            info = _lstat(path)
+            if info is None:
+                continue
+            if entry.kind == 'bag' and not entry.files and stat.S_ISDIR(info.st_mode):
+                entry.files = sorted(os.listdir(path))
+            elif entry.kind == 'file' and not entry.stamp and stat.S_ISREG(info.st_mode) \
+                    and entry.matches(info):
+                entry.stamp = _stamp(info)
+        self.save()
+
+    def fail(self) -> None:
+        """Remove what this run created (and the directory, if this run created it)."""
+        self._remove(self.entries)
+        self.entries = []
+        if self.created:
+            with contextlib.suppress(OSError):
+                self.manifest.unlink()
+            for path in reversed(self.created):
+                with contextlib.suppress(OSError):
+                    path.rmdir()
+        elif self.manifest.exists():
+            with contextlib.suppress(OSError):
+                self.save()
 
 
 # Steps -----------------------------------------------------------------------------------
 
 
-def identify(bag: Path, out: Path, terrain: str, track_width: float, radius: float):
+def identify(bag: Path, out: Path, terrain: str, track_width: float, radius: float,
+             force: bool = False):
     """
     Run ``identify_icr`` on the calibration bag, as a user would.
 
@@ -197,11 +482,16 @@ def identify(bag: Path, out: Path, terrain: str, track_width: float, radius: flo
     argv = [str(bag), '--ground-truth-topic', GT_TOPIC, '--output', str(out / f'{terrain}.yaml'),
             '--sprocket-radius', repr(radius), '--track-width', repr(track_width),
             '--terrain', terrain, '--report', str(out / 'identify_report.json'),
-            '--plot', str(out / 'identify.png')]
+            '--plot', str(out / 'identify.png')] + (['--force'] if force else [])
     buffer = io.StringIO()
     with contextlib.redirect_stdout(buffer):
         status = identify_icr.main(argv)
     return status, [identify_icr.PROG] + argv, buffer.getvalue()
+
+
+def heldout_name(k: int) -> str:
+    """Name of held-out path ``k`` (from 0) and of its bag."""
+    return f'path{k + 1}_{HELDOUT_MANOEUVRES[k % len(HELDOUT_MANOEUVRES)]}'
 
 
 def heldout_path(k: int, args, overrides, table, identified: IcrParams,
@@ -209,10 +499,11 @@ def heldout_path(k: int, args, overrides, table, identified: IcrParams,
     """Simulate held-out path ``k``, record it, read it back and dead-reckon it."""
     manoeuvres = HELDOUT_MANOEUVRES[k % len(HELDOUT_MANOEUVRES)]
     seed = args.seed + 1 + k
-    name = f'path{k + 1}_{manoeuvres}'
+    name = heldout_name(k)
     sim = simulate_bag(directory / name, args.vehicle, overrides=overrides,
                        manoeuvres=manoeuvres, duration=args.path_duration, seed=seed,
-                       storage=args.storage, table=table)
+                       storage=args.storage, table=table,
+                       force=bool(getattr(args, 'force', False)), parents=False)
     radius = sim.vehicle.robot.encoders.sprocket_radius
     rec = read_bag(sim.bag, EncoderSource(left_joints=JOINTS[:1], right_joints=JOINTS[1:],
                                           sprocket_radius=radius),
@@ -260,33 +551,27 @@ def print_table(results, out) -> tuple[float, float]:
     return float(gains[0]), float(gains[1])
 
 
-def write_csv(path: Path, results) -> None:
-    """Write the held-out errors, one row per path."""
-    with open(path, 'w', newline='', encoding='utf-8') as stream:
-        writer = csv.writer(stream)
-        writer.writerow(['path', 'manoeuvres', 'seed', 'duration_s', 'distance_m',
-                         'ideal_position_error_m', 'ideal_heading_error_deg',
-                         'ideal_error_pct_of_distance', 'identified_position_error_m',
-                         'identified_heading_error_deg', 'identified_error_pct_of_distance'])
-        for r in results:
-            writer.writerow([r.name, r.manoeuvres, r.seed, f'{r.duration:.2f}',
-                             f'{r.distance:.4f}']
-                            + [f'{v:.6g}' for v in r.errors('ideal') + r.errors('identified')])
+def csv_text(results) -> str:
+    """Return the held-out errors as CSV, one row per path."""
+    stream = io.StringIO(newline='')
+    writer = csv.writer(stream)
+    writer.writerow(['path', 'manoeuvres', 'seed', 'duration_s', 'distance_m',
+                     'ideal_position_error_m', 'ideal_heading_error_deg',
+                     'ideal_error_pct_of_distance', 'identified_position_error_m',
+                     'identified_heading_error_deg', 'identified_error_pct_of_distance'])
+    for r in results:
+        writer.writerow([r.name, r.manoeuvres, r.seed, f'{r.duration:.2f}',
+                         f'{r.distance:.4f}']
+                        + [f'{v:.6g}' for v in r.errors('ideal') + r.errors('identified')])
+    return stream.getvalue()
 
 
 # Command line ----------------------------------------------------------------------------
 
 
-def _count(text: str) -> int:
-    value = int(text)
-    if not 1 <= value <= 10:
-        raise argparse.ArgumentTypeError(f'must be 1 to 10, got {text}')
-    return value
-
-
 def build_parser() -> argparse.ArgumentParser:
     """Return the command line of the demo."""
-    parser = argparse.ArgumentParser(
+    parser = ArgumentParser(
         prog=PROG, formatter_class=argparse.ArgumentDefaultsHelpFormatter,
         description='Simulate a tracked robot on a terrain, write a calibration bag, run '
                     'identify_icr on it, and compare ideal differential-drive odometry with '
@@ -297,16 +582,19 @@ def build_parser() -> argparse.ArgumentParser:
                '--output turf_demo')
     add_vehicle_arguments(parser)
     parser.add_argument('--output', '-o', default='demo_output', metavar='DIR',
-                        help='directory for every output (a rerun replaces its outputs)')
-    parser.add_argument('--seed', type=int, default=0,
+                        help='directory for every output (a rerun replaces the outputs its '
+                             'manifest lists, nothing else)')
+    parser.add_argument('--seed', type=SEED, default=0,
                         help='seed of the calibration drive; held-out path k uses seed + k')
-    parser.add_argument('--duration', type=positive, default=180.0, metavar='SECONDS',
-                        help='length of the calibration drive')
-    parser.add_argument('--paths', type=_count, default=4, help='number of held-out paths')
-    parser.add_argument('--path-duration', type=positive, default=60.0, metavar='SECONDS',
-                        help='length of each held-out path')
+    parser.add_argument('--duration', type=bounded(1.0, 3600.0, 's'), default=180.0,
+                        metavar='SECONDS', help='length of the calibration drive, 1-3600')
+    parser.add_argument('--paths', type=bounded(1, 10, integer=True), default=4,
+                        help='number of held-out paths, 1-10')
+    parser.add_argument('--path-duration', type=bounded(1.0, 3600.0, 's'), default=60.0,
+                        metavar='SECONDS', help='length of each held-out path, 1-3600')
     parser.add_argument('--storage', choices=('mcap', 'sqlite3'), default='mcap',
                         help='rosbag2 storage of the bags')
+    add_force_argument(parser)
     return parser
 
 
@@ -324,24 +612,40 @@ def run(args, out) -> int:
     start = time.perf_counter()
     directory = Path(args.output)
     overrides = overrides_from_args(args)
-    try:
-        spec = load_vehicle(args.vehicle, overrides)
-    except (OSError, ValueError) as err:
-        raise DemoError(str(err)) from None
+    spec = load_vehicle(args.vehicle, overrides)
     terrain = str(spec.terrain)
     if not terrain or Path(terrain).name != terrain or terrain.startswith('.'):
         raise DemoError(f'the terrain name {terrain!r} must be a plain file name (it names '
                         'the terrain YAML)')
-    prepare_output(directory)
+    outputs = DemoDirectory(directory, force=bool(getattr(args, 'force', False)))
+    outputs.prepare(planned_outputs(spec.name, terrain,
+                                    [heldout_name(k) for k in range(args.paths)]))
+    try:
+        status = _steps(args, out, spec, terrain, overrides, outputs, start)
+    except BaseException:
+        outputs.fail()
+        raise
+    if status != 0:
+        outputs.fail()
+    return status
+
+
+def _steps(args, out, spec, terrain, overrides, outputs: DemoDirectory, start) -> int:
+    directory = outputs.directory
+    force = outputs.force
     veh, enc = spec.robot.vehicle, spec.robot.encoders
     print(f'{PROG}: {spec.name} on {terrain} ({spec.path}), seed {args.seed}; '
           f'outputs in {directory}/', file=out)
 
     t = time.perf_counter()
     table = TwistTable(veh)
-    sim = simulate_bag(directory / 'calibration' / f'{spec.name}_{terrain}', args.vehicle,
-                       overrides=overrides, duration=args.duration, seed=args.seed,
-                       storage=args.storage, table=table)
+    calibration = f'calibration/{spec.name}_{terrain}'
+    outputs.record(Entry('bag', calibration))
+    outputs.record(Entry('file', f'{calibration}.truth.yaml'))
+    sim = simulate_bag(directory / calibration, args.vehicle, overrides=overrides,
+                       duration=args.duration, seed=args.seed, storage=args.storage,
+                       table=table, force=force, parents=False)
+    outputs.written()
     truth = sim.truth_icr
     _step(1, f'simulated a calibration drive: mixed manoeuvres, {sim.run.duration:.0f} s, '
           f'{sim.run.distance:.1f} m', time.perf_counter() - t, out)
@@ -352,8 +656,10 @@ def run(args, out) -> int:
           f'e {fixed(truth.eccentricity)}', file=out)
 
     t = time.perf_counter()
+    for name in (f'{terrain}.yaml', 'identify_report.json', 'identify.png'):
+        outputs.record(Entry('file', name))
     status, command, printed = identify(sim.bag, directory, terrain, veh.track_width,
-                                        enc.sprocket_radius)
+                                        enc.sprocket_radius, force)
     seconds = time.perf_counter() - t
     _step(2, 'identified the ICRs with identify_icr (what the console script runs)', seconds,
           out)
@@ -364,9 +670,11 @@ def run(args, out) -> int:
           'calibration bag:', file=out)
     _indent(printed, out)
     if status != 0:
-        print(f'{PROG}: identify_icr failed with exit status {status} (reason above); try a '
-              'longer --duration', file=sys.stderr)
+        if status < 128:   # not a signal: identify_icr said why on stderr
+            print(f'{PROG}: identify_icr failed with exit status {status} (reason above); '
+                  'try a longer --duration', file=sys.stderr)
         return status
+    outputs.written()
     yaml_path = directory / f'{terrain}.yaml'
     identified = icr_from_values(read_params_file(yaml_path))
     print(f'   fitted YAML {yaml_path} (terrain parameters; fit statistics follow in the file):',
@@ -379,13 +687,24 @@ def run(args, out) -> int:
 
     t = time.perf_counter()
     heldout = directory / 'heldout'
-    results = [heldout_path(k, args, overrides, table, identified, heldout)
-               for k in range(args.paths)]
-    write_csv(directory / 'heldout.csv', results)
-    from tracked_kinematics.offline.plots import plot_heldout_paths
-    plot_heldout_paths(directory / 'heldout.png', results,
-                       f'{spec.name} on {terrain}: held-out paths, dead reckoning from the '
-                       'encoders')
+    results = []
+    for k in range(args.paths):
+        name = f'heldout/{heldout_name(k)}'
+        outputs.record(Entry('bag', name))
+        outputs.record(Entry('file', f'{name}.truth.yaml'))
+        results.append(heldout_path(k, args, overrides, table, identified, heldout))
+        outputs.written()
+    outputs.record(Entry('file', 'heldout.csv'))
+    outputs.record(Entry('file', 'heldout.png'))
+    with Outputs(force=force) as files:
+        files.add('heldout.csv', directory / 'heldout.csv')
+        files.add('heldout.png', directory / 'heldout.png')
+        files.write_text('heldout.csv', csv_text(results))
+        from tracked_kinematics.offline.plots import plot_heldout_paths
+        with files.path('heldout.png') as tmp:
+            plot_heldout_paths(tmp, results, f'{spec.name} on {terrain}: held-out paths, dead '
+                               'reckoning from the encoders')
+    outputs.written()
     _step(3, f'dead-reckoned {len(results)} held-out paths (new seeds, not used by the fit)',
           time.perf_counter() - t, out)
     print("   final errors against the true pose; ideal = diff_drive_controller's odometry, "
@@ -393,16 +712,17 @@ def run(args, out) -> int:
     print_table(results, out)
 
     print(f'4. outputs (total {time.perf_counter() - start:.1f} s):', file=out)
-    outputs = (
+    listing = (
             (yaml_path, 'identified terrain parameters (--params-file)'),
             (directory / 'identify_report.json', 'identify_icr report: fit, hold-out stats'),
             (directory / 'identify.png', 'identify_icr plot: paths and residuals'),
             (directory / 'heldout.csv', 'held-out errors, one row per path'),
             (directory / 'heldout.png', 'held-out paths: truth, ideal, identified'),
             (sim.bag, 'calibration bag (+ .truth.yaml: the true model)'),
-            (heldout, 'held-out bags'))
-    width = max(len(str(path)) for path, _ in outputs)
-    for path, what in outputs:
+            (heldout, 'held-out bags'),
+            (outputs.manifest, 'what the demo wrote here (a rerun replaces exactly these)'))
+    width = max(len(str(path)) for path, _ in listing)
+    for path, what in listing:
         print(f'   {str(path):<{width}}  {what}', file=out)
     print('   use it on the robot:\n'
           '   ros2 run tracked_kinematics odometry_node --ros-args --params-file '
@@ -411,16 +731,8 @@ def run(args, out) -> int:
 
 
 def main(argv=None) -> int:
-    """Run the demo; return the exit status (2 with one line for bad arguments)."""
-    args = build_parser().parse_args(argv)
-    try:
-        return run(args, sys.stdout)
-    except (DemoError, BagError, Rosbag2WriterError, OSError, ValueError, RuntimeError) as err:
-        print(f'{PROG}: error: {" ".join(str(err).split())}', file=sys.stderr)
-        return 2
-    except KeyboardInterrupt:
-        print(f'{PROG}: interrupted', file=sys.stderr)
-        return 130
+    """Run the demo; return the exit status (see the module docstring)."""
+    return run_main(PROG, run, build_parser().parse_args(argv))
 
 
 if __name__ == '__main__':
