@@ -5,9 +5,12 @@ The face of the sub-package; the modules behind it hold the derivations and refe
 :mod:`.segments` (the data), :mod:`.problem` (Martinez eq. 17 and its Jacobian),
 :mod:`.search_space`, :mod:`.excitation`, :mod:`.fitting`, :mod:`.evaluation`,
 :mod:`.spin` (Martinez eq. 16) and :mod:`.procedure` (:func:`identify`) for the motion
-models; :mod:`.drive_data` and :mod:`.drivetrain` for the drive train.
+models; :mod:`.delay` (the ground-truth stamps' delay behind the encoders, model-free);
+:mod:`.drive_data` and :mod:`.drivetrain` for the drive train.
 """
 
+from .delay import (
+    correct_ground_truth, DelayEstimate, estimate_delay, estimate_delay_arrays, fixed_delay)
 from .drive_data import DriveData, resample
 from .drivetrain import DriveTrainFit, fit_drivetrain
 from .evaluation import dead_reckoning, ErrorStats, HoldOut, prediction_errors
@@ -26,13 +29,14 @@ from .spin import spin_in_place, SpinResult
 from ..errors import ExcitationError, FitError, IdentificationError
 
 __all__ = [
-    'COMPARE_MODELS', 'DEFAULT_HEADING_WEIGHT', 'DriveData', 'DriveTrainFit', 'ErrorStats',
-    'Excitation', 'ExcitationError', 'FIT_MODELS', 'FitError', 'FitResult', 'HoldOut',
-    'Identification', 'IdentificationError', 'LOSSES', 'METHODS', 'MIN_MOVING_SEGMENTS',
-    'MIN_STRAIGHT', 'MIN_TURNING', 'ModelEvaluation', 'Recording', 'STD_LIMITS',
-    'SegmentProblem', 'Segments', 'SpinResult', 'auto_heading_weight', 'bounds',
+    'COMPARE_MODELS', 'DEFAULT_HEADING_WEIGHT', 'DelayEstimate', 'DriveData', 'DriveTrainFit',
+    'ErrorStats', 'Excitation', 'ExcitationError', 'FIT_MODELS', 'FitError', 'FitResult',
+    'HoldOut', 'Identification', 'IdentificationError', 'LOSSES', 'METHODS',
+    'MIN_MOVING_SEGMENTS', 'MIN_STRAIGHT', 'MIN_TURNING', 'ModelEvaluation', 'Recording',
+    'STD_LIMITS', 'SegmentProblem', 'Segments', 'SpinResult', 'auto_heading_weight', 'bounds',
     'build_model', 'build_segments', 'check_excitation', 'check_heading_weight',
-    'check_identified', 'dead_reckoning', 'fit', 'fit_drivetrain', 'gap_threshold',
+    'check_identified', 'correct_ground_truth', 'dead_reckoning', 'estimate_delay',
+    'estimate_delay_arrays', 'fit', 'fit_drivetrain', 'fixed_delay', 'gap_threshold',
     'identify', 'initial_guess', 'prediction_errors', 'resample', 'robust_cost',
     'search_box', 'spin_in_place', 'steering_efficiency_guess',
 ]
