@@ -9,21 +9,18 @@ measures the offset ``d`` (s, ground-truth stamps *behind* the encoders: the pos
 ``t`` describes the vehicle at ``t - d``) from the data alone, so that it does not depend on
 the model being right, and :func:`correct_ground_truth` removes it.
 
-Method (the cross-correlation of increments, reconstructed here; no paper of the package
-has it): for every interval between consecutive ground-truth samples ``[t_a, t_b]``,
-
-- the *heading* channel pairs the ground-truth heading change over it with the increment of
-  the encoders' ``right - left`` travel over ``[t_a - d, t_b - d]``;
-- the *forward* channel pairs the ground-truth displacement along the heading at ``t_a``
-  with the increment of the mean travel ``(left + right) / 2`` over the same shifted
-  interval.
-
-Whatever the tread ICRs and scales, each ground-truth increment is close to proportional to
-its encoder increment when ``d`` is right, so the squared correlation ``r_c(d)^2`` of each
-channel peaks there. The channels are combined as a Gaussian profile likelihood of the two
-linear regressions, ``cost(d) = sum_c n_c log(1 - r_c(d)^2)``, which weighs each channel by
-how well it fits. ``cost`` is evaluated on a grid (:data:`RESOLUTION`), its minimum refined by
-a parabola through the three grid points around it.
+Method (a cross-correlation of increments, reconstructed here; no paper of the package
+has it): for every interval between consecutive ground-truth samples ``[t_a, t_b]``, two
+ground-truth increments, the *heading* change and the *forward* displacement (along the
+heading at ``t_a``), are regressed on the travel of the left and of the right track over
+the shifted interval ``[t_a - d, t_b - d]`` (and a constant). For any constant tread ICRs
+and scales the heading change is exactly linear in the two travels, and the forward
+displacement nearly so (Martinez eqs. 7-9, 20-21), so the coefficient of determination
+``R_c(d)^2`` of each channel peaks at the true ``d`` whatever the model: nothing is
+assumed of it. The channels are combined as the Gaussian profile likelihood of the two
+regressions, ``cost(d) = sum_c n_c log(1 - R_c(d)^2)``, which weighs each channel by how
+well it fits. ``cost`` is evaluated on a grid (:data:`RESOLUTION`), then on a grid ten times
+finer around its minimum, refined by the parabola through the three points around it.
 
 Robustness, for ground truth as lidar ICP gives it:
 
@@ -34,7 +31,7 @@ Robustness, for ground truth as lidar ICP gives it:
   change above :data:`MAX_HEADING_STEP`: re-localisations and glitches), intervals whose
   shifted span leaves a gap-free stretch of encoder samples, and intervals over which the
   encoders do not move at any candidate delay (no timing information);
-- the correlations are computed twice, the second time with Huber weights
+- the regressions are computed twice, the second time with Huber weights
   (:data:`HUBER_K` robust standard deviations) of the residuals at the first estimate, so
   that heading noise spikes do not pull it.
 
@@ -106,7 +103,8 @@ class DelayEstimate:
     problem : str
         Why the delay is not determined ('' when it is), one line.
     correlation : dict
-        Correlation of each channel at ``delay`` (``heading``, ``forward``).
+        Multiple correlation ``R`` of each channel's regression at ``delay`` (``heading``,
+        ``forward``), in [0, 1].
     intervals : int
         Ground-truth intervals used.
     excluded : dict
