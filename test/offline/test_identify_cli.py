@@ -56,7 +56,7 @@ def test_console_script_writes_yaml_report_and_plot(bag, tmp_path):
     doc = json.loads(report.read_text())
     assert doc['icr']['chi'] == pytest.approx(0.540, abs=0.01)
     models = doc['holdout']['models']
-    assert set(models) == {'ideal', 'effective_wheel_base', 'icr', 'icr_scales',
+    assert set(models) == {'ideal', 'tuned_ddc', 'effective_wheel_base', 'icr', 'icr_scales',
                            'general_slip', 'adaptive_icr'}
     assert models['icr_scales']['improvement_pct']['windows']['position'] > 50
     assert doc['fit']['standard_errors']['y_left'] < 5e-3

@@ -19,18 +19,21 @@ displacement nearly so (Martinez eqs. 7-9, 20-21), so the coefficient of determi
 ``R_c(d)^2`` of each channel peaks at the true ``d`` whatever the model: nothing is
 assumed of it. The channels are combined as the Gaussian profile likelihood of the two
 regressions, ``cost(d) = sum_c n_c log(1 - R_c(d)^2)``, which weighs each channel by how
-well it fits. ``cost`` is evaluated on a grid (:data:`RESOLUTION`), then on a grid ten times
-finer around its minimum, refined by the parabola through the three points around it.
+well it fits. ``cost`` is evaluated over the whole search range on a coarse grid
+(:data:`COARSE` x :data:`RESOLUTION`), then at :data:`RESOLUTION` within :data:`LOCAL` of
+its minimum, then on a grid ten times finer, refined by the parabola through the three
+points around the minimum.
 
 Robustness, for ground truth as lidar ICP gives it:
 
 - intervals the ground truth cannot time are left out: an interval longer than
   :data:`IRREGULAR` x the median interval and its two neighbours (a mapper that falls behind
   delivers late, then catches up in bursts: these stamps are not the usual delay), jumps
-  (a step longer than :data:`JUMP_MARGIN` plus the fastest track's travel, or a heading
-  change above :data:`MAX_HEADING_STEP`: re-localisations and glitches), intervals whose
-  shifted span leaves a gap-free stretch of encoder samples, and intervals over which the
-  encoders do not move at any candidate delay (no timing information);
+  (a step longer than :data:`.segments.JUMP_MARGIN` plus the fastest track's travel, or a
+  heading change above :data:`.segments.MAX_HEADING_STEP`: re-localisations and glitches),
+  intervals whose shifted span leaves a gap-free stretch of encoder samples at every
+  candidate delay (and, at each delay, those it leaves at that delay), and intervals over
+  which the encoders do not move at any candidate delay (no timing information);
 - the regressions are computed twice, the second time with Huber weights
   (:data:`HUBER_K` robust standard deviations) of the residuals at the first estimate, so
   that heading noise spikes do not pull it.
@@ -54,7 +57,7 @@ import math
 
 import numpy as np
 
-from .segments import gap_threshold, Recording
+from .segments import JUMP_MARGIN, MAX_HEADING_STEP, Recording, stretches
 from ..integration import wrap_angle
 
 CHANNELS = ('heading', 'forward')
@@ -63,16 +66,16 @@ MIN_DELAY, MAX_DELAY = -0.5, 1.0
 """Default search range, s (a negative delay: the ground truth is stamped early)."""
 RESOLUTION = 0.005
 """Grid of the search, s; the minimum is refined between grid points."""
+COARSE = 4
+"""The whole range is searched on every COARSE-th point of the grid first."""
+LOCAL = 0.1
+"""s either side of the coarse minimum searched on the full grid."""
 WINDOW = 20.0
 """Seconds of kept intervals per jackknife window."""
 MIN_JACKKNIFE_WINDOWS = 5
 """Fewest windows for a jackknife standard error; fewer: the curvature of the profile."""
 IRREGULAR = 2.0
 """An interval longer than this multiple of the median ground-truth interval is irregular."""
-JUMP_MARGIN = 0.5
-"""m beyond the fastest track's travel that makes a ground-truth step a jump."""
-MAX_HEADING_STEP = 0.5
-"""rad: a larger heading change between two ground-truth samples is a glitch."""
 HUBER_K = 2.0
 """Huber threshold of the robust pass, in robust standard deviations of the residuals."""
 MIN_INTERVALS = 20
@@ -114,7 +117,8 @@ class DelayEstimate:
     window_delays : ndarray
         The delete-one-window estimates (empty for the curvature).
     shifts, cost : ndarray
-        The search grid (s) and the profile cost on it (lower is better).
+        The coarse search grid over the whole range (s) and the profile cost on it (lower
+        is better; the robust pass).
     search : tuple of float
         The search range, s.
 
@@ -184,12 +188,6 @@ class _Intervals:
     excluded: dict
 
 
-def _blocks(t):
-    """Start and end times of the gap-free stretches of ``t`` (:func:`.gap_threshold`)."""
-    breaks = np.flatnonzero(np.diff(t) > gap_threshold(t))
-    return np.append(t[0], t[breaks + 1]), np.append(t[breaks], t[-1])
-
-
 def _covered(starts, ends, a, b):
     """Whether each span ``[a, b]`` lies inside one gap-free stretch."""
     block = np.maximum(np.searchsorted(starts, a, side='right') - 1, 0)
@@ -209,7 +207,7 @@ def _intervals(recordings, lo, hi, window) -> _Intervals:
             all_starts.append(np.zeros(0))
             all_ends.append(np.zeros(0))
             continue
-        starts, ends = _blocks(rec.enc_t)
+        starts, ends = stretches(rec.enc_t)
         all_starts.append(starts)
         all_ends.append(ends)
         ta, tb = rec.gt_t[:-1], rec.gt_t[1:]
@@ -267,8 +265,10 @@ def _increments(data: _Intervals, shifts):
     d_left, d_right = np.empty(shape), np.empty(shape)
     valid = np.empty(shape, dtype=bool)
     d = np.asarray(shifts, dtype=float)[:, None]
-    for index in np.unique(data.rec):
-        mine = data.rec == index
+    # The intervals are in recording order: one slice per recording.
+    edges = np.flatnonzero(np.diff(np.concatenate([[-1], data.rec, [-1]])))
+    for lo, hi in zip(edges[:-1], edges[1:]):
+        index, mine = data.rec[lo], slice(lo, hi)
         t = data.enc_t[index]
         a, b = data.ta[mine] - d, data.tb[mine] - d
         valid[:, mine] = _covered(data.starts[index], data.ends[index], a, b)
@@ -422,54 +422,62 @@ def estimate_delay(recordings, *, min_delay: float = MIN_DELAY, max_delay: float
     n = len(data.ta)
 
     def undetermined(problem, **more):
+        more.setdefault('shifts', shifts)
         return DelayEstimate(0.0, math.inf, determined=False, problem=problem, intervals=n,
-                             excluded=data.excluded, shifts=shifts, search=search, **more)
+                             excluded=data.excluded, search=search, **more)
 
     if n < MIN_INTERVALS:
         return undetermined(f'{n} usable ground-truth intervals while the encoders move '
                             f'(need {MIN_INTERVALS})')
+    # Two passes over the whole range on a coarse grid (plain, then robust weights), then
+    # the search resolution around the minimum (estimate, curvature, jackknife), then a grid
+    # ten times finer (the peak is not a parabola).
+    coarse = shifts[::COARSE] if len(shifts) > 4 * COARSE else shifts
     weights = {c: np.ones(n) for c in CHANNELS}
+    all_windows = np.ones(int(data.window.max()) + 1, dtype=bool)
     delay = None
     for robust in (False, True):
         if robust:
             weights = _residual_weights(data, delay, channels)
-        sums = _window_sums(data, shifts, weights)
-        mask = np.ones(int(data.window.max()) + 1, dtype=bool)
-        cost, corr = _profile(sums, mask, channels)
-        delay, curvature = _argmin(shifts, cost)
+        cost, corr = _profile(_window_sums(data, coarse, weights), all_windows, channels)
+        delay = _argmin(coarse, cost)[0]
     i = int(np.argmin(cost))
-    if 0 < i < len(shifts) - 1:
-        # The peak is not a parabola: refine on a grid ten times finer around it.
-        fine = shifts[i] + 0.1 * resolution * np.arange(-15, 16)
-        fine_cost, _ = _profile(_window_sums(data, fine, weights), mask, channels)
-        delay = _argmin(fine, fine_cost)[0]
-    best = {c: float(np.interp(delay, shifts, r)) for c, r in corr.items()}
-    more = {'correlation': best, 'cost': cost}
+    best = {c: float(np.interp(delay, coarse, r)) for c, r in corr.items()}
+    more = {'correlation': best, 'cost': cost, 'shifts': coarse}
     if not best or max(abs(v) for v in best.values()) < MIN_CORRELATION:
         return undetermined(f'no channel correlates with the encoders (best r '
                             f'{max((abs(v) for v in best.values()), default=0):.2f}, need '
                             f'{MIN_CORRELATION})', **more)
-    if i in (0, len(shifts) - 1):
-        return undetermined(f'the best delay is on the bound of the search, {shifts[i]:+.3f} s',
+    if i in (0, len(coarse) - 1):
+        return undetermined(f'the best delay is on the bound of the search, {coarse[i]:+.3f} s',
                             **more)
+    local = shifts[(shifts >= coarse[i] - LOCAL) & (shifts <= coarse[i] + LOCAL)]
+    sums = _window_sums(data, local, weights)
+    local_cost, corr = _profile(sums, all_windows, channels)
+    delay, curvature = _argmin(local, local_cost)
+    j = int(np.argmin(local_cost))
+    if 0 < j < len(local) - 1:
+        fine = local[j] + 0.1 * resolution * np.arange(-15, 16)
+        fine_cost, _ = _profile(_window_sums(data, fine, weights), all_windows, channels)
+        delay = _argmin(fine, fine_cost)[0]
+    more['correlation'] = {c: float(np.interp(delay, local, r)) for c, r in corr.items()}
     occupied = np.flatnonzero(sums[channels[0]][0].max(axis=0) > 0)
     if len(occupied) >= MIN_JACKKNIFE_WINDOWS:
         loo = []
-        for j in occupied:
-            mask = np.ones(len(mask), dtype=bool)
-            mask[j] = False
-            loo.append(_argmin(shifts, _profile(sums, mask, channels)[0])[0])
+        for k in occupied:
+            mask = all_windows.copy()
+            mask[k] = False
+            loo.append(_argmin(local, _profile(sums, mask, channels)[0])[0])
         loo = np.array(loo)
-        k = len(loo)
-        std = float(math.sqrt((k - 1) / k * np.sum((loo - loo.mean()) ** 2)))
+        m = len(loo)
+        std = float(math.sqrt((m - 1) / m * np.sum((loo - loo.mean()) ** 2)))
         how = 'jackknife'
     else:
         loo = np.zeros(0)
         std = math.sqrt(2.0 / curvature) if curvature > 0 else math.inf
         how = 'curvature'
-    return DelayEstimate(delay, std, uncertainty=how, correlation=best, intervals=n,
-                         excluded=data.excluded, windows=len(occupied), window_delays=loo,
-                         shifts=shifts, cost=cost, search=search)
+    return DelayEstimate(delay, std, uncertainty=how, intervals=n, excluded=data.excluded,
+                         windows=len(occupied), window_delays=loo, search=search, **more)
 
 
 def estimate_delay_arrays(enc_t, left, right, gt_t, gt_x, gt_y, gt_yaw,
