@@ -22,10 +22,10 @@ def test_holdout_blocks_are_time_blocks(clean_segments):
     assert ident.HoldOut.choose(clean_segments, 0.0, 30.0) is None
 
 
-def test_short_data_keep_blocks_as_long_as_a_window(clean_segments):
+def test_short_data_keep_blocks_as_long_as_two_windows(clean_segments):
     one_minute = clean_segments.select(clean_segments.t1 <= 60.0)
     held = ident.HoldOut.choose(one_minute, 0.2, 30.0, window=10.0)
-    assert held.total_blocks == 5 and held.block_length == pytest.approx(11.8, abs=0.2)
+    assert held.total_blocks == 3 and held.block_length == pytest.approx(19.7, abs=0.2)
     assert ident.HoldOut.choose(one_minute, 0.2, 30.0, window=0.0).total_blocks == 10
 
 

@@ -12,7 +12,8 @@ models, :mod:`.ddc` for the tuned diff_drive_controller they are compared with;
 
 from .ddc import ddc_parameters, DDC_PARAMS, TunedDiffDrive
 from .delay import (
-    correct_ground_truth, DelayEstimate, estimate_delay, estimate_delay_arrays, fixed_delay)
+    correct_ground_truth, DelayEstimate, estimate_delay, estimate_delay_arrays, estimate_delays,
+    fixed_delay)
 from .drive_data import DriveData, resample
 from .drivetrain import DriveTrainFit, fit_drivetrain
 from .evaluation import (
@@ -43,7 +44,8 @@ __all__ = [
     'Uncertain', 'UncertainError', 'auto_heading_weight', 'bounds', 'build_model',
     'build_segments', 'check_excitation', 'check_heading_weight', 'check_identified',
     'correct_ground_truth', 'covered_spans', 'ddc_parameters', 'dead_reckoning',
-    'estimate_delay', 'estimate_delay_arrays', 'fit', 'fit_drivetrain', 'fixed_delay',
-    'gap_threshold', 'identify', 'initial_guess', 'prediction_errors', 'resample',
-    'robust_cost', 'search_box', 'spin_in_place', 'steering_efficiency_guess', 'stretches',
+    'estimate_delay', 'estimate_delay_arrays', 'estimate_delays', 'fit', 'fit_drivetrain',
+    'fixed_delay', 'gap_threshold', 'identify', 'initial_guess', 'prediction_errors',
+    'resample', 'robust_cost', 'search_box', 'spin_in_place', 'steering_efficiency_guess',
+    'stretches',
 ]

@@ -82,6 +82,11 @@ MIN_INTERVALS = 20
 """Fewest usable intervals for an estimate."""
 MIN_CORRELATION = 0.3
 """Smallest peak correlation (of the best channel) that counts as a timing signal."""
+PER_RECORDING_STD = 0.02
+"""Largest standard error, s, at which each recording's own delay is used.
+
+:func:`estimate_delays`.
+"""
 
 _STILL = 1e-4   # m: encoder travel below this over a padded interval is no motion
 
@@ -478,6 +483,41 @@ def estimate_delay(recordings, *, min_delay: float = MIN_DELAY, max_delay: float
         how = 'curvature'
     return DelayEstimate(delay, std, uncertainty=how, intervals=n, excluded=data.excluded,
                          windows=len(occupied), window_delays=loo, search=search, **more)
+
+
+def estimate_delays(recordings, **options) -> tuple[DelayEstimate, list[DelayEstimate]]:
+    """
+    Estimate the delay of all recordings together, and of each one when each can.
+
+    The latency of a pose stamped on receipt depends on how busy its producer is, so it
+    can differ from one bag to the next (the Warthog bags of ../shared/realdata: 0.19 to
+    0.26 s). When every recording determines its own delay to within
+    :data:`PER_RECORDING_STD`, each recording's delay is the one to remove from it; else
+    (short pieces, little motion) the pooled one is removed from all.
+
+    Parameters
+    ----------
+    recordings : sequence of Recording
+        The data.
+    **options
+        Keyword options of :func:`estimate_delay`.
+
+    Returns
+    -------
+    pooled : DelayEstimate
+        One delay for all recordings.
+    each : list of DelayEstimate
+        One per recording when they are to be used, else empty.
+
+    """
+    recordings = list(recordings)
+    pooled = estimate_delay(recordings, **options)
+    if len(recordings) < 2:
+        return pooled, []
+    each = [estimate_delay([r], **options) for r in recordings]
+    if all(e.determined and e.std <= PER_RECORDING_STD for e in each):
+        return pooled, each
+    return pooled, []
 
 
 def estimate_delay_arrays(enc_t, left, right, gt_t, gt_x, gt_y, gt_yaw,

@@ -154,8 +154,9 @@ class HoldOut:
             Fraction of the blocks one fold holds out, in (0, 1).
         block_length : float
             Longest driving time per block, s. Shorter when the data are short, so that
-            there are :data:`MIN_BLOCKS` blocks, but not shorter than ``window`` (a block
-            must hold a window) unless that leaves fewer than 3 blocks.
+            there are :data:`MIN_BLOCKS` blocks, but not shorter than two windows (a block
+            holds three windows overlapping by half) unless that leaves fewer than 3
+            blocks.
         window : float
             Evaluation window, s.
         folds : int, optional
@@ -173,8 +174,8 @@ class HoldOut:
         order = np.lexsort((segments.t0, segments.recording))
         duration = (segments.t1 - segments.t0)[order]
         driving = float(duration.sum())
-        length = min(block_length, max(window, driving / MIN_BLOCKS))
-        # As many blocks as fit, each at least `length` (a window) long; three at least.
+        length = min(block_length, max(2.0 * window, driving / MIN_BLOCKS))
+        # As many blocks as fit, each at least `length` (two windows) long; three at least.
         n_blocks = max(3, int(math.floor(driving / length + 1e-9)))
         # Block of each segment by the driving time before its middle.
         elapsed = np.cumsum(duration) - 0.5 * duration

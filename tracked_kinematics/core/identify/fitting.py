@@ -265,10 +265,11 @@ def check_identified(result: FitResult, accept_uncertain: bool = False) -> list[
                       'driving, would bring it within the limit; or accept the fit '
                       '(--accept-uncertain)')
         else:
-            kinds = ' and '.join(sorted({u.need for u in uncertain if u.cause != 'noise'}))
-            advice = (f'{_noise(result)}; drive more, and more varied, '
-                      f'{"curves and turns in place" if kinds == "turning" else kinds}, or '
-                      'accept the fit (--accept-uncertain)')
+            what = {'turning': 'curves and turns in place', 'straight driving': 'straight lines'}
+            kinds = ' and '.join(what[n] for n in sorted({u.need for u in uncertain
+                                                          if u.cause != 'noise'}))
+            advice = (f'{_noise(result)}; drive more, and more varied, {kinds}, or accept '
+                      'the fit (--accept-uncertain)')
         raise UncertainError('; '.join(u.describe() for u in uncertain) + '; ' + advice)
     return uncertain
 

@@ -17,7 +17,7 @@ import time
 
 import numpy as np
 
-from .delay import correct_ground_truth, DelayEstimate, estimate_delay, fixed_delay
+from .delay import correct_ground_truth, DelayEstimate, estimate_delays, fixed_delay
 from .evaluation import ErrorStats, HoldOut, MIN_WINDOWS, prediction_errors
 from .excitation import check_excitation, Excitation
 from .fitting import check_identified, fit, FitResult
@@ -111,8 +111,12 @@ class Identification:
     seconds : dict
         Wall time of each phase, s.
     delay : DelayEstimate
-        The delay of the ground-truth stamps behind the encoders, removed before all else
-        (``delay.delay == 0`` when off or not determined).
+        The delay of the ground-truth stamps behind the encoders, all recordings together;
+        removed before all else unless ``delays`` (``delay.delay == 0`` when off or not
+        determined).
+    delays : list of DelayEstimate
+        Each recording's own delay, removed from it instead, when every recording
+        determines its own (:func:`.delay.estimate_delays`); else empty.
     ddc : FitResult or None
         diff_drive_controller's multipliers fitted on all moving segments (None when the
         fit failed: ``ddc_error``).
@@ -142,6 +146,7 @@ class Identification:
     window: float
     seconds: dict
     delay: DelayEstimate = field(default_factory=lambda: fixed_delay(0.0))
+    delays: list = field(default_factory=list)
     ddc: FitResult | None = None
     ddc_error: str = ''
     uncertain: list = field(default_factory=list)
@@ -182,8 +187,9 @@ def identify(recordings, model: str = 'icr_scales', track_width: float = 0.42, *
     Identify a terrain model from recordings: time, check, fit, hold out, compare.
 
     0. Measure the delay of the ground-truth stamps behind the encoders
-       (``ground_truth_delay='auto'``: :func:`.delay.estimate_delay`) or take the one given,
-       and remove it from the ground-truth stamps of every recording.
+       (``ground_truth_delay='auto'``: :func:`.delay.estimate_delays`, each recording's
+       own when each determines it) or take the one given, and remove it from the
+       ground-truth stamps.
     1. Cut the recordings into segments inside their pieces (:func:`build_segments`) and
        drop those over a ground-truth jump (:func:`.segments.ground_truth_jumps`) and
        stationary ones (both tracks travel less than ``min_travel``): they carry no
@@ -253,10 +259,11 @@ def identify(recordings, model: str = 'icr_scales', track_width: float = 0.42, *
         if ground_truth_delay != 'auto':
             raise ValueError(f"ground_truth_delay must be a number of seconds or 'auto', got "
                              f'{ground_truth_delay!r}')
-        delay = estimate_delay(recordings)
+        delay, each = estimate_delays(recordings)
     else:
-        delay = fixed_delay(ground_truth_delay or 0.0)
-    recordings = correct_ground_truth(recordings, delay.delay)
+        delay, each = fixed_delay(ground_truth_delay or 0.0), []
+    removed = [e.delay for e in each] if each else [delay.delay] * len(recordings)
+    recordings = [correct_ground_truth([r], d)[0] for r, d in zip(recordings, removed)]
     seconds['delay'] = time.perf_counter() - started
 
     started = time.perf_counter()
@@ -313,13 +320,16 @@ def identify(recordings, model: str = 'icr_scales', track_width: float = 0.42, *
     seconds['ddc'] = time.perf_counter() - started
 
     started = time.perf_counter()
+    data_time = _data_time(recordings, segments)
     held = None
     evaluations = []
     if holdout > 0:
-        held = HoldOut.choose(segments, holdout, holdout_block, window)
+        # Blocks long enough for windows, unless no window fits in any piece.
+        fits = window if data_time.longest_piece >= window else 0.0
+        held = HoldOut.choose(segments, holdout, holdout_block, fits)
         if held is not None and len(held.windows(recordings, window)) < MIN_WINDOWS:
             # Too little held out for a comparison: hold every block out once, in turn.
-            held = HoldOut.choose(segments, holdout, holdout_block, window,
+            held = HoldOut.choose(segments, holdout, holdout_block, fits,
                                   folds=max(2, int(round(1.0 / holdout))))
     if held is not None:
         folds = []
@@ -333,8 +343,8 @@ def identify(recordings, model: str = 'icr_scales', track_width: float = 0.42, *
             evaluations.append(_evaluate(name, track_width, scales, folds, start_of, options))
     seconds['holdout'] = time.perf_counter() - started
     return Identification(result, icr, source, excitation, held, evaluations, segment_length,
-                          window, seconds, delay=delay, ddc=ddc, ddc_error=ddc_error,
-                          uncertain=uncertain, time=_data_time(recordings, segments),
+                          window, seconds, delay=delay, delays=each, ddc=ddc, ddc_error=ddc_error,
+                          uncertain=uncertain, time=data_time,
                           recordings=recordings,
                           jumps=sum(len(ground_truth_jumps(r, track_width)) for r in recordings),
                           jump_segments=int(np.count_nonzero(jumped)))

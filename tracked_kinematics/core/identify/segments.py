@@ -168,7 +168,9 @@ def ground_truth_jumps(recording: Recording, track_width: float | None = None) -
     than :data:`JUMP_MARGIN` plus the fastest track's travel over the interval, or a heading
     change larger than :data:`MAX_HEADING_STEP` plus the turn of an ideal drive with those
     travels (``|d_right - d_left| / track_width``; without ``track_width``, plus nothing).
-    No vehicle moves so; the ground truth over such an interval cannot be trusted.
+    No vehicle moves so; the ground truth over such an interval cannot be trusted. Only
+    intervals inside the pieces (:func:`covered_spans`) are judged: over a gap the travel
+    is not known.
 
     Returns
     -------
@@ -187,6 +189,10 @@ def ground_truth_jumps(recording: Recording, track_width: float | None = None) -
     dyaw = np.abs(wrap_angle(np.diff(rec.gt_yaw)))
     jump = (step > JUMP_MARGIN + np.maximum(d_left, np.abs(d_right))) \
         | (dyaw > MAX_HEADING_STEP + turn)
+    start, end = covered_spans(rec)
+    piece = np.maximum(np.searchsorted(start, rec.gt_t[:-1], side='right') - 1, 0)
+    inside = (len(start) > 0) & (rec.gt_t[:-1] >= start[piece]) & (rec.gt_t[1:] <= end[piece])
+    jump &= inside
     return np.column_stack([rec.gt_t[:-1][jump], rec.gt_t[1:][jump]])
 
 

@@ -222,12 +222,16 @@ def _icr_summary(icr):
             'chi': icr.chi, 'eccentricity': icr.eccentricity}
 
 
-def _delay_summary(delay):
-    return {'delay': delay.delay, 'std': _finite_or_none(float(delay.std)),
-            'uncertainty': delay.uncertainty, 'determined': delay.determined,
-            'problem': delay.problem, 'correlation': delay.correlation,
-            'intervals': delay.intervals, 'excluded': delay.excluded, 'windows': delay.windows,
-            'search': list(delay.search)}
+def _delay_summary(delay, each=()):
+    summary = {'delay': delay.delay, 'std': _finite_or_none(float(delay.std)),
+               'uncertainty': delay.uncertainty, 'determined': delay.determined,
+               'problem': delay.problem, 'correlation': delay.correlation,
+               'intervals': delay.intervals, 'excluded': delay.excluded,
+               'windows': delay.windows, 'search': list(delay.search)}
+    if each:
+        summary['per_bag'] = [{'delay': e.delay, 'std': e.std, 'uncertainty': e.uncertainty}
+                              for e in each]
+    return summary
 
 
 def _ddc_summary(result, radius):
@@ -299,21 +303,29 @@ def _yaml_values(base_values, icr, radius, terrain, extras):
                           check=icr_from_values, drop=('terrain',))
 
 
-def _delay_extras(delay):
+def _delay_extras(delay, each=()):
     """Return the ``identification.ground_truth_delay*`` keys of the YAML."""
+    method = 'given' if delay.delay else 'off'
     extras = {'ground_truth_delay': float(delay.delay),
-              'ground_truth_delay_method': delay.uncertainty or 'off'}
+              'ground_truth_delay_method': method if delay.uncertainty == 'given'
+              else delay.uncertainty}
     if delay.uncertainty in ('jackknife', 'curvature'):
         extras['ground_truth_delay_std'] = float(delay.std)
     elif not delay.determined:
         extras['ground_truth_delay_method'] = 'not determined'
+    if each:
+        extras['ground_truth_delay_per_bag'] = [float(e.delay) for e in each]
     return extras
 
 
-def _print_delay(delay, out):
+def _print_delay(delay, each, out):
     if delay.uncertainty == 'given':
         text = (f'{delay.delay:.3f} s as given, removed from the ground-truth stamps'
                 if delay.delay else 'off (--ground-truth-delay 0)')
+    elif delay.determined and each:
+        per = ', '.join(f'{e.delay:.3f}' for e in each)
+        text = (f'{delay.describe()}; per bag {per} s, each removed from the ground-truth '
+                'stamps of its bag')
     elif delay.determined:
         text = f'{delay.describe()}; removed from the ground-truth stamps'
     else:
@@ -330,11 +342,11 @@ def _print_table(result, recordings, radius, out):
           f'({pieces}; {t.span:.0f} s from first to last sample), {t.driving:.0f} s driving, '
           f'{exc.distance:.1f} m driven, {exc.turning:.1f} rad turned; {exc.moving} moving '
           f'segments of {result.segment_length or "ground-truth period"} s', file=out)
-    _print_delay(result.delay, out)
+    _print_delay(result.delay, result.delays, out)
     if result.jumps:
-        print(f'ground truth: {result.jumps} jumps (re-localisations, glitches: a step the '
-              f'tracks cannot make); the {result.jump_segments} segments and the windows over '
-              'them are left out', file=out)
+        print(f'ground truth: {result.jumps} jump(s) (re-localisations, glitches: a step the '
+              f'tracks cannot make); the {result.jump_segments} segment(s) and the windows '
+              'over them are left out', file=out)
     fitted = result.fit
     params = ', '.join(f'{n} {v:.4f}' for n, v in fitted.params.items())
     icr = result.icr
@@ -433,19 +445,20 @@ def _run(args, out) -> int:
               'sprocket_radius': radius, 'recordings': _recordings_summary(recordings)}
     if args.spin_in_place:
         scales = (base.scale_left, base.scale_right) if base else (1.0, 1.0)
-        delay = (ident.estimate_delay(recordings) if args.ground_truth_delay == 'auto'
-                 else ident.fixed_delay(args.ground_truth_delay))
-        spin = ident.spin_in_place(ident.correct_ground_truth(recordings, delay.delay),
-                                   track_width, scales)
+        delay, each = (ident.estimate_delays(recordings) if args.ground_truth_delay == 'auto'
+                       else (ident.fixed_delay(args.ground_truth_delay), []))
+        removed = [e.delay for e in each] or [delay.delay] * len(recordings)
+        spin = ident.spin_in_place([ident.correct_ground_truth([r], d)[0]
+                                    for r, d in zip(recordings, removed)], track_width, scales)
         icr = spin.icr(track_width, scales)
         extras = {'model': 'spin_in_place', 'date': date, 'bags': bags,
                   'spin_runs': len(spin.runs), 'chi': spin.chi, 'chi_std': spin.chi_std,
-                  **_delay_extras(delay)}
+                  **_delay_extras(delay, each)}
         values = _yaml_values(base_values, icr, radius, args.terrain, extras)
         report.update({'mode': 'spin_in_place', 'chi': spin.chi, 'chi_std': spin.chi_std,
                        'runs': spin.runs, 'icr': _icr_summary(icr),
-                       'ground_truth_delay': _delay_summary(delay)})
-        _print_delay(delay, out)
+                       'ground_truth_delay': _delay_summary(delay, each)})
+        _print_delay(delay, each, out)
         print(f'{PROG}: {len(spin.runs)} spin-in-place run(s): chi = {spin.chi:.4f} '
               f'(std {spin.chi_std:.4f}); ICRs at +-{icr.y_left:.4f} m', file=out)
     else:
@@ -467,7 +480,8 @@ def _run(args, out) -> int:
                   'heading_weight': fitted.heading_weight, 'cost': fitted.cost,
                   'rms_position': fitted.rms_position, 'rms_heading': fitted.rms_heading,
                   'chi': icr.chi, 'eccentricity': icr.eccentricity,
-                  'icr_source': result.icr_source, **_delay_extras(result.delay)}
+                  'icr_source': result.icr_source,
+                  **_delay_extras(result.delay, result.delays)}
         extras.update({f'parameters.{n}': v for n, v in fitted.params.items()})
         if result.uncertain:
             extras['uncertain'] = [u.name for u in result.uncertain]
@@ -485,7 +499,8 @@ def _run(args, out) -> int:
             'mode': 'segments', 'model': fitted.model.name, 'icr_source': result.icr_source,
             'icr': _icr_summary(icr), 'fit': _fit_summary(fitted),
             'excitation': vars(result.excitation), 'holdout': _holdout_summary(result),
-            'seconds': result.seconds, 'ground_truth_delay': _delay_summary(result.delay),
+            'seconds': result.seconds,
+            'ground_truth_delay': _delay_summary(result.delay, result.delays),
             'time': _time_summary(result.time), 'tuned_ddc': _ddc_summary(result, radius),
             'ground_truth_jumps': {'jumps': result.jumps, 'segments': result.jump_segments},
             'uncertain': [vars(u) for u in result.uncertain]})
