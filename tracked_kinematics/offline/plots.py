@@ -151,8 +151,8 @@ def _plot_delay(ax, result) -> None:
     ax.set_title('Ground-truth delay behind the encoders', fontsize=10)
     ax.set_xlabel('delay (s)')
     if delay is None or not len(delay.cost):
-        ax.text(0.5, 0.5, 'given: ' + (f'{delay.delay:.3f} s' if delay and delay.delay else 'none'),
-                ha='center', va='center', transform=ax.transAxes)
+        given = f'{delay.delay:.3f} s' if delay and delay.delay else 'none'
+        ax.text(0.5, 0.5, f'given: {given}', ha='center', va='center', transform=ax.transAxes)
         ax.set_yticks([])
         return
     ax.plot(delay.shifts, delay.cost - np.min(delay.cost), color='C0',
