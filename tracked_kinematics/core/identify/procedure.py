@@ -270,6 +270,8 @@ def identify(recordings, model: str = 'icr_scales', track_width: float = 0.42, *
     scales = (base.scale_left, base.scale_right) if base is not None else (1.0, 1.0)
     target = build_model(model, track_width, scales)
     all_segments = build_segments(recordings, segment_length)
+    if len(all_segments) == 0:
+        raise ExcitationError(_why_no_segments(recordings, segment_length))
     # The ground truth over a jump (a re-localisation, a glitch) says nothing of the motion.
     jumped = over_jumps(all_segments, recordings, track_width)
     all_segments = all_segments.select(~jumped)
@@ -348,6 +350,27 @@ def identify(recordings, model: str = 'icr_scales', track_width: float = 0.42, *
                           recordings=recordings,
                           jumps=sum(len(ground_truth_jumps(r, track_width)) for r in recordings),
                           jump_segments=int(np.count_nonzero(jumped)))
+
+
+def _why_no_segments(recordings, segment_length) -> str:
+    """Say why recordings give no segment at all: the streams apart, or pieces too short."""
+    ranges = []
+    for rec in recordings:
+        if len(rec.enc_t) < 2 or len(rec.gt_t) < 2:
+            continue
+        start, end = covered_spans(rec)
+        if len(start):
+            ranges.append(float(np.max(end - start)))
+            continue
+        return (f'{rec.name or "a recording"}: the encoders ({rec.enc_t[0]:.2f}-'
+                f'{rec.enc_t[-1]:.2f} s) and the ground truth ({rec.gt_t[0]:.2f}-'
+                f'{rec.gt_t[-1]:.2f} s) never both have samples: not one clock, or a '
+                'ground-truth delay far beyond the search?')
+    if not ranges:
+        return 'no recording has two encoder and two ground-truth samples'
+    return (f'no segment: the pieces where both streams have samples are at most '
+            f'{max(ranges):.2f} s long, less than half a segment of {segment_length:g} s; '
+            'give a shorter --segment-length')
 
 
 def _evaluate(name, track_width, scales, folds, start_of, options) -> ModelEvaluation:
