@@ -411,7 +411,7 @@ def _print_holdout(result, out):
             gain = getattr(e, kind).improvement_over(getattr(baseline, kind)) \
                 if baseline.segments is not None else None
             columns.append('' if gain is None else f'{gain["position"]:+.0f} %')
-        print(f'{e.name:<22}{seg}{win}{columns[0]:>10}{columns[1]:>14}', file=out)
+        print(f'{e.name:<22}{seg}{win}{columns[0]:>10}{columns[1]:>14}'.rstrip(), file=out)
 
 
 def _print_ddc(result, radius, out):
