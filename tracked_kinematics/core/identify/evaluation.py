@@ -54,12 +54,13 @@ class ErrorStats:
         return cls(len(position), float(position.mean()), float(np.percentile(position, 90)),
                    float(heading.mean()), float(np.percentile(heading, 90)))
 
-    def improvement_over(self, baseline: ErrorStats) -> dict[str, float] | None:
+    def improvement_over(self, baseline: ErrorStats) -> dict[str, float | None] | None:
         """
         Return the percent reduction of the mean errors relative to ``baseline``.
 
         None when either has no segments: there is nothing to compare, which is not a
-        0 % improvement. A baseline error of exactly 0 gives ``-inf`` or 0 (equal).
+        0 % improvement. Against a baseline error of exactly 0, an equal error is 0 % and a
+        larger one None (no finite percentage).
         """
         if self.n == 0 or baseline.n == 0:
             return None
@@ -67,7 +68,7 @@ class ErrorStats:
         def pct(ours, theirs):
             if theirs > 0:
                 return float(100.0 * (1.0 - ours / theirs))
-            return 0.0 if ours <= theirs else -math.inf
+            return 0.0 if ours <= theirs else None
         return {'position': pct(self.position_mean, baseline.position_mean),
                 'heading': pct(self.heading_mean, baseline.heading_mean)}
 

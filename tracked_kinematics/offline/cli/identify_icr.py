@@ -410,7 +410,8 @@ def _print_holdout(result, out):
                 continue
             gain = getattr(e, kind).improvement_over(getattr(baseline, kind)) \
                 if baseline.segments is not None else None
-            columns.append('' if gain is None else f'{gain["position"]:+.0f} %')
+            columns.append('' if gain is None or gain['position'] is None
+                           else f'{gain["position"]:+.0f} %')
         print(f'{e.name:<22}{seg}{win}{columns[0]:>10}{columns[1]:>14}'.rstrip(), file=out)
 
 
@@ -491,9 +492,9 @@ def _run(args, out) -> int:
         for key, baseline in (('holdout', ideal), ('holdout_vs_tuned_ddc', ddc)):
             if chosen and baseline and chosen.windows and baseline.windows:
                 gain = chosen.windows.improvement_over(baseline.windows)
-                if gain is not None:
-                    extras[f'{key}_position_improvement_pct'] = gain['position']
-                    extras[f'{key}_heading_improvement_pct'] = gain['heading']
+                for kind in ('position', 'heading') if gain is not None else ():
+                    if gain[kind] is not None:
+                        extras[f'{key}_{kind}_improvement_pct'] = gain[kind]
         values = _yaml_values(base_values, icr, radius, args.terrain, extras)
         report.update({
             'mode': 'segments', 'model': fitted.model.name, 'icr_source': result.icr_source,
