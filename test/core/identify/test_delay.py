@@ -2,6 +2,7 @@
 
 from helpers.recordings import bursts, late, noisy, pieces
 from helpers.vehicle_sim import AURIGA, B, simulate
+from hypothesis import given, settings, strategies as st
 import numpy as np
 import pytest
 from tracked_kinematics.core import identify as ident
@@ -121,3 +122,14 @@ def test_correct_ground_truth_and_fixed_delay(slow_gt):
 def test_invalid_options(slow_gt, options, message):
     with pytest.raises(ValueError, match=message):
         ident.estimate_delay([slow_gt], **options)
+
+
+@settings(max_examples=12, deadline=None, derandomize=True)
+@given(injected=st.floats(-0.4, 0.9), seed=st.integers(0, 50),
+       gt_rate=st.sampled_from([4.0, 7.3, 10.0]), enc_rate=st.sampled_from([20.0, 50.0]))
+def test_any_injected_delay_is_recovered(injected, seed, gt_rate, enc_rate):
+    rec = simulate(TRUTH, P_TRUE, duration=60.0, enc_rate=enc_rate, gt_rate=gt_rate, seed=seed,
+                   gt_phase=0.011)
+    found = ident.estimate_delay([late(rec, injected)])
+    assert found.determined
+    assert found.delay == pytest.approx(injected, abs=0.002)
