@@ -17,7 +17,8 @@ from .delay import (
 from .drive_data import DriveData, resample
 from .drivetrain import DriveTrainFit, fit_drivetrain
 from .evaluation import (
-    dead_reckoning, ErrorStats, HoldOut, MIN_BLOCKS, MIN_WINDOWS, prediction_errors)
+    dead_reckoning, ErrorStats, HoldOut, MIN_BLOCKS, MIN_SEGMENTS, MIN_WINDOWS,
+    prediction_errors)
 from .excitation import (
     check_excitation, Excitation, MIN_MOVING_SEGMENTS, MIN_STRAIGHT, MIN_TURNING)
 from .fitting import (
@@ -39,13 +40,13 @@ __all__ = [
     'DelayEstimate', 'DriveData', 'DriveTrainFit', 'ErrorStats', 'Excitation',
     'ExcitationError', 'FIT_MODELS', 'FitError', 'FitResult', 'HoldOut', 'Identification',
     'IdentificationError', 'LOSSES', 'METHODS', 'MIN_BLOCKS', 'MIN_MOVING_SEGMENTS',
-    'MIN_STRAIGHT', 'MIN_TURNING', 'MIN_WINDOWS', 'ModelEvaluation', 'REFERENCE_RESIDUAL',
-    'Recording', 'STD_LIMITS', 'SegmentProblem', 'Segments', 'SpinResult', 'TunedDiffDrive',
-    'Uncertain', 'UncertainError', 'auto_heading_weight', 'bounds', 'build_model',
-    'build_segments', 'check_excitation', 'check_heading_weight', 'check_identified',
-    'correct_ground_truth', 'covered_spans', 'ddc_parameters', 'dead_reckoning',
-    'estimate_delay', 'estimate_delay_arrays', 'estimate_delays', 'fit', 'fit_drivetrain',
-    'fixed_delay', 'gap_threshold', 'identify', 'initial_guess', 'prediction_errors',
-    'resample', 'robust_cost', 'search_box', 'spin_in_place', 'steering_efficiency_guess',
-    'stretches',
+    'MIN_SEGMENTS', 'MIN_STRAIGHT', 'MIN_TURNING', 'MIN_WINDOWS', 'ModelEvaluation',
+    'REFERENCE_RESIDUAL', 'Recording', 'STD_LIMITS', 'SegmentProblem', 'Segments',
+    'SpinResult', 'TunedDiffDrive', 'Uncertain', 'UncertainError', 'auto_heading_weight',
+    'bounds', 'build_model', 'build_segments', 'check_excitation', 'check_heading_weight',
+    'check_identified', 'correct_ground_truth', 'covered_spans', 'ddc_parameters',
+    'dead_reckoning', 'estimate_delay', 'estimate_delay_arrays', 'estimate_delays', 'fit',
+    'fit_drivetrain', 'fixed_delay', 'gap_threshold', 'identify', 'initial_guess',
+    'prediction_errors', 'resample', 'robust_cost', 'search_box', 'spin_in_place',
+    'steering_efficiency_guess', 'stretches',
 ]

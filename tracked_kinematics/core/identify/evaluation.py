@@ -91,7 +91,10 @@ def prediction_errors(model: MotionModel, p, segments: Segments):
 MIN_BLOCKS = 10
 """Blocks the driving time is cut into at least, when the block length allows."""
 MIN_WINDOWS = 20
-"""Fewer held-out windows than this in one fold: every block is held out once, in turn."""
+"""Fewer held-out windows than this in one fold (and too few segments, :data:`MIN_SEGMENTS`):
+every block is held out once, in turn."""
+MIN_SEGMENTS = 200
+"""As many held-out segments in one fold are enough for a comparison, windows or not."""
 
 
 @dataclass(frozen=True)
@@ -103,9 +106,10 @@ class HoldOut:
     ``block_length`` seconds; each fold holds out some blocks, and the models are fitted on
     the segments that do not overlap them (Martinez sec. 6: validation paths other than the
     training ones). One fold holds out ``fraction`` of the blocks, evenly spaced; when that
-    leaves fewer than :data:`MIN_WINDOWS` held-out windows (a short recording), the blocks
-    are held out in turn over ``round(1 / fraction)`` folds (cross-validation), so every
-    block is predicted once by models that did not see it.
+    leaves fewer than :data:`MIN_WINDOWS` held-out windows and :data:`MIN_SEGMENTS` held-out
+    segments (a short recording), the blocks are held out in turn over
+    ``round(1 / fraction)`` folds (cross-validation), so every block is predicted once by
+    models that did not see it.
 
     Attributes
     ----------

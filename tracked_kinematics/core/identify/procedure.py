@@ -18,7 +18,7 @@ import time
 import numpy as np
 
 from .delay import correct_ground_truth, DelayEstimate, estimate_delays, fixed_delay
-from .evaluation import ErrorStats, HoldOut, MIN_WINDOWS, prediction_errors
+from .evaluation import ErrorStats, HoldOut, MIN_SEGMENTS, MIN_WINDOWS, prediction_errors
 from .excitation import check_excitation, Excitation
 from .fitting import check_identified, fit, FitResult
 from .problem import DEFAULT_HEADING_WEIGHT
@@ -201,7 +201,8 @@ def identify(recordings, model: str = 'icr_scales', track_width: float = 0.42, *
        uncertain is refused unless ``accept_uncertain``).
     4. Fit the tuned diff_drive_controller (:class:`.ddc.TunedDiffDrive`) on the same data.
     5. Hold out time blocks (:class:`HoldOut`: cross-validated when one fold would give
-       fewer than :data:`.evaluation.MIN_WINDOWS` windows), fit every model of ``compare``
+       fewer than :data:`.evaluation.MIN_WINDOWS` windows and
+       :data:`.evaluation.MIN_SEGMENTS` segments), fit every model of ``compare``
        on the rest with the heading weight of step 3 (one round of robust least squares
        each) and measure each on the held-out segments and on held-out windows of
        ``window`` s.
@@ -329,7 +330,8 @@ def identify(recordings, model: str = 'icr_scales', track_width: float = 0.42, *
         # Blocks long enough for windows, unless no window fits in any piece.
         fits = window if data_time.longest_piece >= window else 0.0
         held = HoldOut.choose(segments, holdout, holdout_block, fits)
-        if held is not None and len(held.windows(recordings, window)) < MIN_WINDOWS:
+        if held is not None and len(held.windows(recordings, window)) < MIN_WINDOWS \
+                and np.count_nonzero(held.inside(segments, 0)) < MIN_SEGMENTS:
             # Too little held out for a comparison: hold every block out once, in turn.
             held = HoldOut.choose(segments, holdout, holdout_block, fits,
                                   folds=max(2, int(round(1.0 / holdout))))
