@@ -221,6 +221,43 @@ def test_switching_to_reliable_mid_stream_loses_and_repeats_nothing(harness):
     assert counts['duplicate'] == counts['time_back'] == 0
 
 
+def test_switching_away_from_a_silent_subscription(ros_context, executor, capfd):
+    # The node starts reliable for a reliable publisher that then goes; a sensor-data one
+    # streams instead. The old subscription never delivers again: the switch must still end.
+    import time
+    from rclpy.node import Node
+    early = Node('early_driver', namespace='away', context=ros_context)
+    reliable = early.create_publisher(JointState, 'joint_states', QoSProfile(
+        depth=10, reliability=ReliabilityPolicy.RELIABLE))
+    h = Harness(ros_context, executor, capfd, 'away', sprocket_radius=0.1)
+    topic, = h.input.inputs
+    assert spin_until(executor, lambda: topic.reliability == ReliabilityPolicy.RELIABLE
+                      and not topic.switching, 5.0)
+    early.destroy_publisher(reliable)
+    pub = h.driver.node.create_publisher(JointState, 'joint_states', qos_profile_sensor_data)
+    sent, deadline = 0, time.monotonic() + 20.0
+
+    def send():
+        nonlocal sent
+        sent += 1
+        pub.publish(joint_state(1.0 + 0.001 * sent, [0.001 * sent, 0.001 * sent]))
+        executor.spin_once(timeout_sec=0.001)
+    # A sensor-data publisher cannot reach the reliable subscription: until the switch
+    # (within about a check period) its samples are lost.
+    start = time.monotonic()
+    while time.monotonic() < deadline and (topic.reliability != ReliabilityPolicy.BEST_EFFORT
+                                           or topic.switching):
+        send()
+    assert topic.reliability == ReliabilityPolicy.BEST_EFFORT and not topic.switching
+    switch_time, before = time.monotonic() - start, h.input.received
+    for _ in range(300):
+        send()
+    assert spin_until(executor, lambda: h.input.received - before >= 0.95 * 300, 5.0)
+    assert h.input.counts['time_back'] == 0
+    assert switch_time < 3.0
+    early.destroy_node()
+
+
 def test_best_effort_publishers_still_match(harness):
     h = harness(sprocket_radius=0.1)
     topic, = h.input.inputs

@@ -19,6 +19,7 @@ from __future__ import annotations
 from collections.abc import Callable
 
 from rclpy.clock import Clock, ClockType
+from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 # Queue of an input subscription: one second at 1 kHz (ros2_control's fastest common update
@@ -101,12 +102,19 @@ class InputTopic:
         self._expected = 0
         self._passed: set = set()
         self._buffer: list = []
-        self._traffic = False
+        self._old_traffic = False
         self._warned_types: set = set()
 
     def _subscribe(self, reliability, callback):
+        # A publisher whose QoS cannot match (a best-effort one for a reliable subscription)
+        # is followed at once, not at the next check.
+        events = SubscriptionEventCallbacks(incompatible_qos=self._on_incompatible)
         return self._node.create_subscription(self._msg_type, self.topic_name, callback,
-                                              input_qos(reliability, self._depth))
+                                              input_qos(reliability, self._depth),
+                                              event_callbacks=events)
+
+    def _on_incompatible(self, event) -> None:
+        self.check()
 
     def _publishers(self):
         try:
@@ -137,11 +145,12 @@ class InputTopic:
                 f'node subscribes {self.type_name}: their messages are never received. '
                 'Remap the topic or fix the publisher.')
         if self._old is not None:
-            # Without an order of the messages, or without traffic since the last check
-            # (nothing can be pending), the old subscription goes once the new one matched.
-            if (self._order_key is None or not self._traffic) and self._matched():
+            # Without an order of the messages, or when the old subscription received
+            # nothing since the last check (nothing can be pending in it, e.g. its QoS no
+            # longer matches any publisher), it goes once the new one has matched.
+            if (self._order_key is None or not self._old_traffic) and self._matched():
                 self._retire()
-            self._traffic = False
+            self._old_traffic = False
             return
         wanted = self._wanted(infos)
         if wanted is None or wanted == self.reliability:
@@ -151,7 +160,7 @@ class InputTopic:
         self._expected = sum(1 for info in infos if info.topic_type == self.type_name)
         self._passed = set()
         self._buffer = []
-        self._traffic = False
+        self._old_traffic = False
         self._old = self._subscription
         self._old.callback = self._on_old
         self._subscription = self._subscribe(wanted, self._on_new)
@@ -197,7 +206,7 @@ class InputTopic:
         return True
 
     def _on_old(self, msg) -> None:
-        self._traffic = True
+        self._old_traffic = True
         if self._order_key is None:
             self._callback(msg)
             return
@@ -210,7 +219,6 @@ class InputTopic:
             self._retire()
 
     def _on_new(self, msg) -> None:
-        self._traffic = True
         if self._order_key is None:
             return  # the old subscription delivers until it is retired
         key = self._order_key(msg)
