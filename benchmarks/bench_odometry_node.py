@@ -9,9 +9,10 @@ in and out, default executor). This script receives raw bytes (no deserialisatio
 reads only the header stamp, so that it stays lighter than either node.
 
 - flood: JointState as fast as the node takes them, with a window of at most three
-  messages in flight (sensor-data QoS, which the node's input follows; its queue keeps
-  1000, so none is dropped for lack of room); the figures are messages handled per second and the node process's
-  CPU time per message (/proc), which other load on the machine disturbs less.
+  messages in flight (sensor-data QoS, which the node's input follows; its queue
+  keeps 1000, so none is dropped for lack of room); the figures are messages handled
+  per second and the node process's CPU time per message (/proc), which other load on
+  the machine disturbs less.
 - 1 kHz: JointState paced at 1000 Hz; the figures are the median and the 99th percentile
   of the latency from the input's header.stamp (wall clock at publishing) to the receipt of
   the output here, an upper bound of stamp-to-publish.

@@ -189,22 +189,82 @@ def test_reliable_publishers_get_a_reliable_deep_queue(harness):
     pub = h.driver.node.create_publisher(JointState, 'joint_states', QoSProfile(
         depth=1000, reliability=ReliabilityPolicy.RELIABLE))
     assert spin_until(h.executor, lambda: topic.reliability == ReliabilityPolicy.RELIABLE
-                      and pub.get_subscription_count() >= 1, 5.0)
+                      and not topic.switching and pub.get_subscription_count() >= 1, 5.0)
     qos = topic.subscription.qos_profile
     assert (qos.reliability, qos.depth) == (ReliabilityPolicy.RELIABLE, 1000)
     for i in range(600):
         pub.publish(joint_state(1.0 + 0.001 * i, [0.001 * i, 0.001 * i]))
     assert spin_until(h.executor, lambda: h.input.received >= 600, 10.0)
-    assert h.input.received == 600 and len(h.steps) == 599
+    assert h.input.received == 600 and len(h.steps) == 599, h.input.counts
+
+
+def test_switching_to_reliable_mid_stream_loses_and_repeats_nothing(harness):
+    # The subscription starts best effort (no publisher known yet) and switches to reliable
+    # while samples stream in: the old and the new one are merged by stamp.
+    import time
+    h = harness(sprocket_radius=0.1, namespace='switch')
+    topic, = h.input.inputs
+    assert topic.reliability == ReliabilityPolicy.BEST_EFFORT
+    pub = h.driver.node.create_publisher(JointState, 'joint_states', QoSProfile(
+        depth=1000, reliability=ReliabilityPolicy.RELIABLE))
+    sent, deadline = 0, time.monotonic() + 20.0
+    while time.monotonic() < deadline and (topic.reliability != ReliabilityPolicy.RELIABLE
+                                           or topic.switching or sent < 300):
+        if pub.get_subscription_count():
+            sent += 1
+            pub.publish(joint_state(1.0 + 0.001 * sent, [0.001 * sent, 0.001 * sent]))
+        h.executor.spin_once(timeout_sec=0.001)
+    assert topic.reliability == ReliabilityPolicy.RELIABLE and not topic.switching
+    assert spin_until(h.executor, lambda: h.input.received >= sent, 5.0)
+    counts = h.input.counts
+    assert h.input.received == sent and counts['step'] == sent - 1, counts
+    assert counts['duplicate'] == counts['time_back'] == 0
+
+
+def test_switching_away_from_a_silent_subscription(ros_context, executor, capfd):
+    # The node starts reliable for a reliable publisher that then goes; a sensor-data one
+    # streams instead. The old subscription never delivers again: the switch must still end.
+    import time
+    from rclpy.node import Node
+    early = Node('early_driver', namespace='away', context=ros_context)
+    reliable = early.create_publisher(JointState, 'joint_states', QoSProfile(
+        depth=10, reliability=ReliabilityPolicy.RELIABLE))
+    h = Harness(ros_context, executor, capfd, 'away', sprocket_radius=0.1)
+    topic, = h.input.inputs
+    assert spin_until(executor, lambda: topic.reliability == ReliabilityPolicy.RELIABLE
+                      and not topic.switching, 5.0)
+    early.destroy_publisher(reliable)
+    pub = h.driver.node.create_publisher(JointState, 'joint_states', qos_profile_sensor_data)
+    sent, deadline = 0, time.monotonic() + 20.0
+
+    def send():
+        nonlocal sent
+        sent += 1
+        pub.publish(joint_state(1.0 + 0.001 * sent, [0.001 * sent, 0.001 * sent]))
+        executor.spin_once(timeout_sec=0.001)
+    # A sensor-data publisher cannot reach the reliable subscription: until the switch
+    # (within about a check period) its samples are lost.
+    start = time.monotonic()
+    while time.monotonic() < deadline and (topic.reliability != ReliabilityPolicy.BEST_EFFORT
+                                           or topic.switching):
+        send()
+    assert topic.reliability == ReliabilityPolicy.BEST_EFFORT and not topic.switching
+    switch_time, before = time.monotonic() - start, h.input.received
+    for _ in range(300):
+        send()
+    assert spin_until(executor, lambda: h.input.received - before >= 0.95 * 300, 5.0)
+    assert h.input.counts['time_back'] == 0
+    assert switch_time < 3.0
+    early.destroy_node()
 
 
 def test_best_effort_publishers_still_match(harness):
     h = harness(sprocket_radius=0.1)
     topic, = h.input.inputs
     pub = h.driver.node.create_publisher(JointState, 'joint_states', qos_profile_sensor_data)
-    assert spin_until(h.executor, lambda: pub.get_subscription_count() == 1, 5.0)
-    topic.check()
-    assert topic.reliability == ReliabilityPolicy.BEST_EFFORT
+    assert spin_until(h.executor, lambda: pub.get_subscription_count() >= 1
+                      and topic.reliability == ReliabilityPolicy.BEST_EFFORT
+                      and not topic.switching, 5.0)
     for i in range(3):
         pub.publish(joint_state(1.0 + 0.01 * i, [0.0, 0.0]))
         spin_until(h.executor, lambda: h.input.received > i, 2.0)

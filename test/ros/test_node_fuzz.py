@@ -12,8 +12,8 @@ import math
 
 from helpers.encoder_stream import Driver, joint_state, LEFT, RIGHT
 from helpers.ros_helpers import spin_until
-from hypothesis import HealthCheck, seed, settings
 from hypothesis import given, strategies as st
+from hypothesis import HealthCheck, seed, settings
 from nav_msgs.msg import Odometry as OdometryMsg, Path
 import numpy as np
 import pytest
@@ -59,7 +59,7 @@ def joint_states(draw):
 
 
 def value_in_range(spec):
-    """A strategy of values of ``spec``: mostly within its range, sometimes absurd."""
+    """Return a strategy of values of ``spec``: mostly within its range, sometimes absurd."""
     if isinstance(spec.default, bool):
         return st.booleans()
     if isinstance(spec.default, int):
@@ -75,7 +75,7 @@ def value_in_range(spec):
 
 
 def parameter_sets(specs, skip=()):
-    """Strategy: a few (name, value) pairs of runtime-settable numeric/bool parameters."""
+    """Return a strategy of a few (name, value) pairs of settable numeric/bool parameters."""
     settable = [spec for spec in specs if not spec.read_only and spec.name not in skip
                 and value_in_range(spec) is not None]
     pairs = st.sampled_from(settable).flatmap(
@@ -259,12 +259,15 @@ def test_icr_estimator_fuzz(ros_context, executor):
                 poses.publish(pose(ti, 0.5 * (ti - t0), 0.0, 0.0))
                 spin_until(executor, lambda: False, 0.002)
         del icr[:], paths[:]
-        assert spin_until(executor, lambda: icr and paths, 5.0)
+
+        def at_the_end():
+            return (icr and paths and node.encoder.stamp == joint_state(t[-1]).header.stamp
+                    and abs(paths[-1].poses[0].pose.position.x - 1.0) < 1e-6)
+        assert spin_until(executor, at_the_end, 5.0), paths[-1:] and paths[-1].poses[0]
         check_outputs()
         now = node.estimator.pose_now()
         assert now is not None and now[1] == pytest.approx(1.0, abs=1e-6)
         assert now[2] == pytest.approx(0.0, abs=1e-6)
-        assert paths[-1].poses[0].pose.position.x == pytest.approx(1.0, abs=1e-6)
         y_left, y_right = icr[-1].data[:2]
         assert y_left > y_right
 

@@ -68,6 +68,11 @@ def check_encoder_values(values: Mapping[str, Any]) -> None:
         raise ValueError(f'left_joints and right_joints both list {sorted(both)}')
 
 
+def _stamp_key(msg) -> int:
+    stamp = msg.header.stamp
+    return stamp_ns(stamp.sec, stamp.nanosec)
+
+
 def _side_means(values, left_index, right_index):
     return (sum(values[i] for i in left_index) / len(left_index),
             sum(values[i] for i in right_index) / len(right_index))
@@ -124,7 +129,7 @@ class EncoderInput:
         self.configure(values)
         if self.mode == 'joint_states':
             self.inputs = (InputTopic(node, JointState, JOINT_STATES_TOPIC,
-                                      self._on_joint_state),)
+                                      self._on_joint_state, order_key=_stamp_key),)
         else:
             if self.mode == 'track_speeds':
                 msg_type = Float64

@@ -9,7 +9,9 @@ they all are (joint_state_broadcaster, most drivers: then no sample they send is
 best effort as soon as one is not (sensor-data publishers keep working), and with a queue deep
 enough for a second of input at 1 kHz. :meth:`InputTopic.check`, called about once a second,
 re-subscribes when the publishers change, and names publishers of another message type on the
-topic, whose messages DDS silently never delivers.
+topic, whose messages DDS silently never delivers. A new subscription is made before the
+old one is destroyed, and for stamped messages the two are merged by stamp until the old one
+has caught up, so the switch neither loses nor repeats a sample.
 """
 
 from __future__ import annotations
@@ -17,6 +19,7 @@ from __future__ import annotations
 from collections.abc import Callable
 
 from rclpy.clock import Clock, ClockType
+from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 # Queue of an input subscription: one second at 1 kHz (ros2_control's fastest common update
@@ -67,6 +70,13 @@ class InputTopic:
         Message callback.
     depth : int
         Queue depth.
+    order_key : callable, optional
+        ``order_key(msg) -> int`` that tells samples apart (the stamp in ns). During a
+        switch the old subscription delivers until it has passed on a message the new one
+        holds too (a subscription delivers in order, so nothing is left only in the old
+        one); the new one's messages are held back until then, and each sample is passed
+        on once. Without it, the old one delivers until the new one has matched (a sample
+        or two in flight at that moment may be lost).
 
     Attributes
     ----------
@@ -77,20 +87,34 @@ class InputTopic:
 
     """
 
-    def __init__(self, node, msg_type, topic: str, callback: Callable, depth: int = INPUT_DEPTH):
+    def __init__(self, node, msg_type, topic: str, callback: Callable, depth: int = INPUT_DEPTH,
+                 order_key: Callable | None = None):
         self._node = node
         self._msg_type = msg_type
         self._callback = callback
         self._depth = depth
+        self._order_key = order_key
         self.type_name = type_name(msg_type)
         self.topic_name = node.resolve_topic_name(topic)
         self.reliability = self._wanted() or ReliabilityPolicy.BEST_EFFORT
-        self._subscription = self._subscribe(self.reliability)
+        self._subscription = self._subscribe(self.reliability, callback)
+        self._old = None  # the subscription being replaced, while it is
+        self._expected = 0
+        self._passed: set = set()
+        self._buffer: list = []
+        self._old_traffic = False
         self._warned_types: set = set()
 
-    def _subscribe(self, reliability):
-        return self._node.create_subscription(self._msg_type, self.topic_name, self._callback,
-                                              input_qos(reliability, self._depth))
+    def _subscribe(self, reliability, callback):
+        # A publisher whose QoS cannot match (a best-effort one for a reliable subscription)
+        # is followed at once, not at the next check.
+        events = SubscriptionEventCallbacks(incompatible_qos=self._on_incompatible)
+        return self._node.create_subscription(self._msg_type, self.topic_name, callback,
+                                              input_qos(reliability, self._depth),
+                                              event_callbacks=events)
+
+    def _on_incompatible(self, event) -> None:
+        self.check()
 
     def _publishers(self):
         try:
@@ -120,14 +144,26 @@ class InputTopic:
                 f'{self.topic_name} has publishers of another message type ({others}); this '
                 f'node subscribes {self.type_name}: their messages are never received. '
                 'Remap the topic or fix the publisher.')
+        if self._old is not None:
+            # Without an order of the messages, or when the old subscription received
+            # nothing since the last check (nothing can be pending in it, e.g. its QoS no
+            # longer matches any publisher), it goes once the new one has matched.
+            if (self._order_key is None or not self._old_traffic) and self._matched():
+                self._retire()
+            self._old_traffic = False
+            return
         wanted = self._wanted(infos)
         if wanted is None or wanted == self.reliability:
             return
-        old = self._subscription
-        # The new subscription first: a sample delivered to both is a duplicate, which the
-        # encoder input recognises by its stamp, rather than a loss.
-        self._subscription = self._subscribe(wanted)
-        self._node.destroy_subscription(old)
+        # The new subscription first; the old one keeps delivering until it has caught up
+        # with what the new one holds (then it is destroyed), so the switch loses no sample.
+        self._expected = sum(1 for info in infos if info.topic_type == self.type_name)
+        self._passed = set()
+        self._buffer = []
+        self._old_traffic = False
+        self._old = self._subscription
+        self._old.callback = self._on_old
+        self._subscription = self._subscribe(wanted, self._on_new)
         self.reliability = wanted
         if wanted == ReliabilityPolicy.RELIABLE:
             self._node.get_logger().info(
@@ -137,6 +173,64 @@ class InputTopic:
             self._node.get_logger().info(
                 f'{self.topic_name}: a publisher is best effort (sensor data): subscribed best '
                 'effort, samples may be dropped under load')
+
+    @property
+    def switching(self) -> bool:
+        """Whether an old subscription is still being replaced."""
+        return self._old is not None
+
+    def _matched(self) -> bool:
+        try:
+            return self._subscription.get_publisher_count() >= self._expected
+        except Exception:  # noqa: BLE001 -- shutting down
+            return False
+
+    def _retire(self) -> None:
+        """Destroy the old subscription; pass on what the new one held back, in order."""
+        self._node.destroy_subscription(self._old)
+        self._old = None
+        buffer, self._buffer = self._buffer, []
+        for key, msg in buffer:
+            self._pass_on(msg, key)
+        # Messages the old one passed on may still wait in the new one's queue: drop those
+        # until the first new one, then hand the callback over.
+        self._subscription.callback = self._callback if self._order_key is None \
+            else self._on_new_after
+
+    def _pass_on(self, msg, key) -> bool:
+        """Pass a message on unless it was passed on already during the switch."""
+        if key in self._passed:
+            return False
+        self._passed.add(key)
+        self._callback(msg)
+        return True
+
+    def _on_old(self, msg) -> None:
+        self._old_traffic = True
+        if self._order_key is None:
+            self._callback(msg)
+            return
+        key = self._order_key(msg)
+        self._pass_on(msg, key)
+        if self._buffer and self._buffer[0][0] == key:
+            # The new subscription holds this one too: the old one has delivered everything
+            # that only it had (a subscription delivers in order). It can go.
+            self._buffer.pop(0)
+            self._retire()
+
+    def _on_new(self, msg) -> None:
+        if self._order_key is None:
+            return  # the old subscription delivers until it is retired
+        key = self._order_key(msg)
+        if key in self._passed:
+            self._retire()  # the old one got here first: nothing is left only in it
+        else:
+            self._buffer.append((key, msg))
+
+    def _on_new_after(self, msg) -> None:
+        if self._pass_on(msg, self._order_key(msg)):
+            self._passed = set()
+            self._subscription.callback = self._callback
 
     @property
     def subscription(self):
