@@ -66,6 +66,12 @@ def in_range(value, low: float | None, high: float | None, unit: str = '') -> st
     return f'must be in [{lo:g}, {hi:g}]{unit}, got {value!r}'
 
 
+def means_no_limit(value) -> bool:
+    """Tell whether a limit value says "no limit": 0, NaN or +inf (not a bool)."""
+    return (isinstance(value, (int, float)) and not isinstance(value, bool)
+            and (value == 0 or math.isnan(value) or value == math.inf))
+
+
 def _is_inf(value) -> bool:
     return isinstance(value, float) and math.isinf(value)
 
@@ -140,6 +146,11 @@ class ParamSpec:
         ``FloatingPointRange`` / ``IntegerRange`` (``ros2 param describe`` shows it) and
         checked after ``check``. A value outside is refused at start and at runtime: a rate
         of 1e-10 Hz or a radius of 5e-324 m is a number, not a vehicle.
+    no_limit : bool
+        A limit whose ``0``, ``NaN`` (diff_drive_controller's ``.NAN``) and ``inf`` all mean
+        "no limit": those three pass the range check (which bounds every other value), and
+        the range is published as the descriptor's ``additional_constraints`` text instead
+        of a ``FloatingPointRange`` (rclpy refuses NaN and inf against one).
 
     """
 
@@ -151,12 +162,15 @@ class ParamSpec:
     read_only: bool = False
     low: float | None = None
     high: float | None = None
+    no_limit: bool = False
 
     def validate(self, value) -> str | None:
         """Return an error message naming the parameter, or None when ``value`` is valid."""
         problem = None if self.check is None else self.check(value)
-        if problem is None and self.has_range:
+        if problem is None and self.has_range and not (self.no_limit and means_no_limit(value)):
             problem = in_range(value, self.low, self.high, self.unit)
+            if problem and self.no_limit:
+                problem += ' (0, .NAN or .inf: no limit)'
         return None if problem is None else f'{self.name} {problem}'
 
     @property
