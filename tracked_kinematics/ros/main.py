@@ -198,6 +198,8 @@ def run(node_factory: Callable[[], 'rclpy.node.Node'], name: str, args=None,
         except (KeyboardInterrupt, ExternalShutdownException):
             return 0
         except Exception as err:  # noqa: BLE001 -- any failure to start is one FATAL line
+            if not rclpy.ok():  # a signal shut the context down while the node was built
+                return 0
             logger.fatal(f'cannot start: {type(err).__name__}: {" ".join(str(err).split())}')
             return EXIT_STARTUP
         for message in unknown_parameters(given, specs):
@@ -216,5 +218,8 @@ def run(node_factory: Callable[[], 'rclpy.node.Node'], name: str, args=None,
                 node.destroy_node()
             except Exception:  # noqa: BLE001 -- destroying after a signal may fail; harmless
                 pass
-        rclpy.try_shutdown()
+        try:
+            rclpy.try_shutdown()
+        except Exception:  # noqa: BLE001 -- raced rclpy's signal handler shutting it down
+            pass
     return 0
