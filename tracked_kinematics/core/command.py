@@ -403,9 +403,16 @@ class CommandLimiter:
             m/s, finite for every finite twist.
 
         """
-        limits = self._limits
+        limits, icr = self._limits, self._icr
+        if abs(v_x) <= limits.max_linear_velocity and abs(w) <= limits.max_angular_velocity:
+            # Within every limit (the usual case): eqs. (10)-(11), (20)-(21) on floats, the
+            # same operations as track_setpoints, a microsecond instead of twenty.
+            left = (v_x - icr.y_left * w) / icr.scale_left
+            right = (v_x - icr.y_right * w) / icr.scale_right
+            if max(abs(left), abs(right)) <= self.max_speed:  # False for an overflow, NaN
+                return left, right
         v_x, w = limit_twist(v_x, w, limits.max_linear_velocity, limits.max_angular_velocity)
-        left, right = envelope_setpoints(v_x, w, self._icr, self.max_speed)
+        left, right = envelope_setpoints(v_x, w, icr, self.max_speed)
         return float(left), float(right)
 
     def update(self, t: float, max_dt: float = math.inf) -> tuple[float, float]:
