@@ -147,8 +147,9 @@ class ParamSpec:
         checked after ``check``. A value outside is refused at start and at runtime: a rate
         of 1e-10 Hz or a radius of 5e-324 m is a number, not a vehicle.
     no_limit : bool
-        A limit whose ``0``, ``NaN`` (diff_drive_controller's ``.NAN``) and ``inf`` all mean
-        "no limit": those three pass the range check (which bounds every other value), and
+        A limit whose ``0``, ``NaN`` (diff_drive_controller's ``.NAN``) and ``inf`` say "no
+        limit" (or, for a deceleration, "as the acceleration limit"; the description says
+        which): those three pass the range check (which bounds every other value), and
         the range is published as the descriptor's ``additional_constraints`` text instead
         of a ``FloatingPointRange`` (rclpy refuses NaN and inf against one).
 
@@ -170,7 +171,7 @@ class ParamSpec:
         if problem is None and self.has_range and not (self.no_limit and means_no_limit(value)):
             problem = in_range(value, self.low, self.high, self.unit)
             if problem and self.no_limit:
-                problem += ' (0, .NAN or .inf: no limit)'
+                problem += ' (or 0, .NAN, .inf: see its description)'
         return None if problem is None else f'{self.name} {problem}'
 
     @property

@@ -46,7 +46,7 @@ def _type_matches(spec: ParamSpec, value) -> bool:
     return True
 
 
-def describe(spec: ParamSpec) -> ParameterDescriptor:
+def describe(spec: ParamSpec, ranges: bool = True) -> ParameterDescriptor:
     """
     Build the descriptor of a parameter: its text, read-only flag and range.
 
@@ -55,17 +55,20 @@ def describe(spec: ParamSpec) -> ParameterDescriptor:
     refuses a value outside it; doubles accept integers (``dynamic_typing``), which the
     table's own check then bounds. A limit (``spec.no_limit``) states its range in
     ``additional_constraints``, since its "no limit" values NaN and inf lie outside any range.
+    ``ranges=False`` leaves the range out (:class:`ParameterTable` adds it after its check).
     """
     descriptor = ParameterDescriptor(
         description=spec.full_description, read_only=spec.read_only,
         dynamic_typing=isinstance(spec.default, float))
+    if not ranges:
+        return descriptor
     if spec.has_range and spec.no_limit:
         # rclpy would refuse the NaN and inf that mean "no limit" against a range.
         low = '-inf' if spec.low is None else f'{spec.low:g}'
         high = 'inf' if spec.high is None else f'{spec.high:g}'
         unit = f' {spec.unit}' if spec.unit else ''
         descriptor.additional_constraints = (
-            f'[{low}, {high}]{unit}; 0, NaN (.NAN) or .inf: no limit')
+            f'[{low}, {high}]{unit}; also 0, NaN (.NAN) or .inf (see the description)')
     elif spec.has_range and isinstance(spec.default, float):
         descriptor.floating_point_range = [FloatingPointRange(
             from_value=-math.inf if spec.low is None else float(spec.low),
@@ -113,11 +116,17 @@ class ParameterTable:
         problems = []
         for spec in self.specs.values():
             descriptor = describe(spec)
+            # A range is applied once the table's own check passed, so that a value outside
+            # it gets the table's message ("scale.left must be > 0, got 0.0"), not rclpy's.
+            ranged = (bool(descriptor.floating_point_range or descriptor.integer_range)
+                      and not spec.read_only)
             default = spec.default
             if isinstance(default, list) and not default:
                 default = Parameter.Type.STRING_ARRAY
             try:
-                value = node.declare_parameter(spec.name, default, descriptor).value
+                value = node.declare_parameter(
+                    spec.name, default, describe(spec, ranges=False) if ranged else descriptor
+                ).value
             except Exception as err:  # noqa: BLE001 -- rclpy raises several types here
                 problems.append(f'{spec.name}: {err}')
                 continue
@@ -126,8 +135,11 @@ class ParameterTable:
             problem = self._check(spec, value)
             if problem:
                 problems.append(problem)
-            else:
-                values[spec.name] = _coerce(spec, value)
+                continue
+            if ranged:
+                descriptor.type = node.describe_parameter(spec.name).type
+                node.set_descriptor(spec.name, descriptor)
+            values[spec.name] = _coerce(spec, value)
         if not problems and validate is not None:
             try:
                 validate(values)
