@@ -718,3 +718,12 @@ def test_nan_limits_in_process_match_the_core(graph, executor):
     node, probe = graph(**values)
     limiter = CommandLimiter(AURIGA, limits_from_values(values))
     assert drive(executor, probe, 1.0, 1.0, reaches(limiter.target(1.0, 1.0)))
+
+
+def test_docs_page_lists_every_parameter():
+    from helpers.setup_info import ROOT
+    from tracked_kinematics.params import TERRAIN_PARAMS
+    from tracked_kinematics.ros.cmd_vel_translator import TRANSLATOR_PARAMS
+    page = (ROOT / 'docs' / 'nodes' / 'cmd_vel_translator.md').read_text()
+    for spec in TRANSLATOR_PARAMS:
+        assert spec in TERRAIN_PARAMS or f'`{spec.name}`' in page, spec.name
