@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from tracked_kinematics.core.command import (
-    CommandLimiter, CommandLimits, limit_twist, saturate_tracks, track_setpoints)
+    CommandLimiter, CommandLimits, envelope_setpoints, exceeds_envelope, limit_twist,
+    saturate_tracks, setpoint_problem, setpoint_twist, track_setpoints, TRACK_SPEED_ENVELOPE)
 from tracked_kinematics.core.kinematics import forward, IcrParams, true_speeds
 
 # Martinez et al. (2005), sec. 5.3 and 6: Auriga-alpha on hard floor, in ROS axes.
@@ -259,3 +260,184 @@ def test_reset_forgets_everything():
     limiter.update(0.0)
     limiter.reset()
     assert limiter.setpoints == (0.0, 0.0) and limiter.update(0.1) == (0.0, 0.0)
+
+
+# The vehicle envelope, decelerations, the output guard (issues 14 and 15) ----------------
+
+# Finite doubles of every kind a sender can put in a Twist: huge, tiny, subnormal, zero.
+any_finite = st.floats(allow_nan=False, allow_infinity=False)
+extreme = st.sampled_from([1.7976931348623157e308, -1.7976931348623157e308, 5e-324,
+                           -5e-324, 1e-300, 1e300, 0.0, -0.0])
+commands = st.one_of(any_finite, extreme)
+
+
+@given(icr_models(), commands, commands, st.one_of(st.just(TRACK_SPEED_ENVELOPE),
+                                                   st.floats(0.05, 5.0)))
+def test_envelope_setpoints_finite_bounded_and_on_the_commanded_arc(icr, v_x, w, max_speed):
+    left, right = envelope_setpoints(v_x, w, icr, max_speed)
+    left, right = float(left), float(right)
+    assert math.isfinite(left) and math.isfinite(right)
+    assert max(abs(left), abs(right)) <= max_speed * (1 + EPS)
+    # Same direction in setpoint space as the exact (overflow-free) setpoints of the command:
+    # the curvature is kept. Compared on the command scaled down by a power of two (exact).
+    scale = 2.0 ** -math.frexp(max(abs(v_x), abs(w), 1e-300))[1]
+    exact_left, exact_right = (float(s) for s in track_setpoints(v_x * scale, w * scale, icr))
+    norm = max(abs(exact_left), abs(exact_right))
+    if norm > 1e-200 and max(abs(left), abs(right)) > 1e-200:
+        assert left * exact_right - right * exact_left == pytest.approx(
+            0.0, abs=1e-9 * norm * max(abs(left), abs(right)))
+        assert left * exact_left + right * exact_right > 0.0
+
+
+def test_envelope_setpoints_equal_the_plain_ones_within_the_envelope():
+    left, right = envelope_setpoints([0.5, -2.0], [0.3, 1.0], AURIGA)
+    exact = track_setpoints([0.5, -2.0], [0.3, 1.0], AURIGA)
+    assert np.array_equal(left, exact[0]) and np.array_equal(right, exact[1])
+
+
+def test_huge_twist_gives_the_envelope_golden():
+    # 1.8e308 straight ahead on an ideal drive: both tracks at the 30 m/s envelope, not inf.
+    left, right = envelope_setpoints(1.7976931348623157e308, 0.0, IcrParams.ideal(0.5))
+    assert (float(left), float(right)) == (TRACK_SPEED_ENVELOPE, TRACK_SPEED_ENVELOPE)
+    # The same on an arc of curvature 1/m: v_x = w; tracks v_x -+ 0.25 w in ratio 3:5.
+    left, right = envelope_setpoints(1.7976931348623157e308, 1.7976931348623157e308,
+                                     IcrParams.ideal(0.5))
+    assert (float(left), float(right)) == pytest.approx((18.0, 30.0))
+
+
+@pytest.mark.parametrize('limits', [
+    CommandLimits(max_track_accel=2.0), CommandLimits(max_track_speed=1.0),
+    CommandLimits(), CommandLimits(max_linear_acceleration=0.5, max_angular_acceleration=1.0),
+], ids=['max_track_accel', 'max_track_speed', 'none', 'twist_accel'])
+def test_huge_commands_never_latch_nan(limits):
+    # Issue 14 item 1: two finite Twists of +-1.797e308 made inf setpoints, then 0 * inf = NaN
+    # in the ramp, published forever.
+    limiter = CommandLimiter(AURIGA, limits, timeout=0.5)
+    big = 1.7976931348623157e308
+    t, out = 0.0, []
+    for k in range(200):
+        t += 0.02
+        if k < 2:
+            limiter.command(big * (-1) ** k, big * (-1) ** k, t)
+        out.append(limiter.update(t, max_dt=0.04))
+    out = np.array(out)
+    assert np.all(np.isfinite(out))
+    assert np.max(np.abs(out)) <= min(limits.max_track_speed, TRACK_SPEED_ENVELOPE) * (1 + EPS)
+    # Stale after 0.5 s: a stop reached (by 4 s at the slowest ramp here), not a latch.
+    assert tuple(out[-1]) == (0.0, 0.0)
+    for _ in range(100):
+        t += 0.02
+        limiter.command(0.3, 0.1, t)
+        last = limiter.update(t, max_dt=0.04)
+    assert last == pytest.approx(track_setpoints(0.3, 0.1, AURIGA))
+
+
+@given(icr_models(), st.lists(st.tuples(commands, commands), min_size=1, max_size=20),
+       limits_or_inf, limits_or_inf, limits_or_inf, limits_or_inf)
+def test_limiter_output_always_finite_and_within_the_envelope(icr, cmds, max_speed,
+                                                              max_accel, max_a, max_decel):
+    limits = CommandLimits(max_speed, max_accel, max_linear_acceleration=max_a,
+                           max_track_decel=max_decel)
+    limiter = CommandLimiter(icr, limits, timeout=0.05)
+    t = 0.0
+    for v_x, w in cmds:
+        t += 0.01
+        limiter.command(v_x, w, t)
+        left, right = limiter.update(t, max_dt=0.02)
+        assert setpoint_problem(left, right, icr, limits) is None
+
+
+def test_deceleration_limit_is_used_toward_zero_golden():
+    # v_x up at 1 m/s^2, down at 4 m/s^2 (DDC's max_deceleration), 10 ms steps.
+    limiter = CommandLimiter(IcrParams.ideal(0.5), CommandLimits(
+        max_linear_acceleration=1.0, max_linear_deceleration=4.0), timeout=100.0)
+    up = run_limiter(limiter, [(0.5, 0.0)] * 60, [0.01] * 60)
+    np.testing.assert_allclose(up[:50, 0], 0.01 * np.arange(1, 51))
+    t = 0.6
+    limiter.command(0.0, 0.0, t)
+    down = []
+    for _ in range(20):
+        t += 0.01
+        down.append(limiter.update(t)[0])
+    np.testing.assert_allclose(down[:12], 0.5 - 0.04 * np.arange(1, 13))
+    assert down[12:] == [0.0] * 8
+    # Reversing from +0.5 to -0.5 m/s: toward zero at 4, then away from it (reverse) at 1.
+    limiter.command(0.5, 0.0, t)
+    for _ in range(60):
+        t += 0.01
+        limiter.update(t)
+    limiter.command(-0.5, 0.0, t)
+    rev = []
+    for _ in range(80):
+        t += 0.01
+        rev.append(limiter.update(t)[0])
+    steps = -np.diff([0.5] + rev)
+    assert steps[:12] == pytest.approx([0.04] * 12)  # decelerating from 0.5 to 0.02
+    assert steps[12] == pytest.approx(0.04)  # from +0.02 through zero to -0.02
+    assert np.all(steps[13:61] == pytest.approx(0.01))  # accelerating in reverse
+    assert rev[-1] == -0.5
+
+
+def test_unset_deceleration_is_the_acceleration_limit():
+    limits = CommandLimits(max_track_accel=2.0, max_linear_acceleration=1.0)
+    assert limits.max_track_decel == 2.0 and limits.max_linear_deceleration == 1.0
+    assert limits.max_angular_deceleration == math.inf
+    assert CommandLimits(max_track_accel=2.0, max_track_decel=math.inf).max_track_decel \
+        == math.inf
+    with pytest.raises(ValueError, match='max_track_decel'):
+        CommandLimits(max_track_decel=-1.0)
+
+
+def test_timeout_inf_never_goes_stale():
+    limiter = CommandLimiter(AURIGA, timeout=math.inf)
+    limiter.command(0.3, 0.0, 0.0)
+    assert not limiter.is_stale(1e9)
+    assert limiter.update(1e9) == pytest.approx(track_setpoints(0.3, 0.0, AURIGA))
+
+
+def test_lower_velocity_limit_applies_at_once():
+    # A velocity limit is never exceeded: lowered at runtime, the setpoints are scaled into
+    # it at once (keeping the curvature), whatever the acceleration limits.
+    limiter = CommandLimiter(IcrParams.ideal(0.5), timeout=100.0)
+    limiter.command(1.0, 1.0, 0.0)
+    assert limiter.update(0.0) == (0.75, 1.25)
+    limiter.limits = CommandLimits(max_track_speed=0.5, max_track_accel=0.01)
+    assert limiter.setpoints == pytest.approx((0.3, 0.5))
+    limiter.limits = CommandLimits(max_linear_velocity=0.2, max_track_accel=0.01)
+    assert twist_of(*limiter.setpoints, IcrParams.ideal(0.5)) == pytest.approx((0.2, 0.2))
+
+
+def test_setpoint_problem_names_what_is_wrong():
+    ideal, none = IcrParams.ideal(0.5), CommandLimits()
+    assert setpoint_problem(0.5, 0.6, ideal, none) is None
+    assert 'non-finite' in setpoint_problem(math.nan, 0.0, ideal, none)
+    assert 'non-finite' in setpoint_problem(0.0, math.inf, ideal, none)
+    assert 'vehicle envelope 30' in setpoint_problem(31.0, 0.0, ideal, none)
+    assert 'max_track_speed 1' in setpoint_problem(
+        1.5, 0.0, ideal, CommandLimits(max_track_speed=1.0))
+    assert 'linear velocity limit' in setpoint_problem(
+        1.0, 1.0, ideal, CommandLimits(max_linear_velocity=0.5))
+    assert 'angular velocity limit' in setpoint_problem(
+        -1.0, 1.0, ideal, CommandLimits(max_angular_velocity=1.0))
+    assert setpoint_problem(1.0 + 1e-12, 0.0, ideal, CommandLimits(max_track_speed=1.0)) is None
+
+
+def test_exceeds_envelope():
+    assert not exceeds_envelope(1.0, 1.0, AURIGA)
+    assert exceeds_envelope(31.0, 0.0, IcrParams.ideal(0.5))
+    assert exceeds_envelope(1.7976931348623157e308, -1.7976931348623157e308, AURIGA)
+    assert exceeds_envelope(0.0, 1e300, AURIGA)
+
+
+def test_setpoint_twist_matches_forward_kinematics():
+    v_x, w = setpoint_twist(0.4, 0.7, AURIGA)
+    assert (v_x, w) == pytest.approx(twist_of(0.4, 0.7, AURIGA), abs=1e-15)
+
+
+def test_force_stop_keeps_the_command():
+    limiter = CommandLimiter(AURIGA, timeout=100.0)
+    limiter.command(0.3, 0.0, 0.0)
+    limiter.update(0.0)
+    limiter.force_stop()
+    assert limiter.setpoints == (0.0, 0.0)
+    assert limiter.update(0.01) == pytest.approx(track_setpoints(0.3, 0.0, AURIGA))

@@ -13,13 +13,28 @@ Limits are applied so that the path the vehicle follows stays the commanded one:
   ``angular.z.max_velocity``, and on each track's setpoint) scale ``v_x`` and ``w`` by one
   common factor, which keeps the curvature ``w / v_x`` (diff_drive_controller clamps the
   two independently, which turns a commanded arc into a tighter one);
-- acceleration limits (on the twist and on each track's setpoint) move the setpoints along
-  the straight segment from the last setpoints to the target, by the largest fraction of it
-  that no limit forbids. Both tracks reach the target together, and a ramp from or to rest
-  keeps the commanded curvature all the way.
+- acceleration and deceleration limits (on the twist and on each track's setpoint) move the
+  setpoints along the straight segment from the last setpoints to the target, by the largest
+  fraction of it that no limit forbids. Both tracks reach the target together, and a ramp
+  from or to rest keeps the commanded curvature all the way. A quantity whose change moves
+  it toward zero (its last value and its change have opposite signs) is held to the
+  deceleration limit, any other change to the acceleration limit: the rule of
+  diff_drive_controller's rate limiter (control_toolbox ``RateLimiter``, which decides on
+  the sign of the last value the same way). An unset deceleration limit is the acceleration
+  limit, as there.
 
 Track limits apply to the nominal setpoints, the numbers the motor controllers receive.
 Unlimited is ``math.inf``.
+
+The vehicle envelope
+--------------------
+Whatever the limits, no setpoint leaves the command path faster than
+:data:`TRACK_SPEED_ENVELOPE`: a user's ``max_track_speed`` can only lower it. A command is
+scaled into the envelope (one factor on ``v_x`` and ``w``, so its curvature is kept) before
+anything downstream sees it, and the inverse kinematics is evaluated so that it cannot
+overflow (:func:`envelope_setpoints`). Every number of the ramp, its differences and its
+fractions is then bounded, for every finite command: a Twist of 1.8e308 m/s becomes 30 m/s,
+never the inf of an overflow nor the ``0 * inf = NaN`` of a ramp that would latch.
 """
 
 from __future__ import annotations
@@ -30,24 +45,36 @@ import math
 import numpy as np
 
 from ._checks import require_numbers
-from .kinematics import forward, IcrParams, inverse, nominal_speeds
+from .kinematics import IcrParams, inverse, nominal_speeds
+
+#: Largest nominal track speed setpoint the command path ever gives, m/s, limits or none.
+#: 30 m/s (108 km/h) is beyond any tracked robot, and still a speed and not an overflow.
+TRACK_SPEED_ENVELOPE = 30.0
+
+# Deceleration limit -> the acceleration limit it defaults to.
+_DECELERATION_OF = {'max_track_decel': 'max_track_accel',
+                    'max_linear_deceleration': 'max_linear_acceleration',
+                    'max_angular_deceleration': 'max_angular_acceleration'}
 
 
 @dataclass(frozen=True, slots=True)
 class CommandLimits:
     """
-    Velocity and acceleration limits of the command path; ``math.inf`` is no limit.
+    Velocity, acceleration and deceleration limits of the command path; ``inf`` is no limit.
 
     Attributes
     ----------
     max_track_speed : float
         Largest nominal track speed setpoint, m/s.
     max_track_accel : float
-        Largest rate of change of a nominal track speed setpoint, m/s^2.
+        Largest rate of change of a nominal track speed setpoint away from zero, m/s^2.
     max_linear_velocity, max_linear_acceleration : float
-        Largest ``|v_x|`` (m/s) and its rate of change (m/s^2).
+        Largest ``|v_x|`` (m/s) and its rate of change away from zero (m/s^2).
     max_angular_velocity, max_angular_acceleration : float
-        Largest ``|w|`` (rad/s) and its rate of change (rad/s^2).
+        Largest ``|w|`` (rad/s) and its rate of change away from zero (rad/s^2).
+    max_track_decel, max_linear_deceleration, max_angular_deceleration : float or None
+        Largest rate of change toward zero of a track setpoint, ``v_x`` and ``w``; None (the
+        default) is the matching acceleration limit.
 
     Raises
     ------
@@ -62,8 +89,14 @@ class CommandLimits:
     max_linear_acceleration: float = math.inf
     max_angular_velocity: float = math.inf
     max_angular_acceleration: float = math.inf
+    max_track_decel: float | None = None
+    max_linear_deceleration: float | None = None
+    max_angular_deceleration: float | None = None
 
     def __post_init__(self):
+        for decel, accel in _DECELERATION_OF.items():
+            if getattr(self, decel) is None:
+                object.__setattr__(self, decel, getattr(self, accel))
         names = tuple(f.name for f in fields(self))
         require_numbers(self, positive=names, unbounded=names)
 
@@ -145,28 +178,141 @@ def saturate_tracks(left, right, max_speed):
     return left * factor, right * factor
 
 
+def envelope_setpoints(v_x, w, icr: IcrParams, max_speed: float = TRACK_SPEED_ENVELOPE):
+    """
+    Nominal setpoints of a twist, both scaled by one factor <= 1 into ``max_speed``.
+
+    :func:`track_setpoints` then :func:`saturate_tracks`, made safe for every finite
+    command: where the inverse kinematics of the command itself overflows (a Twist of
+    1.8e308 m/s), it is evaluated on the command divided by ``m = max(|v_x|, |w|)``, whose
+    setpoints ``s`` are finite, and the result is ``s * min(m, max_speed / max|s|)``: the
+    same direction in setpoint space (the curvature is kept), at the largest magnitude
+    within ``max_speed``. Where the model itself overflows even then (a scale of 5e-324,
+    which no parameter range accepts), the setpoints are zero.
+
+    Parameters
+    ----------
+    v_x, w : array_like
+        Commanded forward velocity (m/s) and yaw rate (rad/s), finite.
+    icr : IcrParams
+        Kinematic model of the vehicle on its terrain.
+    max_speed : float
+        Largest ``|setpoint|``, m/s, finite and > 0: the envelope or a lower limit.
+
+    Returns
+    -------
+    left, right : ndarray
+        Nominal track speeds, m/s, finite, ``|left|, |right| <= max_speed``; exactly
+        :func:`track_setpoints` where those are within ``max_speed``.
+
+    """
+    v_x = np.asarray(v_x, dtype=float)
+    w = np.asarray(w, dtype=float)
+    with np.errstate(all='ignore'):
+        left, right = track_setpoints(v_x, w, icr)
+        direct = np.isfinite(left) & np.isfinite(right)
+        if not np.all(direct):
+            m = np.maximum(np.abs(v_x), np.abs(w))
+            m_safe = np.where(m > 0.0, m, 1.0)
+            unit_left, unit_right = track_setpoints(v_x / m_safe, w / m_safe, icr)
+            peak = np.maximum(np.abs(unit_left), np.abs(unit_right))
+            gain = np.minimum(m, np.divide(max_speed, peak, out=np.zeros_like(peak),
+                                           where=peak > 0.0))
+            left = np.where(direct, left, unit_left * gain)
+            right = np.where(direct, right, unit_right * gain)
+        left, right = saturate_tracks(left, right, max_speed)
+        finite = np.isfinite(left) & np.isfinite(right)
+    return np.where(finite, left, 0.0), np.where(finite, right, 0.0)
+
+
+def exceeds_envelope(v_x: float, w: float, icr: IcrParams,
+                     envelope: float = TRACK_SPEED_ENVELOPE) -> bool:
+    """
+    Tell whether a twist asks for a nominal track speed beyond ``envelope`` (m/s).
+
+    Eqs. (10)-(11) and (20)-(21) on Python floats; an overflow (inf, or the NaN of inf - inf)
+    counts as beyond.
+    """
+    peak = max(abs((v_x - icr.y_left * w) / icr.scale_left),
+               abs((v_x - icr.y_right * w) / icr.scale_right))
+    return not peak <= envelope
+
+
+def setpoint_twist(left: float, right: float, icr: IcrParams) -> tuple[float, float]:
+    """
+    Body twist ``(v_x, w)`` that one pair of nominal setpoints makes, on Python floats.
+
+    The forward kinematics of :func:`~tracked_kinematics.core.kinematics.forward`
+    (Martinez et al. 2005, eqs. 7-9 in the ROS frame) after the scale corrections of
+    eqs. (20)-(21), written out for two floats: it runs at every publish, where numpy's
+    per-call cost on scalars would be most of the work. Linear, so it also maps a change
+    of the setpoints to the change of the twist.
+    """
+    v_left, v_right = left * icr.scale_left, right * icr.scale_right
+    w = (v_right - v_left) / (icr.y_left - icr.y_right)
+    return 0.5 * (v_right + v_left) + w * (0.5 * (icr.y_left + icr.y_right)), w
+
+
+def setpoint_problem(left: float, right: float, icr: IcrParams, limits: CommandLimits,
+                     envelope: float = TRACK_SPEED_ENVELOPE, rel: float = 1e-9) -> str | None:
+    """
+    Say what forbids sending a pair of nominal setpoints, or return None when nothing does.
+
+    The check of an output guard: both finite, neither beyond ``max_track_speed`` nor the
+    envelope, and the twist they make (:func:`setpoint_twist`) within the twist velocity
+    limits, each up to a relative rounding margin ``rel``.
+
+    Returns
+    -------
+    str or None
+        What is wrong, with the numbers, for a warning.
+
+    """
+    if not (math.isfinite(left) and math.isfinite(right)):
+        return f'non-finite setpoints ({left!r}, {right!r})'
+    speed = max(abs(left), abs(right))
+    if limits.max_track_speed < envelope:
+        limit, name = limits.max_track_speed, 'max_track_speed'
+    else:
+        limit, name = envelope, 'the vehicle envelope'
+    if speed > limit * (1.0 + rel):
+        return f'track speed {speed:g} m/s beyond {name} {limit:g} m/s'
+    if math.isfinite(limits.max_linear_velocity) or math.isfinite(limits.max_angular_velocity):
+        v_x, w = setpoint_twist(left, right, icr)
+        if abs(v_x) > limits.max_linear_velocity * (1.0 + rel):
+            return f'v_x {v_x:g} m/s beyond the linear velocity limit ' \
+                   f'{limits.max_linear_velocity:g} m/s'
+        if abs(w) > limits.max_angular_velocity * (1.0 + rel):
+            return f'w {w:g} rad/s beyond the angular velocity limit ' \
+                   f'{limits.max_angular_velocity:g} rad/s'
+    return None
+
+
 class CommandLimiter:
     """
     Twist commands in, limited nominal track setpoints out, one update per publish period.
 
-    The caller gives each command with its arrival time (:meth:`command`) and asks for the
+    The caller gives each command with its time (:meth:`command`) and asks for the
     setpoints at every publish time (:meth:`update`). A command older than ``timeout`` is
-    replaced by a stop, reached at the acceleration limits (at once when there are none).
+    replaced by a stop, reached at the deceleration limits (at once when there are none).
 
     Parameters
     ----------
     icr : IcrParams
         Kinematic model of the vehicle on its terrain.
     limits : CommandLimits, optional
-        Velocity and acceleration limits; none by default.
+        Velocity, acceleration and deceleration limits; none by default.
     timeout : float, optional
-        Age (s) beyond which a command is stale, > 0.
+        Age (s) beyond which a command is stale, > 0; ``inf`` disables the timeout.
+    envelope : float, optional
+        Largest nominal setpoint, m/s, whatever the limits (:data:`TRACK_SPEED_ENVELOPE`).
 
     Attributes
     ----------
     icr, limits, timeout
         May be replaced between updates (runtime parameter changes); the ramp continues
-        from the last setpoints.
+        from the last setpoints, scaled at once into new velocity limits (a velocity limit
+        is never exceeded, not even to ramp down to it).
 
     Notes
     -----
@@ -176,10 +322,11 @@ class CommandLimiter:
     """
 
     def __init__(self, icr: IcrParams, limits: CommandLimits | None = None,
-                 timeout: float = 0.5):
+                 timeout: float = 0.5, envelope: float = TRACK_SPEED_ENVELOPE):
         self._icr = icr
         self._limits = CommandLimits() if limits is None else limits
         self.timeout = timeout
+        self.envelope = float(envelope)
         self._setpoints = (0.0, 0.0)
         self._command = (0.0, 0.0)
         self._command_time = -math.inf
@@ -194,15 +341,22 @@ class CommandLimiter:
     @icr.setter
     def icr(self, icr: IcrParams) -> None:
         self._icr, self._target = icr, None
+        self._setpoints = self._within_velocity_limits(self._setpoints)
 
     @property
     def limits(self) -> CommandLimits:
-        """Velocity and acceleration limits."""
+        """Velocity, acceleration and deceleration limits."""
         return self._limits
 
     @limits.setter
     def limits(self, limits: CommandLimits) -> None:
         self._limits, self._target = limits, None
+        self._setpoints = self._within_velocity_limits(self._setpoints)
+
+    @property
+    def max_speed(self) -> float:
+        """Return the largest setpoint, m/s: ``max_track_speed`` or the envelope if lower."""
+        return min(self._limits.max_track_speed, self.envelope)
 
     @property
     def setpoints(self) -> tuple[float, float]:
@@ -216,9 +370,11 @@ class CommandLimiter:
         Parameters
         ----------
         v_x, w : float
-            Forward velocity (m/s) and yaw rate (rad/s).
+            Forward velocity (m/s) and yaw rate (rad/s), finite (any magnitude: the envelope
+            scales it).
         t : float
-            Arrival time, s, on the clock of :meth:`update`.
+            Time of the command (its arrival, or its stamp if older), s, on the clock of
+            :meth:`update`.
 
         Raises
         ------
@@ -239,18 +395,24 @@ class CommandLimiter:
 
     def target(self, v_x: float, w: float) -> tuple[float, float]:
         """
-        Nominal setpoints for a twist within the velocity limits, before any ramp.
+        Nominal setpoints for a twist within the velocity limits and the envelope, unramped.
 
         Returns
         -------
         left, right : float
-            m/s.
+            m/s, finite for every finite twist.
 
         """
-        limits = self._limits
+        limits, icr = self._limits, self._icr
+        if abs(v_x) <= limits.max_linear_velocity and abs(w) <= limits.max_angular_velocity:
+            # Within every limit (the usual case): eqs. (10)-(11), (20)-(21) on floats, the
+            # same operations as track_setpoints, a microsecond instead of twenty.
+            left = (v_x - icr.y_left * w) / icr.scale_left
+            right = (v_x - icr.y_right * w) / icr.scale_right
+            if max(abs(left), abs(right)) <= self.max_speed:  # False for an overflow, NaN
+                return left, right
         v_x, w = limit_twist(v_x, w, limits.max_linear_velocity, limits.max_angular_velocity)
-        left, right = saturate_tracks(*track_setpoints(v_x, w, self._icr),
-                                      limits.max_track_speed)
+        left, right = envelope_setpoints(v_x, w, icr, self.max_speed)
         return float(left), float(right)
 
     def update(self, t: float, max_dt: float = math.inf) -> tuple[float, float]:
@@ -283,6 +445,10 @@ class CommandLimiter:
         self._setpoints = self._ramp(target, dt)
         return self._setpoints
 
+    def force_stop(self) -> None:
+        """Set the setpoints to zero at once, keeping the command (an output guard's stop)."""
+        self._setpoints = (0.0, 0.0)
+
     def reset(self) -> None:
         """Forget the command and the setpoints: stopped, as after construction."""
         self._setpoints = (0.0, 0.0)
@@ -291,6 +457,20 @@ class CommandLimiter:
         self._target = None
         self._last_update = None
 
+    def _within_velocity_limits(self, setpoints):
+        """Scale setpoints by one factor into the velocity limits (zero if not finite)."""
+        left, right = setpoints
+        if not (math.isfinite(left) and math.isfinite(right)):
+            return 0.0, 0.0
+        if left == 0.0 and right == 0.0:
+            return setpoints
+        v_x, w = setpoint_twist(left, right, self._icr)
+        limits = self._limits
+        factor = min(_ratio(self.max_speed, max(abs(left), abs(right))),
+                     _ratio(limits.max_linear_velocity, abs(v_x)),
+                     _ratio(limits.max_angular_velocity, abs(w)))
+        return setpoints if factor >= 1.0 else (left * factor, right * factor)
+
     def _ramp(self, target, dt):
         """Move from the last setpoints toward ``target`` by the largest allowed fraction."""
         (left0, right0), (left1, right1) = self._setpoints, target
@@ -298,19 +478,36 @@ class CommandLimiter:
         if d_left == 0.0 and d_right == 0.0:
             return self._setpoints
         limits, icr = self._limits, self._icr
-        # The twist change that the setpoint change makes (forward kinematics is linear).
-        d_v, _, d_w = forward(d_left * icr.scale_left, d_right * icr.scale_right, icr)
-        fraction = min(_fraction(max(abs(d_left), abs(d_right)), limits.max_track_accel, dt),
-                       _fraction(abs(float(d_v)), limits.max_linear_acceleration, dt),
-                       _fraction(abs(float(d_w)), limits.max_angular_acceleration, dt))
+        # The twist now, and the twist change that the setpoint change makes (linear map).
+        v_x0, w0 = setpoint_twist(left0, right0, icr)
+        d_v, d_w = setpoint_twist(d_left, d_right, icr)
+        fraction = min(
+            _fraction(left0, d_left, limits.max_track_accel, limits.max_track_decel, dt),
+            _fraction(right0, d_right, limits.max_track_accel, limits.max_track_decel, dt),
+            _fraction(v_x0, d_v, limits.max_linear_acceleration,
+                      limits.max_linear_deceleration, dt),
+            _fraction(w0, d_w, limits.max_angular_acceleration,
+                      limits.max_angular_deceleration, dt))
         if fraction >= 1.0:
             return float(left1), float(right1)
         return left0 + fraction * d_left, right0 + fraction * d_right
 
 
-def _fraction(change: float, rate_limit: float, dt: float) -> float:
-    """Fraction (at most 1) of ``change`` (>= 0) that ``rate_limit`` (> 0) allows in ``dt``."""
-    if math.isinf(rate_limit):
+def _ratio(limit: float, magnitude: float) -> float:
+    """Largest factor <= 1 that brings ``magnitude`` (>= 0) within ``limit`` (> 0)."""
+    return limit / magnitude if magnitude > limit else 1.0
+
+
+def _fraction(value: float, change: float, accel: float, decel: float, dt: float) -> float:
+    """
+    Fraction (at most 1) of ``change`` that the rate limits allow in ``dt``.
+
+    A change toward zero (``value`` and ``change`` of opposite signs) is held to ``decel``,
+    any other to ``accel`` (both > 0, ``inf`` for none).
+    """
+    rate = decel if value * change < 0.0 else accel
+    if math.isinf(rate):
         return 1.0
-    allowed = rate_limit * dt
+    allowed = rate * dt
+    change = abs(change)
     return 1.0 if change <= allowed else allowed / change

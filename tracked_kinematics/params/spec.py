@@ -117,6 +117,12 @@ def each(check: Callable[[Any], str | None]) -> Callable[[Any], str | None]:
     return check_all
 
 
+def means_no_limit(value) -> bool:
+    """Tell whether a limit value says "no limit": 0, NaN or +inf (not a bool)."""
+    return (isinstance(value, (int, float)) and not isinstance(value, bool)
+            and (value == 0 or math.isnan(value) or value == math.inf))
+
+
 def _is_inf(value) -> bool:
     return isinstance(value, float) and math.isinf(value)
 
@@ -220,6 +226,12 @@ class ParamSpec:
     derived : Derived, optional
         Default computed from the other parameters unless the parameter is set; a node
         recomputes it when they change, until the parameter is set explicitly.
+    no_limit : bool
+        A limit whose ``0``, ``NaN`` (diff_drive_controller's ``.NAN``) and ``inf`` say "no
+        limit" (or, for a deceleration, "as the acceleration limit"; the description says
+        which): those three pass the range check (which bounds every other value), and
+        the range is published as the descriptor's ``additional_constraints`` text instead
+        of a ``FloatingPointRange`` (rclpy refuses NaN and inf against one).
 
     """
 
@@ -233,12 +245,15 @@ class ParamSpec:
     high: float | None = None
     required: bool = False
     derived: Derived | None = None
+    no_limit: bool = False
 
     def validate(self, value) -> str | None:
         """Return an error message naming the parameter, or None when ``value`` is valid."""
         problem = None if self.check is None else self.check(value)
-        if problem is None and self.has_range:
+        if problem is None and self.has_range and not (self.no_limit and means_no_limit(value)):
             problem = in_range(value, self.low, self.high, self.unit)
+            if problem and self.no_limit:
+                problem += ' (or 0, .NAN, .inf: see its description)'
         return None if problem is None else f'{self.name} {problem}'
 
     @property

@@ -20,8 +20,10 @@ plan_trajectory reads from a terrain file too.
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
+from tracked_kinematics.core.command import TRACK_SPEED_ENVELOPE
 from tracked_kinematics.core.drivetrain import LOOP_KINDS
 
 from .spec import (Derived, described_as, finite, non_negative, one_of, ParamSpec, positive,
@@ -38,7 +40,7 @@ TERRAIN_PARAMS: tuple[ParamSpec, ...] = (
               positive, low=0.01, high=20.0, required=True),
     ParamSpec('sprocket_radius', 0.1,
               'Drive sprocket radius: joint angle (rad) x radius = nominal track travel', 'm',
-              positive, low=1e-5, high=10.0, required=True),
+              positive, low=0.005, high=5.0, required=True),
     ParamSpec('icr.y_left', 0.21,
               'Lateral coordinate of the left tread ICR in base_link (> 0; track_width / 2 '
               'is ideal differential drive)', 'm', finite, low=-100.0, high=100.0,
@@ -146,43 +148,96 @@ ENCODER_INPUT_DEFAULTS: dict[str, Any] = {spec.name: spec.default
 
 @described_as('>= 0; 0 or .inf = no limit')
 def limit_value(value) -> str | None:
-    """Check: a limit, a number >= 0 where 0 (or .inf) means no limit."""
+    """
+    Check: a limit, a number >= 0 where 0, NaN (``.NAN``) or ``.inf`` means no limit.
+
+    NaN is diff_drive_controller's "no limit" (and default), so its YAML carries over;
+    :func:`~tracked_kinematics.params.values.limits_from_values` turns all three into
+    ``inf`` before any maths sees them.
+    """
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         return f'must be a number, got {value!r}'
-    if not value >= 0.0:  # also catches NaN
-        return f'must be >= 0 (0 or .inf for no limit), got {value!r}'
+    if math.isnan(value):
+        return None
+    if not value >= 0.0:
+        return f'must be >= 0 (0, .NAN or .inf for no limit), got {value!r}'
     return None
 
 
-_NO_LIMIT = '; 0 = no limit'
+def deceleration_value(value) -> str | None:
+    """
+    Check: a deceleration limit, a number of either sign (its magnitude is the limit).
+
+    diff_drive_controller writes ``max_deceleration`` as a negative number (the lower bound
+    of the speed change); a positive one is what the word means. 0 or NaN: the matching
+    acceleration limit applies; ``.inf``: decelerations are not limited.
+    """
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        return f'must be a number, got {value!r}'
+    if value == -math.inf:
+        return f'must not be -inf (.inf for no deceleration limit), got {value!r}'
+    return None
+
+
+_NO_LIMIT = '; 0, .NAN or .inf = no limit'
+_DECEL = ('; either sign (diff_drive_controller writes it negative); 0 or .NAN = the '
+          'acceleration limit, .inf = none')
+
+#: Largest values of the limits, the physical range of a tracked vehicle: a setting beyond is
+#: a mistake, not a vehicle. The speed range is the command path's envelope.
+MAX_TRACK_SPEED = TRACK_SPEED_ENVELOPE  # m/s
+MAX_TRACK_ACCEL = 100.0  # m/s^2, 10 g
+MAX_YAW_RATE = 50.0  # rad/s, 8 turns a second
+MAX_YAW_ACCEL = 1000.0  # rad/s^2
 
 # Limit parameter -> field of CommandLimits.
 LIMIT_FIELDS = {
     'max_track_speed': 'max_track_speed',
     'max_track_accel': 'max_track_accel',
+    'max_track_decel': 'max_track_decel',
     'linear.x.max_velocity': 'max_linear_velocity',
     'linear.x.max_acceleration': 'max_linear_acceleration',
+    'linear.x.max_deceleration': 'max_linear_deceleration',
     'angular.z.max_velocity': 'max_angular_velocity',
     'angular.z.max_acceleration': 'max_angular_acceleration',
+    'angular.z.max_deceleration': 'max_angular_deceleration',
 }
 
+#: The deceleration limits among :data:`LIMIT_FIELDS`.
+DECELERATION_LIMITS = ('max_track_decel', 'linear.x.max_deceleration',
+                       'angular.z.max_deceleration')
+
+
+def _limit(name, description, unit, high):
+    return ParamSpec(name, 0.0, description + _NO_LIMIT, unit, limit_value, low=0.0,
+                     high=high, no_limit=True)
+
+
+def _deceleration(name, description, unit, high):
+    return ParamSpec(name, 0.0, description + _DECEL, unit, deceleration_value, low=-high,
+                     high=high, no_limit=True)
+
+
 COMMAND_LIMIT_PARAMS: tuple[ParamSpec, ...] = (
-    ParamSpec('max_track_speed', 0.0,
-              'Largest track speed setpoint; both tracks are scaled together so the path '
-              'curvature is kept' + _NO_LIMIT, 'm/s', limit_value),
-    ParamSpec('max_track_accel', 0.0,
-              'Largest rate of change of a track speed setpoint' + _NO_LIMIT, 'm/s^2',
-              limit_value),
-    ParamSpec('linear.x.max_velocity', 0.0,
-              'Largest |v_x| of the command; v_x and w are scaled together' + _NO_LIMIT, 'm/s',
-              limit_value),
-    ParamSpec('linear.x.max_acceleration', 0.0,
-              'Largest rate of change of v_x' + _NO_LIMIT, 'm/s^2', limit_value),
-    ParamSpec('angular.z.max_velocity', 0.0,
-              'Largest |w| of the command; v_x and w are scaled together' + _NO_LIMIT, 'rad/s',
-              limit_value),
-    ParamSpec('angular.z.max_acceleration', 0.0,
-              'Largest rate of change of w' + _NO_LIMIT, 'rad/s^2', limit_value),
+    _limit('max_track_speed', 'Largest track speed setpoint; both tracks are scaled together '
+           'so the path curvature is kept (the vehicle envelope, 30 m/s, applies without it)',
+           'm/s', MAX_TRACK_SPEED),
+    _limit('max_track_accel', 'Largest rate of change of a track speed setpoint away from '
+           'zero', 'm/s^2', MAX_TRACK_ACCEL),
+    _deceleration('max_track_decel', 'Largest rate of change of a track speed setpoint '
+                  'toward zero', 'm/s^2', MAX_TRACK_ACCEL),
+    _limit('linear.x.max_velocity', 'Largest |v_x| of the command; v_x and w are scaled '
+           'together', 'm/s', MAX_TRACK_SPEED),
+    _limit('linear.x.max_acceleration', 'Largest rate of change of v_x away from zero',
+           'm/s^2', MAX_TRACK_ACCEL),
+    _deceleration('linear.x.max_deceleration', 'Largest rate of change of v_x toward zero',
+                  'm/s^2', MAX_TRACK_ACCEL),
+    _limit('angular.z.max_velocity', 'Largest |w| of the command; v_x and w are scaled '
+           'together', 'rad/s', MAX_YAW_RATE),
+    _limit('angular.z.max_acceleration', 'Largest rate of change of w away from zero',
+           'rad/s^2', MAX_YAW_ACCEL),
+    _deceleration('angular.z.max_deceleration', 'Largest rate of change of w toward zero',
+                  'rad/s^2', MAX_YAW_ACCEL),
 )
 
 

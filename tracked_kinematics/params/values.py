@@ -20,7 +20,8 @@ from tracked_kinematics.core.errors import InvalidParameters
 from tracked_kinematics.core.kinematics import IcrParams
 
 from .spec import check_values, missing_message, resolve
-from .tables import DRIVETRAIN_DEFAULTS, DRIVETRAIN_PARAMS, LIMIT_FIELDS, TERRAIN_PARAMS
+from .tables import (COMMAND_LIMIT_PARAMS, DECELERATION_LIMITS, DRIVETRAIN_DEFAULTS,
+                     DRIVETRAIN_PARAMS, LIMIT_FIELDS, TERRAIN_DEFAULTS, TERRAIN_PARAMS)
 
 
 _DRIVE_FIELDS = {'time_constant': 'drivetrain.time_constant', 'delay': 'drivetrain.delay',
@@ -168,20 +169,32 @@ def values_from_icr(icr: IcrParams, sprocket_radius: float) -> dict[str, float]:
 
 def limits_from_values(values: Mapping[str, Any]) -> CommandLimits:
     """
-    Command limits from cmd_vel_translator parameter values (0 or a missing name = no limit).
+    Command limits from cmd_vel_translator parameter values.
+
+    0, NaN (diff_drive_controller's ``.NAN``), ``.inf`` or a missing name is no limit, and
+    becomes ``inf`` here: no NaN reaches the command path. A deceleration limit may be
+    written with either sign (diff_drive_controller writes it negative) and means its
+    magnitude; 0, NaN or a missing one is the matching acceleration limit.
 
     Raises
     ------
     InvalidParameters
-        When a limit is not a number (message in ROS names).
-    ValueError
-        When a limit is < 0 (from :class:`~tracked_kinematics.core.command.CommandLimits`).
+        When a limit is not a number (message in ROS names), or one of the checks of
+        :data:`~tracked_kinematics.params.tables.COMMAND_LIMIT_PARAMS` fails.
 
     """
+    problems = check_values(COMMAND_LIMIT_PARAMS, values)
+    if problems:
+        raise InvalidParameters('; '.join(problems))
     limits = {}
     for name, field in LIMIT_FIELDS.items():
         value = values.get(name, 0.0)
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise InvalidParameters(f'{name} must be a number, got {value!r}')
-        limits[field] = float(value) or math.inf
+        value = abs(float(value))
+        if value == 0.0 or math.isnan(value):
+            if name in DECELERATION_LIMITS:
+                continue  # CommandLimits: None = the acceleration limit
+            value = math.inf
+        limits[field] = value
     return CommandLimits(**limits)

@@ -26,3 +26,25 @@ if (os.path.basename(sys.argv[0] if sys.argv else '') in NODE_EXECUTABLES
         and threading.current_thread() is threading.main_thread()):
     for _signal in (signal.SIGINT, signal.SIGTERM):
         signal.signal(_signal, _exit_quietly)
+
+
+def _exit_now(signum, frame):
+    os._exit(0)
+
+
+def _interrupt(signum, frame):
+    for sig in (signal.SIGINT, signal.SIGTERM):  # a second signal, in the shutdown: leave
+        signal.signal(sig, _exit_now)
+    raise KeyboardInterrupt
+
+
+def interrupt_on_signals() -> None:
+    """
+    Make the next SIGINT or SIGTERM a KeyboardInterrupt, and the one after an exit 0.
+
+    For a node's ``main`` before :func:`tracked_kinematics.ros.main.run`, which then turns
+    the KeyboardInterrupt into a clean shutdown (and installs its own handlers while it runs).
+    """
+    if threading.current_thread() is threading.main_thread():
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            signal.signal(sig, _interrupt)

@@ -8,25 +8,43 @@ this node converts messages, keeps time and publishes at a fixed rate.
 Topics
 ------
 ``cmd_vel`` (in)
-    geometry_msgs/Twist, or TwistStamped with ``use_stamped: true``.
+    geometry_msgs/Twist or TwistStamped: the node follows the type the publishers on the
+    topic use (``cmd_vel_type: auto``, the default) and says so at start and on a change;
+    ``cmd_vel_type`` (or its alias ``use_stamped``) can force one. A publisher of any other
+    type gets a throttled warning naming it.
 ``left_track/setpoint``, ``right_track/setpoint`` (out, at ``rate``)
     std_msgs/Float64, nominal track speed in m/s (true speed / scale).
 ``joint_velocity_topic`` (out, at ``rate``, when the parameter is not empty)
     std_msgs/Float64MultiArray ``[left, right]``: sprocket speeds in rad/s, for a
     ros2_control ``velocity_controllers/JointGroupVelocityController``.
+``~/cmd_vel_out`` (out, at ``rate``, while someone subscribes; ``publish_limited_velocity``)
+    geometry_msgs/TwistStamped: the command as limited, i.e. the twist the published
+    setpoints make (diff_drive_controller's ``publish_limited_velocity``).
 
 Time
 ----
 Ramps and the command timeout run on the node's clock (``use_sim_time`` works: a paused
-simulation holds the setpoints). A command is in force from its *arrival*, also in stamped
-mode: the header stamp says when the sender made it, but on a robot whose clocks disagree a
-stamp-based age would stop a healthy stream or keep a dead one.
+simulation holds the setpoints). A command is in force from its arrival; a TwistStamped
+one from its header stamp when that is older (so a command older than ``cmd_timeout`` by
+its stamp is stale, as in diff_drive_controller; a zero stamp means "now", as there; a stamp
+from the future counts as its arrival, so no clock skew keeps a dead command alive).
+``cmd_timeout: 0`` disables the timeout.
+
+Output guard
+------------
+Every setpoint pair is checked before it leaves (:func:`~tracked_kinematics.core.command.
+setpoint_problem`: finite, within the limits and the vehicle envelope; joint commands
+finite). A pair that fails is not published: zero is, and a throttled warning says why.
 
 The fixed-rate publishing runs in a thread of its own, paced on the steady clock, not in an
 rclpy timer: each wake-up of rclpy's Python executor cost most of a millisecond of CPU on
 the 2-core test machine, several per cent of a core at 50 Hz; the thread costs a fraction
 of that. The executor only handles what arrives (commands, parameter requests). A lock
-keeps the two apart.
+keeps the two apart. The thread also looks at the graph (the types of the cmd_vel
+publishers, subscribers of ~/cmd_vel_out) twice a second; a change of the cmd_vel type is
+applied in the executor, woken by a guard condition. An error in the thread is logged and
+zero is published; publishing that keeps failing for a second stops the node (exit 1),
+it never just goes silent.
 """
 
 from __future__ import annotations
@@ -40,26 +58,78 @@ from typing import Any
 from geometry_msgs.msg import Twist, TwistStamped
 from rclpy.node import Node
 from std_msgs.msg import Float64, Float64MultiArray
-from tracked_kinematics.core.command import CommandLimiter, CommandLimits
+from tracked_kinematics.core.command import (CommandLimiter, CommandLimits, exceeds_envelope,
+                                             setpoint_problem, setpoint_twist,
+                                             TRACK_SPEED_ENVELOPE)
 from tracked_kinematics.core.kinematics import IcrParams
 from tracked_kinematics.params import (COMMAND_LIMIT_PARAMS, icr_from_values, LIMIT_FIELDS,
-                                       limits_from_values, ParamSpec, positive, TERRAIN_PARAMS)
+                                       limits_from_values, non_negative, one_of, ParamSpec,
+                                       positive, TERRAIN_PARAMS)
+from tracked_kinematics.params.spec import ros_name
+from tracked_kinematics.ros import interrupt_on_signals
 from tracked_kinematics.ros.main import run
 from tracked_kinematics.ros.parameters import ParameterTable
 
 NODE_NAME = 'cmd_vel_translator'
 
+# cmd_vel_type -> message class; the ROS type names the graph reports.
+CMD_VEL_TYPES = {'twist': Twist, 'twist_stamped': TwistStamped}
+_TYPE_NAMES = {Twist: 'geometry_msgs/msg/Twist', TwistStamped: 'geometry_msgs/msg/TwistStamped'}
+_TYPES_BY_NAME = {name: cls for cls, name in _TYPE_NAMES.items()}
+
+GRAPH_POLL_PERIOD = 0.5  # s between looks at the cmd_vel publishers
+FAILURE_LIMIT = 1.0  # s of failing publishes after which the node stops
+WARN_PERIOD = 1.0  # s, throttle of the warnings on recurring bad input
+GRAPH_WARN_PERIOD = 10.0  # s, throttle of the warnings on the graph
+FUTURE_STAMP = 1.0  # s a TwistStamped may be ahead of the node's clock without a warning
+
+
+def _optional_ros_name(value) -> str | None:
+    return None if value == '' else ros_name(value)
+
 
 TRANSLATOR_PARAMS: tuple[ParamSpec, ...] = TERRAIN_PARAMS + (
-    ParamSpec('rate', 50.0, 'Rate at which the setpoints are published', 'Hz', positive),
+    ParamSpec('rate', 50.0, 'Rate at which the setpoints are published', 'Hz', positive,
+              low=1.0, high=1000.0),
     ParamSpec('cmd_timeout', 0.5,
-              'Age of the last command beyond which the setpoints ramp to zero', 's', positive),
-    ParamSpec('use_stamped', False, 'Subscribe to geometry_msgs/TwistStamped, not Twist',
+              'Age of the last command (by arrival; by header stamp for TwistStamped when '
+              'older) beyond which the setpoints ramp to zero; 0 = no timeout', 's',
+              non_negative, low=0.0, high=60.0),
+    ParamSpec('cmd_vel_type', 'auto',
+              'Message type of cmd_vel: auto (the type its publishers use; Twist while there '
+              'are none), twist or twist_stamped', check=one_of(('auto', *CMD_VEL_TYPES)),
+              read_only=True),
+    ParamSpec('use_stamped', False,
+              'true: the same as cmd_vel_type twist_stamped (kept as an alias)',
+              read_only=True),
+    ParamSpec('publish_limited_velocity', True,
+              'Publish the limited command (the twist of the setpoints) as '
+              'geometry_msgs/TwistStamped on ~/cmd_vel_out while it has subscribers',
               read_only=True),
     ParamSpec('joint_velocity_topic', '',
               'Topic of a Float64MultiArray [left, right] of sprocket speeds in rad/s (for a '
-              'ros2_control velocity controller); empty = not published', read_only=True),
+              'ros2_control velocity controller); empty = not published',
+              check=_optional_ros_name, read_only=True),
 ) + COMMAND_LIMIT_PARAMS
+
+
+def forced_type(values: Mapping[str, Any]):
+    """
+    Return the message class ``cmd_vel_type`` / ``use_stamped`` force, or None for auto.
+
+    Raises
+    ------
+    ValueError
+        When the two contradict each other.
+
+    """
+    kind = values.get('cmd_vel_type', 'auto')
+    if values.get('use_stamped', False):
+        if kind == 'twist':
+            raise ValueError('use_stamped true contradicts cmd_vel_type twist (use_stamped is '
+                             'an alias of cmd_vel_type twist_stamped)')
+        kind = 'twist_stamped'
+    return CMD_VEL_TYPES.get(kind)
 
 
 def model_from_values(values: Mapping[str, Any]) -> tuple[IcrParams, CommandLimits]:
@@ -69,16 +139,31 @@ def model_from_values(values: Mapping[str, Any]) -> tuple[IcrParams, CommandLimi
     Raises
     ------
     ValueError
-        When the terrain parameters do not make a valid model (message in ROS names).
+        When the terrain parameters do not make a valid model, or the limits or the
+        cmd_vel type are invalid (message in ROS names).
 
     """
+    forced_type(values)
     return icr_from_values(values), limits_from_values(values)
 
 
+def _timeout(value: float) -> float:
+    """Return the limiter's timeout for ``cmd_timeout``: 0 is none (inf)."""
+    return math.inf if value == 0.0 else value
+
+
 def _describe_limits(limits: CommandLimits) -> str:
-    set_limits = [f'{name} {getattr(limits, field):g}' for name, field in LIMIT_FIELDS.items()
-                  if math.isfinite(getattr(limits, field))]
+    set_limits = []
+    for name, field in LIMIT_FIELDS.items():
+        value = getattr(limits, field)
+        accel = field.replace('decel', 'accel')
+        if math.isfinite(value) and (accel == field or value != getattr(limits, accel)):
+            set_limits.append(f'{name} {value:g}')
     return ', '.join(set_limits) or 'none'
+
+
+def _describe_timeout(timeout: float) -> str:
+    return f'cmd_timeout {timeout:g} s' if math.isfinite(timeout) else 'no cmd_timeout'
 
 
 class CmdVelTranslator(Node):
@@ -89,6 +174,11 @@ class CmdVelTranslator(Node):
     ----------
     **kwargs
         Forwarded to :class:`rclpy.node.Node` (``context``, ``parameter_overrides``, ...).
+
+    Attributes
+    ----------
+    failure : Exception or None
+        Why the publishing thread gave up and stopped the node, if it did.
 
     Raises
     ------
@@ -101,115 +191,374 @@ class CmdVelTranslator(Node):
         super().__init__(NODE_NAME, **kwargs)
         self._params = ParameterTable(self, TRANSLATOR_PARAMS, validate=model_from_values,
                                       on_change=self._on_change)
-        icr, limits = model_from_values(self._params.values)
-        self._limiter = CommandLimiter(icr, limits, self._params['cmd_timeout'])
+        values = self._params.values
+        icr, limits = model_from_values(values)
+        self._limiter = CommandLimiter(icr, limits, _timeout(values['cmd_timeout']))
         self._lock = threading.Lock()  # the limiter is shared by the executor and publisher
-        self._radius = self._params['sprocket_radius']
+        self._radius = values['sprocket_radius']
+        self._period = 1.0 / values['rate']
         self._t0 = self.get_clock().now().nanoseconds
         self._was_stale = True
         self._lateral_noted = False
+        self._zero_stamp_noted = False
+        self.failure: Exception | None = None
 
         self._left_msg, self._right_msg = Float64(), Float64()  # reused: fewer allocations
         self._joint_msg = Float64MultiArray()
+        self._out_msg = TwistStamped()
         self._left_pub = self.create_publisher(Float64, 'left_track/setpoint', 10)
         self._right_pub = self.create_publisher(Float64, 'right_track/setpoint', 10)
-        joint_topic = self._params['joint_velocity_topic']
+        joint_topic = values['joint_velocity_topic']
         self._joint_pub = (self.create_publisher(Float64MultiArray, joint_topic, 10)
                            if joint_topic else None)
-        self._stamped = self._params['use_stamped']
-        self.create_subscription(TwistStamped if self._stamped else Twist, 'cmd_vel',
-                                 self._on_command, 10)
-        self._period = 1.0 / self._params['rate']
+        self._out_pub = (self.create_publisher(TwistStamped, '~/cmd_vel_out', 10)
+                         if values['publish_limited_velocity'] else None)
+        self._out_wanted = False  # someone subscribes to ~/cmd_vel_out (graph poll)
+
+        # cmd_vel: a forced type, or the one its publishers use (Twist while there are none).
+        self._forced = forced_type(values)
+        self._sub = None
+        self._sub_type = None
+        self._subscribe(self._forced or Twist)
+        self._topic = self._sub.topic_name
+        self._wanted_type = None
+        if self._forced is None:
+            wanted = self._publisher_type(self._graph())
+            if wanted is not None and wanted is not self._sub_type:
+                self._resubscribe(wanted)
+        self._switch = self.create_guard_condition(self._apply_wanted_type)
+
         self._stop = threading.Event()
-        self.context.on_shutdown(self._stop.set)
+        self._wake = threading.Event()  # stop, or a new rate: reschedule at once
+        self._last_publish = time.monotonic()
+        self.context.on_shutdown(self._request_stop)
         self._publisher_thread = threading.Thread(target=self._publish_loop,
                                                   name='setpoint_publisher', daemon=True)
         self._publisher_thread.start()
 
+        how = (f'forced by {"use_stamped" if values["use_stamped"] else "cmd_vel_type"}'
+               if self._forced else 'following its publishers')
         self.get_logger().info(
             f'ICR model chi = {icr.chi:.3f}, e = {icr.eccentricity:.3f}, scales '
             f'({icr.scale_left:g}, {icr.scale_right:g}); publishing setpoints at '
-            f'{1.0 / self._period:g} Hz, cmd_timeout {self._limiter.timeout:g} s, limits: '
-            f'{_describe_limits(limits)}'
+            f'{1.0 / self._period:g} Hz, {_describe_timeout(self._limiter.timeout)}, limits: '
+            f'{_describe_limits(limits)} (envelope {TRACK_SPEED_ENVELOPE:g} m/s); '
+            f'{self._topic}: {_TYPE_NAMES[self._sub_type]} ({how})'
+            + (f'; limited command on {self._out_pub.topic_name}' if self._out_pub else '')
             + (f'; sprocket speeds (rad/s) on {self._joint_pub.topic_name}'
                if self._joint_pub else ''))
+        if not math.isfinite(self._limiter.timeout):
+            self._warn_no_timeout()
+
+    # Commands -----------------------------------------------------------------------------
 
     def _now(self) -> float:
         """Node clock time since start, s."""
         return (self.get_clock().now().nanoseconds - self._t0) * 1e-9
 
-    def _on_command(self, msg) -> None:
-        twist = msg.twist if self._stamped else msg
+    def _subscribe(self, msg_type) -> None:
+        callback = self._on_twist_stamped if msg_type is TwistStamped else self._on_twist
+        self._sub = self.create_subscription(msg_type, 'cmd_vel', callback, 10)
+        self._sub_type = msg_type
+
+    def _on_twist(self, msg: Twist) -> None:
+        self._take(msg, None)
+
+    def _on_twist_stamped(self, msg: TwistStamped) -> None:
+        stamp = msg.header.stamp
+        self._take(msg.twist, stamp.sec * 1_000_000_000 + stamp.nanosec)
+
+    def _take(self, twist, stamp_ns: int | None) -> None:
         lin, ang = twist.linear, twist.angular
         if not all(map(math.isfinite, (lin.x, lin.y, lin.z, ang.x, ang.y, ang.z))):
             self.get_logger().warning(
                 f'dropped a non-finite cmd_vel (linear {lin.x}, {lin.y}, {lin.z}; angular '
                 f'{ang.x}, {ang.y}, {ang.z}); the last good command holds until cmd_timeout',
-                throttle_duration_sec=1.0)
+                throttle_duration_sec=WARN_PERIOD)
             return
         if lin.y != 0.0 and not self._lateral_noted:
             self._lateral_noted = True
             self.get_logger().warning(
                 'cmd_vel has a lateral velocity (linear.y); a tracked vehicle cannot be '
                 'commanded sideways, so linear.y is ignored (this note is shown once)')
+        now_ns = self.get_clock().now().nanoseconds
+        t = (now_ns - self._t0) * 1e-9
+        if stamp_ns is not None:
+            t -= self._stamp_age(now_ns, stamp_ns)
         with self._lock:
-            self._limiter.command(lin.x, ang.z, self._now())
+            icr = self._limiter.icr
+            self._limiter.command(lin.x, ang.z, t)
+        if exceeds_envelope(lin.x, ang.z, icr):
+            self.get_logger().warning(
+                f'cmd_vel (v_x {lin.x:g} m/s, w {ang.z:g} rad/s) asks for track speeds beyond '
+                f'the vehicle envelope ({TRACK_SPEED_ENVELOPE:g} m/s): scaled into it, the '
+                'curvature kept', throttle_duration_sec=WARN_PERIOD)
+
+    def _stamp_age(self, now_ns: int, stamp_ns: int) -> float:
+        """Age (s, >= 0) of a TwistStamped by its stamp, to count from; says when it is odd."""
+        if stamp_ns == 0:
+            if not self._zero_stamp_noted:
+                self._zero_stamp_noted = True
+                self.get_logger().info(
+                    'cmd_vel TwistStamped with a zero stamp: taken as sent now (as '
+                    'diff_drive_controller does; this note is shown once)')
+            return 0.0
+        age = (now_ns - stamp_ns) * 1e-9
+        timeout = self._limiter.timeout
+        if age > timeout:
+            self.get_logger().warning(
+                f'cmd_vel TwistStamped is {age:.3g} s old by its header stamp (cmd_timeout '
+                f'{timeout:g} s): stale, the vehicle stops. Do the clocks agree (use_sim_time, '
+                'time sync)?', throttle_duration_sec=WARN_PERIOD)
+        elif age < -FUTURE_STAMP:
+            self.get_logger().warning(
+                f"cmd_vel TwistStamped is stamped {-age:.3g} s ahead of this node's clock: "
+                'its arrival time is used. Do the clocks agree (use_sim_time, time sync)?',
+                throttle_duration_sec=WARN_PERIOD)
+        return max(age, 0.0)
+
+    # The cmd_vel type ---------------------------------------------------------------------
+
+    def _graph(self):
+        return self.get_publishers_info_by_topic(self._topic)
+
+    def _publisher_type(self, infos):
+        """
+        Return the message class to subscribe with for these publishers (None: keep).
+
+        Warns (throttled) about publishers this node cannot receive: of another type, of
+        the twist type a forced setting excludes, or of both twist types at once.
+        """
+        by_type: dict[str, list[str]] = {}
+        for info in infos:
+            node = f'{info.node_namespace.rstrip("/")}/{info.node_name}'
+            by_type.setdefault(info.topic_type, []).append(node)
+        logger = self.get_logger()
+        for type_name, nodes in by_type.items():
+            if type_name not in _TYPES_BY_NAME:
+                logger.warning(
+                    f'{self._topic} has a publisher of {type_name} ({", ".join(nodes)}); this '
+                    'node takes geometry_msgs/msg/Twist or geometry_msgs/msg/TwistStamped: '
+                    'its messages are not received', throttle_duration_sec=GRAPH_WARN_PERIOD)
+        twists = [_TYPES_BY_NAME[name] for name in by_type if name in _TYPES_BY_NAME]
+        if self._forced is not None:
+            for cls in twists:
+                if cls is not self._forced:
+                    logger.warning(
+                        f'{self._topic} is {_TYPE_NAMES[self._forced]} (cmd_vel_type / '
+                        f'use_stamped) but {", ".join(by_type[_TYPE_NAMES[cls]])} publish '
+                        f'{_TYPE_NAMES[cls]}: their commands are not received (cmd_vel_type '
+                        'auto follows the publishers)', throttle_duration_sec=GRAPH_WARN_PERIOD)
+            return None
+        if len(twists) == 2:
+            logger.warning(
+                f'{self._topic} has publishers of both geometry_msgs/msg/Twist and '
+                f'TwistStamped; following {_TYPE_NAMES[self._sub_type]}: the others are not '
+                'received', throttle_duration_sec=GRAPH_WARN_PERIOD)
+            return None
+        return twists[0] if twists else None
+
+    def _resubscribe(self, msg_type) -> None:
+        """Subscribe to cmd_vel with another type (in the executor, or before spinning)."""
+        old = self._sub_type
+        self.destroy_subscription(self._sub)
+        try:
+            self._subscribe(msg_type)
+        except Exception:
+            self._subscribe(old)
+            raise
+        self.get_logger().info(
+            f'{self._topic}: its publishers use {_TYPE_NAMES[msg_type]}: subscribed as such '
+            f'(was {_TYPE_NAMES[old]})')
+
+    def _apply_wanted_type(self) -> None:
+        """Guard condition callback (executor): apply the type the graph poll asked for."""
+        wanted, self._wanted_type = self._wanted_type, None
+        if wanted is not None and wanted is not self._sub_type:
+            try:
+                self._resubscribe(wanted)
+            except Exception as err:  # noqa: BLE001 -- keep the old type, retry on next poll
+                self.get_logger().error(
+                    f'cannot subscribe to {self._topic} as {_TYPE_NAMES[wanted]}: {err!r}',
+                    throttle_duration_sec=GRAPH_WARN_PERIOD)
+
+    def _poll_graph(self) -> None:
+        """Look at the publishers of cmd_vel and the subscribers of ~/cmd_vel_out (thread)."""
+        try:
+            if self._out_pub is not None:
+                self._out_wanted = self._out_pub.get_subscription_count() > 0
+            wanted = self._publisher_type(self._graph())
+        except Exception as err:  # noqa: BLE001 -- a graph query must not stop the setpoints
+            if self.context.ok():
+                self.get_logger().warning(f'cannot look at the graph: {err!r}',
+                                          throttle_duration_sec=GRAPH_WARN_PERIOD)
+            return
+        if wanted is not None and wanted is not self._sub_type:
+            self._wanted_type = wanted
+            self._switch.trigger()
+
+    # Publishing ---------------------------------------------------------------------------
+
+    def _request_stop(self) -> None:
+        self._stop.set()
+        self._wake.set()
 
     def _publish_loop(self) -> None:
         """Publish every period of the steady clock until the node or its context stops."""
-        due = time.monotonic()
-        while not self._stop.wait(max(0.0, due - time.monotonic())):
+        due = next_poll = time.monotonic()
+        failing_since = None
+        while True:
             try:
-                self._publish()
+                delay = min(due, next_poll) - time.monotonic()
+                if delay > 0.0:
+                    if self._wake.wait(min(delay, GRAPH_POLL_PERIOD)):
+                        self._wake.clear()
+                        if self._stop.is_set():
+                            break
+                        due = self._last_publish + self._period  # a new rate: at once
+                    continue
+                if self._stop.is_set() or not self.context.ok():
+                    break
+                now = time.monotonic()
+                if now >= next_poll:
+                    next_poll = now + GRAPH_POLL_PERIOD
+                    self._poll_graph()
+                if now >= due:
+                    self._last_publish = now
+                    due += self._period
+                    if due < now - self._period:  # fell behind (stalled): no burst
+                        due = now
+                    self._publish()
+                    failing_since = None
             except Exception as err:  # noqa: BLE001 -- keep the stream alive, say why
                 if self._stop.is_set() or not self.context.ok():
+                    break
+                now = time.monotonic()
+                failing_since = now if failing_since is None else failing_since
+                if now - failing_since >= FAILURE_LIMIT:
+                    self._give_up(err)
                     return
                 self.get_logger().error(f'publishing setpoints failed: {err!r}',
-                                        throttle_duration_sec=1.0)
-            due += self._period
-            now = time.monotonic()
-            if due < now - self._period:  # fell behind (stalled): no burst to catch up
-                due = now
+                                        throttle_duration_sec=WARN_PERIOD)
+                due = now + self._period
+        self._wake_executor()
+
+    def _wake_executor(self) -> None:
+        """Wake the executor so that a spin loop sees a context a signal shut down."""
+        try:
+            self._switch.trigger()
+        except Exception:  # noqa: BLE001 -- already destroyed: nothing to wake
+            pass
+
+    def _give_up(self, err: Exception) -> None:
+        self.failure = err
+        self.get_logger().fatal(
+            f'publishing setpoints has failed for {FAILURE_LIMIT:g} s (last error: {err!r}): '
+            'stopping the node')
+        try:
+            self.context.try_shutdown()
+        except Exception:  # noqa: BLE001 -- shutting down anyway
+            pass
 
     def _publish(self) -> None:
-        t = self._now()
+        now_ns = self.get_clock().now().nanoseconds
+        t = (now_ns - self._t0) * 1e-9
         # A stall of this process must not turn into a jump: ramp over at most two periods.
         # (With simulated time a stall stops the clock too, so there is nothing to guard.)
         max_dt = math.inf if self.get_clock().ros_time_is_active else 2.0 * self._period
+        joint = self._joint_pub is not None
+        out = self._out_pub is not None and self._out_wanted
         with self._lock:
-            left, right = self._limiter.update(t, max_dt=max_dt)
-            stale = self._limiter.is_stale(t)
+            limiter = self._limiter
+            try:
+                left, right = limiter.update(t, max_dt=max_dt)
+                problem = setpoint_problem(left, right, limiter.icr, limiter.limits,
+                                           limiter.envelope)
+                if problem is None and joint:
+                    joint_left, joint_right = left / self._radius, right / self._radius
+                    if not (math.isfinite(joint_left) and math.isfinite(joint_right)):
+                        problem = f'non-finite joint commands ({joint_left!r}, {joint_right!r})'
+            except Exception as err:  # noqa: BLE001 -- the guard publishes zero, says why
+                problem, left, right = f'computing them failed: {err!r}', math.nan, math.nan
+            if problem is not None:
+                limiter.force_stop()
+                bad, left, right = (left, right), 0.0, 0.0
+                joint_left = joint_right = 0.0
+            v_x, w = setpoint_twist(left, right, limiter.icr) if out else (0.0, 0.0)
+            stale = limiter.is_stale(t)
+        if problem is not None:
+            self.get_logger().warning(
+                f'output guard: setpoints {bad[0]!r}, {bad[1]!r} not published ({problem}); '
+                'published 0 instead', throttle_duration_sec=WARN_PERIOD)
         if stale and not self._was_stale:
             self.get_logger().debug('no cmd_vel for cmd_timeout: ramping to zero')
         self._was_stale = stale
         self._left_msg.data, self._right_msg.data = left, right
         self._left_pub.publish(self._left_msg)
         self._right_pub.publish(self._right_msg)
-        if self._joint_pub is not None:
-            self._joint_msg.data = [left / self._radius, right / self._radius]
+        if joint:
+            self._joint_msg.data = [joint_left, joint_right]
             self._joint_pub.publish(self._joint_msg)
+        if out:
+            msg = self._out_msg
+            msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(now_ns, 1_000_000_000)
+            msg.twist.linear.x, msg.twist.angular.z = v_x, w
+            self._out_pub.publish(msg)
+
+    # Parameters and shutdown ----------------------------------------------------------------
+
+    def _warn_no_timeout(self) -> None:
+        self.get_logger().warning(
+            'cmd_timeout 0: no timeout; the last command holds until another comes, also '
+            'when its publisher dies')
 
     def _on_change(self, values: Mapping[str, Any]) -> None:
         icr, limits = model_from_values(values)
+        timeout = _timeout(values['cmd_timeout'])
         with self._lock:
+            had_timeout = math.isfinite(self._limiter.timeout)
             self._limiter.icr = icr
             self._limiter.limits = limits
-            self._limiter.timeout = values['cmd_timeout']
+            self._limiter.timeout = timeout
             self._radius = values['sprocket_radius']
-            self._period = 1.0 / values['rate']
+            period = 1.0 / values['rate']
+            rescheduled, self._period = period != self._period, period
+        if rescheduled:
+            self._wake.set()
         self.get_logger().info(
             f'parameters changed: chi = {icr.chi:.3f}, e = {icr.eccentricity:.3f}, '
-            f'{values["rate"]:g} Hz, cmd_timeout {values["cmd_timeout"]:g} s, limits: '
+            f'{values["rate"]:g} Hz, {_describe_timeout(timeout)}, limits: '
             f'{_describe_limits(limits)}')
+        if had_timeout and not math.isfinite(timeout):
+            self._warn_no_timeout()
 
     def destroy_node(self):
         """Stop the publishing thread, then destroy the node."""
-        self._stop.set()
-        if self._publisher_thread.is_alive():
-            self._publisher_thread.join()
+        self._request_stop()
+        if self._publisher_thread.is_alive() and \
+                self._publisher_thread is not threading.current_thread():
+            self._publisher_thread.join(5.0)
         super().destroy_node()
 
 
 def main(args=None):
-    """Run the node (console script ``cmd_vel_translator``)."""
-    raise SystemExit(run(CmdVelTranslator, NODE_NAME, args, TRANSLATOR_PARAMS, __doc__))
+    """
+    Run the node (console script ``cmd_vel_translator``).
+
+    Exit status 0 after a signal (at any moment, see :mod:`tracked_kinematics.ros`), 2 when
+    it cannot start, 1 when it had to give up publishing.
+    """
+    built = []
+
+    def factory():
+        built.append(CmdVelTranslator())
+        return built[-1]
+
+    interrupt_on_signals()
+    try:
+        status = run(factory, NODE_NAME, args, TRANSLATOR_PARAMS, __doc__)
+    except KeyboardInterrupt:  # a signal outside run()'s own handling (rclpy.init, ...)
+        status = 0
+    if status == 0 and built and built[0].failure is not None:
+        status = 1
+    raise SystemExit(status)

@@ -51,19 +51,31 @@ def _type_matches(spec: ParamSpec, value) -> bool:
     return True
 
 
-def describe(spec: ParamSpec) -> ParameterDescriptor:
+def describe(spec: ParamSpec, ranges: bool = True) -> ParameterDescriptor:
     """
     Build the descriptor of a parameter: its text, read-only flag and range.
 
     A numeric spec with ``low``/``high`` gets a ``FloatingPointRange`` (doubles) or an
     ``IntegerRange`` (integers), so ``ros2 param describe`` shows the range and rclpy itself
     refuses a value outside it; doubles accept integers (``dynamic_typing``), which the
-    table's own check then bounds.
+    table's own check then bounds. A limit (``spec.no_limit``) states its range in
+    ``additional_constraints``, since its "no limit" values NaN and inf lie outside any range.
+    ``ranges=False`` leaves the range out (ParameterTable declares with it and words a refused
+    start value by its own check).
     """
     descriptor = ParameterDescriptor(
         description=spec.full_description, read_only=spec.read_only,
         dynamic_typing=isinstance(spec.default, float))
-    if spec.has_range and isinstance(spec.default, float):
+    if not ranges:
+        return descriptor
+    if spec.has_range and spec.no_limit:
+        # rclpy would refuse the NaN and inf that mean "no limit" against a range.
+        low = '-inf' if spec.low is None else f'{spec.low:g}'
+        high = 'inf' if spec.high is None else f'{spec.high:g}'
+        unit = f' {spec.unit}' if spec.unit else ''
+        descriptor.additional_constraints = (
+            f'[{low}, {high}]{unit}; also 0, NaN (.NAN) or .inf (see the description)')
+    elif spec.has_range and isinstance(spec.default, float):
         descriptor.floating_point_range = [FloatingPointRange(
             from_value=-math.inf if spec.low is None else float(spec.low),
             to_value=math.inf if spec.high is None else float(spec.high), step=0.0)]
