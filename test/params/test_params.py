@@ -76,7 +76,7 @@ def test_spec_default_texts():
     ({'scale.left': 0.0}, r'scale\.left must be > 0'),
     ({'scale.left': 1e-300}, r'scale\.left must be in \[0.1, 10\]'),
     ({'sprocket_radius': -0.1}, 'sprocket_radius must be > 0'),
-    ({'sprocket_radius': 5e-324}, r'sprocket_radius must be in \[1e-05, 10\] m'),
+    ({'sprocket_radius': 5e-324}, r'sprocket_radius must be in \[0.005, 5\] m'),
     ({'icr.x': float('nan')}, r'icr\.x must be finite'),
     ({'icr.x': 1e6}, r'icr\.x must be in \[-100, 100\] m'),
     ({'track_width': True}, 'track_width must be a number'),

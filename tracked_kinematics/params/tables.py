@@ -146,7 +146,7 @@ ENCODER_INPUT_DEFAULTS: dict[str, Any] = {spec.name: spec.default
 # Command limits --------------------------------------------------------------------------
 
 
-@described_as('>= 0; 0 or .inf = no limit')
+@described_as('>= 0; 0, NaN (.NAN) or .inf = no limit')
 def limit_value(value) -> str | None:
     """
     Check: a limit, a number >= 0 where 0, NaN (``.NAN``) or ``.inf`` means no limit.
@@ -164,6 +164,7 @@ def limit_value(value) -> str | None:
     return None
 
 
+@described_as('either sign (its magnitude); 0, NaN or .inf = as the acceleration limit')
 def deceleration_value(value) -> str | None:
     """
     Check: a deceleration limit, a number of either sign (its magnitude is the limit).

@@ -21,7 +21,7 @@ from tracked_kinematics.core.kinematics import IcrParams
 
 from .spec import check_values, missing_message, resolve
 from .tables import (COMMAND_LIMIT_PARAMS, DECELERATION_LIMITS, DRIVETRAIN_DEFAULTS,
-                     DRIVETRAIN_PARAMS, LIMIT_FIELDS, TERRAIN_DEFAULTS, TERRAIN_PARAMS)
+                     DRIVETRAIN_PARAMS, LIMIT_FIELDS, TERRAIN_PARAMS)
 
 
 _DRIVE_FIELDS = {'time_constant': 'drivetrain.time_constant', 'delay': 'drivetrain.delay',

@@ -62,10 +62,9 @@ from tracked_kinematics.core.command import (CommandLimiter, CommandLimits, exce
                                              setpoint_problem, setpoint_twist,
                                              TRACK_SPEED_ENVELOPE)
 from tracked_kinematics.core.kinematics import IcrParams
-from tracked_kinematics.params import (COMMAND_LIMIT_PARAMS, icr_from_values, LIMIT_FIELDS,
-                                       limits_from_values, non_negative, one_of, ParamSpec,
-                                       positive, TERRAIN_PARAMS)
-from tracked_kinematics.params.spec import ros_name
+from tracked_kinematics.params import (COMMAND_LIMIT_PARAMS, described_as, icr_from_values,
+                                       LIMIT_FIELDS, limits_from_values, non_negative, one_of,
+                                       ParamSpec, positive, ros_name, TERRAIN_PARAMS)
 from tracked_kinematics.ros import interrupt_on_signals
 from tracked_kinematics.ros.main import run
 from tracked_kinematics.ros.parameters import ParameterTable
@@ -84,6 +83,7 @@ GRAPH_WARN_PERIOD = 10.0  # s, throttle of the warnings on the graph
 FUTURE_STAMP = 1.0  # s a TwistStamped may be ahead of the node's clock without a warning
 
 
+@described_as('empty (off) or a valid ROS name')
 def _optional_ros_name(value) -> str | None:
     return None if value == '' else ros_name(value)
 
