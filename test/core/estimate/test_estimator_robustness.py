@@ -127,8 +127,7 @@ def test_ideal_start_has_no_prior():
 def test_fallback_stands_behind_the_start_values_until_the_filter_predicts_better():
     trusted = []
     right = _estimator(p0=TRUE_ICR)
-    _Turning(slip_std=0.3, seed=5).run(right, 60.0,
-                                        on_pose=lambda e: trusted.append(e._trusted))
+    _Turning(slip_std=0.3, seed=5).run(right, 60.0, on_pose=lambda e: trusted.append(e._trusted))
     assert np.mean(trusted) < 0.5
     if not right._trusted:
         np.testing.assert_array_equal(right.estimate, TRUE_ICR)
