@@ -59,6 +59,7 @@ from __future__ import annotations
 
 from collections import deque
 from dataclasses import dataclass
+import functools
 import math
 
 import numpy as np
@@ -218,6 +219,12 @@ class Outcome:
     def refused(self) -> bool:
         """Tell whether the measurement was judged bad (it did not touch the state)."""
         return self.status in ('non_finite', 'stale', 'gap', 'outlier', 'invalid')
+
+
+@functools.lru_cache(maxsize=16)
+def _gate(probability: float, dof: int) -> float:
+    """Chi-square quantile of the innovation gate (cached: scipy's is slow per call)."""
+    return float(chi2.ppf(probability, dof))
 
 
 def model_icr(model: MotionModel, p, v_left: float, v_right: float):
@@ -549,7 +556,7 @@ class SlipEstimator:
         H, R, innovation = H[rows], R[np.ix_(rows, rows)], innovation[rows]
         S = H @ P @ H.T + R
         nis = float(innovation @ np.linalg.solve(S, innovation))
-        gate = chi2.ppf(cfg.gate_probability, len(rows))
+        gate = _gate(cfg.gate_probability, len(rows))
         self._score(t, gate, d_left, d_right, dt, z, innovation, R, rows)
         if nis > gate:
             self._outliers += 1
