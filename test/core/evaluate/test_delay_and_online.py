@@ -1,5 +1,6 @@
 """The ground-truth delay, and the EKF replayed over a recording as the node would run it."""
 
+from helpers.vehicle_sim import B, simulate
 import numpy as np
 import pytest
 from tracked_kinematics.core.errors import ExcitationError
@@ -9,8 +10,6 @@ from tracked_kinematics.core.evaluate import (
 from tracked_kinematics.core.identify import Recording
 from tracked_kinematics.core.kinematics import IcrParams
 from tracked_kinematics.core.models import ConstantIcr
-
-from helpers.vehicle_sim import B, simulate
 
 TRUE = IcrParams(B, 0.34, -0.40, 0.03, 1.0, 1.0)
 

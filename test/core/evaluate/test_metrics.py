@@ -98,7 +98,7 @@ def _se3(pose):
 
 
 def _evo_rpe(reference, estimate, delta):
-    """evo's RPE (translation part, delta in m, consecutive pairs), written as evo does it."""
+    """Compute evo's RPE (translation, delta in m, consecutive pairs) the way evo does."""
     poses = [_se3(p) for p in estimate]
     ids, previous, current = [], poses[0], 0.0
     for i, pose in enumerate(poses):
