@@ -37,6 +37,7 @@ setup(
             'icr_map = tracked_kinematics.offline.cli.icr_map:main',
             'icr_estimator = tracked_kinematics.ros.icr_estimator:main',
             'plan_trajectory = tracked_kinematics.offline.cli.plan_trajectory:main',
+            'evaluate_model = tracked_kinematics.offline.cli.evaluate_model:main',
         ],
     },
 )

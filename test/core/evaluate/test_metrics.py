@@ -46,18 +46,18 @@ def test_straight_windows_have_the_scale_error_of_their_length(straight):
 
 def test_straight_rpe_per_metre_by_hand(straight):
     piece, path = straight
-    # Along the estimate (0.11 m per sample) the path first reaches 1 m at sample 10
+    # Along the estimate (0.11 m per sample) from sample 0, the path reaches 1 m at sample 10
     # (1.1 m), then every 10 samples; each pair's estimate moved 1.1 m, the truth 1.0 m.
     ids = evo_path_pairs(path[:, :2], 1.0)
-    np.testing.assert_array_equal(ids, np.arange(10, 201, 10))
+    np.testing.assert_array_equal(ids, np.arange(0, 201, 10))
     translation, rotation = rpe(path, piece.truth, 1.0)
-    assert len(translation) == 19
+    assert len(translation) == 20
     np.testing.assert_allclose(translation, 0.1, rtol=1e-9)
     stats = summary(translation)
     assert stats['rmse'] == pytest.approx(0.1) and stats['mean'] == pytest.approx(0.1)
-    # Per 10 m: samples 91 (10.01 m) and 182 (20.02 m), 9.1 m of truth between them.
+    # Per 10 m: samples 0, 91 (10.01 m) and 182 (20.02 m), 9.1 m of truth each.
     translation, _ = rpe(path, piece.truth, 10.0)
-    np.testing.assert_allclose(translation, [0.91], rtol=1e-9)
+    np.testing.assert_allclose(translation, [0.91, 0.91], rtol=1e-9)
 
 
 # --- a circle with a known steering efficiency ---------------------------------------------
@@ -98,10 +98,10 @@ def _se3(pose):
 
 
 def _evo_rpe(reference, estimate, delta):
-    """Compute evo's RPE (translation, delta in m, consecutive pairs) the way evo does."""
+    """Compute evo's RPE (translation, delta in m, consecutive pairs) as evo 1.38 does."""
     poses = [_se3(p) for p in estimate]
-    ids, previous, current = [], poses[0], 0.0
-    for i, pose in enumerate(poses):
+    ids, previous, current = [0], poses[0], 0.0
+    for i, pose in enumerate(poses[1:], start=1):
         current += np.linalg.norm(pose[:3, 3] - previous[:3, 3])
         previous = pose
         if current >= delta:
@@ -118,17 +118,19 @@ def _evo_rpe(reference, estimate, delta):
 
 
 def test_rpe_of_a_small_trajectory_by_hand():
-    # Five poses; the estimate walks 0.6 m steps, so evo pairs samples 2 and 4 (1.2 m each).
+    # Five poses; the estimate walks 0.6 m steps, so evo chooses samples 0, 2 and 4 (1.2 m
+    # apart); the hand-computed pair is the second.
     reference = np.array([[0, 0, 0], [0.5, 0, 0], [1.0, 0, 0.1], [1.5, 0.1, 0.2],
                           [2.0, 0.2, 0.3]])
     estimate = np.array([[0, 0, 0], [0.6, 0, 0], [1.2, 0, 0], [1.8, 0, 0], [2.4, 0, 0]])
-    np.testing.assert_array_equal(evo_path_pairs(estimate[:, :2], 1.0), [2, 4])
+    np.testing.assert_array_equal(evo_path_pairs(estimate[:, :2], 1.0), [0, 2, 4])
     translation, rotation = rpe(estimate, reference, 1.0)
-    # Reference from sample 2 to 4, in its frame (yaw 0.1): rotate (1.0, 0.2) by -0.1 rad.
+    # Reference from sample 0 to 2: (1.0, 0), turned 0.1; from 2 to 4, in the frame of
+    # sample 2 (yaw 0.1): (1.0, 0.2) rotated by -0.1 rad, turned 0.2.
     c, s = math.cos(0.1), math.sin(0.1)
     q = (c * 1.0 + s * 0.2, -s * 1.0 + c * 0.2)
-    np.testing.assert_allclose(translation, [math.hypot(1.2 - q[0], 0.0 - q[1])])
-    np.testing.assert_allclose(rotation, [0.2])
+    np.testing.assert_allclose(translation, [0.2, math.hypot(1.2 - q[0], 0.0 - q[1])])
+    np.testing.assert_allclose(rotation, [0.1, 0.2])
     _, errors, angles = _evo_rpe(reference, estimate, 1.0)
     np.testing.assert_allclose(translation, errors)
     np.testing.assert_allclose(rotation, angles)

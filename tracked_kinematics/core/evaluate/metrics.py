@@ -16,11 +16,13 @@ measured pose ``Q_i``; its rotation part is the absolute heading difference.
   ``j`` at most ``length`` s later, where the piece lasts at least that long: the final
   position and heading error of odometry started at ``i``.
 - **RPE per distance** (:func:`evo_path_pairs`, :func:`rpe`): evo's pairs for ``evo_rpe
-  --delta D --delta_unit m`` (consecutive pairs, evo's default; ``filters.
-  filter_pairs_by_path``): walking along the *estimate*, the path length is summed from the
-  last chosen sample and a sample is chosen where the sum first reaches ``D`` (the first
-  one where the path from the start reaches it); the pairs are consecutive chosen samples.
-  The errors are ``|t(E_ij)|`` (m) and the rotation angle of ``E_ij`` (rad).
+  --delta D --delta_unit m`` (evo 1.38, ``filters.filter_pairs_by_path`` with its defaults:
+  consecutive pairs, chosen along the *estimate*): the first sample is chosen; walking on,
+  the path length is summed from the last chosen sample, and a sample is chosen where the
+  sum first reaches ``D``; the pairs are consecutive chosen samples. The errors are
+  ``|t(E_ij)|`` (m) and the rotation angle of ``E_ij`` (rad). (evo releases before 2024
+  did not choose the first sample: their first pair started where the path first reached
+  ``D``.)
 - **Horizons** (:func:`horizon_members`): from every ground-truth sample ``i``, the samples
   ``k`` after it up to ``horizon`` s later: a prediction's error at each, its root mean
   square over the horizon and its value at the last.
@@ -108,9 +110,9 @@ def evo_path_pairs(positions, delta: float) -> np.ndarray:
     Returns
     -------
     ndarray of int
-        Chosen samples; the pairs are consecutive entries. Sample ``k`` is chosen when the
-        path length from the previous chosen sample (from sample 0 for the first) first
-        reaches ``delta``. O(pairs log M).
+        Chosen samples; the pairs are consecutive entries. Sample 0 is chosen, then each
+        sample where the path length from the previous chosen one first reaches ``delta``.
+        O(pairs log M).
 
     """
     positions = np.asarray(positions, dtype=float)
@@ -118,11 +120,11 @@ def evo_path_pairs(positions, delta: float) -> np.ndarray:
         return np.zeros(0, np.intp)
     cum = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(positions, axis=0),
                                                           axis=1))])
-    chosen = []
+    chosen = [0]
     base = 0.0
     while True:
         k = int(np.searchsorted(cum, base + delta, side='left'))
-        if chosen and k <= chosen[-1]:
+        if k <= chosen[-1]:
             k = chosen[-1] + 1
         if k >= len(cum):
             break

@@ -214,6 +214,9 @@ def _report(candidate: Candidate, scores: _Scores, settings: Settings, commands)
         'rpe': {},
     }
     for delta, (translation, rotation) in scores.rpe.items():
+        per_piece = [{'piece': k, 'pairs': len(errors), 'rmse': summary(errors)['rmse'],
+                      'mean': summary(errors)['mean']}
+                     for k, errors in enumerate(translation) if len(errors)]
         translation = np.concatenate(translation) if translation else np.zeros(0)
         rotation = np.concatenate(rotation) if rotation else np.zeros(0)
         key = rpe_key(delta)
@@ -221,7 +224,8 @@ def _report(candidate: Candidate, scores: _Scores, settings: Settings, commands)
         entry[f'rpe_{key}'] = stats['rmse']
         entry[f'rpe_{key}_mean'] = stats['mean']
         entry['rpe'][key] = {'delta_m': float(delta), 'pairs': stats['n'],
-                             'translation_m': stats, 'rotation_rad': summary(rotation)}
+                             'translation_m': stats, 'rotation_rad': summary(rotation),
+                             'pieces': per_piece}
     if commands:
         entry['prediction'] = {
             'source': commands, 'horizon_s': settings.horizon, 'dt_s': settings.dt,
