@@ -6,6 +6,7 @@ import re
 import subprocess
 import sys
 
+from helpers.recordings import late, noisy, pieces
 from helpers.vehicle_sim import AURIGA, B, simulate, write_bag
 import numpy as np
 import pytest
@@ -56,7 +57,7 @@ def test_console_script_writes_yaml_report_and_plot(bag, tmp_path):
     doc = json.loads(report.read_text())
     assert doc['icr']['chi'] == pytest.approx(0.540, abs=0.01)
     models = doc['holdout']['models']
-    assert set(models) == {'ideal', 'effective_wheel_base', 'icr', 'icr_scales',
+    assert set(models) == {'ideal', 'tuned_ddc', 'effective_wheel_base', 'icr', 'icr_scales',
                            'general_slip', 'adaptive_icr'}
     assert models['icr_scales']['improvement_pct']['windows']['position'] > 50
     assert doc['fit']['standard_errors']['y_left'] < 5e-3
@@ -227,3 +228,143 @@ def test_plot_shows_the_segments_of_the_fit(bag, tmp_path, capsys, monkeypatch, 
     every = ident.build_segments(seen['recordings'], result.segment_length)
     assert np.count_nonzero(every.travel >= 0.01) > len(segments)   # 0.4 m left some out
     assert plot.read_bytes()[:8] == b'\x89PNG\r\n\x1a\n'
+
+
+# Real recordings: late ground truth, pieces, noise; the tuned diff_drive_controller ------
+
+
+def strict_json(path):
+    """Load a JSON report, refusing NaN and infinities (never written)."""
+    def refuse(name):
+        raise ValueError(f'{name} in the report')
+    return json.loads(Path(path).read_text(), parse_constant=refuse)
+
+
+@pytest.fixture(scope='module')
+def late_bag(tmp_path_factory):
+    """Two minutes, ground truth stamped 0.2 s late (on receipt), 10 Hz, 2 mm noise."""
+    rec = simulate(ConstantIcr(B), np.array(AURIGA), duration=120.0, enc_rate=50.0, seed=11,
+                   gt_phase=0.003)
+    path = tmp_path_factory.mktemp('bags') / 'late'
+    write_bag(path, late(rec, 0.2), 'sqlite3', gt_noise=(0.002, np.radians(0.1)))
+    return path
+
+
+def test_ground_truth_delay_is_estimated_removed_and_written(late_bag, tmp_path, capsys):
+    out, report = tmp_path / 'o.yaml', tmp_path / 'o.json'
+    status, stdout, err = run([late_bag, *ARGS, '--output', out, '--report', report], capsys)
+    assert status == 0, err
+    assert re.search(r'ground-truth delay behind the encoders: 0\.(19|20)\d s \+- 0\.00\d s '
+                     r'\(jackknife over \d+ windows', stdout)
+    values = read_params_file(out)
+    assert values['identification.ground_truth_delay'] == pytest.approx(0.2, abs=0.005)
+    assert values['identification.ground_truth_delay_method'] == 'jackknife'
+    assert 0 < values['identification.ground_truth_delay_std'] < 0.01
+    np.testing.assert_allclose([values['icr.y_left'], values['icr.y_right']], AURIGA[:2],
+                               atol=5e-3)
+    doc = strict_json(report)
+    assert doc['ground_truth_delay']['delay'] == pytest.approx(0.2, abs=0.005)
+    assert doc['ground_truth_delay']['determined'] is True
+    # 0 turns it off; the hold-out then shows what the stale stamps cost.
+    off = tmp_path / 'off.yaml'
+    status, stdout, err = run([late_bag, *ARGS, '--output', off, '--ground-truth-delay', '0',
+                               '--report', tmp_path / 'off.json'], capsys)
+    assert status == 0, err
+    assert 'ground-truth delay behind the encoders: off (--ground-truth-delay 0)' in stdout
+    raw = read_params_file(off)
+    assert raw['identification.ground_truth_delay'] == 0.0
+    assert raw['identification.ground_truth_delay_method'] == 'off'
+    windows = {name: strict_json(p)['holdout']['models']['icr_scales']['windows']['position_mean']
+               for name, p in (('auto', report), ('off', tmp_path / 'off.json'))}
+    assert windows['off'] > 3 * windows['auto']
+    # A number fixes it.
+    fixed = tmp_path / 'fixed.yaml'
+    status, stdout, _ = run([late_bag, *ARGS, '--output', fixed, '--ground-truth-delay', '0.19',
+                             '--holdout', '0'], capsys)
+    assert status == 0 and '0.190 s as given' in stdout
+    assert read_params_file(fixed)['identification.ground_truth_delay'] == 0.19
+
+
+@pytest.mark.parametrize('value', ['soon', 'nan', '20'])
+def test_bad_ground_truth_delay_is_bad_input(late_bag, tmp_path, capsys, value):
+    with pytest.raises(SystemExit) as exc:
+        identify_icr.main([str(late_bag), *map(str, ARGS), '--output', str(tmp_path / 'o.yaml'),
+                           '--ground-truth-delay', value])
+    assert exc.value.code == 2
+    assert 'argument --ground-truth-delay' in capsys.readouterr().err
+    assert not (tmp_path / 'o.yaml').exists()
+
+
+def test_recording_in_short_pieces(tmp_path, capsys):
+    # One bag, 60 pieces of 2 s with gaps of 1 s, ground truth starting 0.3 s before the
+    # encoders in each (a logger restarted every 2 s), stamped 0.15 s late.
+    rec = simulate(ConstantIcr(B), np.array(AURIGA), duration=180.0, enc_rate=50.0, seed=4,
+                   gt_phase=0.0137)
+    piece, = pieces(late(rec, 0.15), length=2.0, gap=1.0, encoders_late=0.3, one=True)
+    path = tmp_path / 'pieces'
+    write_bag(path, piece, 'sqlite3')
+    out, report = tmp_path / 'o.yaml', tmp_path / 'o.json'
+    status, stdout, err = run([path, *ARGS, '--output', out, '--report', report], capsys)
+    assert status == 0, err
+    assert re.search(r'1 bag\(s\): \d+ s with encoders and ground truth \(in 60 pieces; '
+                     r'1[78]\d s from first to last sample\), \d+ s driving', stdout)
+    assert re.search(r'no held-out windows of 10 s \(the longest piece with both streams is '
+                     r'1\.\d s; a shorter --window gives some\)', stdout)
+    assert 'ground truth: ' not in stdout   # no jumps: the gaps between pieces are none
+    assert 'nan' not in stdout and '+0 %' not in stdout
+    values = read_params_file(out)
+    np.testing.assert_allclose([values['icr.y_left'], values['icr.y_right'], values['icr.x']],
+                               AURIGA[:3], atol=1e-3)
+    assert not any(k.startswith('identification.holdout') for k in values)
+    doc = strict_json(report)
+    assert doc['time']['pieces'] == 60
+    assert doc['holdout']['windows'] == 0 and doc['holdout']['cross_validated'] is True
+    icr = doc['holdout']['models']['icr_scales']
+    assert icr['windows'] == {'n': 0, 'position_mean': None, 'position_p90': None,
+                              'heading_mean': None, 'heading_p90': None}
+    assert icr['improvement_pct']['windows'] is None
+    assert icr['improvement_pct']['segments']['position'] > 90
+
+
+def test_noisy_ground_truth_refused_with_its_cause_then_accepted(tmp_path, capsys):
+    rec = simulate(ConstantIcr(B), np.array(AURIGA), duration=90.0, enc_rate=50.0, gt_rate=4.0,
+                   seed=8)
+    path = tmp_path / 'ice'
+    write_bag(path, noisy(late(rec, 0.2), 0.05, np.radians(2.0), glitches=0.02, seed=3),
+              'sqlite3')
+    out = tmp_path / 'ice.yaml'
+    status, _, err = run([path, *ARGS, '--output', out], capsys)
+    one_line_error(err, status, 3, r'scale\.left is determined but uncertain: its standard '
+                   r'error is 0\.0\d+ \(limit 0\.02\) because the ground truth is noisy')
+    assert 'drive more' not in err and 'mm / ' in err and '--accept-uncertain' in err
+    assert not out.exists()
+    status, stdout, err = run([path, *ARGS, '--output', out, '--accept-uncertain'], capsys)
+    assert status == 0, err
+    assert 'accepted (--accept-uncertain): scale.left is determined but uncertain' in stdout
+    values = read_params_file(out)
+    assert set(values['identification.uncertain']) >= {'scale.left'}
+    np.testing.assert_allclose([values['scale.left'], values['scale.right']], AURIGA[3:],
+                               atol=0.05)
+
+
+def test_tuned_ddc_snippet_and_baseline_columns(bag, tmp_path, capsys):
+    report = tmp_path / 'o.json'
+    status, stdout, err = run([bag, *ARGS, '--output', tmp_path / 'o.yaml', '--report', report],
+                              capsys)
+    assert status == 0, err
+    assert 'vs ideal  vs tuned DDC' in stdout
+    snippet = stdout[stdout.index('diff_drive_controller:\n'):]
+    lines = snippet.splitlines()[2:7]
+    assert [line.split(':')[0].strip() for line in lines] == [
+        'wheel_separation', 'wheel_separation_multiplier', 'wheel_radius',
+        'left_wheel_radius_multiplier', 'right_wheel_radius_multiplier']
+    import yaml
+    ddc = yaml.safe_load('\n'.join(snippet.splitlines()[:7]))['diff_drive_controller']
+    params = ddc['ros__parameters']
+    assert params['wheel_separation'] == B and params['wheel_radius'] == 0.1
+    assert 1.0 / params['wheel_separation_multiplier'] == pytest.approx(0.54, abs=0.02)
+    doc = strict_json(report)
+    assert doc['tuned_ddc']['parameters'] == pytest.approx(params, rel=1e-5)
+    models = doc['holdout']['models']
+    assert models['icr_scales']['improvement_vs_tuned_ddc_pct']['windows']['position'] > 50
+    assert 'improvement_vs_tuned_ddc_pct' not in models['tuned_ddc']

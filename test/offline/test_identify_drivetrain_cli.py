@@ -3,6 +3,7 @@
 The fit itself and the other error paths: test/core/identify/test_drivetrain_fit.py.
 """
 
+import json
 import re
 
 import numpy as np
@@ -82,3 +83,15 @@ def test_a_bug_in_the_core_surfaces_as_a_traceback(sim_bag, tmp_path, capsys, mo
     with pytest.raises(ValueError, match='^bug$'):
         cli.main([str(sim_bag), '-o', str(tmp_path / 'o.yaml')])
     assert capsys.readouterr().err == ''
+
+
+def test_delay_is_explained_with_its_uncertainty(sim_bag, tmp_path, capsys):
+    report = tmp_path / 'd.json'
+    assert cli.main([str(sim_bag), '-o', str(tmp_path / 'd.yaml'), '--report', str(report)]) == 0
+    out = capsys.readouterr().out
+    assert re.search(r'delay: of the measured speeds \(encoder stamps\) behind the setpoints '
+                     r'\(bag receive times\), any clock offset between the two included; its '
+                     r'standard error from (a jackknife|the \d+ ms grid alone)', out)
+    doc = json.loads(report.read_text())
+    assert doc['delay_uncertainty'] and doc['delay_at_zero'] is False
+    assert doc['standard_errors']['delay'] >= 0.5 * doc['dt']

@@ -1,10 +1,15 @@
 """offline.plots: every picture of the offline tools is drawn without pyplot's state."""
 
+from dataclasses import replace
 from pathlib import Path
 from types import SimpleNamespace
 
+from helpers.recordings import late
+from helpers.vehicle_sim import AURIGA, B, simulate
 import numpy as np
 import pytest
+from tracked_kinematics.core import identify as ident
+from tracked_kinematics.core.models import ConstantIcr
 from tracked_kinematics.offline import plots
 from tracked_kinematics.offline.cli import icr_map, plan_trajectory
 from tracked_kinematics.offline.errors import UsageError
@@ -43,3 +48,17 @@ def test_a_format_matplotlib_cannot_write_is_a_usage_error(tmp_path):
     assert not (tmp_path / 'p.xyz').exists()
     plots.save(fig, tmp_path / 'p.svg', dpi=50)
     assert (tmp_path / 'p.svg').read_text().lstrip().startswith('<?xml')
+
+
+@pytest.mark.parametrize('delay', ['auto', 0.1, 'undetermined'])
+def test_identification_plot_with_every_kind_of_delay(tmp_path, no_pyplot, delay):
+    rec = late(simulate(ConstantIcr(B), np.array(AURIGA), duration=40.0, enc_rate=50.0,
+                        seed=2), 0.1)
+    result = ident.identify([rec], 'icr_scales', B, holdout=0.0,
+                            ground_truth_delay='auto' if delay == 'undetermined' else delay)
+    if delay == 'undetermined':
+        result.delay = replace(result.delay, determined=False, problem='no motion', delay=0.0)
+    segments = ident.build_segments(result.recordings, 1.0)
+    path = tmp_path / 'fit.png'
+    plots.plot_identification(path, result.recordings, result, segments)
+    assert path.read_bytes()[:8] == PNG

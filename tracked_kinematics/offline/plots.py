@@ -4,8 +4,9 @@ The pictures of the offline tools, drawn on plain matplotlib Figures with an Agg
 No pyplot: no global figure registry or backend is touched, so the tools (and scripts or
 notebooks that call them) keep their own matplotlib state.
 
-- :func:`plot_identification` (identify_icr): paths like Martinez et al. (2005) Figs. 9-12,
-  and the residuals of the held-out segments;
+- :func:`plot_identification` (identify_icr): paths like Martinez et al. (2005) Figs. 9-12
+  (ideal drive, tuned diff_drive_controller, the identified model), the residuals of the
+  held-out segments, and the ground-truth delay's profile;
 - :func:`plot_drivetrain` (identify_drivetrain): commanded, measured and simulated track
   speeds, and the delay profile;
 - :func:`plot_icr_map` (icr_map): the tread ICR map, Martinez Figs. 6-7;
@@ -28,7 +29,7 @@ from tracked_kinematics.offline.errors import UsageError
 from tracked_kinematics.offline.vehicle_file import fixed
 
 _COLOURS = {'ground truth': 'black', 'ideal': 'tab:red', 'written ICR model': 'tab:blue',
-            'fitted': 'tab:green'}
+            'fitted': 'tab:green', 'tuned diff_drive_controller': 'tab:orange'}
 
 
 def _figure(**kwargs) -> Figure:
@@ -67,14 +68,15 @@ def _errors(result, segments, model, p):
 
 def plot_identification(path, recordings, result, segments) -> None:
     """
-    Draw an identification: dead reckoning against ground truth, held-out residuals.
+    Draw an identification: dead reckoning against ground truth, residuals, delay profile.
 
     Parameters
     ----------
     path : path-like
         Image to write (PNG).
     recordings : sequence of Recording
-        The data the identification used.
+        The data the identification used (its ground-truth delay removed:
+        ``result.recordings``).
     result : Identification
         Its result (:func:`tracked_kinematics.core.identify.identify`).
     segments : Segments
@@ -87,14 +89,17 @@ def plot_identification(path, recordings, result, segments) -> None:
     icr_model = ident.build_model('icr_scales', track_width)
     p_icr = icr_model.from_icr(result.icr)
     fitted = result.fit
-    candidates = [('ideal', ideal, ideal.initial()),
-                  (f'written ICR model ({result.icr_source})', icr_model, p_icr)]
+    candidates = [('ideal', ideal, ideal.initial())]
+    if getattr(result, 'ddc', None) is not None:
+        candidates.append(('tuned diff_drive_controller', result.ddc.model, result.ddc.p))
+    candidates.append((f'written ICR model ({result.icr_source})', icr_model, p_icr))
     if fitted.icr is None:
         candidates.append((f'fitted ({fitted.model.name})', fitted.model, fitted.p))
 
-    fig = _figure(figsize=(13, 6.5), layout='constrained')
-    grid = fig.add_gridspec(2, 2, width_ratios=(1.5, 1))
+    fig = _figure(figsize=(13, 9), layout='constrained')
+    grid = fig.add_gridspec(3, 2, width_ratios=(1.5, 1))
     ax_path = fig.add_subplot(grid[:, 0])
+    _plot_delay(fig.add_subplot(grid[2, 1]), result)
     longest = max(range(len(recordings)), key=lambda i: recordings[i].duration)
     rec = recordings[longest]
     ax_path.plot(rec.gt_x, rec.gt_y, color='black', lw=3.5, alpha=0.45, label='ground truth')
@@ -138,6 +143,33 @@ def plot_identification(path, recordings, result, segments) -> None:
     fig.suptitle(f'identify_icr: {fitted.model.name} ({fitted.method}); chi = {icr.chi:.3f}, '
                  f'e = {icr.eccentricity:.3f}', fontsize=12)
     save(fig, path, dpi=110)
+
+
+def _plot_delay(ax, result) -> None:
+    """Profile cost of the ground-truth delay, with the estimate and its standard error."""
+    delay = getattr(result, 'delay', None)
+    ax.set_title('Ground-truth delay behind the encoders', fontsize=10)
+    ax.set_xlabel('delay (s)')
+    if delay is None or not len(delay.cost):
+        given = f'{delay.delay:.3f} s' if delay and delay.delay else 'none'
+        ax.text(0.5, 0.5, f'given: {given}', ha='center', va='center', transform=ax.transAxes)
+        ax.set_yticks([])
+        return
+    ax.plot(delay.shifts, delay.cost - np.min(delay.cost), color='C0',
+            label='profile cost (lower: better timed)')
+    if delay.determined:
+        ax.axvline(delay.delay, color='C3', ls='--',
+                   label=f'{delay.delay:.3f} s +- {delay.std:.3f} ({delay.uncertainty})')
+        if np.isfinite(delay.std) and delay.std > 0:
+            ax.axvspan(delay.delay - delay.std, delay.delay + delay.std, color='C3', alpha=0.15)
+    else:
+        ax.text(0.5, 0.9, f'not determined: {delay.problem}', ha='center', va='top',
+                transform=ax.transAxes, fontsize=8, wrap=True)
+    for e in getattr(result, 'delays', []):
+        ax.axvline(e.delay, color='0.5', lw=0.8, ls=':')
+    ax.set_ylabel('cost')
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
 
 
 # identify_drivetrain ---------------------------------------------------------------------

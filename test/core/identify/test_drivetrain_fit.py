@@ -52,6 +52,33 @@ def recording(drive, duration=30.0, noise=0.0, seed=0, jitter=0.0):
 # Core ------------------------------------------------------------------------------------
 
 
+def test_delay_standard_error_is_a_jackknife_over_blocks():
+    fit = fit_drivetrain(recording(AURIGA, duration=60.0, noise=0.02, seed=3), dt=0.01)
+    assert fit.delay_uncertainty == ('a jackknife over 6 blocks of 10 s of the profile, and '
+                                     'the 10 ms grid')
+    std = fit.standard_errors['delay']
+    assert 0.005 <= std < 0.01
+    assert abs(fit.parameters['delay'] - 0.03) <= 3 * std
+    short = fit_drivetrain(recording(AURIGA, duration=30.0, seed=3), dt=0.01)
+    assert short.delay_uncertainty.startswith('the 10 ms grid alone (fewer than 5 blocks')
+    assert short.standard_errors['delay'] == 0.005
+
+
+def test_setpoints_stamped_late_shorten_the_delay_and_none_is_flagged():
+    # The delay is that of the measured speeds behind the setpoint stamps, the sign of
+    # identify_icr's ground_truth_delay: setpoints stamped 0.1 s early add 0.1 s to the
+    # true 0.03 s, 0.05 s late put the best delay at the lower end of the search (within
+    # a sample: the discrete model is a sample off the continuous truth).
+    data = recording(AURIGA, duration=30.0, seed=1)
+    early = fit_drivetrain(DriveData(data.command_t - 0.1, data.commands, data.speed_t,
+                                     data.speeds), dt=0.01)
+    assert early.parameters['delay'] == pytest.approx(0.13, abs=0.011)
+    assert not early.delay_at_zero
+    ahead = fit_drivetrain(DriveData(data.command_t + 0.05, data.commands, data.speed_t,
+                                     data.speeds), dt=0.01)
+    assert ahead.parameters['delay'] == 0.0 and ahead.delay_at_zero
+
+
 def test_recovers_delay_accel_limit_and_time_constant():
     fit = fit_drivetrain(recording(AURIGA, jitter=0.002), dt=0.005)
     p = fit.parameters

@@ -1,5 +1,6 @@
 """core.identify.excitation: data that cannot identify a model are refused, with the reason."""
 
+from helpers.recordings import pieces
 from helpers.vehicle_sim import AURIGA, B, simulate
 import numpy as np
 import pytest
@@ -39,3 +40,16 @@ def test_standing_still_is_too_little_motion():
                             np.zeros_like(rec.gt_yaw))
     with pytest.raises(ident.ExcitationError, match='too little motion: 0 of'):
         ident.identify([still], 'icr_scales', B)
+
+
+def test_streams_that_never_overlap_say_so():
+    rec = simulate(TRUTH, P_TRUE, duration=30.0, seed=1)
+    apart = ident.Recording(rec.enc_t, rec.left, rec.right, rec.gt_t + 1000.0, rec.gt_x,
+                            rec.gt_y, rec.gt_yaw)
+    with pytest.raises(ident.ExcitationError, match=r'the encoders \(0.00-30.00 s\) and the '
+                       r'ground truth \(1000.00-1029.90 s\) never both have samples'):
+        ident.identify([apart], 'icr_scales', B)
+    with pytest.raises(ident.ExcitationError, match=r'at most 1\.\d+ s long, less than half '
+                       r'a segment of 4 s; give a shorter --segment-length'):
+        ident.identify(pieces(rec, length=1.5, gap=1.0, encoders_late=0.3), 'icr_scales', B,
+                       segment_length=4.0)

@@ -87,3 +87,25 @@ def test_differential_evolution_finds_the_same_minimum(clean_segments):
     result = ident.fit(model, segments, method='de', heading_weight=1.0, f_scale=0.01,
                        rounds=1)
     np.testing.assert_allclose(result.p, P_TRUE[:3], atol=3e-3)
+
+
+@pytest.mark.parametrize('sigma, cause, says, never', [
+    (0.06, 'noise', 'because the ground truth is noisy', 'drive more'),
+    (0.003, 'excitation', 'drive more, and more varied, straight lines', 'is noisy'),
+])
+def test_uncertain_parameters_name_their_cause(sigma, cause, says, never):
+    # scale.left 0.03 against its 0.02 limit: with 60 mm residuals the same driving would
+    # give 0.005 on 10 mm ground truth (noise); with 3 mm residuals it is the driving.
+    result = ident.FitResult(TRUTH, P_TRUE, std=np.array([0.001, 0.001, 0.001, 0.03, 0.001]),
+                             sigma=sigma, rms_position=sigma, rms_heading=sigma)
+    with pytest.raises(ident.UncertainError) as refused:
+        ident.check_identified(result)
+    assert says in str(refused.value) and never not in str(refused.value)
+    assert 'scale.left' in str(refused.value) and '--accept-uncertain' in str(refused.value)
+    accepted = ident.check_identified(result, accept_uncertain=True)
+    assert [(u.name, u.cause) for u in accepted] == [('scale.left', cause)]
+    assert accepted[0].reference_std == pytest.approx(0.03 * min(1.0, 0.01 / sigma))
+    # Not determined at all: refused even when uncertain fits are accepted.
+    result.std = np.array([0.001, np.inf, 0.001, 0.001, 0.001])
+    with pytest.raises(ident.ExcitationError, match='icr.y_right: the data do not determine'):
+        ident.check_identified(result, accept_uncertain=True)

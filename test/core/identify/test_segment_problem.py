@@ -20,11 +20,11 @@ SAMPLE_P = {
     'effective_wheel_base': [0.6], 'icr': [0.35, -0.42, 0.03], 'icr_scales': list(AURIGA),
     'general_slip': [-0.0022, 0.0355, -0.0386, 0.0409, -0.0173, -0.0602, -0.0549, -0.2785,
                      0.0605],
-    'adaptive_icr': [0.05, 0.07, 0.09, 0.08, 0.02, 0.03],
+    'adaptive_icr': [0.05, 0.07, 0.09, 0.08, 0.02, 0.03], 'tuned_ddc': [1.6, 0.97, 1.02],
 }
 
 
-@pytest.mark.parametrize('name', ident.FIT_MODELS)
+@pytest.mark.parametrize('name', ident.FIT_MODELS + ('tuned_ddc',))
 def test_jacobian_matches_finite_differences(name, clean_segments):
     # Fink & Stump eq. (4) per segment, against central differences of the residuals.
     segments = clean_segments.select(np.arange(len(clean_segments)) < 60)

@@ -5,34 +5,48 @@ The face of the sub-package; the modules behind it hold the derivations and refe
 :mod:`.segments` (the data), :mod:`.problem` (Martinez eq. 17 and its Jacobian),
 :mod:`.search_space`, :mod:`.excitation`, :mod:`.fitting`, :mod:`.evaluation`,
 :mod:`.spin` (Martinez eq. 16) and :mod:`.procedure` (:func:`identify`) for the motion
-models; :mod:`.drive_data` and :mod:`.drivetrain` for the drive train.
+models, :mod:`.ddc` for the tuned diff_drive_controller they are compared with;
+:mod:`.delay` (the ground-truth stamps' delay behind the encoders, model-free);
+:mod:`.drive_data` and :mod:`.drivetrain` for the drive train.
 """
 
+from .ddc import ddc_parameters, DDC_PARAMS, TunedDiffDrive
+from .delay import (
+    correct_ground_truth, DelayEstimate, estimate_delay, estimate_delay_arrays, estimate_delays,
+    fixed_delay)
 from .drive_data import DriveData, resample
 from .drivetrain import DriveTrainFit, fit_drivetrain
-from .evaluation import dead_reckoning, ErrorStats, HoldOut, prediction_errors
+from .evaluation import (
+    dead_reckoning, ErrorStats, HoldOut, MIN_BLOCKS, MIN_SEGMENTS, MIN_WINDOWS,
+    prediction_errors)
 from .excitation import (
     check_excitation, Excitation, MIN_MOVING_SEGMENTS, MIN_STRAIGHT, MIN_TURNING)
 from .fitting import (
-    auto_heading_weight, check_identified, fit, FitResult, METHODS, STD_LIMITS)
+    auto_heading_weight, check_identified, fit, FitResult, METHODS, REFERENCE_RESIDUAL,
+    STD_LIMITS, Uncertain, UncertainError)
 from .problem import (
     check_heading_weight, DEFAULT_HEADING_WEIGHT, LOSSES, robust_cost, SegmentProblem)
-from .procedure import Identification, identify, ModelEvaluation
+from .procedure import DataTime, Identification, identify, ModelEvaluation
 from .search_space import (
-    bounds, build_model, COMPARE_MODELS, FIT_MODELS, initial_guess, search_box,
+    BASELINES, bounds, build_model, COMPARE_MODELS, FIT_MODELS, initial_guess, search_box,
     steering_efficiency_guess)
-from .segments import build_segments, gap_threshold, Recording, Segments
+from .segments import (
+    build_segments, covered_spans, gap_threshold, Recording, Segments, stretches)
 from .spin import spin_in_place, SpinResult
 from ..errors import ExcitationError, FitError, IdentificationError
 
 __all__ = [
-    'COMPARE_MODELS', 'DEFAULT_HEADING_WEIGHT', 'DriveData', 'DriveTrainFit', 'ErrorStats',
-    'Excitation', 'ExcitationError', 'FIT_MODELS', 'FitError', 'FitResult', 'HoldOut',
-    'Identification', 'IdentificationError', 'LOSSES', 'METHODS', 'MIN_MOVING_SEGMENTS',
-    'MIN_STRAIGHT', 'MIN_TURNING', 'ModelEvaluation', 'Recording', 'STD_LIMITS',
-    'SegmentProblem', 'Segments', 'SpinResult', 'auto_heading_weight', 'bounds',
-    'build_model', 'build_segments', 'check_excitation', 'check_heading_weight',
-    'check_identified', 'dead_reckoning', 'fit', 'fit_drivetrain', 'gap_threshold',
-    'identify', 'initial_guess', 'prediction_errors', 'resample', 'robust_cost',
-    'search_box', 'spin_in_place', 'steering_efficiency_guess',
+    'BASELINES', 'COMPARE_MODELS', 'DDC_PARAMS', 'DEFAULT_HEADING_WEIGHT', 'DataTime',
+    'DelayEstimate', 'DriveData', 'DriveTrainFit', 'ErrorStats', 'Excitation',
+    'ExcitationError', 'FIT_MODELS', 'FitError', 'FitResult', 'HoldOut', 'Identification',
+    'IdentificationError', 'LOSSES', 'METHODS', 'MIN_BLOCKS', 'MIN_MOVING_SEGMENTS',
+    'MIN_SEGMENTS', 'MIN_STRAIGHT', 'MIN_TURNING', 'MIN_WINDOWS', 'ModelEvaluation',
+    'REFERENCE_RESIDUAL', 'Recording', 'STD_LIMITS', 'SegmentProblem', 'Segments',
+    'SpinResult', 'TunedDiffDrive', 'Uncertain', 'UncertainError', 'auto_heading_weight',
+    'bounds', 'build_model', 'build_segments', 'check_excitation', 'check_heading_weight',
+    'check_identified', 'correct_ground_truth', 'covered_spans', 'ddc_parameters',
+    'dead_reckoning', 'estimate_delay', 'estimate_delay_arrays', 'estimate_delays', 'fit',
+    'fit_drivetrain', 'fixed_delay', 'gap_threshold', 'identify', 'initial_guess',
+    'prediction_errors', 'resample', 'robust_cost', 'search_box', 'spin_in_place',
+    'steering_efficiency_guess', 'stretches',
 ]

@@ -51,6 +51,10 @@ MIN_SECONDS = 2.0
 """Least duration of usable data (after the delay search window of each segment), s."""
 MIN_COMMAND_STD = 0.02
 """Least standard deviation of the commanded speeds, m/s: below it nothing is excited."""
+DELAY_BLOCK = 10.0
+"""s of grid samples per jackknife block of the delay's standard error."""
+MIN_DELAY_BLOCKS = 5
+"""Fewest blocks for a jackknife; fewer: the delay's standard error is its grid's alone."""
 
 
 @dataclass(frozen=True)
@@ -69,7 +73,11 @@ class DriveTrainFit:
         or ``kp``, ``ki``, ``kd``.
     standard_errors : dict
         One-sigma errors from the Jacobian (residuals taken as white, so optimistic);
-        ``delay`` gets half the grid period, its resolution.
+        ``delay``'s is the delete-one-block jackknife of the best delay over blocks of
+        :data:`DELAY_BLOCK` seconds (the smooth parameters at their fit), combined with the
+        grid's own half sample (the delay is a whole number of samples):
+        ``delay_uncertainty`` says which. With the smooth parameters held, it leaves out
+        the trade-off of the delay with the loop's lag (``delay_profile`` shows that).
     fixed : dict
         Constants held fixed (the motor constants of ``pid_dc_motor``).
     rms : float
@@ -96,6 +104,11 @@ class DriveTrainFit:
         Delay / least-squares alternations.
     delays_fitted : int
         Delays at which the smooth parameters were fitted (alternation and profile walk).
+    delay_uncertainty : str
+        How ``standard_errors['delay']`` was obtained.
+    delay_at_zero : bool
+        The best delay is 0, the lower end of the search: the loop's lag may absorb the
+        delay, or the measured speeds lead the setpoint stamps (setpoints stamped late).
     nfev : int
         Simulations run.
     seconds : float
@@ -120,6 +133,8 @@ class DriveTrainFit:
     delay_profile: tuple = field(repr=False)
     rounds: int = 0
     delays_fitted: int = 0
+    delay_uncertainty: str = ''
+    delay_at_zero: bool = False
     nfev: int = 0
     seconds: float = 0.0
 
@@ -178,6 +193,16 @@ class _Problem:
         return [drive.respond(d, self.dt, initial=s.speeds[0])
                 for d, s in zip(shaped, self.segments)]
 
+    def lag_sse_blocks(self, responses, block: int, lag: int) -> np.ndarray:
+        """Sum of squared errors per block of ``block`` samples at one delay: shape (K,)."""
+        m = self.max_lag
+        rows = []
+        for y, meas in zip(responses, self.measured):
+            diff = y[m - lag:len(y) - lag] - meas
+            first = np.arange(0, len(meas), block)
+            rows.append(np.add.reduceat(np.einsum('ij,ij->i', diff, diff), first))
+        return np.concatenate(rows)
+
     def lag_sse(self, responses) -> np.ndarray:
         """Sum of squared errors for every delay of 0..max_lag samples."""
         m = self.max_lag
@@ -212,6 +237,38 @@ def _defaults_motor(base: DriveTrain | None) -> PidMotor:
     if base is not None and isinstance(base.loop, PidMotor):
         return base.loop
     return DriveTrain.fink_stump_packbot().loop
+
+
+def _delay_std(blocks, lag: int, dt: float):
+    """
+    Return the best delay's standard error: a delete-one-block jackknife and the grid.
+
+    ``blocks`` (K, 3) holds each block's squared errors at the delays ``lag - 1``, ``lag``
+    and ``lag + 1``, each with the smooth parameters fitted at it (the profile); each
+    jackknife estimate is the minimum of the parabola through the three, within one sample.
+    None (the best delay at an end of the search, a loop that goes unstable): the grid's
+    half sample alone. The half sample stays in any case: the model holds the delay to whole
+    samples, and its discrete simulation is off the continuous truth by up to about one
+    (on simulated data the best delay lands one sample from the true one).
+    """
+    grid = 0.5 * dt
+    if blocks is None or len(blocks) < MIN_DELAY_BLOCKS:
+        why = (f'fewer than {MIN_DELAY_BLOCKS} blocks of {DELAY_BLOCK:.0f} s' if blocks is not None
+               else 'the best delay at an end of the search')
+        return grid, f'the {1000 * dt:.0f} ms grid alone ({why})'
+    k = len(blocks)
+    total = blocks.sum(axis=0)
+    loo = []
+    for j in range(k):
+        a, b, c = total - blocks[j]
+        curvature = a - 2.0 * b + c
+        offset = float(np.clip(0.5 * (a - c) / curvature, -1.0, 1.0)) if curvature > 0 else 0.0
+        loo.append((lag + offset) * dt)
+    loo = np.array(loo)
+    jackknife = math.sqrt((k - 1) / k * float(np.sum((loo - loo.mean()) ** 2)))
+    return (math.sqrt(jackknife ** 2 + grid ** 2),
+            f'a jackknife over {k} blocks of {DELAY_BLOCK:.0f} s of the profile, and the '
+            f'{1000 * dt:.0f} ms grid')
 
 
 def fit_drivetrain(data: DriveData | Sequence[DriveData], loop: str = 'first_order',
@@ -407,7 +464,21 @@ def fit_drivetrain(data: DriveData | Sequence[DriveData], loop: str = 'first_ord
     max_command_accel = max(float(np.max(np.abs(np.diff(s.commands, axis=0)))) for s in
                             segments) / dt
     parameters = {'delay': lag * dt, 'max_accel': drive.max_accel}
-    errors = {'delay': 0.5 * dt,
+    # The profile around the best delay, each neighbour with its own smooth parameters (the
+    # walk fitted them), block by block: the jackknife then sees the trade-off with the lag.
+    block = max(1, int(round(DELAY_BLOCK / dt)))
+    blocks = None
+    if 0 < lag < max_lag:
+        columns = []
+        for near in (lag - 1, lag, lag + 1):
+            near_responses = problem.responses(fit_at(near, p).x)
+            if near_responses is None:
+                break
+            columns.append(problem.lag_sse_blocks(near_responses, block, near))
+        if len(columns) == 3:
+            blocks = np.column_stack(columns)
+    delay_std, how = _delay_std(blocks, lag, dt)
+    errors = {'delay': delay_std,
               'max_accel': (float(std[-1]) / u ** 2 if u > 0 and math.isfinite(drive.max_accel)
                             else math.nan)}
     for i, name in enumerate(names):
@@ -419,5 +490,6 @@ def fit_drivetrain(data: DriveData | Sequence[DriveData], loop: str = 'first_ord
         fixed=fixed_motor, rms=rms, rms_commands=rms_commands, fit_percent=fit_percent,
         accel_limit_binding=binding, max_command_accel=max_command_accel, dt=dt,
         samples=n // 2, seconds_of_data=n // 2 * dt, segments=segments, delay_profile=profile,
-        rounds=rounds, delays_fitted=len(fits), nfev=problem.nfev,
+        rounds=rounds, delays_fitted=len(fits), delay_uncertainty=how,
+        delay_at_zero=lag == 0 and max_lag > 0, nfev=problem.nfev,
         seconds=time.perf_counter() - started)

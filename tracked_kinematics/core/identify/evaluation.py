@@ -11,12 +11,13 @@ the pictures.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
+import math
 
 import numpy as np
 
 from .problem import SegmentProblem
-from .segments import Recording, Segments
+from .segments import build_segments, Recording, Segments
 from ..integration import wrap_angle
 from ..models import MotionModel
 
@@ -29,7 +30,7 @@ class ErrorStats:
     Attributes
     ----------
     n : int
-        Number of segments.
+        Number of segments (0: none, and the other fields are NaN).
     position_mean, position_p90 : float
         Mean and 90th percentile of the final position error, m.
     heading_mean, heading_p90 : float
@@ -53,10 +54,21 @@ class ErrorStats:
         return cls(len(position), float(position.mean()), float(np.percentile(position, 90)),
                    float(heading.mean()), float(np.percentile(heading, 90)))
 
-    def improvement_over(self, baseline: ErrorStats) -> dict[str, float]:
-        """Percent reduction of the mean errors relative to ``baseline``."""
+    def improvement_over(self, baseline: ErrorStats) -> dict[str, float | None] | None:
+        """
+        Return the percent reduction of the mean errors relative to ``baseline``.
+
+        None when either has no segments: there is nothing to compare, which is not a
+        0 % improvement. Against a baseline error of exactly 0, an equal error is 0 % and a
+        larger one None (no finite percentage).
+        """
+        if self.n == 0 or baseline.n == 0:
+            return None
+
         def pct(ours, theirs):
-            return float(100.0 * (1.0 - ours / theirs)) if theirs > 0 else 0.0
+            if theirs > 0:
+                return float(100.0 * (1.0 - ours / theirs))
+            return 0.0 if ours <= theirs else None
         return {'position': pct(self.position_mean, baseline.position_mean),
                 'heading': pct(self.heading_mean, baseline.heading_mean)}
 
@@ -76,60 +88,177 @@ def prediction_errors(model: MotionModel, p, segments: Segments):
     return np.hypot(diff[:, 0], diff[:, 1]), np.abs(wrap_angle(diff[:, 2]))
 
 
+MIN_BLOCKS = 10
+"""Blocks the driving time is cut into at least, when the block length allows."""
+MIN_WINDOWS = 20
+"""Fewer held-out windows than this in one fold (and too few segments, :data:`MIN_SEGMENTS`):
+every block is held out once, in turn."""
+MIN_SEGMENTS = 200
+"""As many held-out segments in one fold are enough for a comparison, windows or not."""
+
+
 @dataclass(frozen=True)
 class HoldOut:
     """
     Time blocks held out of the fit, to measure how well a model predicts unseen data.
 
+    The driving time (the moving segments, end to end) is cut into blocks of about
+    ``block_length`` seconds; each fold holds out some blocks, and the models are fitted on
+    the segments that do not overlap them (Martinez sec. 6: validation paths other than the
+    training ones). One fold holds out ``fraction`` of the blocks, evenly spaced; when that
+    leaves fewer than :data:`MIN_WINDOWS` held-out windows and :data:`MIN_SEGMENTS` held-out
+    segments (a short recording), the blocks are held out in turn over
+    ``round(1 / fraction)`` folds (cross-validation), so every block is predicted once by
+    models that did not see it.
+
     Attributes
     ----------
-    blocks : ndarray, shape (B, 3)
-        ``(recording, t_start, t_end)`` of each held-out block.
+    spans : ndarray, shape (R, 4)
+        ``(block, recording, t_start, t_end)``: the time each block covers in each
+        recording (a block of a recording in pieces may cover several recordings).
+    folds : tuple of ndarray
+        The blocks held out by each fold.
     total_blocks : int
-        Blocks the data were cut into.
+        Blocks the driving time was cut into.
+    block_length : float
+        Driving time per block, s.
 
     """
 
-    blocks: np.ndarray
+    spans: np.ndarray
+    folds: tuple
     total_blocks: int
+    block_length: float
+
+    @property
+    def blocks(self) -> np.ndarray:
+        """Return ``(recording, t_start, t_end)`` of every span any fold holds out: (B, 3)."""
+        held = np.isin(self.spans[:, 0], np.concatenate(self.folds))
+        return self.spans[held, 1:]
+
+    @property
+    def cross_validated(self) -> bool:
+        """Whether every block is held out in turn (more than one fold)."""
+        return len(self.folds) > 1
+
+    def held_spans(self, fold: int = 0) -> np.ndarray:
+        """Return ``(recording, t_start, t_end)`` of the spans one fold holds out."""
+        return self.spans[np.isin(self.spans[:, 0], self.folds[fold]), 1:]
 
     @classmethod
-    def choose(cls, segments: Segments, fraction: float = 0.2, block_length: float = 30.0):
+    def choose(cls, segments: Segments, fraction: float = 0.2, block_length: float = 30.0,
+               window: float = 0.0, folds: int | None = None):
         """
-        Cut the data into blocks of about ``block_length`` s and hold out evenly spaced ones.
+        Cut the driving time into blocks and choose the blocks each fold holds out.
 
-        Returns None when there are fewer than 3 blocks (too little data to spare any).
+        Parameters
+        ----------
+        segments : Segments
+            The moving segments.
+        fraction : float
+            Fraction of the blocks one fold holds out, in (0, 1).
+        block_length : float
+            Longest driving time per block, s. Shorter when the data are short, so that
+            there are :data:`MIN_BLOCKS` blocks, but not shorter than two windows (a block
+            holds three windows overlapping by half) unless that leaves fewer than 3
+            blocks.
+        window : float
+            Evaluation window, s.
+        folds : int, optional
+            Number of folds; default 1, and the caller asks for ``round(1 / fraction)``
+            when one fold gives too few windows (:func:`.procedure.identify`).
+
+        Returns
+        -------
+        HoldOut or None
+            None without segments or with ``fraction <= 0``.
+
         """
         if len(segments) == 0 or fraction <= 0.0:
             return None
-        spans = []
-        for rec in np.unique(segments.recording):
-            mine = segments.recording == rec
-            t0, t1 = float(segments.t0[mine].min()), float(segments.t1[mine].max())
-            n = max(1, int(round((t1 - t0) / block_length)))
-            edges = np.linspace(t0, t1, n + 1)
-            spans += [(rec, edges[i], edges[i + 1]) for i in range(n)]
-        if len(spans) < 3:
-            return None
-        k = min(len(spans) - 1, max(1, int(round(fraction * len(spans)))))
-        chosen = np.floor((np.arange(k) + 0.5) * len(spans) / k).astype(int)
-        return cls(np.array([spans[i] for i in chosen], dtype=float), len(spans))
+        order = np.lexsort((segments.t0, segments.recording))
+        duration = (segments.t1 - segments.t0)[order]
+        driving = float(duration.sum())
+        length = min(block_length, max(2.0 * window, driving / MIN_BLOCKS))
+        # As many blocks as fit, each at least `length` (two windows) long; three at least.
+        n_blocks = max(3, int(math.floor(driving / length + 1e-9)))
+        # Block of each segment by the driving time before its middle.
+        elapsed = np.cumsum(duration) - 0.5 * duration
+        block = np.minimum((elapsed / driving * n_blocks).astype(np.intp), n_blocks - 1)
+        rec = segments.recording[order]
+        t0, t1 = segments.t0[order], segments.t1[order]
+        # One span per run of segments of one block in one recording.
+        change = np.flatnonzero((np.diff(block) != 0) | (np.diff(rec) != 0)) + 1
+        first = np.concatenate([[0], change])
+        last = np.concatenate([change, [len(block)]]) - 1
+        spans = np.column_stack([block[first], rec[first], t0[first], t1[last]]).astype(float)
+        if folds is None or folds <= 1:
+            k = min(n_blocks - 1, max(1, int(round(fraction * n_blocks))))
+            chosen = (np.floor((np.arange(k) + 0.5) * n_blocks / k).astype(np.intp),)
+        else:
+            folds = min(int(folds), n_blocks)
+            chosen = tuple(np.arange(f, n_blocks, folds) for f in range(folds))
+        return cls(spans, chosen, n_blocks, driving / n_blocks)
 
-    def inside(self, segments: Segments) -> np.ndarray:
-        """Segments entirely within a held-out block."""
+    def _overlap(self, segments, fold, entirely):
+        if fold is None:
+            spans = self.blocks
+        else:
+            spans = self.held_spans(fold)
         mask = np.zeros(len(segments), dtype=bool)
-        for rec, t0, t1 in self.blocks:
-            mask |= (segments.recording == rec) & (segments.t0 >= t0 - 1e-9) \
-                & (segments.t1 <= t1 + 1e-9)
+        for rec, t0, t1 in spans:
+            mine = segments.recording == rec
+            if entirely:
+                mask |= mine & (segments.t0 >= t0 - 1e-9) & (segments.t1 <= t1 + 1e-9)
+            else:
+                mask |= mine & (segments.t1 > t0 + 1e-9) & (segments.t0 < t1 - 1e-9)
         return mask
 
-    def outside(self, segments: Segments) -> np.ndarray:
-        """Segments that do not overlap any held-out block."""
-        mask = np.ones(len(segments), dtype=bool)
-        for rec, t0, t1 in self.blocks:
-            mask &= ~((segments.recording == rec) & (segments.t1 > t0 + 1e-9)
-                      & (segments.t0 < t1 - 1e-9))
-        return mask
+    def inside(self, segments: Segments, fold: int | None = None) -> np.ndarray:
+        """Segments entirely within a block held out by ``fold`` (None: by any fold)."""
+        return self._overlap(segments, fold, True)
+
+    def outside(self, segments: Segments, fold: int | None = None) -> np.ndarray:
+        """Segments that overlap no block held out by ``fold`` (None: by any fold)."""
+        return ~self._overlap(segments, fold, False)
+
+    def windows(self, recordings, length: float, fold: int = 0,
+                stride: float | None = None) -> Segments:
+        """
+        Windows of ``length`` s inside the blocks one fold holds out, and inside the pieces.
+
+        A window starts at a ground-truth sample every ``stride`` s (default half the
+        length, so neighbouring windows overlap by half) from the start of each held-out
+        span, and ends at the first ground-truth sample ``length`` later, within the same
+        piece (:func:`.segments.covered_spans`): windows never span a gap.
+        """
+        stride = 0.5 * length if stride is None else float(stride)
+        phases = max(1, int(math.ceil(length / stride - 1e-9)))
+        recordings = list(recordings)
+        crops, origin = [], []
+        for rec, t0, t1 in self.held_spans(fold):
+            full = recordings[int(rec)]
+            for k in range(phases):
+                start = t0 + k * stride
+                if t1 - start < length:
+                    break
+                crops.append(_crop(full, start, t1))
+                origin.append(int(rec))
+        windows = build_segments(crops, length, partial=False)
+        windows = replace(windows, recording=np.asarray(origin, np.intp)[windows.recording])
+        # Whole windows: ground-truth samples fall where they fall, a window's end is the
+        # first sample at least `length` after its start, unless the piece ends first.
+        return windows.select(windows.t1 - windows.t0 >= 0.9 * length)
+
+
+def _crop(recording: Recording, start: float, end: float) -> Recording:
+    """Cut a recording to ``start``-``end`` s (and one encoder sample more each side)."""
+    rec = recording
+    e0 = max(0, int(np.searchsorted(rec.enc_t, start, side='right')) - 1)
+    e1 = int(np.searchsorted(rec.enc_t, end, side='left')) + 1
+    g0, g1 = np.searchsorted(rec.gt_t, [start - 1e-9, end + 1e-9])
+    return Recording(rec.enc_t[e0:e1], rec.left[e0:e1], rec.right[e0:e1], rec.gt_t[g0:g1],
+                     rec.gt_x[g0:g1], rec.gt_y[g0:g1], rec.gt_yaw[g0:g1], rec.name)
 
 
 def dead_reckoning(model: MotionModel, p, recording: Recording):

@@ -20,8 +20,10 @@ from ..models import MotionModel
 
 # Parameters that need turning, and those that need straight driving, to be identified.
 _TURNING_PARAMS = {'alpha', 'y_left', 'y_right', 'x', 'p1', 'p2', 'p3', 'p4', 'p5', 'p6',
-                   'alpha2', 'alpha3', 'alpha5', 'alpha6', 'alpha8', 'alpha9'}
-_STRAIGHT_PARAMS = {'scale_left', 'scale_right', 'alpha1', 'alpha4', 'alpha7'}
+                   'alpha2', 'alpha3', 'alpha5', 'alpha6', 'alpha8', 'alpha9',
+                   'wheel_separation_multiplier'}
+_STRAIGHT_PARAMS = {'scale_left', 'scale_right', 'alpha1', 'alpha4', 'alpha7',
+                    'left_wheel_radius_multiplier', 'right_wheel_radius_multiplier'}
 # ROS names of the parameters, for messages.
 _ROS_NAMES = {'y_left': 'icr.y_left', 'y_right': 'icr.y_right', 'x': 'icr.x',
               'scale_left': 'scale.left', 'scale_right': 'scale.right', 'alpha': 'chi'}

@@ -14,6 +14,7 @@ comparison.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+import math
 import time
 
 import numpy as np
@@ -77,6 +78,9 @@ class FitResult:
         Segments fitted, and those whose residuals are all within 3 ``f_scale``.
     std : ndarray
         Standard errors of the parameters (inf when not identified).
+    sigma : float
+        The residual noise behind ``std``: root mean square of the weighted inlier residuals
+        per degree of freedom (m, heading counted through ``heading_weight``).
     nfev : int
         Cost evaluations.
     seconds : float
@@ -98,6 +102,7 @@ class FitResult:
     segments: int = 0
     inliers: int = 0
     std: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    sigma: float = 0.0
     nfev: int = 0
     seconds: float = 0.0
     message: str = ''
@@ -113,8 +118,12 @@ class FitResult:
         return self.model.as_icr(self.p)
 
 
-def _standard_errors(jac, residuals, inlier_rows):
-    """Compute standard errors from the Jacobian and inlier residuals (inf: unidentified)."""
+def _standard_errors(jac, residuals, inlier_rows, with_sigma=False):
+    """
+    Compute standard errors from the Jacobian and inlier residuals (inf: unidentified).
+
+    With ``with_sigma``, also return the residual noise they are scaled by.
+    """
     n_params = jac.shape[1]
     jac = jac[inlier_rows]
     variance = float(np.sum(residuals[inlier_rows] ** 2)) / max(len(jac) - n_params, 1)
@@ -129,30 +138,140 @@ def _standard_errors(jac, residuals, inlier_rows):
             break
         # Rank deficient: the parameters along the null direction are not identified.
         ok[np.flatnonzero(ok)[np.abs(vt[-1]) > 0.1]] = False
-    return std
+    return (std, math.sqrt(variance)) if with_sigma else std
 
 
 # Largest standard error that still counts as identified, per parameter kind.
 STD_LIMITS = {'icr': 0.1, 'scale': 0.02}   # icr: x track width; scale: absolute
+REFERENCE_RESIDUAL = 0.01
+"""
+Residual noise of good ground truth per segment, m (heading through the heading weight).
+
+About 10 mm and 0.6 deg per 1-s segment: motion capture, RTK, a lidar ICP on a structured
+site. A parameter whose standard error is over its limit, but would be within it with
+residuals this small, is determined by the driving and blurred by the ground truth
+(:class:`Uncertain` ``cause == 'noise'``).
+"""
+
+_ICR_NAMES = ('y_left', 'y_right', 'x', 'alpha', 'wheel_separation_multiplier')
+_SCALE_NAMES = ('scale_left', 'scale_right', 'left_wheel_radius_multiplier',
+                'right_wheel_radius_multiplier')
 
 
-def check_identified(result: FitResult) -> None:
-    """Raise :class:`ExcitationError` for an ICR or scale parameter the fit did not pin down."""
+class UncertainError(ExcitationError):
+    """A parameter is determined by the data but its standard error is beyond its limit."""
+
+
+@dataclass(frozen=True)
+class Uncertain:
+    """
+    A parameter the data determine, with a standard error beyond its limit.
+
+    Attributes
+    ----------
+    name : str
+        Its ROS name (``scale.left``, ``icr.y_left``, ...).
+    std, limit : float
+        Its standard error and the limit (:data:`STD_LIMITS`).
+    cause : str
+        ``'noise'``: the driving would determine it within the limit with ground truth of
+        :data:`REFERENCE_RESIDUAL`; the residuals (ground-truth noise, and slip the model
+        does not capture) blur it. ``'excitation'``: too little of the driving that
+        determines it (``need``), for this noise.
+    need : str
+        ``'turning'`` or ``'straight driving'``.
+    reference_std : float
+        Its standard error with residuals of :data:`REFERENCE_RESIDUAL`.
+
+    """
+
+    name: str
+    std: float
+    limit: float
+    cause: str
+    need: str
+    reference_std: float
+
+    def describe(self) -> str:
+        """Say what is uncertain and why, in one sentence."""
+        if self.cause == 'noise':
+            return (f'{self.name} is determined but uncertain: its standard error is '
+                    f'{self.std:.3g} (limit {self.limit:.3g}) because the ground truth is '
+                    f'noisy; with ground truth of {1000 * REFERENCE_RESIDUAL:.0f} mm the same '
+                    f'driving would give {self.reference_std:.2g}')
+        return (f'too little {self.need} to identify {self.name}: its standard error is '
+                f'{self.std:.3g} (limit {self.limit:.3g})')
+
+
+def _limit(name, track_width):
+    if name in _ICR_NAMES:
+        return STD_LIMITS['icr'] * (track_width if name in ('y_left', 'y_right', 'x') else 1.0), \
+            'turning'
+    if name in _SCALE_NAMES:
+        return STD_LIMITS['scale'], 'straight driving'
+    return None, ''
+
+
+def _noise(result: FitResult) -> str:
+    return (f'the residuals are {1000 * result.rms_position:.0f} mm / '
+            f'{math.degrees(result.rms_heading):.1f} deg RMS per segment (ground-truth noise, '
+            'and slip the model does not capture)')
+
+
+def check_identified(result: FitResult, accept_uncertain: bool = False) -> list[Uncertain]:
+    """
+    Check from the standard errors that the data pin down each ICR and scale parameter.
+
+    A parameter the data cannot determine at all (a rank-deficient fit: infinite standard
+    error) is refused. A parameter determined but uncertain (standard error beyond
+    :data:`STD_LIMITS`) is refused too, unless ``accept_uncertain``; the message says
+    whether the ground-truth noise or too little driving of its kind is the cause
+    (:class:`Uncertain`).
+
+    Returns
+    -------
+    list of Uncertain
+        The uncertain parameters accepted (empty when all are within their limits).
+
+    Raises
+    ------
+    ExcitationError
+        For a parameter that is not determined.
+    UncertainError
+        For uncertain parameters, unless ``accept_uncertain``.
+
+    """
     b = result.model.track_width
+    ratio = result.sigma / REFERENCE_RESIDUAL if result.sigma > 0 else 0.0
+    uncertain = []
     for name, std in zip(result.model.param_names, result.std):
-        if name in ('y_left', 'y_right', 'x'):
-            limit, need = STD_LIMITS['icr'] * b, 'turning'
-        elif name in ('scale_left', 'scale_right'):
-            limit, need = STD_LIMITS['scale'], 'straight driving'
-        elif name == 'alpha':
-            limit, need = STD_LIMITS['icr'], 'turning'
-        else:
+        limit, need = _limit(name, b)
+        if limit is None or std <= limit:
             continue
-        if not std <= limit:
+        if not math.isfinite(std):
             raise ExcitationError(
-                f'too little {need} to identify {_ros_names([name])}: its standard error is '
-                f'{std:.3g} (limit {limit:.3g}); drive more, and more varied, '
+                f'too little {need} to identify {_ros_names([name])}: the data do not '
+                f'determine it; drive more, and more varied, '
                 f'{"curves and turns in place" if need == "turning" else "straight lines"}')
+        reference = std / ratio if ratio > 1.0 else std
+        uncertain.append(Uncertain(_ros_names([name]), float(std), limit,
+                                   'noise' if reference <= limit else 'excitation', need,
+                                   float(reference)))
+    if uncertain and not accept_uncertain:
+        worst = max(uncertain, key=lambda u: u.std / u.limit)
+        more = (worst.std / worst.limit) ** 2
+        if all(u.cause == 'noise' for u in uncertain):
+            advice = (f'{_noise(result)}; better ground truth, or about {more:.1f} x as much '
+                      'driving, would bring it within the limit; or accept the fit '
+                      '(--accept-uncertain)')
+        else:
+            what = {'turning': 'curves and turns in place', 'straight driving': 'straight lines'}
+            kinds = ' and '.join(what[n] for n in sorted({u.need for u in uncertain
+                                                          if u.cause != 'noise'}))
+            advice = (f'{_noise(result)}; drive more, and more varied, {kinds}, or accept '
+                      'the fit (--accept-uncertain)')
+        raise UncertainError('; '.join(u.describe() for u in uncertain) + '; ' + advice)
+    return uncertain
 
 
 def fit(model: MotionModel, segments: Segments, *, p0=None, method: str = 'lsq',
@@ -262,7 +381,8 @@ def fit(model: MotionModel, segments: Segments, *, p0=None, method: str = 'lsq',
         segments=len(segments), inliers=int(inlier.sum()), nfev=nfev,
         message=str(message))
     if model.n_params:
-        result.std = _standard_errors(problem.jacobian(p), r, np.repeat(inlier, 3))
+        result.std, result.sigma = _standard_errors(problem.jacobian(p), r, np.repeat(inlier, 3),
+                                                    with_sigma=True)
     result.seconds = time.perf_counter() - started
     if check:
         check_identified(result)

@@ -12,12 +12,15 @@ from __future__ import annotations
 
 import numpy as np
 
+from .ddc import TunedDiffDrive
 from .segments import Segments
 from ..models import ConstantIcr, make_model, MotionModel
 
 # Models the identification fits, in the order they are reported.
 FIT_MODELS = ('effective_wheel_base', 'icr', 'icr_scales', 'general_slip', 'adaptive_icr')
-COMPARE_MODELS = ('ideal',) + FIT_MODELS
+BASELINES = ('ideal', 'tuned_ddc')
+"""What a user has without this package: ideal drive, and diff_drive_controller tuned."""
+COMPARE_MODELS = BASELINES + FIT_MODELS
 
 
 def build_model(name: str, track_width: float, scales=(1.0, 1.0)) -> MotionModel:
@@ -27,7 +30,7 @@ def build_model(name: str, track_width: float, scales=(1.0, 1.0)) -> MotionModel
     Parameters
     ----------
     name : str
-        A name of :data:`..models.MODEL_NAMES`.
+        A name of :data:`..models.MODEL_NAMES`, or ``tuned_ddc`` (:class:`.ddc.TunedDiffDrive`).
     track_width : float
         m.
     scales : tuple of float
@@ -36,6 +39,8 @@ def build_model(name: str, track_width: float, scales=(1.0, 1.0)) -> MotionModel
     """
     if name == 'icr':
         return ConstantIcr(track_width, with_scales=False, scales=scales)
+    if name == 'tuned_ddc':
+        return TunedDiffDrive(track_width)
     return make_model(name, track_width)
 
 
@@ -45,8 +50,9 @@ def bounds(model: MotionModel):
 
     Tread ICRs lie outside the track centrelines (Martinez sec. 3: slip only moves them
     outwards), which keeps ``0 < chi <= 1`` whatever the eccentricity; scales lie in
-    [0.5, 2]; the effective wheel-base factor (Fink & Stump) in [0.05, 1]; the adaptive
-    model's outward ICR terms ``p1..p4`` are >= 0. General slip is unbounded.
+    [0.5, 2]; the effective wheel-base factor (Fink & Stump) in [0.05, 1], and DDC's
+    ``wheel_separation_multiplier``, its inverse, in [1, 20]; the adaptive model's outward
+    ICR terms ``p1..p4`` are >= 0. General slip is unbounded.
     """
     half = 0.5 * model.track_width
     lo, hi = [], []
@@ -54,7 +60,10 @@ def bounds(model: MotionModel):
         lo_hi = {'alpha': (0.05, 1.0), 'y_left': (half, 20 * half), 'y_right': (-20 * half, -half),
                  'x': (-10 * half, 10 * half), 'scale_left': (0.5, 2.0),
                  'scale_right': (0.5, 2.0), 'p1': (0.0, np.inf), 'p2': (0.0, np.inf),
-                 'p3': (0.0, np.inf), 'p4': (0.0, np.inf)}.get(name, (-np.inf, np.inf))
+                 'p3': (0.0, np.inf), 'p4': (0.0, np.inf),
+                 'wheel_separation_multiplier': (1.0, 20.0),
+                 'left_wheel_radius_multiplier': (0.5, 2.0),
+                 'right_wheel_radius_multiplier': (0.5, 2.0)}.get(name, (-np.inf, np.inf))
         lo.append(lo_hi[0])
         hi.append(lo_hi[1])
     return np.array(lo, float), np.array(hi, float)
@@ -73,7 +82,9 @@ def search_box(model: MotionModel):
     box = {'y_left': (0.5 * b, 2 * b), 'y_right': (-2 * b, -0.5 * b), 'x': (-b, b),
            'scale_left': (0.8, 1.2), 'scale_right': (0.8, 1.2),
            'p1': (0.0, 2 * b), 'p2': (0.0, 2 * b), 'p3': (0.0, 2 * b), 'p4': (0.0, 2 * b),
-           'p5': (-2 * b, 2 * b), 'p6': (-2 * b, 2 * b)}
+           'p5': (-2 * b, 2 * b), 'p6': (-2 * b, 2 * b),
+           'wheel_separation_multiplier': (1.0, 4.0), 'left_wheel_radius_multiplier': (0.8, 1.2),
+           'right_wheel_radius_multiplier': (0.8, 1.2)}
     for i, name in enumerate(model.param_names):
         if name in box:
             lo[i], hi[i] = box[name]
@@ -104,6 +115,8 @@ def initial_guess(model: MotionModel, segments: Segments) -> np.ndarray:
     names = model.param_names
     if 'alpha' in names:
         p[names.index('alpha')] = chi
+    if 'wheel_separation_multiplier' in names:
+        p[names.index('wheel_separation_multiplier')] = 1.0 / chi
     if 'y_left' in names:
         half = 0.5 * model.track_width / chi
         p[names.index('y_left')] = half

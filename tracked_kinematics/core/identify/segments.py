@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..integration import relative_pose
+from ..integration import relative_pose, wrap_angle
 
 
 @dataclass(frozen=True)
@@ -154,6 +154,62 @@ class Segments:
             np.concatenate([p.recording for p in parts]).astype(np.intp))
 
 
+JUMP_MARGIN = 0.5
+"""m beyond the fastest track's travel that makes a ground-truth step a jump."""
+MAX_HEADING_STEP = 0.5
+"""rad beyond the tracks' ideal-drive turn that makes a ground-truth heading step a glitch."""
+
+
+def ground_truth_jumps(recording: Recording, track_width: float | None = None) -> np.ndarray:
+    """
+    Return the intervals between consecutive ground-truth samples over which the pose jumps.
+
+    A jump (a lidar ICP re-localisation, a mapper catching up, a glitch) is a step longer
+    than :data:`JUMP_MARGIN` plus the fastest track's travel over the interval, or a heading
+    change larger than :data:`MAX_HEADING_STEP` plus the turn of an ideal drive with those
+    travels (``|d_right - d_left| / track_width``; without ``track_width``, plus nothing).
+    No vehicle moves so; the ground truth over such an interval cannot be trusted. Only
+    intervals inside the pieces (:func:`covered_spans`) are judged: over a gap the travel
+    is not known.
+
+    Returns
+    -------
+    ndarray, shape (J, 2)
+        ``(t_a, t_b)`` of each jump, s.
+
+    """
+    rec = recording
+    if len(rec.gt_t) < 2 or len(rec.enc_t) < 2:
+        return np.zeros((0, 2))
+    d_left = np.abs(np.diff(np.interp(rec.gt_t, rec.enc_t, rec.left)))
+    d_right = np.diff(np.interp(rec.gt_t, rec.enc_t, rec.right))
+    turn = (np.abs(d_right - np.diff(np.interp(rec.gt_t, rec.enc_t, rec.left))) / track_width
+            if track_width else 0.0)
+    step = np.hypot(np.diff(rec.gt_x), np.diff(rec.gt_y))
+    dyaw = np.abs(wrap_angle(np.diff(rec.gt_yaw)))
+    jump = (step > JUMP_MARGIN + np.maximum(d_left, np.abs(d_right))) \
+        | (dyaw > MAX_HEADING_STEP + turn)
+    start, end = covered_spans(rec)
+    piece = np.maximum(np.searchsorted(start, rec.gt_t[:-1], side='right') - 1, 0)
+    inside = (len(start) > 0) & (rec.gt_t[:-1] >= start[piece]) & (rec.gt_t[1:] <= end[piece])
+    jump &= inside
+    return np.column_stack([rec.gt_t[:-1][jump], rec.gt_t[1:][jump]])
+
+
+def over_jumps(segments: Segments, recordings, track_width: float | None = None) -> np.ndarray:
+    """Segments that contain a ground-truth jump (:func:`ground_truth_jumps`)."""
+    mask = np.zeros(len(segments), dtype=bool)
+    for index, rec in enumerate(recordings):
+        mine = np.flatnonzero(segments.recording == index)
+        if len(mine) == 0:
+            continue
+        starts = ground_truth_jumps(rec, track_width)[:, 0]
+        count = (np.searchsorted(starts, segments.t1[mine] - 1e-9)
+                 - np.searchsorted(starts, segments.t0[mine] - 1e-9))
+        mask[mine] = count > 0
+    return mask
+
+
 def _empty_segments() -> Segments:
     empty = np.zeros(0)
     return Segments(empty, empty, empty, np.zeros(0, np.intp), np.zeros((0, 3)), empty, empty,
@@ -180,30 +236,95 @@ def gap_threshold(times, factor: float = 5.0, floor: float = 0.2) -> float:
     return float(max(factor * np.median(intervals), floor))
 
 
-def _boundaries(t, segment_length, gap):
-    """Ground-truth sample indices that start/end segments, per gap-free block."""
-    breaks = np.flatnonzero(np.diff(t) > gap) + 1
+def stretches(times, gap: float | None = None):
+    """
+    Return the start and end times of the gap-free stretches of sample times.
+
+    Parameters
+    ----------
+    times : array_like, shape (N,), N >= 1
+        Sample times, s, increasing.
+    gap : float, optional
+        Longest interval that is not a gap, s; default :func:`gap_threshold` of ``times``.
+
+    Returns
+    -------
+    start, end : ndarray
+        s, one entry per stretch.
+
+    """
+    t = np.asarray(times, dtype=float)
+    breaks = np.flatnonzero(np.diff(t) > (gap or gap_threshold(t)))
+    return np.append(t[0], t[breaks + 1]), np.append(t[breaks], t[-1])
+
+
+def covered_spans(recording: Recording, max_gap: float | None = None):
+    """
+    Spans where both streams have samples without a gap: the pieces of a recording.
+
+    A recording made of pieces (a logger restarted, a bag split, a sensor that drops out)
+    has gaps in one stream or both; a segment or a window must lie inside one piece, where
+    the travel and the poses are both known.
+
+    Parameters
+    ----------
+    recording : Recording
+        The log.
+    max_gap : float, optional
+        Longest interval between two samples of a stream that is not a gap, s; default
+        :func:`gap_threshold` of each stream.
+
+    Returns
+    -------
+    start, end : ndarray, shape (P,)
+        Start and end times of each piece, s, increasing (possibly none).
+
+    """
+    rec = recording
+    if len(rec.enc_t) < 2 or len(rec.gt_t) < 2:
+        return np.zeros(0), np.zeros(0)
+    enc, gt = stretches(rec.enc_t, max_gap), stretches(rec.gt_t, max_gap)
+    # Intersections of two sorted sets of disjoint intervals: each encoder stretch with the
+    # ground-truth stretches it overlaps (a merge, linear in the number of pieces).
+    first = np.searchsorted(gt[1], enc[0], side='right')
+    counts = np.maximum(np.searchsorted(gt[0], enc[1], side='left') - first, 0)
+    i = np.repeat(np.arange(len(enc[0])), counts)
+    offsets = np.repeat(np.cumsum(counts) - counts, counts)
+    j = np.repeat(first, counts) + np.arange(counts.sum()) - offsets
+    start = np.maximum(enc[0][i], gt[0][j])
+    end = np.minimum(enc[1][i], gt[1][j])
+    keep = end > start
+    order = np.argsort(start[keep], kind='stable')
+    return start[keep][order], end[keep][order]
+
+
+def _boundaries(t, spans, segment_length, partial):
+    """Ground-truth sample indices that start/end segments, anchored in each span."""
     pairs = []
-    for block in np.split(np.arange(len(t)), breaks):
-        if len(block) < 2:
+    lo = np.searchsorted(t, spans[0], side='left')
+    hi = np.searchsorted(t, spans[1], side='right')
+    for a, b in zip(lo, hi):
+        if b - a < 2:
             continue
-        tb = t[block]
+        tb = t[a:b]
         if segment_length:
             targets = tb[0] + segment_length * np.arange(
                 int(np.floor((tb[-1] - tb[0]) / segment_length + 1e-9)) + 1)
             idx = np.unique(np.searchsorted(tb, targets - 1e-9))
             idx = idx[idx < len(tb)]
+            if partial and len(idx) and tb[-1] - tb[idx[-1]] >= 0.5 * segment_length:
+                idx = np.append(idx, len(tb) - 1)   # the rest of the piece, half or more
         else:
             idx = np.arange(len(tb))
         if len(idx) >= 2:
-            pairs.append(np.stack([block[idx[:-1]], block[idx[1:]]], axis=1))
+            pairs.append(np.stack([a + idx[:-1], a + idx[1:]], axis=1))
     return np.concatenate(pairs) if pairs else np.zeros((0, 2), dtype=np.intp)
 
 
 def build_segments(recordings, segment_length: float | None = 1.0,
-                   max_gap: float | None = None) -> Segments:
+                   max_gap: float | None = None, partial: bool = True) -> Segments:
     """
-    Cut recordings into segments between ground-truth samples, skipping gaps.
+    Cut recordings into segments between ground-truth samples, inside their pieces.
 
     Parameters
     ----------
@@ -211,13 +332,18 @@ def build_segments(recordings, segment_length: float | None = 1.0,
         The logs.
     segment_length : float or None
         Target duration, s: each segment runs from a ground-truth sample to the first one
-        at least this much later (measured from the start of its gap-free stretch, so
-        segments tile it). None or 0: every pair of consecutive ground-truth samples. A
-        last segment shorter than half the target is dropped.
+        at least this much later, anchored at the first ground-truth sample of each piece
+        (:func:`covered_spans`: where both streams have samples without a gap), so that
+        segments tile the pieces. None or 0: every pair of consecutive ground-truth samples.
+        A segment shorter than half the target is dropped.
     max_gap : float, optional
         Longest interval between two encoder samples, or two ground-truth samples, inside a
-        segment, s. Default :func:`gap_threshold` of each stream. Segments over a longer
-        interval are skipped (the travel over it is known, its timing is not).
+        segment, s. Default :func:`gap_threshold` of each stream. Segments never span a
+        longer interval (the travel over it is known, its timing is not).
+    partial : bool
+        Also end each piece with the segment from its last full segment to its last
+        ground-truth sample, when that is half the target or more (a piece shorter than the
+        target then gives one segment). False: full segments only (evaluation windows).
 
     Returns
     -------
@@ -226,27 +352,14 @@ def build_segments(recordings, segment_length: float | None = 1.0,
     """
     parts = []
     for index, rec in enumerate(recordings):
-        if len(rec.enc_t) < 2 or len(rec.gt_t) < 2:
-            continue
-        inside = np.flatnonzero((rec.gt_t >= rec.enc_t[0]) & (rec.gt_t <= rec.enc_t[-1]))
-        if len(inside) < 2:
-            continue
-        t = rec.gt_t[inside]
-        pairs = _boundaries(t, segment_length, max_gap or gap_threshold(t))
+        spans = covered_spans(rec, max_gap)
+        pairs = _boundaries(rec.gt_t, spans, segment_length, partial)
         if len(pairs) == 0:
             continue
-        ta, tb = t[pairs[:, 0]], t[pairs[:, 1]]
-        keep = np.ones(len(pairs), dtype=bool)
+        ta, tb = rec.gt_t[pairs[:, 0]], rec.gt_t[pairs[:, 1]]
         if segment_length:
-            keep &= (tb - ta) >= 0.5 * segment_length
-        # Skip segments that contain an encoder gap.
-        enc_gap = max_gap or gap_threshold(rec.enc_t)
-        gap_at = np.flatnonzero(np.diff(rec.enc_t) > enc_gap)
-        if len(gap_at):
-            g0, g1 = rec.enc_t[gap_at], rec.enc_t[gap_at + 1]
-            last = np.searchsorted(g0, tb, side='left') - 1
-            keep &= ~((last >= 0) & (g1[np.maximum(last, 0)] > ta))
-        pairs, ta, tb = pairs[keep], ta[keep], tb[keep]
+            keep = (tb - ta) >= 0.5 * segment_length
+            pairs, ta, tb = pairs[keep], ta[keep], tb[keep]
         if len(pairs) == 0:
             continue
         # Steps: encoder times and segment boundaries, one grid.
@@ -259,7 +372,7 @@ def build_segments(recordings, segment_length: float | None = 1.0,
         lengths = last - first
         steps = np.repeat(first - np.cumsum(np.concatenate([[0], lengths[:-1]])), lengths) \
             + np.arange(lengths.sum())
-        gi = inside[pairs]
+        gi = pairs
         truth = np.stack(relative_pose(
             rec.gt_x[gi[:, 0]], rec.gt_y[gi[:, 0]], rec.gt_yaw[gi[:, 0]],
             rec.gt_x[gi[:, 1]], rec.gt_y[gi[:, 1]], rec.gt_yaw[gi[:, 1]]), axis=1)

@@ -138,6 +138,13 @@ def _print_table(result, recordings, out):
     if result.fixed:
         fixed = ', '.join(f'{k} {v:g}' for k, v in result.fixed.items())
         print(f'motor constants held fixed: {fixed}', file=out)
+    print(f'delay: of the measured speeds (encoder stamps) behind the setpoints (bag receive '
+          f'times), any clock offset between the two included; its standard error from '
+          f'{result.delay_uncertainty}', file=out)
+    if result.delay_at_zero:
+        print('note: the best delay is 0, the lower end of the search: the lag of the loop may '
+              'absorb the delay (a loop that does not fit: see the rms), or the measured '
+              'speeds lead the setpoint stamps (setpoints stamped late, on receipt)', file=out)
     print(f'rms error {1000 * result.rms:.1f} mm/s over {result.samples} samples per track '
           f'(commands taken as speeds: {1000 * result.rms_commands:.1f} mm/s); fit '
           f'{result.fit_percent:.1f} %; {result.delays_fitted} delays tried, {result.nfev} '
@@ -158,7 +165,8 @@ def _run(args, out) -> int:
     extras = {'loop': result.loop, 'date': date, 'bags': bags, 'rms': result.rms,
               'rms_commands': result.rms_commands, 'fit_percent': result.fit_percent,
               'seconds_of_data': result.seconds_of_data, 'dt': result.dt,
-              'accel_limit_binding': result.accel_limit_binding}
+              'accel_limit_binding': result.accel_limit_binding,
+              'delay_uncertainty': result.delay_uncertainty}
     extras.update({f'standard_errors.{k}': v for k, v in result.standard_errors.items()})
     values = _yaml_values(base_values, result, radius, extras)
     _print_table(result, recordings, out)
@@ -175,6 +183,8 @@ def _run(args, out) -> int:
             'max_command_accel': result.max_command_accel, 'dt': result.dt,
             'samples': result.samples, 'seconds_of_data': result.seconds_of_data,
             'segments': len(result.segments), 'delays_fitted': result.delays_fitted,
+            'delay_uncertainty': result.delay_uncertainty,
+            'delay_at_zero': result.delay_at_zero,
             'simulations': result.nfev, 'seconds': result.seconds,
             'delay_profile': {'delay': result.delay_profile[0],
                               'rms': result.delay_profile[1]}})

@@ -2,13 +2,16 @@
 identify_icr: fit the tread ICRs of a terrain from recorded rosbags.
 
 Reads the track encoders and a ground-truth pose (motion capture, RTK GPS, scan matching)
-from one or more bags, fits a motion model to the ground truth (Martinez et al. 2005,
-sec. 4.2, by the least-squares method of Fink & Stump, sec. III-A), compares every model on
-held-out time blocks, and writes a terrain parameter file for ``--params-file``.
+from one or more bags, removes the delay of the ground-truth stamps behind the encoders,
+fits a motion model to the ground truth (Martinez et al. 2005, sec. 4.2, by the
+least-squares method of Fink & Stump, sec. III-A), compares every model and a tuned
+diff_drive_controller on held-out time blocks, and writes a terrain parameter file for
+``--params-file``.
 
 Exit status: 0 success; 2 bad input (missing bag, topic, joint or transform; unreadable
 bag; invalid option); 3 too little motion, turning or straight driving to identify the
-model; 4 the fit did not converge or gave an invalid model.
+model, or a parameter determined but uncertain (without --accept-uncertain); 4 the fit did
+not converge or gave an invalid model.
 
 Documentation: docs/tools/identify_icr.md; the models it fits: docs/model.md; the terrain
 file it writes: docs/parameters.md.
@@ -51,6 +54,20 @@ def _heading_weight(text: str):
     return None if text == 'auto' else positive(text)
 
 
+def _delay(text: str):
+    """Argument type of --ground-truth-delay: 'auto' or a finite number of seconds."""
+    if text == 'auto':
+        return text
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected 'auto' or seconds, got {text!r}") from None
+    if not math.isfinite(value) or abs(value) > 10.0:
+        raise argparse.ArgumentTypeError(f'must be a finite number of seconds within +-10, '
+                                         f'got {text}')
+    return value
+
+
 def build_parser() -> argparse.ArgumentParser:
     """Return the command line of identify_icr."""
     parser = argparse.ArgumentParser(
@@ -78,6 +95,10 @@ def build_parser() -> argparse.ArgumentParser:
     gt.add_argument('--ground-truth-offset', type=float, nargs=3, default=(0.0, 0.0, 0.0),
                     metavar=('X', 'Y', 'YAW'),
                     help='pose of the tracked body in base_link (m, m, rad)')
+    gt.add_argument('--ground-truth-delay', type=_delay, default='auto', metavar='auto|SECONDS',
+                    help='delay of the ground-truth stamps behind the encoders (a pose '
+                    'stamped on receipt): auto estimates it from the data, a number fixes '
+                    'it, 0 turns the correction off')
     fit = parser.add_argument_group('fit')
     fit.add_argument('--model', choices=MODEL_CHOICES, default='icr_scales',
                      help='model to fit and write')
@@ -99,11 +120,15 @@ def build_parser() -> argparse.ArgumentParser:
                      help='segments whose tracks travel less are stationary and left out')
     fit.add_argument('--max-nfev', type=int, default=None, metavar='N',
                      help='evaluation budget of one optimisation round')
+    fit.add_argument('--accept-uncertain', action='store_true',
+                     help='write a fit whose parameters the data determine, but with standard '
+                     'errors beyond the limits (noisy ground truth); they are reported')
     ev = parser.add_argument_group('evaluation')
     ev.add_argument('--holdout', type=float, default=0.2, metavar='FRACTION',
-                    help='fraction of time blocks held out to compare the models (0: none)')
+                    help='fraction of time blocks held out to compare the models (0: none); '
+                    'short data hold every block out in turn')
     ev.add_argument('--holdout-block', type=positive, default=30.0, metavar='SECONDS',
-                    help='duration of a time block')
+                    help='longest time block, s of driving (shorter on short data)')
     ev.add_argument('--window', type=positive, default=10.0, metavar='SECONDS',
                     help='duration of the held-out evaluation windows')
     ev.add_argument('--compare', type=names, default=','.join(ident.COMPARE_MODELS),
@@ -170,6 +195,9 @@ def _finite_or_none(value):
 def _stats(stats):
     if stats is None:
         return None
+    if stats.n == 0:
+        return {'n': 0, 'position_mean': None, 'position_p90': None, 'heading_mean': None,
+                'heading_p90': None}
     return {k: _finite_or_none(float(getattr(stats, k))) if k != 'n' else stats.n
             for k in ('n', 'position_mean', 'position_p90', 'heading_mean', 'heading_p90')}
 
@@ -182,8 +210,9 @@ def _fit_summary(result):
                             for n, s in zip(result.model.param_names, result.std)},
         'cost': result.cost, 'loss': result.loss, 'f_scale': result.f_scale,
         'heading_weight': result.heading_weight, 'rms_position': result.rms_position,
-        'rms_heading': result.rms_heading, 'segments': result.segments,
-        'inliers': result.inliers, 'evaluations': result.nfev, 'seconds': result.seconds,
+        'rms_heading': result.rms_heading, 'residual_sigma': result.sigma,
+        'segments': result.segments, 'inliers': result.inliers, 'evaluations': result.nfev,
+        'seconds': result.seconds,
     }
 
 
@@ -193,10 +222,41 @@ def _icr_summary(icr):
             'chi': icr.chi, 'eccentricity': icr.eccentricity}
 
 
+def _delay_summary(delay, each=()):
+    summary = {'delay': delay.delay, 'std': _finite_or_none(float(delay.std)),
+               'uncertainty': delay.uncertainty, 'determined': delay.determined,
+               'problem': delay.problem, 'correlation': delay.correlation,
+               'intervals': delay.intervals, 'excluded': delay.excluded,
+               'windows': delay.windows, 'search': list(delay.search)}
+    if each:
+        summary['per_bag'] = [{'delay': e.delay, 'std': e.std, 'uncertainty': e.uncertainty}
+                              for e in each]
+    return summary
+
+
+def _ddc_summary(result, radius):
+    if result.ddc is None:
+        return {'error': result.ddc_error}
+    fit = result.ddc
+    return {'parameters': ident.ddc_parameters(fit.p, fit.model.track_width, radius),
+            'standard_errors': {n: _finite_or_none(float(s))
+                                for n, s in zip(fit.model.param_names, fit.std)},
+            'icr': _icr_summary(fit.icr), 'rms_position': fit.rms_position,
+            'rms_heading': fit.rms_heading}
+
+
+def _improvements(e, baseline):
+    """Improvements of one evaluation over a baseline's, per kind (None: nothing compared)."""
+    if baseline is None or baseline.segments is None or e.segments is None:
+        return None
+    return {kind: getattr(e, kind).improvement_over(getattr(baseline, kind))
+            for kind in ('segments', 'windows')}
+
+
 def _holdout_summary(result):
     if result.holdout is None:
         return None
-    ideal = result.evaluation('ideal')
+    ideal, ddc = result.evaluation('ideal'), result.evaluation('tuned_ddc')
     models = {}
     for e in result.evaluations:
         entry = {'segments': _stats(e.segments), 'windows': _stats(e.windows)}
@@ -204,19 +264,34 @@ def _holdout_summary(result):
             entry['parameters'] = e.fit.params
         if e.error:
             entry['error'] = e.error
-        if ideal is not None and ideal.segments is not None and e.segments is not None:
-            entry['improvement_pct'] = {
-                'segments': e.segments.improvement_over(ideal.segments),
-                'windows': e.windows.improvement_over(ideal.windows)}
+        better = _improvements(e, ideal)
+        if better is not None:
+            entry['improvement_pct'] = better
+        if e.name != 'tuned_ddc':
+            better = _improvements(e, ddc)
+            if better is not None:
+                entry['improvement_vs_tuned_ddc_pct'] = better
         models[e.name] = entry
-    return {'blocks': [[int(r), float(a), float(b)] for r, a, b in result.holdout.blocks],
-            'total_blocks': result.holdout.total_blocks, 'window': result.window,
-            'models': models}
+    held = result.holdout
+    return {'blocks': [[int(r), float(a), float(b)] for r, a, b in held.blocks],
+            'total_blocks': held.total_blocks, 'block_length': held.block_length,
+            'folds': len(held.folds), 'cross_validated': held.cross_validated,
+            'window': result.window, 'segments': _count(result, 'segments'),
+            'windows': _count(result, 'windows'), 'models': models}
+
+
+def _count(result, kind):
+    return next((getattr(e, kind).n for e in result.evaluations if getattr(e, kind)), 0)
 
 
 def _recordings_summary(recordings):
     return [{'bag': r.name, 'duration': r.duration, 'encoder_samples': len(r.enc_t),
              'ground_truth_samples': len(r.gt_t)} for r in recordings]
+
+
+def _time_summary(time):
+    return {'span': time.span, 'covered': time.covered, 'driving': time.driving,
+            'pieces': time.pieces, 'longest_piece': time.longest_piece}
 
 
 def _yaml_values(base_values, icr, radius, terrain, extras):
@@ -228,47 +303,128 @@ def _yaml_values(base_values, icr, radius, terrain, extras):
                           check=icr_from_values, drop=('terrain',))
 
 
-def _print_table(result, recordings, out):
+def _delay_extras(delay, each=()):
+    """Return the ``identification.ground_truth_delay*`` keys of the YAML."""
+    method = 'given' if delay.delay else 'off'
+    extras = {'ground_truth_delay': float(delay.delay),
+              'ground_truth_delay_method': method if delay.uncertainty == 'given'
+              else delay.uncertainty}
+    if delay.uncertainty in ('jackknife', 'curvature'):
+        extras['ground_truth_delay_std'] = float(delay.std)
+    elif not delay.determined:
+        extras['ground_truth_delay_method'] = 'not determined'
+    if each:
+        extras['ground_truth_delay_per_bag'] = [float(e.delay) for e in each]
+    return extras
+
+
+def _print_delay(delay, each, out):
+    if delay.uncertainty == 'given':
+        text = (f'{delay.delay:.3f} s as given, removed from the ground-truth stamps'
+                if delay.delay else 'off (--ground-truth-delay 0)')
+    elif delay.determined and each:
+        per = ', '.join(f'{e.delay:.3f}' for e in each)
+        text = (f'{delay.describe()}; per bag {per} s, each removed from the ground-truth '
+                'stamps of its bag')
+    elif delay.determined:
+        text = f'{delay.describe()}; removed from the ground-truth stamps'
+    else:
+        text = (f'{delay.describe()}; none removed: give it with --ground-truth-delay '
+                'SECONDS if the ground truth is stamped late')
+    print(f'ground-truth delay behind the encoders: {text}', file=out)
+
+
+def _print_table(result, recordings, radius, out):
     exc = result.excitation
-    duration = sum(r.duration for r in recordings)
-    print(f'{PROG}: {len(recordings)} bag(s), {duration:.0f} s, {exc.distance:.1f} m driven, '
-          f'{exc.turning:.1f} rad turned; {exc.moving} moving segments of '
-          f'{result.segment_length or "ground-truth period"} s', file=out)
+    t = result.time
+    pieces = f'in {t.pieces} pieces' if t.pieces != len(recordings) else 'without gaps'
+    print(f'{PROG}: {len(recordings)} bag(s): {t.covered:.0f} s with encoders and ground truth '
+          f'({pieces}; {t.span:.0f} s from first to last sample), {t.driving:.0f} s driving, '
+          f'{exc.distance:.1f} m driven, {exc.turning:.1f} rad turned; {exc.moving} moving '
+          f'segments of {result.segment_length or "ground-truth period"} s', file=out)
+    _print_delay(result.delay, result.delays, out)
+    if result.jumps:
+        print(f'ground truth: {result.jumps} jump(s) (re-localisations, glitches: a step the '
+              f'tracks cannot make); the {result.jump_segments} segment(s) and the windows '
+              'over them are left out', file=out)
     fitted = result.fit
     params = ', '.join(f'{n} {v:.4f}' for n, v in fitted.params.items())
     icr = result.icr
     print(f'{fitted.model.name} ({fitted.method}): {params}', file=out)
+    errors = ', '.join(f'{n} {e:.2g}' for n, e in zip(fitted.model.param_names, fitted.std))
+    if errors:
+        print(f'standard errors: {errors}', file=out)
     print(f'written ICR model ({result.icr_source}): y_left {icr.y_left:.4f} m, y_right '
           f'{icr.y_right:.4f} m, x {icr.x:.4f} m, scales {icr.scale_left:.4f} / '
           f'{icr.scale_right:.4f}; chi {icr.chi:.3f}, e {icr.eccentricity:.3f}', file=out)
     print(f'fit: rms {1000 * fitted.rms_position:.1f} mm, '
           f'{math.degrees(fitted.rms_heading):.2f} deg over {fitted.inliers}/{fitted.segments} '
-          f'inlier segments, heading weight {fitted.heading_weight:.2f} m/rad', file=out)
-    if result.holdout is None:
-        print('hold-out: too little data to hold any out (need 3 blocks)', file=out)
+          f'inlier segments (the ground-truth noise, and what the model does not capture), '
+          f'heading weight {fitted.heading_weight:.2f} m/rad', file=out)
+    for u in result.uncertain:
+        print(f'accepted (--accept-uncertain): {u.describe()}', file=out)
+    _print_holdout(result, out)
+    _print_ddc(result, radius, out)
+
+
+def _print_holdout(result, out):
+    held = result.holdout
+    if held is None:
+        print('hold-out: none (--holdout 0)', file=out)
         return
-    ideal = result.evaluation('ideal')
-    n_seg = next((e.segments.n for e in result.evaluations if e.segments), 0)
-    n_win = next((e.windows.n for e in result.evaluations if e.windows), 0)
-    print(f'\nhold-out: {len(result.holdout.blocks)} of {result.holdout.total_blocks} blocks, '
-          f'{n_seg} segments, {n_win} windows of {result.window:.0f} s; errors mean / p90',
-          file=out)
+    n_seg, n_win = _count(result, 'segments'), _count(result, 'windows')
+    how = (f'{len(held.folds)}-fold cross-validation over {held.total_blocks} blocks of '
+           f'{held.block_length:.0f} s of driving (every block held out once)'
+           if held.cross_validated else
+           f'{len(held.folds[0])} of {held.total_blocks} blocks of {held.block_length:.0f} s '
+           'of driving')
+    wins = (f'{n_win} windows of {result.window:g} s' if n_win else
+            f'no held-out windows of {result.window:g} s (the longest piece with both streams '
+            f'is {result.time.longest_piece:.1f} s; a shorter --window gives some)')
+    kind = 'windows' if n_win else 'segments'
+    print(f'\nhold-out: {how}, {n_seg} segments, {wins}; errors mean / p90; '
+          f'"vs" columns: mean {kind[:-1]} position error', file=out)
     head = (f'{"model":<22}{"segment pos (mm)":>18}{"heading (deg)":>16}'
-            f'{"window pos (m)":>17}{"heading (deg)":>16}{"vs ideal":>14}')
+            f'{"window pos (m)":>17}{"heading (deg)":>16}{"vs ideal":>10}{"vs tuned DDC":>14}')
     print(head, file=out)
+    ideal, ddc = result.evaluation('ideal'), result.evaluation('tuned_ddc')
     for e in result.evaluations:
         if e.segments is None:
             print(f'{e.name:<22}  failed: {e.error}', file=out)
             continue
         s, w = e.segments, e.windows
-        better = ''
-        if ideal is not None and ideal.windows is not None and e.name != 'ideal':
-            better = f'{e.windows.improvement_over(ideal.windows)["position"]:+.0f} %'
-        print(f'{e.name:<22}{1000 * s.position_mean:>8.1f} /{1000 * s.position_p90:>7.1f}'
-              f'{math.degrees(s.heading_mean):>8.2f} /{math.degrees(s.heading_p90):>6.2f}'
-              f'{w.position_mean:>9.3f} /{w.position_p90:>6.3f}'
-              f'{math.degrees(w.heading_mean):>8.2f} /{math.degrees(w.heading_p90):>6.2f}'
-              f'{better:>14}', file=out)
+        if s.n:
+            seg = (f'{1000 * s.position_mean:>8.1f} /{1000 * s.position_p90:>7.1f}'
+                   f'{math.degrees(s.heading_mean):>8.2f} /{math.degrees(s.heading_p90):>6.2f}')
+        else:
+            seg = f'{"none":>18}{"":>16}'
+        if w.n:
+            win = (f'{w.position_mean:>9.3f} /{w.position_p90:>6.3f}'
+                   f'{math.degrees(w.heading_mean):>8.2f} /{math.degrees(w.heading_p90):>6.2f}')
+        else:
+            win = f'{"none":>17}{"":>16}'
+        columns = []
+        for baseline in (ideal, ddc):
+            if baseline is None or baseline is e:
+                columns.append('')
+                continue
+            gain = getattr(e, kind).improvement_over(getattr(baseline, kind)) \
+                if baseline.segments is not None else None
+            columns.append('' if gain is None or gain['position'] is None
+                           else f'{gain["position"]:+.0f} %')
+        print(f'{e.name:<22}{seg}{win}{columns[0]:>10}{columns[1]:>14}'.rstrip(), file=out)
+
+
+def _print_ddc(result, radius, out):
+    if result.ddc is None:
+        print(f'\ntuned diff_drive_controller: not fitted ({result.ddc_error})', file=out)
+        return
+    values = ident.ddc_parameters(result.ddc.p, result.ddc.model.track_width, radius)
+    print('\ndiff_drive_controller tuned on the same data, for a robot that stays on it '
+          '(controller name yours):', file=out)
+    print('diff_drive_controller:\n  ros__parameters:', file=out)
+    for name, value in values.items():
+        print(f'    {name}: {value:.6g}', file=out)
 
 
 # Main ----------------------------------------------------------------------------------
@@ -290,13 +446,20 @@ def _run(args, out) -> int:
               'sprocket_radius': radius, 'recordings': _recordings_summary(recordings)}
     if args.spin_in_place:
         scales = (base.scale_left, base.scale_right) if base else (1.0, 1.0)
-        spin = ident.spin_in_place(recordings, track_width, scales)
+        delay, each = (ident.estimate_delays(recordings) if args.ground_truth_delay == 'auto'
+                       else (ident.fixed_delay(args.ground_truth_delay), []))
+        removed = [e.delay for e in each] or [delay.delay] * len(recordings)
+        spin = ident.spin_in_place([ident.correct_ground_truth([r], d)[0]
+                                    for r, d in zip(recordings, removed)], track_width, scales)
         icr = spin.icr(track_width, scales)
         extras = {'model': 'spin_in_place', 'date': date, 'bags': bags,
-                  'spin_runs': len(spin.runs), 'chi': spin.chi, 'chi_std': spin.chi_std}
+                  'spin_runs': len(spin.runs), 'chi': spin.chi, 'chi_std': spin.chi_std,
+                  **_delay_extras(delay, each)}
         values = _yaml_values(base_values, icr, radius, args.terrain, extras)
         report.update({'mode': 'spin_in_place', 'chi': spin.chi, 'chi_std': spin.chi_std,
-                       'runs': spin.runs, 'icr': _icr_summary(icr)})
+                       'runs': spin.runs, 'icr': _icr_summary(icr),
+                       'ground_truth_delay': _delay_summary(delay, each)})
+        _print_delay(delay, each, out)
         print(f'{PROG}: {len(spin.runs)} spin-in-place run(s): chi = {spin.chi:.4f} '
               f'(std {spin.chi_std:.4f}); ICRs at +-{icr.y_left:.4f} m', file=out)
     else:
@@ -309,7 +472,8 @@ def _run(args, out) -> int:
             segment_length=args.segment_length or None, heading_weight=args.heading_weight,
             loss=args.loss, min_travel=args.min_travel, holdout=args.holdout,
             holdout_block=args.holdout_block, window=args.window, compare=args.compare,
-            max_nfev=args.max_nfev)
+            max_nfev=args.max_nfev, ground_truth_delay=args.ground_truth_delay,
+            accept_uncertain=args.accept_uncertain)
         fitted, icr = result.fit, result.icr
         extras = {'model': fitted.model.name, 'method': fitted.method, 'date': date,
                   'bags': bags, 'segments': fitted.segments,
@@ -317,21 +481,31 @@ def _run(args, out) -> int:
                   'heading_weight': fitted.heading_weight, 'cost': fitted.cost,
                   'rms_position': fitted.rms_position, 'rms_heading': fitted.rms_heading,
                   'chi': icr.chi, 'eccentricity': icr.eccentricity,
-                  'icr_source': result.icr_source}
+                  'icr_source': result.icr_source,
+                  **_delay_extras(result.delay, result.delays)}
         extras.update({f'parameters.{n}': v for n, v in fitted.params.items()})
+        if result.uncertain:
+            extras['uncertain'] = [u.name for u in result.uncertain]
         chosen = result.evaluation(result.icr_source)
-        ideal = result.evaluation('ideal')
-        if chosen and ideal and chosen.windows and ideal.windows:
-            gain = chosen.windows.improvement_over(ideal.windows)
-            extras['holdout_position_improvement_pct'] = gain['position']
-            extras['holdout_heading_improvement_pct'] = gain['heading']
+        ideal, ddc = result.evaluation('ideal'), result.evaluation('tuned_ddc')
+        # Held-out improvements only where there are held-out windows to compare.
+        for key, baseline in (('holdout', ideal), ('holdout_vs_tuned_ddc', ddc)):
+            if chosen and baseline and chosen.windows and baseline.windows:
+                gain = chosen.windows.improvement_over(baseline.windows)
+                for kind in ('position', 'heading') if gain is not None else ():
+                    if gain[kind] is not None:
+                        extras[f'{key}_{kind}_improvement_pct'] = gain[kind]
         values = _yaml_values(base_values, icr, radius, args.terrain, extras)
         report.update({
             'mode': 'segments', 'model': fitted.model.name, 'icr_source': result.icr_source,
             'icr': _icr_summary(icr), 'fit': _fit_summary(fitted),
             'excitation': vars(result.excitation), 'holdout': _holdout_summary(result),
-            'seconds': result.seconds})
-        _print_table(result, recordings, out)
+            'seconds': result.seconds,
+            'ground_truth_delay': _delay_summary(result.delay, result.delays),
+            'time': _time_summary(result.time), 'tuned_ddc': _ddc_summary(result, radius),
+            'ground_truth_jumps': {'jumps': result.jumps, 'segments': result.jump_segments},
+            'uncertain': [vars(u) for u in result.uncertain]})
+        _print_table(result, recordings, radius, out)
     note = ''
     if args.model in ('general_slip', 'adaptive_icr') and not args.spin_in_place:
         note = (f'The {args.model} model has no constant ICRs: icr.* and scale.* are the '
@@ -342,9 +516,9 @@ def _run(args, out) -> int:
         write_report(args.report, report)
     if args.plot and not args.spin_in_place:
         from tracked_kinematics.offline.plots import plot_identification
-        # The moving segments the fit used: those of --min-travel.
-        segments = ident.build_segments(recordings, result.segment_length)
-        plot_identification(args.plot, recordings, result,
+        # The moving segments the fit used: those of --min-travel, delay removed.
+        segments = ident.build_segments(result.recordings, result.segment_length)
+        plot_identification(args.plot, result.recordings, result,
                             segments.select(segments.travel >= args.min_travel))
     print(f'wrote {args.output}' + (f', {args.report}' if args.report else '')
           + (f', {args.plot}' if args.plot and not args.spin_in_place else ''), file=out)

@@ -1,0 +1,94 @@
+"""
+The baseline a tracked-robot user already has: ros2_controllers' diff_drive_controller, tuned.
+
+diff_drive_controller (DDC) integrates an ideal differential drive whose geometry the user
+calibrates with three multipliers: the effective wheel separation is
+``wheel_separation x wheel_separation_multiplier`` and each side's radius
+``wheel_radius x *_wheel_radius_multiplier``. With the nominal travel ``D = wheel angle x
+wheel_radius`` (the package's encoder travel), DDC's odometry is::
+
+    v = (m_l D_l + m_r D_r) / 2,     w = (m_r D_r - m_l D_l) / (m_s B)
+
+which is the constant-ICR model (Martinez eqs. 7-9, 20-21) restricted to symmetric tread
+ICRs at ``+-m_s B / 2`` with ``icr.x = 0`` and ``scale.* = m_*``: the mapping the package's
+``convert_diff_drive_params`` uses the other way round. :class:`TunedDiffDrive` fits the
+three multipliers on the same data as the other models, so that the report says what a
+*calibrated* DDC would do, and what a user who stays on DDC should set
+(:func:`ddc_parameters`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..kinematics import IcrParams
+from ..models import MotionModel
+
+DDC_PARAMS = ('wheel_separation_multiplier', 'left_wheel_radius_multiplier',
+              'right_wheel_radius_multiplier')
+"""The diff_drive_controller parameters :class:`TunedDiffDrive` fits, by their DDC names."""
+
+
+class TunedDiffDrive(MotionModel):
+    """
+    diff_drive_controller's odometry with its three calibration multipliers as parameters.
+
+    ``p = (m_s, m_l, m_r)``: ``wheel_separation_multiplier``, ``left_wheel_radius_multiplier``,
+    ``right_wheel_radius_multiplier`` (the module notes give the twist).
+    """
+
+    name = 'tuned_ddc'
+    param_names = DDC_PARAMS
+    linear = True
+
+    def initial(self):
+        return np.ones(3)
+
+    def twist_and_jacobian(self, p, v_left, v_right):
+        m_s, m_l, m_r = (float(v) for v in np.asarray(p, float))
+        v_left = np.atleast_1d(np.asarray(v_left, float))
+        v_right = np.atleast_1d(np.asarray(v_right, float))
+        separation = m_s * self.track_width
+        left, right = m_l * v_left, m_r * v_right
+        v_x = 0.5 * (left + right)
+        w = (right - left) / separation
+        zero = np.zeros_like(v_x)
+        twist = np.stack([v_x, zero, w], axis=-1)
+        jac = np.zeros(twist.shape + (3,))
+        jac[..., 0, 1] = 0.5 * v_left
+        jac[..., 0, 2] = 0.5 * v_right
+        jac[..., 2, 0] = -w / m_s
+        jac[..., 2, 1] = -v_left / separation
+        jac[..., 2, 2] = v_right / separation
+        return twist, jac
+
+    def as_icr(self, p):
+        m_s, m_l, m_r = (float(v) for v in np.asarray(p, float))
+        half = 0.5 * m_s * self.track_width
+        return IcrParams(self.track_width, half, -half, 0.0, m_l, m_r)
+
+
+def ddc_parameters(p, track_width: float, wheel_radius: float) -> dict[str, float]:
+    """
+    Return the diff_drive_controller parameters of a :class:`TunedDiffDrive` fit.
+
+    Parameters
+    ----------
+    p : array_like, shape (3,)
+        Fitted multipliers.
+    track_width, wheel_radius : float
+        The nominal ``wheel_separation`` and ``wheel_radius`` the multipliers apply to, m
+        (the package's ``track_width`` and ``sprocket_radius``).
+
+    Returns
+    -------
+    dict
+        ``wheel_separation``, ``wheel_separation_multiplier``, ``wheel_radius``,
+        ``left_wheel_radius_multiplier``, ``right_wheel_radius_multiplier``, as
+        diff_drive_controller names them.
+
+    """
+    m_s, m_l, m_r = (float(v) for v in np.asarray(p, float))
+    return {'wheel_separation': float(track_width), 'wheel_separation_multiplier': m_s,
+            'wheel_radius': float(wheel_radius), 'left_wheel_radius_multiplier': m_l,
+            'right_wheel_radius_multiplier': m_r}
