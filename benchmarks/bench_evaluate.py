@@ -25,6 +25,7 @@ REALDATA = Path(os.environ.get('TRACKED_KINEMATICS_REALDATA', ROOT.parent / 'sha
 
 from tracked_kinematics.core import evaluate as ev  # noqa: E402
 from tracked_kinematics.core import identify as ident  # noqa: E402
+from tracked_kinematics.core.kinematics import IcrParams  # noqa: E402
 from tracked_kinematics.offline.bags import (  # noqa: E402
     CommandSource, EncoderSource, GroundTruthSource, read_bags, read_drive_bag,
     read_evaluation_bag)
@@ -96,15 +97,15 @@ def cost():
         phases['read'] += time.perf_counter() - start
         seconds += rec.duration
         start = time.perf_counter()
-        delay = ev.estimate_delay(rec, width).seconds
+        delay = ident.estimate_delay([rec]).delay
         phases['delay'] += time.perf_counter() - start
-        rec = ev.shift_ground_truth(rec, delay)
+        rec = ident.correct_ground_truth([rec], delay)[0]
         icr = _fit([bag], radius, width)
         start = time.perf_counter()
         run = ev.replay(rec, icr, delay)
         phases['replay (EKF)'] += time.perf_counter() - start
         data = [ev.Data(rec, ev.Commands(*found))]
-        candidates = [ev.Candidate('ideal', ev.scoring.IcrParams.ideal(width)),
+        candidates = [ev.Candidate('ideal', IcrParams.ideal(width)),
                       ev.Candidate('file', icr), ev.Candidate('online', icr, runs=(run,))]
         start = time.perf_counter()
         ev.evaluate(data, candidates)

@@ -1,26 +1,23 @@
 """evaluate_model end to end: simulated bags with commands, bad input, the real bags.
 
 The metrics by hand: test/core/evaluate/. The real bags are those of ../shared/realdata
-(beside the repository, as CI lays it out); their tests skip when it is absent.
+(test/helpers/realdata.py: beside the repository, or $TRACKED_KINEMATICS_REALDATA); their
+tests skip when it is absent.
 """
 
 import json
 import math
-import os
-from pathlib import Path
 import subprocess
 import sys
 
 from helpers.command_bags import T0_NS, write_commands_bag
-from helpers.setup_info import ROOT
+from helpers.realdata import bag as real_bag
 import numpy as np
 import pytest
 from tracked_kinematics.offline.bags import BagWriter
 from tracked_kinematics.offline.cli import evaluate_model as cli
 from tracked_kinematics.offline.cli.simulate_bag import simulate_bag
 
-# CI lays shared/ beside the clone; a worktree elsewhere names it by the variable.
-REALDATA = Path(os.environ.get('TRACKED_KINEMATICS_REALDATA', ROOT.parent / 'shared' / 'realdata'))
 B = 0.42
 GT = '/ground_truth/pose'
 
@@ -254,18 +251,18 @@ def test_a_failure_after_the_work_leaves_nothing_behind(sim, tmp_path, capsys, m
 
 
 def test_a_still_bag_has_no_delay_to_find_and_nothing_to_predict(sim, tmp_path, capsys):
+    # As identify_icr: a delay the data cannot time is not removed, and the output says so.
     still = tmp_path / 'still'
     _still_bag(still)
-    argv = [still, '--ground-truth-topic', GT, '--params', sim['truth']]
-    status, _, err = run(argv, capsys)
-    assert status == 3
-    assert_one_line(err, 'too little turning or change of speed to estimate the ground-truth '
-                         'delay; give it in seconds (--ground-truth-delay)')
-    status, out, err = run(argv + ['--ground-truth-delay', '0', '--report', tmp_path / 'r.json'],
-                           capsys)
+    status, out, err = run([still, '--ground-truth-topic', GT, '--params', sim['truth'],
+                            '--report', tmp_path / 'r.json'], capsys)
     assert status == 0, err
-    window = json.loads((tmp_path / 'r.json').read_text())['models']['ideal']['odometry'][
-        'windows']['5']
+    assert 'ground-truth delay behind the encoders: not determined' in out
+    assert 'none removed: give it with --ground-truth-delay' in out
+    report = json.loads((tmp_path / 'r.json').read_text())
+    assert report['recordings'][0]['ground_truth_delay_source'] == 'not determined'
+    assert report['recordings'][0]['ground_truth_delay_s'] == 0.0
+    window = report['models']['ideal']['odometry']['windows']['5']
     assert window['mean_position_error_m'] == 0.0 and window['drift_pct'] is None
 
 
@@ -313,12 +310,11 @@ drivetrain: {loop: first_order, delay: 0.1, max_accel: 6.77, time_constant: 0.39
 
 
 def _real(tmp_path_factory, bag, terrain):
-    if not (REALDATA / bag).is_dir():
-        pytest.skip(f'{REALDATA / bag} is not there')
+    path = real_bag(bag)
     root = tmp_path_factory.mktemp('real')
     params = root / f'{bag.split("_")[0]}.yaml'
     params.write_text(terrain)
-    status = cli.main([str(REALDATA / bag), '--ground-truth-topic', '/icp/pose', '--params',
+    status = cli.main([str(path), '--ground-truth-topic', '/icp/pose', '--params',
                        str(params), '--online', '--report', str(root / 'r.json')])
     assert status == 0
     return json.loads((root / 'r.json').read_text())

@@ -181,3 +181,17 @@ def test_summary_has_evos_statistics():
                      'p90': pytest.approx(3.9)}
     empty = summary([])
     assert empty['n'] == 0 and empty['rmse'] is None
+
+
+def test_rpe_pairs_from_the_reference_are_the_same_for_every_estimate():
+    rng = np.random.default_rng(7)
+    yaw = np.cumsum(rng.normal(0.0, 0.2, 80))
+    steps = rng.uniform(0.05, 0.3, 80)
+    reference = np.column_stack([np.cumsum(steps * np.cos(yaw)), np.cumsum(steps * np.sin(yaw)),
+                                 yaw])
+    ids = evo_path_pairs(reference[:, :2], 1.0)
+    for scale in (0.9, 1.2):
+        estimate = reference * [scale, scale, 1.0]
+        translation, _ = rpe(estimate, reference, 1.0, pairs_from_reference=True)
+        expected, _ = relative_errors(estimate, reference, ids[:-1], ids[1:])
+        np.testing.assert_allclose(translation, expected)

@@ -58,7 +58,7 @@ def test_gaps_and_jumps_cut_pieces():
     assert (result.gaps, result.jumps) == (22, 1)
     assert [(round(p.t[0], 1), round(p.t[-1], 1)) for p in result.pieces] == [
         (0.0, 9.9), (12.1, 19.9), (20.0, 30.0)]
-    assert len(cut(broken, jump=None).pieces) == 2
+    assert len(cut(broken, jumps=False).pieces) == 2
     for piece in result.pieces:
         np.testing.assert_allclose(odometry(piece, PARAMS), piece.truth, atol=1e-9)
 

@@ -133,17 +133,21 @@ def evo_path_pairs(positions, delta: float) -> np.ndarray:
     return np.asarray(chosen, dtype=np.intp)
 
 
-def rpe(estimate, reference, delta: float):
+def rpe(estimate, reference, delta: float, pairs_from_reference: bool = False):
     """
     Relative pose errors of evo's consecutive pairs ``delta`` m apart along the estimate.
+
+    With ``pairs_from_reference``, the pairs are chosen along the reference instead
+    (``evo_rpe --pairs_from_reference``): the same pairs for every estimate.
 
     Returns
     -------
     translation, rotation : ndarray
-        m and rad, one per pair (none when the estimate is shorter than ``2 delta``).
+        m and rad, one per pair (none when the path is shorter than ``delta``).
 
     """
-    ids = evo_path_pairs(np.asarray(estimate)[:, :2], delta)
+    chooser = reference if pairs_from_reference else estimate
+    ids = evo_path_pairs(np.asarray(chooser)[:, :2], delta)
     return relative_errors(estimate, reference, ids[:-1], ids[1:])
 
 

@@ -4,11 +4,12 @@ Gap-free pieces of a recording, and odometry along them.
 Every score of :mod:`.metrics` compares an odometry path with the ground truth between two
 ground-truth samples of one *piece*: a stretch where both streams run without a gap
 (:func:`~tracked_kinematics.core.identify.gap_threshold` of each: five median intervals, at
-least 0.2 s) and the ground truth does not jump. A jump is a ground-truth step longer than
-``jump`` (0.5 m) plus the travel of the faster track over it, the count of
+least 0.2 s) and the ground truth does not jump. Jumps are identify_icr's
+(:func:`~tracked_kinematics.core.identify.segments.ground_truth_jumps`): a step longer than
+0.5 m plus the travel of the faster track over it (the count of
 ../shared/realdata/README.md: a re-localising mapper, or one that falls behind and catches
-up. Nothing is scored across a gap or a jump; the odometry of a piece starts at its first
-ground-truth pose.
+up), or a heading step 0.5 rad beyond the ideal drive's turn (a glitch). Nothing is scored
+across a gap or a jump; the odometry of a piece starts at its first ground-truth pose.
 
 Odometry integrates the encoder travel with constant tread ICRs (Martinez et al. 2005,
 eqs. 7-9, with the scales of eqs. 20-21) along exact arcs
@@ -24,10 +25,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..identify import gap_threshold, Recording
+from ..identify.segments import ground_truth_jumps
 from ..integration import integrate
-
-JUMP = 0.5
-"""Default jump threshold, m (plus the faster track's travel over the step)."""
 
 
 @dataclass(frozen=True)
@@ -99,7 +98,8 @@ class Cut:
     seconds: float
 
 
-def cut(recording: Recording, index: int = 0, jump: float | None = JUMP) -> Cut:
+def cut(recording: Recording, index: int = 0, jumps: bool = True,
+        track_width: float | None = None) -> Cut:
     """
     Cut a recording into gap-free, jump-free pieces of at least two ground-truth samples.
 
@@ -109,8 +109,10 @@ def cut(recording: Recording, index: int = 0, jump: float | None = JUMP) -> Cut:
         Encoders and ground truth on one clock (the ground-truth delay already taken off).
     index : int
         Its index, stored in the pieces.
-    jump : float or None
-        Jump threshold, m; None or 0: no jumps.
+    jumps : bool
+        Cut at ground-truth jumps too (False: score across them).
+    track_width : float, optional
+        m, for the heading glitches of the jumps (without it, position jumps only).
 
     """
     rec = recording
@@ -120,8 +122,6 @@ def cut(recording: Recording, index: int = 0, jump: float | None = JUMP) -> Cut:
     if len(t) < 2 or len(rec.enc_t) < 2:
         return empty
     truth = np.column_stack([rec.gt_x[keep], rec.gt_y[keep], np.unwrap(rec.gt_yaw[keep])])
-    left = np.interp(t, rec.enc_t, rec.left)
-    right = np.interp(t, rec.enc_t, rec.right)
     # Bad intervals between consecutive ground-truth samples: gaps and jumps.
     gap = np.diff(t) > gap_threshold(rec.gt_t)
     enc_gap = gap_threshold(rec.enc_t)
@@ -131,10 +131,9 @@ def cut(recording: Recording, index: int = 0, jump: float | None = JUMP) -> Cut:
         last = np.searchsorted(g0, t[1:], side='left') - 1
         gap |= (last >= 0) & (g1[np.maximum(last, 0)] > t[:-1])
     jumped = np.zeros_like(gap)
-    if jump:
-        step = np.hypot(np.diff(truth[:, 0]), np.diff(truth[:, 1]))
-        fastest = np.maximum(np.abs(np.diff(left)), np.abs(np.diff(right)))
-        jumped = ~gap & (step > jump + fastest)
+    if jumps:
+        starts = ground_truth_jumps(rec, track_width)[:, 0]
+        jumped = ~gap & np.isin(t[:-1], starts)
     bad = gap | jumped
     edges = np.flatnonzero(np.diff(np.concatenate([[1], bad.astype(np.int8), [1]])))
     pieces = []

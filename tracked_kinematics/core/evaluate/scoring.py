@@ -8,7 +8,8 @@ over them, and scores it (:mod:`.metrics`, :mod:`.prediction`):
   at every ground-truth sample, after windows of that length (mean, p90), and the drift in
   percent of the distance the ground truth travelled over those windows;
 - ``rpe_<D>m``: evo's relative pose error per ``D`` m travelled (translation part, RMSE; the
-  mean and every statistic under ``rpe``);
+  mean and every statistic under ``rpe``, and the same with the pairs chosen along the
+  ground truth, the same pairs for every model);
 - ``odometry.horizon``: predictions from the measured travel over the horizon;
 - ``prediction``: predictions from the commands through the model's drive train (the ideal
   model: the commands as speeds, the naive prediction).
@@ -24,7 +25,7 @@ import math
 import numpy as np
 
 from .metrics import relative_errors, rpe, summary, window_pairs
-from .pieces import cut, JUMP, odometry, Piece
+from .pieces import cut, odometry, Piece
 from .prediction import command_horizons, Commands, encoder_horizons, HorizonErrors
 from ..drivetrain import DriveTrain
 from ..identify import Recording
@@ -48,8 +49,10 @@ class Settings:
         Path lengths of the relative pose errors, m.
     max_command_age : float
         A command older than this is not in force, s.
-    jump : float or None
-        Ground-truth jump threshold, m (None: no jumps).
+    jumps : bool
+        Cut the data at ground-truth jumps (identify_icr's), as at gaps.
+    track_width : float or None
+        m, for the jumps' heading glitches (the ideal drive's turn).
 
     """
 
@@ -58,7 +61,8 @@ class Settings:
     dt: float = 0.05
     rpe_deltas: tuple = (1.0, 10.0)
     max_command_age: float = 0.5
-    jump: float | None = JUMP
+    jumps: bool = True
+    track_width: float | None = None
 
 
 @dataclass(frozen=True)
@@ -169,7 +173,7 @@ class _Scores:
 
 def _score(candidate: Candidate, pieces, data, settings: Settings) -> _Scores:
     scores = _Scores({w: ([], [], []) for w in settings.windows},
-                     {d: ([], []) for d in settings.rpe_deltas}, [], [], [])
+                     {d: ([], [], [], []) for d in settings.rpe_deltas}, [], [], [])
     for piece in pieces:
         params_at = candidate.params_at(piece.recording)
         if candidate.runs is None:
@@ -186,10 +190,11 @@ def _score(candidate: Candidate, pieces, data, settings: Settings) -> _Scores:
             position.append(p)
             heading.append(h)
             distance.append(walked[j] - walked[i])
-        for delta, (translation, rotation) in scores.rpe.items():
-            tr, rot = rpe(path, piece.truth, delta)
-            translation.append(tr)
-            rotation.append(rot)
+        for delta, errors in scores.rpe.items():
+            for k, from_reference in ((0, False), (2, True)):
+                tr, rot = rpe(path, piece.truth, delta, from_reference)
+                errors[k].append(tr)
+                errors[k + 1].append(rot)
         scores.horizons.append(encoder_horizons(piece, settings.horizon, params_at))
         commands = data[piece.recording].commands
         if commands is not None:
@@ -213,19 +218,25 @@ def _report(candidate: Candidate, scores: _Scores, settings: Settings, commands)
         },
         'rpe': {},
     }
-    for delta, (translation, rotation) in scores.rpe.items():
+
+    def pooled(parts):
+        return np.concatenate(parts) if parts else np.zeros(0)
+
+    for delta, (translation, rotation, ref_translation, ref_rotation) in scores.rpe.items():
         per_piece = [{'piece': k, 'pairs': len(errors), 'rmse': summary(errors)['rmse'],
                       'mean': summary(errors)['mean']}
                      for k, errors in enumerate(translation) if len(errors)]
-        translation = np.concatenate(translation) if translation else np.zeros(0)
-        rotation = np.concatenate(rotation) if rotation else np.zeros(0)
         key = rpe_key(delta)
-        stats = summary(translation)
+        stats = summary(pooled(translation))
         entry[f'rpe_{key}'] = stats['rmse']
         entry[f'rpe_{key}_mean'] = stats['mean']
+        same = summary(pooled(ref_translation))
         entry['rpe'][key] = {'delta_m': float(delta), 'pairs': stats['n'],
-                             'translation_m': stats, 'rotation_rad': summary(rotation),
-                             'pieces': per_piece}
+                             'translation_m': stats, 'rotation_rad': summary(pooled(rotation)),
+                             'pieces': per_piece,
+                             'pairs_from_reference': {
+                                 'pairs': same['n'], 'translation_m': same,
+                                 'rotation_rad': summary(pooled(ref_rotation))}}
     if commands:
         entry['prediction'] = {
             'source': commands, 'horizon_s': settings.horizon, 'dt_s': settings.dt,
@@ -276,7 +287,8 @@ def evaluate(data, candidates, settings: Settings | None = None) -> Evaluation:
 
     """
     settings = settings or Settings()
-    cuts = [cut(d.recording, index, settings.jump) for index, d in enumerate(data)]
+    cuts = [cut(d.recording, index, settings.jumps, settings.track_width)
+            for index, d in enumerate(data)]
     pieces: list[Piece] = [p for c in cuts for p in c.pieces]
     sources = sorted({d.commands.source for d in data if d.commands is not None})
     commands = ', '.join(sources) if sources else None

@@ -10,8 +10,7 @@ the measured travel and from the commands through the file's drive train, and wi
 
 Exit status, as identify_icr: 0 success; 2 bad input (missing bag, topic or joint; unreadable
 bag or terrain file; invalid option; an output that may not be written); 3 too little data
-(no gap-free stretch of encoders and ground truth, or too little motion to estimate the
-ground-truth delay).
+(no gap-free stretch of encoders and ground truth).
 
 Documentation: docs/tools/evaluate_model.md (every figure of the report and how it is
 computed).
@@ -28,14 +27,14 @@ import sys
 
 import numpy as np
 from tracked_kinematics.core import evaluate as ev
+from tracked_kinematics.core import identify as ident
 from tracked_kinematics.core.errors import ExcitationError, InvalidParameters
 from tracked_kinematics.core.kinematics import IcrParams
 from tracked_kinematics.offline.bags import read_evaluation_bag
 from tracked_kinematics.offline.cli.common import (
     add_bags_argument, add_command_arguments, add_encoder_arguments,
     add_ground_truth_arguments, add_ground_truth_topic_argument, add_sprocket_radius_argument,
-    command_source, encoder_source, ground_truth_source, HelpFormatter, non_negative,
-    positive, run_main)
+    command_source, encoder_source, ground_truth_source, HelpFormatter, positive, run_main)
 from tracked_kinematics.offline.errors import UsageError
 from tracked_kinematics.offline.outputs import Outputs
 from tracked_kinematics.params import (
@@ -72,9 +71,9 @@ def build_parser() -> argparse.ArgumentParser:
                      "first file's")
     gt = parser.add_argument_group('ground truth')
     add_ground_truth_arguments(gt)
-    gt.add_argument('--ground-truth-jump', type=non_negative, default=ev.JUMP, metavar='M',
-                    help="a ground-truth step longer than this plus the faster track's "
-                    'travel is a jump (re-localisation) and cuts the data like a gap; 0: none')
+    gt.add_argument('--keep-jumps', action='store_true',
+                    help='score across ground-truth jumps (re-localisations, glitches: as '
+                    'identify_icr finds them); by default they cut the data like gaps')
     cmd = parser.add_argument_group('commands')
     add_command_arguments(cmd)
     cmd.add_argument('--max-command-age', type=positive, default=0.5, metavar='SECONDS',
@@ -161,33 +160,53 @@ def _check_options(args) -> None:
             raise UsageError(f'{flag} lists a value twice: {" ".join(f"{v:g}" for v in values)}')
 
 
+def _delays(args, recordings):
+    """
+    Return the ground-truth delay of each recording and a one-line account, as identify_icr.
+
+    ``auto``: one delay for all bags (:func:`~tracked_kinematics.core.identify.
+    estimate_delays`), or each bag's own when every bag determines its own; when the data do
+    not time the ground truth, none is removed and the account says why.
+    """
+    if args.ground_truth_delay is not None:
+        given = ident.fixed_delay(args.ground_truth_delay)
+        return [given] * len(recordings), f'{given.delay:g} s (given)'
+    pooled, each = ident.estimate_delays(recordings)
+    if not pooled.determined:
+        return [pooled] * len(recordings), (f'{pooled.describe()}; none removed: give it '
+                                            'with --ground-truth-delay')
+    if each:
+        return each, 'per bag: ' + '; '.join(e.describe() for e in each)
+    return [pooled] * len(recordings), pooled.describe()
+
+
 def _read(args, track_width, radius):
-    """Read every bag; return recordings (delay taken off), their commands and records."""
+    """Read every bag; return recordings (delay taken off), their commands, records, delay."""
     encoders = encoder_source(args, radius)
     ground_truth = ground_truth_source(args)
     commands = command_source(args, track_width)
     progress = sys.stderr.isatty()
+    found = [read_evaluation_bag(bag, encoders, ground_truth, commands, progress)
+             for bag in args.bags]
+    recordings = [recording for recording, _ in found]
+    delays, account = _delays(args, recordings)
     data, records = [], []
-    for bag in args.bags:
-        recording, found = read_evaluation_bag(bag, encoders, ground_truth, commands, progress)
-        if args.ground_truth_delay is None:
-            estimate = ev.estimate_delay(recording, track_width)
-            delay, std, how = estimate.seconds, estimate.std, 'auto'
-        else:
-            delay, std, how = float(args.ground_truth_delay), None, 'given'
-        cmds = None
-        if found is not None:
-            cmds = ev.Commands(found[0], found[1], found[2])
-        data.append(ev.Data(ev.shift_ground_truth(recording, delay), cmds))
+    for bag, (recording, cmds), delay in zip(args.bags, found, delays):
+        if cmds is not None:
+            cmds = ev.Commands(*cmds)
+        data.append(ev.Data(ident.correct_ground_truth([recording], delay.delay)[0], cmds))
         records.append({
             'bag': str(Path(bag).resolve()), 'name': Path(bag).name,
             'duration_s': recording.duration, 'encoder_samples': len(recording.enc_t),
             'ground_truth_samples': len(recording.gt_t),
-            'ground_truth_delay_s': delay, 'ground_truth_delay_std_s': std,
-            'ground_truth_delay_source': how,
+            'ground_truth_delay_s': float(delay.delay),
+            'ground_truth_delay_std_s': None if delay.uncertainty == 'given'
+            else float(delay.std),
+            'ground_truth_delay_source': 'given' if delay.uncertainty == 'given'
+            else ('auto' if delay.determined else 'not determined'),
             'commands': None if cmds is None else cmds.source,
             'command_samples': 0 if cmds is None else len(cmds.t)})
-    return data, records
+    return data, records, account
 
 
 # Outputs ---------------------------------------------------------------------------------
@@ -220,16 +239,12 @@ def _fmt(value, scale=1.0, digits=3) -> str:
 def _print_table(report, out) -> None:
     recs = report['recordings']
     cut = report['data']
-
-    def delay(r):
-        auto = r['ground_truth_delay_source'] == 'auto'
-        return (f'{r["ground_truth_delay_s"]:.3f} s'
-                + (f' (auto, +-{r["ground_truth_delay_std_s"]:.3f})' if auto else ''))
-
-    delays = ', '.join(delay(r) for r in recs)
+    jumps = ('kept' if report['settings']['keep_jumps']
+             else f'{cut["jumps"]} ground-truth jumps left out')
     print(f'{PROG}: {len(recs)} bag(s), {sum(r["duration_s"] for r in recs):.0f} s; scored '
           f'{cut["seconds"]:.0f} s in {cut["pieces"]} gap-free pieces ({cut["gaps"]} gaps, '
-          f'{cut["jumps"]} ground-truth jumps left out); ground-truth delay {delays}', file=out)
+          f'{jumps})', file=out)
+    print(f'ground-truth delay behind the encoders: {report["ground_truth_delay"]}', file=out)
     sources = sorted({r['commands'] for r in recs if r['commands']})
     if not sources:
         print('no commands in the bags: no prediction from commands', file=out)
@@ -283,12 +298,13 @@ def _print_table(report, out) -> None:
                   "(else the file's values)", file=out)
 
 
-def _report(args, models, data, records, evaluation, candidates, runs, track_width, radius):
+def _report(args, models, records, account, evaluation, candidates, runs, track_width,
+            radius):
     settings = {'windows_s': [float(w) for w in args.window], 'horizon_s': args.horizon,
                 'prediction_dt_s': args.prediction_dt,
                 'rpe_distances_m': [float(d) for d in args.rpe_distance],
                 'max_command_age_s': args.max_command_age,
-                'ground_truth_jump_m': args.ground_truth_jump,
+                'keep_jumps': args.keep_jumps,
                 'track_width': track_width, 'sprocket_radius': radius,
                 'command_source': args.command_source}
     for record, c in zip(records, evaluation.cuts):
@@ -326,6 +342,7 @@ def _report(args, models, data, records, evaluation, candidates, runs, track_wid
     return {
         'tool': PROG, 'date': datetime.now(timezone.utc).isoformat(timespec='seconds'),
         'bags': [r['bag'] for r in records], 'settings': settings, 'recordings': records,
+        'ground_truth_delay': account,
         'data': {'pieces': sum(len(c.pieces) for c in cuts), 'gaps': sum(c.gaps for c in cuts),
                  'jumps': sum(c.jumps for c in cuts),
                  'seconds': float(sum(c.seconds for c in cuts))},
@@ -371,7 +388,7 @@ def _run(args, out) -> int:
         models = [_Model(path) for path in args.params]
         _unique_names(models)
         track_width, radius = _vehicle(args, models)
-        data, records = _read(args, track_width, radius)
+        data, records, account = _read(args, track_width, radius)
         candidates = [ev.Candidate('ideal', IcrParams.ideal(track_width), None)]
         candidates += [ev.Candidate(m.name, m.icr, m.drivetrain) for m in models]
         runs = {}
@@ -383,12 +400,12 @@ def _run(args, out) -> int:
                                                runs[m.name]))
         settings = ev.Settings(tuple(args.window), args.horizon, args.prediction_dt,
                                tuple(args.rpe_distance), args.max_command_age,
-                               args.ground_truth_jump or None)
+                               not args.keep_jumps, track_width)
         evaluation = ev.evaluate(data, candidates, settings)
         if not evaluation.pieces:
             raise ExcitationError('no stretch of the bags has both encoders and ground truth '
                                   'without a gap: nothing to score')
-        report = _finite(_report(args, models, data, records, evaluation, candidates, runs,
+        report = _finite(_report(args, models, records, account, evaluation, candidates, runs,
                                  track_width, radius))
         _print_table(report, out)
         if args.report:

@@ -1,13 +1,11 @@
-"""The ground-truth delay, and the EKF replayed over a recording as the node would run it."""
+"""The EKF replayed over a recording as the node would run it, and scored."""
 
 from helpers.vehicle_sim import B, simulate
 import numpy as np
 import pytest
-from tracked_kinematics.core.errors import ExcitationError
 from tracked_kinematics.core.evaluate import (
-    Candidate, cut, Data, encoder_horizons, estimate_delay, evaluate, replay,
-    shift_ground_truth)
-from tracked_kinematics.core.identify import Recording
+    Candidate, cut, Data, encoder_horizons, evaluate, replay)
+from tracked_kinematics.core.identify import correct_ground_truth, Recording
 from tracked_kinematics.core.kinematics import IcrParams
 from tracked_kinematics.core.models import ConstantIcr
 
@@ -26,27 +24,6 @@ def _late(rec, delay, noise=0.0, seed=0):
     return Recording(rec.enc_t, rec.left, rec.right, rec.gt_t + delay,
                      rec.gt_x + rng.normal(0.0, noise, len(rec.gt_t)),
                      rec.gt_y + rng.normal(0.0, noise, len(rec.gt_t)), rec.gt_yaw)
-
-
-@pytest.mark.parametrize('delay', [0.0, 0.15, 0.3])
-def test_injected_delay_is_recovered_within_an_encoder_period(recording, delay):
-    found = estimate_delay(_late(recording, delay, noise=0.01), B)
-    assert found.seconds == pytest.approx(delay, abs=0.02)
-    assert 0.0 < found.std < 0.02 and found.blocks >= 6
-
-
-def test_shifting_the_stamps_back_undoes_the_delay(recording):
-    late = _late(recording, 0.2)
-    np.testing.assert_allclose(shift_ground_truth(late, 0.2).gt_t, recording.gt_t)
-    assert shift_ground_truth(late, 0.0) is late
-
-
-def test_no_motion_no_delay():
-    t = np.arange(0.0, 60.0, 0.02)
-    still = Recording(t, np.zeros_like(t), np.zeros_like(t), t[::5], np.zeros(len(t[::5])),
-                      np.zeros(len(t[::5])), np.zeros(len(t[::5])), name='parked')
-    with pytest.raises(ExcitationError, match='parked: too little turning or change of speed'):
-        estimate_delay(still, B)
 
 
 def _horizon_mean(rec, params_at):
@@ -69,7 +46,7 @@ def test_replay_learns_from_a_wrong_start_and_is_not_worse_than_a_right_one(reco
 
 def test_replay_takes_the_delay_off_the_pose_stamps(recording):
     late = _late(recording, 0.25, noise=0.01, seed=2)
-    fixed = replay(shift_ground_truth(late, 0.25), IcrParams.ideal(B), delay=0.25)
+    fixed = replay(correct_ground_truth([late], 0.25)[0], IcrParams.ideal(B), delay=0.25)
     naive = replay(late, IcrParams.ideal(B), delay=0.0)
     truth = np.array([TRUE.y_left, TRUE.y_right, TRUE.x])
     assert np.abs(fixed.icr[-1] - truth).max() < 0.5 * np.abs(naive.icr[-1] - truth).max()
