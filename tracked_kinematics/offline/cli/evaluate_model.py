@@ -110,6 +110,12 @@ class _Model:
     def __init__(self, path: str):
         self.path = path
         self.values = read_params_file(path)
+        # INTERFACE.md: the tread ICRs default to +-track_width/2 (ideal drive for the file's
+        # width) unless set.
+        width = self.values.get('track_width')
+        if isinstance(width, (int, float)) and not isinstance(width, bool):
+            self.values.setdefault('icr.y_left', 0.5 * width)
+            self.values.setdefault('icr.y_right', -0.5 * width)
         try:
             self.icr = icr_from_values(self.values)
             self.drivetrain = drivetrain_from_values(self.values)
