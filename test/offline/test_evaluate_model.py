@@ -184,7 +184,7 @@ def _still_bag(path, seconds=20.0):
     (['--plot', 'x.nope'], 2, "--plot: format 'nope' is not supported"),
     (['--command-source', 'cmd_vel'], 2, 'no topic /cmd_vel for the commands'),
     (['--ground-truth-delay', 'soon'], 2,
-     "argument --ground-truth-delay: expected a number, got 'soon'"),
+     "argument --ground-truth-delay: expected 'auto' or seconds, got 'soon'"),
 ])
 def test_bad_options_are_one_line(sim, tmp_path, capsys, extra, status, pattern):
     argv = [sim['bag'], '--ground-truth-topic', GT, '--params', sim['truth'],
@@ -370,3 +370,17 @@ def test_tum_export_holds_every_piece_for_evo(sim, tmp_path, capsys):
     status, _, err = run(argv + ['--force'], capsys)
     assert status == 2
     assert_one_line(err, f'--tum {tum} exists; choose a new path')
+
+
+def test_a_file_with_only_the_track_width_is_ideal_drive_of_that_width(sim, tmp_path, capsys):
+    # INTERFACE.md: the tread ICRs default to +-track_width/2 unless set.
+    wide = tmp_path / 'wide.yaml'
+    wide.write_text('track_width: 0.5\nsprocket_radius: 0.1\n')
+    status, _, err = run([sim['bag'], '--ground-truth-topic', GT, '--params', wide,
+                          '--report', tmp_path / 'r.json'], capsys)
+    assert status == 0, err
+    report = json.loads((tmp_path / 'r.json').read_text())
+    assert report['models']['wide']['icr']['y_left'] == 0.25
+    assert report['models']['wide']['icr']['y_right'] == -0.25
+    assert report['settings']['track_width'] == 0.5
+    assert report['models']['ideal']['icr']['y_left'] == 0.25

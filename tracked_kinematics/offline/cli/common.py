@@ -136,14 +136,17 @@ def encoder_source(args, radius: float) -> EncoderSource:
         ticks_per_revolution=args.ticks_per_revolution)
 
 
-def ground_truth_delay(text: str) -> float | None:
-    """Argument type of ``--ground-truth-delay``: ``auto`` (None) or a number of seconds."""
+def ground_truth_delay(text: str):
+    """Argument type of ``--ground-truth-delay``: ``'auto'`` or a finite number of seconds."""
     if text == 'auto':
-        return None
-    value = _number(text)
-    if not math.isfinite(value):
-        raise argparse.ArgumentTypeError(f'must be auto or a finite number of seconds, got '
-                                         f'{text}')
+        return text
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected 'auto' or seconds, got {text!r}") from None
+    if not math.isfinite(value) or abs(value) > 10.0:
+        raise argparse.ArgumentTypeError(f'must be a finite number of seconds within +-10, '
+                                         f'got {text}')
     return value
 
 
@@ -170,8 +173,9 @@ def add_ground_truth_arguments(group, delay: bool = True) -> None:
     if delay:
         group.add_argument('--ground-truth-delay', type=ground_truth_delay, default='auto',
                            metavar='auto|SECONDS',
-                           help='delay of the ground-truth stamps behind the encoders: auto '
-                           'estimates it per bag; a number fixes it; 0 turns it off')
+                           help='delay of the ground-truth stamps behind the encoders (a pose '
+                           'stamped on receipt): auto estimates it from the data, a number '
+                           'fixes it, 0 turns the correction off')
 
 
 def ground_truth_source(args) -> GroundTruthSource:

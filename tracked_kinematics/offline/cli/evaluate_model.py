@@ -174,7 +174,7 @@ def _delays(args, recordings):
     estimate_delays`), or each bag's own when every bag determines its own; when the data do
     not time the ground truth, none is removed and the account says why.
     """
-    if args.ground_truth_delay is not None:
+    if args.ground_truth_delay != 'auto':
         given = ident.fixed_delay(args.ground_truth_delay)
         return [given] * len(recordings), f'{given.delay:g} s (given)'
     pooled, each = ident.estimate_delays(recordings)
