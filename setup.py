@@ -39,6 +39,7 @@ setup(
             'plan_trajectory = tracked_kinematics.offline.cli.plan_trajectory:main',
             'convert_diff_drive_params ='
             ' tracked_kinematics.offline.cli.convert_diff_drive_params:main',
+            'evaluate_model = tracked_kinematics.offline.cli.evaluate_model:main',
         ],
     },
 )

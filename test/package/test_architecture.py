@@ -10,7 +10,8 @@ ROS_LIBS = ('rclpy', 'rosbags', 'nav_msgs', 'geometry_msgs', 'sensor_msgs', 'std
             'std_srvs', 'tf2_ros', 'tf2_msgs', 'builtin_interfaces', 'rcl_interfaces',
             'launch', 'launch_ros')
 PKG = 'tracked_kinematics'
-CORE_JOBS = tuple(f'{PKG}.core.{job}' for job in ('identify', 'estimate', 'sim', 'plan'))
+CORE_JOBS = tuple(f'{PKG}.core.{job}'
+                  for job in ('identify', 'estimate', 'sim', 'plan', 'evaluate'))
 # Per ring (a folder of the package, most specific first): module prefixes it must never
 # import. A module obeys every rule whose folder contains it.
 FORBIDDEN = {
@@ -20,10 +21,15 @@ FORBIDDEN = {
     'core/.': CORE_JOBS,
     # Identification fits models to data; it never needs the simulator, the planner or the
     # estimator (the estimator builds on identification, not the other way round).
-    'core/identify': (f'{PKG}.core.sim', f'{PKG}.core.plan', f'{PKG}.core.estimate'),
-    'core/sim': (f'{PKG}.core.identify', f'{PKG}.core.plan', f'{PKG}.core.estimate'),
-    'core/plan': (f'{PKG}.core.identify', f'{PKG}.core.sim', f'{PKG}.core.estimate'),
-    'core/estimate': (f'{PKG}.core.sim', f'{PKG}.core.plan'),
+    'core/identify': (f'{PKG}.core.sim', f'{PKG}.core.plan', f'{PKG}.core.estimate',
+                      f'{PKG}.core.evaluate'),
+    'core/sim': (f'{PKG}.core.identify', f'{PKG}.core.plan', f'{PKG}.core.estimate',
+                 f'{PKG}.core.evaluate'),
+    'core/plan': (f'{PKG}.core.identify', f'{PKG}.core.sim', f'{PKG}.core.estimate',
+                  f'{PKG}.core.evaluate'),
+    'core/estimate': (f'{PKG}.core.sim', f'{PKG}.core.plan', f'{PKG}.core.evaluate'),
+    # Evaluation scores what identification and estimation produce, on recorded data.
+    'core/evaluate': (f'{PKG}.core.sim', f'{PKG}.core.plan'),
     'params': ROS_LIBS + (f'{PKG}.offline', f'{PKG}.ros', 'matplotlib'),
     'offline': ('rclpy', f'{PKG}.ros', 'tf2_ros'),
     # Reading and writing bags is a library the command lines use, never the reverse.

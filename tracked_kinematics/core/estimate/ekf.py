@@ -25,9 +25,32 @@ keep bad pose data out of the state:
 * windows with an encoder gap are refused (their travel is unknown);
 * an innovation whose normalised squared size exceeds the chi-square gate is refused as a
   jump. After ``max_outliers`` consecutive refusals the filter takes the pose as a new
-  anchor and widens its covariance: either the pose source jumped for good (re-localised)
-  or the terrain changed faster than the process noise allows, and in both cases the next
-  windows must be heard.
+  anchor: the pose source jumped for good (re-localised), or the terrain changed faster than
+  the process noise allows. Only when the windows from the new anchor are refused again
+  (the data keep disagreeing, so it is the terrain) does it widen its covariance.
+
+What the paper does not need but real pose sources do (lidar ICP at 5-10 Hz, stamped on
+receipt, with re-localisation jumps; docs/nodes/icr_estimator.md has the figures), each
+reconstructed by us, not from the paper:
+
+* ``pose_delay``: the pose stamps are that many seconds behind the encoders (a pose source
+  stamped on receipt); the filter compares each pose with the encoder travel of the window
+  that really ended then.
+* ``adaptive_noise``: the model error per metre travelled (``travel_std``) is estimated from
+  the innovations of recent moving windows, and raised (never lowered) to what they show.
+  A constant-ICR model on grass misses 10-30 % of a metre where the default assumes 1 %;
+  with the default the filter takes every slip fluctuation for a change of terrain and
+  refuses good windows as jumps. Innovation-based adaptive estimation (Mehra 1970) in a
+  robust form: the median of the per-window moment estimates.
+* ``prior_std``, ``prior_time`` (when the start values come from a terrain file, i.e. differ
+  from ideal drive): the parameters follow an Ornstein-Uhlenbeck process about the start
+  values instead of a random walk, ``dp = -(p - p0) / T dt + prior sqrt(2 / T) dW``, so
+  their spread about the identified values stays ``prior`` (``prior_std`` track widths)
+  unless the data insist, and a departure the data stop supporting fades in ``T`` s.
+* ``fallback``: the estimate the filter stands behind (:attr:`SlipEstimator.estimate`, what
+  :meth:`~SlipEstimator.icr` and :meth:`~SlipEstimator.pose_now` use) is the start values
+  until the filter's own a-priori predictions of the last ``fallback_span`` seconds of
+  windows beat theirs by ``fallback_margin``; then it is the filter's state.
 
 Nothing here imports rclpy; the ``icr_estimator`` node is a thin adapter.
 """
@@ -36,6 +59,7 @@ from __future__ import annotations
 
 from collections import deque
 from dataclasses import dataclass
+import functools
 import math
 
 import numpy as np
@@ -86,6 +110,32 @@ class EstimatorConfig:
         covariance to ``initial_std``.
     min_coverage : float
         Fraction of a window the encoder steps must cover; less is an encoder gap.
+    pose_delay : float
+        Delay of the pose stamps behind the encoders, s (a pose source stamped on receipt:
+        ``identify_icr``'s ``ground_truth_delay``); subtracted from every pose stamp.
+    adaptive_noise : bool
+        Raise ``travel_std`` to what the innovations of the last ``noise_memory`` moving
+        windows show (never below the configured value).
+    noise_memory : int
+        Moving windows (those whose tracks travel at least a tenth of the track width) the
+        adaptive noise is estimated from; it starts after 20.
+    prior_std : float
+        Spread of the parameters about start values taken from a terrain file, as a fraction
+        of the track width (parameter units per metre of track width); ``inf`` for the
+        paper's random walk. Not used when the filter starts from ideal drive.
+    prior_time : float
+        Memory of the prior, s: a departure from the start values that the data stop
+        supporting fades in this time. With the prior, the parameters follow this
+        Ornstein-Uhlenbeck process instead of the random walk of ``process_std``.
+    fallback : bool
+        Stand behind start values taken from a terrain file until the filter predicts the
+        recent windows better (see :attr:`SlipEstimator.estimate`); not used when the
+        filter starts from ideal drive.
+    fallback_span : float
+        Seconds of recent windows the fallback compares, s.
+    fallback_margin : float
+        Fraction by which the filter's recent prediction cost must be below that of the
+        start values for its state to be used (0.1: 10 % lower).
 
     """
 
@@ -100,11 +150,32 @@ class EstimatorConfig:
     gate_probability: float = 0.9999
     max_outliers: int = 3
     min_coverage: float = 0.9
+    pose_delay: float = 0.0
+    adaptive_noise: bool = True
+    noise_memory: int = 300
+    prior_std: float = 0.05
+    prior_time: float = 5.0
+    fallback: bool = True
+    fallback_span: float = 30.0
+    fallback_margin: float = 0.1
 
     def __post_init__(self):
-        require_numbers(self, positive=('pose_std_xy', 'pose_std_yaw', 'initial_std', 'window',
-                                        'max_window', 'min_coverage'),
-                        non_negative=('travel_std', 'process_std', 'min_window'))
+        require_numbers(self, finite=('pose_delay',),
+                        positive=('pose_std_xy', 'pose_std_yaw', 'initial_std', 'window',
+                                  'max_window', 'min_coverage', 'prior_std', 'prior_time',
+                                  'fallback_span'),
+                        non_negative=('travel_std', 'process_std', 'min_window',
+                                      'fallback_margin'),
+                        unbounded=('prior_std',))
+        for name in ('adaptive_noise', 'fallback'):
+            if not isinstance(getattr(self, name), bool):
+                raise ValueError(f'{name} must be true or false, got {getattr(self, name)!r}')
+        if not isinstance(self.noise_memory, int) or isinstance(self.noise_memory, bool) \
+                or self.noise_memory < 20:
+            raise ValueError(f'noise_memory must be an integer >= 20, got '
+                             f'{self.noise_memory!r}')
+        if self.fallback_margin >= 1.0:
+            raise ValueError(f'fallback_margin must be in [0, 1), got {self.fallback_margin!r}')
         if not 0.0 < self.gate_probability < 1.0:
             raise ValueError(f'gate_probability must be in (0, 1), got {self.gate_probability!r}')
         if not self.min_window <= self.window < self.max_window:
@@ -148,6 +219,12 @@ class Outcome:
     def refused(self) -> bool:
         """Tell whether the measurement was judged bad (it did not touch the state)."""
         return self.status in ('non_finite', 'stale', 'gap', 'outlier', 'invalid')
+
+
+@functools.lru_cache(maxsize=16)
+def _gate(probability: float, dof: int) -> float:
+    """Chi-square quantile of the innovation gate (cached: scipy's is slow per call)."""
+    return float(chi2.ppf(probability, dof))
 
 
 def model_icr(model: MotionModel, p, v_left: float, v_right: float):
@@ -216,9 +293,20 @@ class SlipEstimator:
     model : MotionModel
         The slip model whose parameters are estimated (the paper: ``AdaptiveIcr``).
     p0 : array_like, optional
-        Initial parameters; default ``model.initial()`` (ideal differential drive).
+        Initial parameters; default ``model.initial()`` (ideal differential drive). Start
+        values other than ideal drive are taken as identified (a terrain file): the prior
+        and the fallback of the configuration hold them.
     config : EstimatorConfig, optional
         Noise model, windows and gates.
+
+    Attributes
+    ----------
+    p, P : ndarray
+        The filter's state and its covariance.
+    updates : int
+        Windows that updated the state.
+    noise_scale : float
+        Factor (>= 1) on the configured ``travel_std`` the adaptive noise applies.
 
     Notes
     -----
@@ -244,8 +332,13 @@ class SlipEstimator:
         self._pending = None      # (t, pose, heading_only)
         self._t_state = None      # time of the covariance
         self._outliers = 0
+        self._re_anchored = False  # re-anchored after refusals, no update since
         self.updates = 0
         self.last_speeds = (0.0, 0.0)
+        self.noise_scale = 1.0
+        self._excess: deque = deque(maxlen=self.config.noise_memory)
+        self._costs: deque = deque()   # (t, filter cost, start-value cost) of recent windows
+        self._trusted = False          # the filter earned its place over the start values
 
     # --- inputs -------------------------------------------------------------------------
 
@@ -292,12 +385,16 @@ class SlipEstimator:
         """Use new noise, window and gate settings from the next measurement on."""
         self.config = config
         self._log.span = config.max_window + 1.0
+        self._excess = deque(self._excess, maxlen=config.noise_memory)
 
     def set_initial(self, p0) -> None:
         """Set the parameters :meth:`reset` returns to (the estimate itself is kept)."""
         p0 = np.asarray(p0, dtype=float)
         if p0.shape != self._p0.shape or not np.all(np.isfinite(p0)):
             raise ValueError(f'p0 must be {len(self._p0)} finite numbers, got {p0!r}')
+        if not np.array_equal(p0, self._p0):
+            self._costs.clear()
+            self._trusted = False
         self._p0 = p0.copy()
 
     def reset(self, p0=None) -> None:
@@ -308,19 +405,41 @@ class SlipEstimator:
         self._pending = None
         self._t_state = None
         self._outliers = 0
+        self._re_anchored = False
+        self._costs.clear()
+        self._trusted = False
 
     # --- outputs ------------------------------------------------------------------------
 
+    @property
+    def informed(self) -> bool:
+        """Tell whether the start values are identified ones (not ideal drive)."""
+        return not np.allclose(self._p0, self.model.initial(), rtol=0.0, atol=1e-12)
+
+    @property
+    def estimate(self) -> np.ndarray:
+        """
+        Return the parameters the estimator stands behind: what to predict and publish with.
+
+        The filter's state :attr:`p`, except with ``fallback`` and identified start values:
+        then the start values until the filter's a-priori predictions of the windows of the
+        last ``fallback_span`` s cost ``fallback_margin`` less than theirs (costs are the
+        squared innovations over their variance, each capped at the gate), the state after.
+        """
+        if self._trusted or not self.config.fallback:
+            return self.p
+        return self._p0
+
     def icr(self, v_left: float | None = None, v_right: float | None = None):
         """
-        Tread ICRs ``(y_left, y_right, x)`` of the current estimate, m.
+        Tread ICRs ``(y_left, y_right, x)`` of the current :attr:`estimate`, m.
 
         For speed-dependent models they are evaluated at the given track speeds (default:
         the latest encoder speeds).
         """
         if v_left is None:
             v_left, v_right = self.last_speeds
-        return model_icr(self.model, self.p, v_left, v_right)
+        return model_icr(self.model, self.estimate, v_left, v_right)
 
     def icr_params(self, v_left=None, v_right=None, scales=(1.0, 1.0)) -> IcrParams | None:
         """Return the estimate as terrain parameters, or None while it is not physical."""
@@ -338,8 +457,8 @@ class SlipEstimator:
         -------
         tuple or None
             ``(t, x, y, yaw)`` at the time of the latest encoder step, in the pose source's
-            frame, dead-reckoned with the current estimate; None before the first full pose
-            (or with heading-only measurements).
+            frame, dead-reckoned with the current :attr:`estimate`; None before the first
+            full pose (or with heading-only measurements).
 
         """
         if not self._history or self._heading_only:
@@ -351,7 +470,8 @@ class SlipEstimator:
         d_left, d_right, dt, _ = self._log.window(t_a, t_b)
         if len(dt) == 0:
             return t_a, x, y, yaw
-        xs, ys, yaws = self.model.integrate(self.p, d_left, d_right, dt, pose0=(x, y, yaw))
+        xs, ys, yaws = self.model.integrate(self.estimate, d_left, d_right, dt,
+                                            pose0=(x, y, yaw))
         return t_b, float(xs[-1]), float(ys[-1]), float(yaws[-1])
 
     @property
@@ -366,6 +486,7 @@ class SlipEstimator:
         measured = pose[2:] if heading_only else pose
         if not math.isfinite(t) or not all(math.isfinite(v) for v in measured):
             return Outcome('non_finite', f'non-finite pose measurement {pose!r} at t={t!r}')
+        t -= self.config.pose_delay
         if self._history and t <= self._history[-1][0]:
             if t >= self._history[-1][0] - self.config.max_window:
                 return Outcome('stale', f'pose stamp {t:.3f} s is not after the previous '
@@ -421,32 +542,45 @@ class SlipEstimator:
             return Outcome('gap', f'encoder data cover {100 * covered:.0f} % of the '
                                   f'{t - t_a:.2f} s window: window restarts here')
         z = self._measurement(anchor, pose, heading_only)
-        h, H = self._predict(d_left, d_right, dt)
-        R = self._noise(d_left, d_right, z)
-        rows = [2] if heading_only else [0, 1, 2]
-        h, H, R, z = h[rows], H[rows], R[np.ix_(rows, rows)], z[rows]
+        # Time update, eq. (20): random walk since the last update (or the prior's pull).
+        p, P = self._time_update(0.0 if self._t_state is None else max(0.0, t - self._t_state))
+        h, H = self._predict(d_left, d_right, dt, p)
+        travel = 0.5 * float(np.sum(np.abs(d_left) + np.abs(d_right)))
+        fixed, per_travel = self._noise_parts(travel, z)
         innovation = z - h
         innovation[-1] = wrap_angle(innovation[-1])
-        # Time update, eq. (20): random walk since the last update.
-        P = self.P + np.eye(len(self.p)) * cfg.process_std ** 2 * (
-            0.0 if self._t_state is None else max(0.0, t - self._t_state))
+        if not heading_only:
+            self._learn_noise(innovation, np.diag(H @ P @ H.T) + fixed, per_travel, travel)
+        R = np.diag(fixed + self.noise_scale * per_travel)
+        rows = [2] if heading_only else [0, 1, 2]
+        H, R, innovation = H[rows], R[np.ix_(rows, rows)], innovation[rows]
         S = H @ P @ H.T + R
         nis = float(innovation @ np.linalg.solve(S, innovation))
-        if nis > chi2.ppf(cfg.gate_probability, len(rows)):
+        gate = _gate(cfg.gate_probability, len(rows))
+        self._score(t, gate, d_left, d_right, dt, z, innovation, R, rows)
+        if nis > gate:
             self._outliers += 1
             if self._outliers >= cfg.max_outliers:
                 self._outliers = 0
                 self._restart(t, pose)
-                self.P = P + np.eye(len(self.p)) * cfg.initial_std ** 2
-                self._t_state = t
+                self.p, self.P, self._t_state = p, P, t
+                if not self._re_anchored:
+                    # A re-localised pose source: the windows from the new anchor agree.
+                    self._re_anchored = True
+                    return Outcome('anchored', f'{cfg.max_outliers} windows in a row disagree '
+                                               'with the model: re-anchored', nis)
+                # The windows from the new anchor disagree too: the terrain changed. (With a
+                # prior, never wider than it: the terrain stays within it of the start.)
+                self._re_anchored = False
+                self.P = P + np.eye(len(p)) * min(cfg.initial_std, self._prior()) ** 2
                 return Outcome('anchored', f'{cfg.max_outliers} windows in a row disagree '
-                                           'with the model: re-anchored, covariance widened',
-                               nis)
+                                           'with the model again: re-anchored, covariance '
+                                           'widened', nis)
             return Outcome('outlier', f'pose change disagrees with the prediction (NIS '
                                       f'{nis:.1f}): refused as a jump', nis)
         # Measurement update, eq. (21), in Joseph form (stays symmetric positive definite).
         K = np.linalg.solve(S, H @ P).T
-        p = self.p + K @ innovation
+        p = p + K @ innovation
         if not self._physical(p):
             self._restart(t, pose)
             return Outcome('invalid', 'the update would put the left ICR right of the right '
@@ -457,9 +591,71 @@ class SlipEstimator:
         self.p = p
         self._t_state = t
         self._outliers = 0
+        self._re_anchored = False
         self.updates += 1
         self._history.append((t, *pose))
         return Outcome('updated', '', nis)
+
+    def _prior(self) -> float:
+        """Spread of the parameters about the start values (inf: the paper's random walk)."""
+        if not self.informed:
+            return math.inf
+        return self.config.prior_std * self.model.track_width
+
+    def _time_update(self, elapsed: float):
+        """
+        Predicted state and covariance ``elapsed`` s after the last update.
+
+        Random walk, eq. (15): ``p`` unchanged, ``P + process_std^2 elapsed``. With a finite
+        prior (identified start values), the exact discretisation of an Ornstein-Uhlenbeck
+        process about them instead: ``p0 + a (p - p0)``, ``a^2 P + prior^2 (1 - a^2)``,
+        ``a = exp(-elapsed / prior_time)``: the parameters wander at most ``prior`` from the
+        start values and forget a departure in ``prior_time`` s.
+        """
+        n = len(self.p)
+        prior = self._prior()
+        if math.isinf(prior) or elapsed == 0.0:
+            return self.p, self.P + np.eye(n) * self.config.process_std ** 2 * elapsed
+        a = math.exp(-elapsed / self.config.prior_time)
+        return (self._p0 + a * (self.p - self._p0),
+                a * a * self.P + np.eye(n) * prior ** 2 * (1.0 - a * a))
+
+    def _learn_noise(self, innovation, known, per_travel, travel) -> None:
+        """
+        Update the adaptive factor on ``travel_std^2`` from one full-pose window.
+
+        Method of moments per window: ``E[nu nu^T] = H P H^T + R_fixed + s R_travel``, so
+        ``s_k = (|nu|^2 - tr(H P H^T + R_fixed)) / tr(R_travel)``; the factor is the median
+        of the last ``noise_memory`` moving windows (robust to the jumps among them), at
+        least 1. Windows that hardly move carry no information on a per-metre error.
+        """
+        cfg = self.config
+        unit = float(per_travel.sum())
+        if not cfg.adaptive_noise or unit <= 0.0 or travel < 0.1 * self.model.track_width:
+            return
+        self._excess.append((float(innovation @ innovation) - float(known.sum())) / unit)
+        if len(self._excess) >= 20:
+            self.noise_scale = max(1.0, float(np.median(self._excess)))
+
+    def _score(self, t, gate, d_left, d_right, dt, z, innovation, R, rows) -> None:
+        """Record what the filter and the start values predicted of this window (fallback)."""
+        cfg = self.config
+        if not cfg.fallback:
+            return
+        h0, _ = self._predict(d_left, d_right, dt, self._p0, jacobian=False)
+        nu0 = (z - h0)[rows]
+        nu0[-1] = wrap_angle(nu0[-1])
+        var = np.diag(R)
+        # The same yardstick for both: squared errors over the measurement noise (the
+        # filter's own uncertainty must not excuse its errors), capped at the gate.
+        self._costs.append((t, min(float(np.sum(innovation ** 2 / var)), gate),
+                            min(float(np.sum(nu0 ** 2 / var)), gate)))
+        while self._costs and self._costs[0][0] < t - cfg.fallback_span:
+            self._costs.popleft()
+        if len(self._costs) >= 10:
+            costs = np.array([c[1:] for c in self._costs])
+            self._trusted = bool(costs[:, 0].sum() < (1.0 - cfg.fallback_margin)
+                                 * costs[:, 1].sum())
 
     @staticmethod
     def _measurement(anchor, pose, heading_only) -> np.ndarray:
@@ -469,25 +665,35 @@ class SlipEstimator:
         dx, dy, dyaw = relative_pose(x_a, y_a, yaw_a, *pose)
         return np.array([dx, dy, dyaw], dtype=float)
 
-    def _predict(self, d_left, d_right, dt):
+    def _predict(self, d_left, d_right, dt, p=None, jacobian=True):
         """Predicted pose change of the window, eq. (14), and its Jacobian, eq. (19)."""
+        p = self.p if p is None else p
         segment = Segments(d_left, d_right, dt, np.zeros(1, np.intp), np.zeros((1, 3)),
                            np.zeros(1), np.zeros(1), np.zeros(1, np.intp))
         problem = SegmentProblem(self.model, segment)
-        h = problem.predict(self.p)[0]
+        h = problem.predict(p)[0]
+        if not jacobian:
+            return h, None
         # SegmentProblem's Jacobian is that of measured - predicted.
-        H = -problem.jacobian(self.p) if self.model.n_params else np.zeros((3, 0))
+        H = -problem.jacobian(p) if self.model.n_params else np.zeros((3, 0))
         return h, H
 
-    def _noise(self, d_left, d_right, z) -> np.ndarray:
+    def _noise_parts(self, travel, z):
+        """
+        Measurement noise of a window: the part of the pose source, the part per travel.
+
+        Both end poses' noise, the heading noise's lever on the displacement; and
+        ``travel_std`` per metre travelled, in position and (over half the track width)
+        heading. Returns the diagonals ``(fixed, per_travel)``; the noise is ``fixed +
+        noise_scale * per_travel``.
+        """
         cfg = self.config
-        travel = 0.5 * float(np.sum(np.abs(d_left) + np.abs(d_right)))
         distance2 = float(z[0] ** 2 + z[1] ** 2)
-        pos = 2.0 * cfg.pose_std_xy ** 2 + cfg.pose_std_yaw ** 2 * distance2 \
-            + (cfg.travel_std * travel) ** 2
-        yaw = 2.0 * cfg.pose_std_yaw ** 2 \
-            + 2.0 * (cfg.travel_std * travel / self.model.track_width) ** 2
-        return np.diag([pos, pos, yaw])
+        pos = 2.0 * cfg.pose_std_xy ** 2 + cfg.pose_std_yaw ** 2 * distance2
+        yaw = 2.0 * cfg.pose_std_yaw ** 2
+        travel2 = (cfg.travel_std * travel) ** 2
+        return (np.array([pos, pos, yaw]),
+                np.array([travel2, travel2, 2.0 * travel2 / self.model.track_width ** 2]))
 
     def _physical(self, p) -> bool:
         if not np.all(np.isfinite(p)):

@@ -7,12 +7,13 @@ The face of the sub-package: :mod:`.sources` says what to read, :mod:`.reader` r
 
 from tracked_kinematics.offline.errors import BagError
 
-from .reader import read_bag, read_bags, read_drive_bag
-from .sources import (EncoderSource, GROUND_TRUTH_TYPES, GroundTruthSource, SETPOINT_TOPICS,
-                      TICK_BITS)
+from .reader import read_bag, read_bags, read_drive_bag, read_evaluation_bag
+from .sources import (CMD_VEL_TOPIC, CMD_VEL_TYPES, COMMAND_KINDS, CommandSource, EncoderSource,
+                      GROUND_TRUTH_TYPES, GroundTruthSource, SETPOINT_TOPICS, TICK_BITS)
 from .writer import BagWriter, STORAGES
 
 __all__ = [
-    'BagError', 'BagWriter', 'EncoderSource', 'GROUND_TRUTH_TYPES', 'GroundTruthSource',
-    'SETPOINT_TOPICS', 'STORAGES', 'TICK_BITS', 'read_bag', 'read_bags', 'read_drive_bag',
+    'BagError', 'BagWriter', 'CMD_VEL_TOPIC', 'CMD_VEL_TYPES', 'COMMAND_KINDS', 'CommandSource',
+    'EncoderSource', 'GROUND_TRUTH_TYPES', 'GroundTruthSource', 'SETPOINT_TOPICS', 'STORAGES',
+    'TICK_BITS', 'read_bag', 'read_bags', 'read_drive_bag', 'read_evaluation_bag',
 ]

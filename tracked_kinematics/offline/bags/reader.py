@@ -6,9 +6,10 @@ rosbag2 directories (sqlite3, mcap) and ROS 1 ``.bag`` files are read with
 Each message is reduced to a few numbers appended to growing numpy buffers, so memory grows
 with the number of samples (tens of bytes each), never with the size of the bag.
 
-One message loop (:func:`_read`) serves both readers: it feeds the encoder messages to
+One message loop (:func:`_read`) serves every reader: it feeds the encoder messages to
 their decoder and the others to the decoder of the second stream, the ground truth for
-:func:`read_bag`, the setpoints for :func:`read_drive_bag`. What the streams are and how
+:func:`read_bag`, the commands for :func:`read_drive_bag`, both for
+:func:`read_evaluation_bag`. What the streams are and how
 they are chosen: :mod:`.sources`.
 """
 
@@ -27,8 +28,8 @@ from tracked_kinematics.core.identify import DriveData, Recording
 from tracked_kinematics.core.integration import compose, stamp_ns, yaw_from_quaternion
 from tracked_kinematics.offline.errors import BagError
 
-from .sources import (EncoderSource, GROUND_TRUTH_TYPES, GroundTruthSource, SETPOINT_TOPICS,
-                      TICK_BITS)
+from .sources import (CMD_VEL_TYPES, CommandSource, EncoderSource, GROUND_TRUTH_TYPES,
+                      GroundTruthSource, SETPOINT_TOPICS, TICK_BITS)
 
 
 class _Columns:
@@ -434,29 +435,88 @@ class _GroundTruth:
         return t, x, y, np.angle(np.exp(1j * yaw))
 
 
-class _Setpoints:
-    """Per-side std_msgs/Float64 setpoints -> commands held until the next setpoint."""
+class _Commands:
+    """
+    Setpoints per side, or cmd_vel through the ideal inverse -> track commands held until next.
 
-    def __init__(self, topics: tuple[str, str], path: Path, ref_ns: int):
-        self.topics = topics
+    Which stream is chosen when the bag is opened (:class:`CommandSource` ``kind``); with
+    ``required`` a bag without it is an error, else it simply has no commands.
+    """
+
+    def __init__(self, source: CommandSource, path: Path, ref_ns: int, required: bool = True):
+        self.source = source
         self.path = path
         self.ref_ns = ref_ns
-        self.sides = {topic: _Columns(2) for topic in topics}
+        self.required = required
+        self.kind = None      # 'setpoints' or 'cmd_vel' once chosen
+        self.sides = {topic: _Columns(2) for topic in source.setpoint_topics}
+        self.twists = _Columns(3)
+
+    def _choose(self, reader: AnyReader) -> str | None:
+        src = self.source
+        if src.kind != 'auto':
+            return None if src.kind == 'none' else src.kind
+        present = {c.topic for c in reader.connections}
+        if all(topic in present for topic in src.setpoint_topics):
+            return 'setpoints'
+        if src.cmd_vel_topic in present:
+            return 'cmd_vel'
+        if self.required:
+            missing = next(t for t in src.setpoint_topics if t not in present)
+            raise BagError(f'{self.path}: no topic {missing} for the setpoints (nor '
+                           f'{src.cmd_vel_topic} for cmd_vel); topics present: '
+                           f'{_topic_list(reader)}')
+        return None
 
     def connections(self, reader: AnyReader):
-        """Return the bag connections of both setpoint topics (checked)."""
-        return [c for topic in self.topics
-                for c in _connections(reader, self.path, topic, ('std_msgs/msg/Float64',),
-                                      'setpoints')]
+        """Return the bag connections of the command topics (checked)."""
+        self.kind = self._choose(reader)
+        if self.kind == 'setpoints':
+            return [c for topic in self.source.setpoint_topics
+                    for c in _connections(reader, self.path, topic, ('std_msgs/msg/Float64',),
+                                          'setpoints')]
+        if self.kind == 'cmd_vel':
+            if not math.isfinite(self.source.track_width) or self.source.track_width <= 0:
+                raise BagError(f'{self.path}: the commands on {self.source.cmd_vel_topic} are '
+                               'body twists; turning them into track speeds needs the track '
+                               'width (--track-width or --params)')
+            return _connections(reader, self.path, self.source.cmd_vel_topic, CMD_VEL_TYPES,
+                                'commands')
+        return []
 
     def add(self, conn, msg, receive_ns) -> None:
-        self.sides[conn.topic].append((float(receive_ns - self.ref_ns), float(msg.data)))
+        if self.kind == 'setpoints':
+            self.sides[conn.topic].append((float(receive_ns - self.ref_ns), float(msg.data)))
+            return
+        twist = msg
+        t = float(receive_ns - self.ref_ns)
+        if conn.msgtype == 'geometry_msgs/msg/TwistStamped':
+            twist = msg.twist
+            t = _stamp(msg.header, receive_ns, self.ref_ns)
+        self.twists.append((t, float(twist.linear.x), float(twist.angular.z)))
 
     def commands(self):
-        """Return the times (ns) and the setpoints of both sides, each held until its next."""
+        """
+        Return the times (ns) and the commanded track speeds (m/s), each held until the next.
+
+        None when the bag has no commands (and none were required).
+        """
+        if self.kind == 'cmd_vel':
+            data = self.twists.array
+            data = _sort_unique(data[np.all(np.isfinite(data), axis=1)])
+            if len(data) < 2:
+                raise BagError(f'{self.path}: fewer than two finite messages on '
+                               f'{self.source.cmd_vel_topic}')
+            # The ideal inverse: V_l = v - w B / 2, V_r = v + w B / 2 (nominal track speeds).
+            half = 0.5 * self.source.track_width
+            return data[:, 0], np.column_stack([data[:, 1] - half * data[:, 2],
+                                                data[:, 1] + half * data[:, 2]])
+        if self.kind != 'setpoints':
+            return None
         # Setpoints of both sides on the union of their stamps.
-        data = [_sort_unique(self.sides[topic].array) for topic in self.topics]
-        for topic, side in zip(self.topics, data):
+        topics = self.source.setpoint_topics
+        data = [_sort_unique(self.sides[topic].array) for topic in topics]
+        for topic, side in zip(topics, data):
             if len(side) < 2:
                 raise BagError(f'{self.path}: fewer than two messages on {topic}')
         command_t = np.union1d(data[0][:, 0], data[1][:, 0])
@@ -464,6 +524,29 @@ class _Setpoints:
         held = [side[np.searchsorted(side[:, 0], command_t, side='right') - 1, 1]
                 for side in data]
         return command_t, np.column_stack(held)
+
+
+class _GroundTruthAndCommands:
+    """The ground truth and, when the bag has them, the commands: evaluate_model's stream."""
+
+    def __init__(self, sources, path: Path, ref_ns: int):
+        ground_truth, commands = sources
+        self.ground_truth = _GroundTruth(ground_truth, path, ref_ns)
+        self.commands = _Commands(commands, path, ref_ns, required=commands.kind != 'auto')
+        self._command_ids: set = set()
+
+    def connections(self, reader: AnyReader):
+        """Return the connections of both streams (checked)."""
+        ground_truth = self.ground_truth.connections(reader)
+        commands = [c for c in self.commands.connections(reader) if c not in ground_truth]
+        self._command_ids = {id(c) for c in commands}
+        return ground_truth + commands
+
+    def add(self, conn, msg, receive_ns) -> None:
+        if id(conn) in self._command_ids:
+            self.commands.add(conn, msg, receive_ns)
+        else:
+            self.ground_truth.add(conn, msg, receive_ns)
 
 
 def _guarded(path: Path, read, *args):
@@ -579,14 +662,17 @@ def read_bags(paths, encoders: EncoderSource, ground_truth: GroundTruthSource,
 
 
 def read_drive_bag(path, encoders: EncoderSource, setpoint_topics=SETPOINT_TOPICS,
-                   progress: bool = False) -> DriveData:
+                   progress: bool = False, commands: CommandSource | None = None) -> DriveData:
     """
     Read the commanded and measured track speeds of one bag, to identify its drive train.
 
     Commands: std_msgs/Float64 setpoints per side (m/s of nominal track speed, as
-    cmd_vel_translator publishes them), timed by the bag's receive time. Measured speeds:
-    the joint velocities times the sprocket radius when the JointStates carry them, else
-    the encoder travel differentiated between samples (stamped at the midpoints).
+    cmd_vel_translator publishes them), timed by the bag's receive time; or, with
+    ``commands`` of kind ``cmd_vel`` (or ``auto`` on a bag without setpoints), the body twists
+    of a geometry_msgs/Twist or TwistStamped topic through the ideal inverse ``v -/+ w B / 2``
+    (TwistStamped timed by its stamp). Measured speeds: the joint velocities times the
+    sprocket radius when the JointStates carry them, else the encoder travel differentiated
+    between samples (stamped at the midpoints).
 
     Parameters
     ----------
@@ -595,9 +681,11 @@ def read_drive_bag(path, encoders: EncoderSource, setpoint_topics=SETPOINT_TOPIC
     encoders : EncoderSource
         Where the track encoders are.
     setpoint_topics : pair of str
-        Left and right setpoint topics.
+        Left and right setpoint topics (when ``commands`` is not given).
     progress : bool
         Show a progress bar on stderr.
+    commands : CommandSource, optional
+        Where the commands are; default the setpoints on ``setpoint_topics``.
 
     Returns
     -------
@@ -610,11 +698,15 @@ def read_drive_bag(path, encoders: EncoderSource, setpoint_topics=SETPOINT_TOPIC
         For a missing or unreadable bag, a missing topic or joint, or too few messages.
 
     """
-    return _guarded(Path(path), _read_drive, encoders, tuple(setpoint_topics), progress)
+    if commands is None:
+        commands = CommandSource('setpoints', tuple(setpoint_topics))
+    elif commands.kind == 'none':
+        raise ValueError('a drive-train bag needs commands')
+    return _guarded(Path(path), _read_drive, encoders, commands, progress)
 
 
-def _read_drive(reader, path, encoders, setpoint_topics, progress) -> DriveData:
-    enc, setpoints = _read(reader, path, encoders, _Setpoints, setpoint_topics, progress)
+def _read_drive(reader, path, encoders, commands, progress) -> DriveData:
+    enc, setpoints = _read(reader, path, encoders, _Commands, commands, progress)
     speeds = enc.velocities() if encoders.mode == 'joint_states' else None
     if speeds is None:
         t, left, right = enc.travel()
@@ -623,6 +715,47 @@ def _read_drive(reader, path, encoders, setpoint_topics, progress) -> DriveData:
             raise BagError(f'{path}: fewer than two encoder samples')
         speeds = (0.5 * (t[1:] + t[:-1]), np.diff(left) / dt, np.diff(right) / dt)
     speed_t, v_left, v_right = speeds
-    command_t, commands = setpoints.commands()
-    return DriveData(command_t * 1e-9, commands, np.asarray(speed_t) * 1e-9,
+    command_t, values = setpoints.commands()
+    return DriveData(command_t * 1e-9, values, np.asarray(speed_t) * 1e-9,
                      np.column_stack([v_left, v_right]), name=str(path))
+
+
+def read_evaluation_bag(path, encoders: EncoderSource, ground_truth: GroundTruthSource,
+                        commands: CommandSource = CommandSource('auto'),
+                        progress: bool = False):
+    """
+    Read the encoders, the ground truth and, when the bag has them, the commands of one bag.
+
+    One pass over the bag (evaluate_model). Times are seconds from the first sample of the
+    encoders or the ground truth, as :func:`read_bag`.
+
+    Returns
+    -------
+    recording : Recording
+    commands : tuple or None
+        ``(t, values, kind)``: times (s), ``(N, 2)`` nominal track commands (m/s) held until
+        the next, and ``'setpoints'`` or ``'cmd_vel'``; None when the bag has none (with
+        ``commands.kind`` ``auto`` or ``none``).
+
+    Raises
+    ------
+    BagError
+        As :func:`read_bag`; for commands of a kind asked for that the bag lacks; for cmd_vel
+        without a track width.
+
+    """
+    return _guarded(Path(path), _read_evaluation, encoders, (ground_truth, commands), progress)
+
+
+def _read_evaluation(reader, path, encoders, sources, progress):
+    enc, other = _read(reader, path, encoders, _GroundTruthAndCommands, sources, progress)
+    enc_t, left, right = enc.travel()
+    gt_t, x, y, yaw = other.ground_truth.poses()
+    t0 = min(enc_t[0], gt_t[0])
+    recording = Recording((enc_t - t0) * 1e-9, left, right, (gt_t - t0) * 1e-9, x, y, yaw,
+                          name=str(path))
+    found = other.commands.commands()
+    if found is None:
+        return recording, None
+    command_t, values = found
+    return recording, ((command_t - t0) * 1e-9, values, other.commands.kind)

@@ -1,5 +1,5 @@
 """
-What to read from a bag: the track encoders, the ground-truth pose, the setpoints.
+What to read from a bag: the track encoders, the ground-truth pose, the commands.
 
 Encoders, as odometry_node takes them (its ``input_mode`` parameters, docs/parameters.md):
 
@@ -12,13 +12,16 @@ Encoders, as odometry_node takes them (its ``input_mode`` parameters, docs/param
 Headerless messages are timed by the bag's receive time. Ground truth: nav_msgs/Odometry,
 geometry_msgs/PoseStamped, geometry_msgs/PoseWithCovarianceStamped (``header.stamp``) or
 tf2_msgs/TFMessage (the transform parent -> child), optionally moved from a tracked body to
-base_link by a fixed offset. Setpoints: std_msgs/Float64 per side, as cmd_vel_translator
-publishes them.
+base_link by a fixed offset. Commands (:class:`CommandSource`): std_msgs/Float64 setpoints per
+side, as cmd_vel_translator publishes them, or a geometry_msgs/Twist or TwistStamped
+``cmd_vel`` turned into nominal track speeds through the ideal inverse ``v -/+ w B / 2``, as
+diff_drive_controller turns it into wheel speeds.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+import math
 
 from tracked_kinematics.params import ENCODER_INPUT_DEFAULTS, JOINT_STATES_TOPIC, SIDE_TOPICS
 
@@ -29,6 +32,12 @@ TICK_BITS = {'std_msgs/msg/Int32': 32, 'std_msgs/msg/Int64': 64}
 """Tick counter message types (``encoder_ticks``) and the width at which they wrap."""
 SETPOINT_TOPICS = ('/left_track/setpoint', '/right_track/setpoint')
 """Default left and right setpoint topics of :func:`.reader.read_drive_bag`."""
+CMD_VEL_TOPIC = '/cmd_vel'
+"""Default body-twist command topic (a base driven as diff_drive_controller is)."""
+CMD_VEL_TYPES = ('geometry_msgs/msg/Twist', 'geometry_msgs/msg/TwistStamped')
+"""Message types a cmd_vel topic may carry."""
+COMMAND_KINDS = ('auto', 'setpoints', 'cmd_vel', 'none')
+"""Command sources: per-track setpoints, cmd_vel, whichever the bag has (auto), or none."""
 
 
 @dataclass(frozen=True)
@@ -91,3 +100,34 @@ class GroundTruthSource:
     parent_frame: str = ''
     child_frame: str = 'base_link'
     offset: tuple = (0.0, 0.0, 0.0)
+
+
+@dataclass(frozen=True)
+class CommandSource:
+    """
+    Where to read the commands: per-track setpoints, or cmd_vel through the ideal inverse.
+
+    Attributes
+    ----------
+    kind : str
+        One of :data:`COMMAND_KINDS`: ``setpoints``, ``cmd_vel``, ``auto`` (the setpoints
+        when the bag has both topics, else cmd_vel when it has that one), ``none``.
+    setpoint_topics : pair of str
+        Left and right std_msgs/Float64 setpoint topics, m/s of nominal track speed.
+    cmd_vel_topic : str
+        geometry_msgs/Twist or TwistStamped topic.
+    track_width : float
+        m: the ``B`` of the ideal inverse, needed for cmd_vel (NaN: not known).
+
+    """
+
+    kind: str = 'setpoints'
+    setpoint_topics: tuple = SETPOINT_TOPICS
+    cmd_vel_topic: str = CMD_VEL_TOPIC
+    track_width: float = math.nan
+
+    def __post_init__(self):
+        if self.kind not in COMMAND_KINDS:
+            raise ValueError(f'command kind must be one of {", ".join(COMMAND_KINDS)}, got '
+                             f'{self.kind!r}')
+        object.__setattr__(self, 'setpoint_topics', tuple(self.setpoint_topics))

@@ -184,3 +184,9 @@ class BagWriter:
         vec = self._types['geometry_msgs/msg/Vector3']
         return self._types['geometry_msgs/msg/Twist'](
             linear=vec(x=float(v_x), y=float(v_y), z=0.0), angular=vec(x=0.0, y=0.0, z=float(w)))
+
+    def twist_stamped(self, stamp_ns: int, v_x: float, w: float, v_y: float = 0.0,
+                      frame_id: str = 'base_link'):
+        """geometry_msgs/TwistStamped (cmd_vel of a stamped-twist base)."""
+        return self._types['geometry_msgs/msg/TwistStamped'](
+            header=self.header(stamp_ns, frame_id), twist=self.twist(v_x, w, v_y))

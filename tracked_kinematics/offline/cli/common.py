@@ -17,7 +17,9 @@ import threading
 import numpy as np
 from tracked_kinematics.core.errors import (
     ExcitationError, IdentificationError, TrackedKinematicsError)
-from tracked_kinematics.offline.bags import EncoderSource
+from tracked_kinematics.offline.bags import (
+    CMD_VEL_TOPIC, COMMAND_KINDS, CommandSource, EncoderSource, GroundTruthSource,
+    SETPOINT_TOPICS)
 from tracked_kinematics.offline.errors import UsageError
 from tracked_kinematics.offline.outputs import Outputs
 from tracked_kinematics.params import (
@@ -52,6 +54,14 @@ def _number(text: str) -> float:
         return float(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f'expected a number, got {text!r}') from None
+
+
+def topic_pair(text: str) -> tuple[str, str]:
+    """Argument type: ``LEFT,RIGHT`` topics."""
+    topics = names(text)
+    if len(topics) != 2:
+        raise argparse.ArgumentTypeError(f'expected LEFT,RIGHT topics, got {text!r}')
+    return topics
 
 
 def positive(text: str) -> float:
@@ -237,6 +247,90 @@ def _raise_signalled(signum, frame):
     if signum == signal.SIGINT:
         raise KeyboardInterrupt
     raise Signalled(signum)
+
+
+def ground_truth_delay(text: str):
+    """Argument type of ``--ground-truth-delay``: ``'auto'`` or a finite number of seconds."""
+    if text == 'auto':
+        return text
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected 'auto' or seconds, got {text!r}") from None
+    if not math.isfinite(value) or abs(value) > 10.0:
+        raise argparse.ArgumentTypeError(f'must be a finite number of seconds within +-10, '
+                                         f'got {text}')
+    return value
+
+
+def add_ground_truth_topic_argument(parser) -> None:
+    """Add ``--ground-truth-topic`` (required)."""
+    parser.add_argument('--ground-truth-topic', required=True, metavar='TOPIC',
+                        help='ground-truth pose of the vehicle: Odometry, PoseStamped, '
+                        'PoseWithCovarianceStamped or TFMessage')
+
+
+def add_ground_truth_arguments(group, delay: bool = True) -> None:
+    """
+    Add the ground-truth options of identify_icr: frames, offset and (``delay``) its delay.
+
+    ``--ground-truth-delay``: ``auto`` (default: estimated per bag) or seconds, 0 = none.
+    """
+    group.add_argument('--ground-truth-parent-frame', default='', metavar='FRAME',
+                       help='TFMessage: fixed frame (default: the only parent of the child)')
+    group.add_argument('--ground-truth-child-frame', default='base_link', metavar='FRAME',
+                       help='TFMessage: the tracked frame')
+    group.add_argument('--ground-truth-offset', type=bounded(-10.0, 10.0), nargs=3,
+                       default=(0.0, 0.0, 0.0), metavar=('X', 'Y', 'YAW'),
+                       help='pose of the tracked body in base_link (m, m, rad; each within '
+                       '+-10)')
+    if delay:
+        group.add_argument('--ground-truth-delay', type=ground_truth_delay, default='auto',
+                           metavar='auto|SECONDS',
+                           help='delay of the ground-truth stamps behind the encoders (a pose '
+                           'stamped on receipt): auto estimates it from the data, a number '
+                           'fixes it, 0 turns the correction off')
+
+
+def ground_truth_source(args) -> GroundTruthSource:
+    """
+    Build the ground-truth description from the options of :func:`add_ground_truth_arguments`.
+
+    Raises
+    ------
+    UsageError
+        For a non-finite offset.
+
+    """
+    offset = tuple(float(v) for v in args.ground_truth_offset)
+    if not all(map(math.isfinite, offset)):
+        raise UsageError(f'--ground-truth-offset must be finite, got {offset}')
+    return GroundTruthSource(topic=args.ground_truth_topic,
+                             parent_frame=args.ground_truth_parent_frame,
+                             child_frame=args.ground_truth_child_frame, offset=offset)
+
+
+def add_command_arguments(group, kinds=COMMAND_KINDS) -> None:
+    """
+    Add the command options: ``--command-source``, ``--setpoint-topics``, cmd_vel's topic.
+
+    ``kinds``: the choices of ``--command-source`` (the first is the default).
+    """
+    group.add_argument('--command-source', choices=kinds, default=kinds[0],
+                       help='setpoints (std_msgs/Float64 per track, m/s), cmd_vel (Twist or '
+                       'TwistStamped, through the ideal inverse v -/+ w B/2 as a '
+                       'diff_drive_controller base), auto (setpoints if the bag has them, '
+                       'else cmd_vel)' + (', none' if 'none' in kinds else ''))
+    group.add_argument('--setpoint-topics', type=topic_pair, default=','.join(SETPOINT_TOPICS),
+                       metavar='LEFT,RIGHT', help='commanded track speeds, m/s')
+    group.add_argument('--cmd-vel-topic', default=CMD_VEL_TOPIC, metavar='TOPIC',
+                       help='commanded body twist (geometry_msgs/Twist or TwistStamped)')
+
+
+def command_source(args, track_width: float | None) -> CommandSource:
+    """Build the command description from the options of :func:`add_command_arguments`."""
+    return CommandSource(args.command_source, tuple(args.setpoint_topics), args.cmd_vel_topic,
+                         math.nan if track_width is None else float(track_width))
 
 
 def run_main(prog: str, run, args) -> int:

@@ -1,8 +1,9 @@
 """
 identify_drivetrain: fit the drive-train model of the tracks from recorded rosbags.
 
-Reads the commanded track speeds (the setpoints cmd_vel_translator publishes) and the
-measured ones (the track encoders) from one or more bags, fits the command delay, the
+Reads the commanded track speeds (the setpoints cmd_vel_translator publishes, or a cmd_vel
+turned into track speeds through the ideal inverse, as a diff_drive_controller base does) and
+the measured ones (the track encoders) from one or more bags, fits the command delay, the
 acceleration limit and the speed loop of Fink & Stump sec. III-B, and writes them as the
 ``drivetrain.*`` parameters of a terrain file, so that a motion prediction can start from
 the commands instead of the measured speeds.
@@ -28,11 +29,12 @@ import sys
 from tracked_kinematics.core.drivetrain import LOOP_KINDS
 from tracked_kinematics.core.errors import InvalidParameters
 from tracked_kinematics.core.identify import fit_drivetrain
-from tracked_kinematics.offline.bags import read_drive_bag, SETPOINT_TOPICS
+from tracked_kinematics.offline.bags import read_drive_bag
 from tracked_kinematics.offline.cli.common import (
-    add_bags_argument, add_encoder_arguments, add_force_argument, add_output_argument,
-    add_sprocket_radius_argument, ArgumentParser, bounded, encoder_source, HelpFormatter, names,
-    report_json, run_main, warn_unknown_terrain_keys)
+    add_bags_argument, add_command_arguments, add_encoder_arguments, add_force_argument,
+    add_output_argument, add_sprocket_radius_argument, ArgumentParser, bounded, command_source,
+    encoder_source, HelpFormatter, names, non_negative, positive, report_json, run_main,
+    warn_unknown_terrain_keys)
 from tracked_kinematics.offline.errors import UsageError
 from tracked_kinematics.offline.outputs import Outputs
 from tracked_kinematics.offline.terrain_file import terrain_text, terrain_values
@@ -54,13 +56,6 @@ EPILOG = """examples:
 """
 
 
-def _topic_pair(text: str) -> tuple[str, str]:
-    topics = names(text)
-    if len(topics) != 2:
-        raise argparse.ArgumentTypeError(f'expected LEFT,RIGHT topics, got {text!r}')
-    return topics
-
-
 def build_parser() -> argparse.ArgumentParser:
     """Return the command line of identify_drivetrain."""
     parser = ArgumentParser(
@@ -68,9 +63,11 @@ def build_parser() -> argparse.ArgumentParser:
         formatter_class=HelpFormatter)
     add_bags_argument(parser)
     add_output_argument(parser)
-    parser.add_argument('--setpoint-topics', type=_topic_pair, default=','.join(SETPOINT_TOPICS),
-                        metavar='LEFT,RIGHT',
-                        help='std_msgs/Float64 commanded track speeds, m/s')
+    cmd = parser.add_argument_group('commands')
+    add_command_arguments(cmd, kinds=('auto', 'setpoints', 'cmd_vel'))
+    cmd.add_argument('--track-width', type=positive, default=None, metavar='L',
+                     help='m, of the ideal inverse that turns cmd_vel into track speeds; '
+                     'default from --params')
     enc = parser.add_argument_group('encoders (measured speeds)')
     add_encoder_arguments(enc)
     add_sprocket_radius_argument(enc)
@@ -109,6 +106,12 @@ def _base(args):
     if check_positive(radius):
         raise UsageError(f'{args.params}: sprocket_radius must be a finite number > 0, got '
                          f'{radius!r}')
+    if args.track_width is None and 'track_width' in base_values:
+        width = base_values['track_width']
+        if check_positive(width):
+            raise UsageError(f'{args.params}: track_width must be a finite number > 0, got '
+                             f'{width!r}')
+        args.track_width = float(width)
     base = None
     if any(k.startswith('drivetrain.') for k in base_values):
         try:
@@ -199,7 +202,8 @@ def _identify(args, out, outputs) -> None:
     base_values, radius, base = _base(args)
     encoders = encoder_source(args, radius)
     progress = sys.stderr.isatty()
-    recordings = [read_drive_bag(b, encoders, args.setpoint_topics, progress)
+    commands = command_source(args, args.track_width)
+    recordings = [read_drive_bag(b, encoders, progress=progress, commands=commands)
                   for b in args.bags]
     _check_grid(args, recordings)
     result = fit_drivetrain(recordings, loop=args.loop, dt=args.dt, max_delay=args.max_delay,

@@ -30,11 +30,12 @@ import sys
 from tracked_kinematics.core import identify as ident
 from tracked_kinematics.core.errors import InvalidParameters
 from tracked_kinematics.core.kinematics import IcrParams
-from tracked_kinematics.offline.bags import GroundTruthSource, read_bags
+from tracked_kinematics.offline.bags import read_bags
 from tracked_kinematics.offline.cli.common import (
-    add_bags_argument, add_encoder_arguments, add_force_argument, add_output_argument,
-    add_sprocket_radius_argument, ArgumentParser, bounded, encoder_source, HelpFormatter, names,
-    report_json, run_main, TRACK_WIDTH, warn, warn_unknown_terrain_keys)
+    add_bags_argument, add_encoder_arguments, add_force_argument, add_ground_truth_arguments,
+    add_ground_truth_topic_argument, add_output_argument, add_sprocket_radius_argument,
+    ArgumentParser, bounded, encoder_source, ground_truth_source, HelpFormatter, names,
+    non_negative, positive, report_json, run_main, TRACK_WIDTH, warn, warn_unknown_terrain_keys)
 from tracked_kinematics.offline.errors import UsageError
 from tracked_kinematics.offline.outputs import Outputs
 from tracked_kinematics.offline.terrain_file import terrain_text, terrain_values
@@ -61,29 +62,13 @@ def _heading_weight(text: str):
     return None if text == 'auto' else _HEADING_WEIGHT(text)
 
 
-def _delay(text: str):
-    """Argument type of --ground-truth-delay: 'auto' or a finite number of seconds."""
-    if text == 'auto':
-        return text
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected 'auto' or seconds, got {text!r}") from None
-    if not math.isfinite(value) or abs(value) > 10.0:
-        raise argparse.ArgumentTypeError(f'must be a finite number of seconds within +-10, '
-                                         f'got {text}')
-    return value
-
-
 def build_parser() -> argparse.ArgumentParser:
     """Return the command line of identify_icr."""
     parser = ArgumentParser(
         prog=PROG, description=__doc__.split('\n\n')[1], epilog=EPILOG,
         formatter_class=HelpFormatter)
     add_bags_argument(parser)
-    parser.add_argument('--ground-truth-topic', required=True, metavar='TOPIC',
-                        help='ground-truth pose of the vehicle: Odometry, PoseStamped, '
-                        'PoseWithCovarianceStamped or TFMessage')
+    add_ground_truth_topic_argument(parser)
     add_output_argument(parser)
     enc = parser.add_argument_group('encoders')
     add_encoder_arguments(enc)
@@ -94,19 +79,7 @@ def build_parser() -> argparse.ArgumentParser:
     veh.add_argument('--params', default=None, metavar='BASE.yaml',
                      help='terrain file to start from: vehicle values, starting point, fixed '
                      'scales of --model icr; its other parameters are copied to the output')
-    gt = parser.add_argument_group('ground truth')
-    gt.add_argument('--ground-truth-parent-frame', default='', metavar='FRAME',
-                    help='TFMessage: fixed frame (default: the only parent of the child)')
-    gt.add_argument('--ground-truth-child-frame', default='base_link', metavar='FRAME',
-                    help='TFMessage: the tracked frame')
-    gt.add_argument('--ground-truth-offset', type=bounded(-10.0, 10.0), nargs=3,
-                    default=(0.0, 0.0, 0.0), metavar=('X', 'Y', 'YAW'),
-                    help='pose of the tracked body in base_link (m, m, rad; each within '
-                    '+-10)')
-    gt.add_argument('--ground-truth-delay', type=_delay, default='auto', metavar='auto|SECONDS',
-                    help='delay of the ground-truth stamps behind the encoders (a pose '
-                    'stamped on receipt): auto estimates it from the data, a number fixes '
-                    'it, 0 turns the correction off')
+    add_ground_truth_arguments(parser.add_argument_group('ground truth'))
     fit = parser.add_argument_group('fit')
     fit.add_argument('--model', choices=MODEL_CHOICES, default='icr_scales',
                      help='model to fit and write')
@@ -190,11 +163,7 @@ def _vehicle(args):
 
 
 def _sources(args, radius):
-    encoders = encoder_source(args, radius)
-    ground_truth = GroundTruthSource(
-        topic=args.ground_truth_topic, parent_frame=args.ground_truth_parent_frame,
-        child_frame=args.ground_truth_child_frame, offset=tuple(args.ground_truth_offset))
-    return encoders, ground_truth
+    return encoder_source(args, radius), ground_truth_source(args)
 
 
 # Outputs ---------------------------------------------------------------------------------

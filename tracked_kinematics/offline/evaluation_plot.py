@@ -1,0 +1,121 @@
+"""
+The picture of evaluate_model: error against window length, and a few paths.
+
+Drawn as :mod:`tracked_kinematics.offline.plots` draws: a plain matplotlib Figure on its own
+Agg canvas, no pyplot.
+"""
+
+from __future__ import annotations
+
+import math
+
+from matplotlib.backend_bases import get_registered_canvas_class
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+import numpy as np
+from tracked_kinematics.core import evaluate as ev
+from tracked_kinematics.offline.errors import UsageError
+
+
+def check_format(path) -> str:
+    """
+    Return the image format of a plot path (its extension), refusing one matplotlib lacks.
+
+    Raises
+    ------
+    UsageError
+        Naming the supported formats.
+
+    """
+    fmt = str(path).rsplit('.', 1)[-1].lower() if '.' in str(path) else 'png'
+    if get_registered_canvas_class(fmt) is None:
+        supported = FigureCanvasAgg(Figure()).get_supported_filetypes()
+        raise UsageError(f'--plot: format {fmt!r} is not supported (supported formats: '
+                         f'{", ".join(sorted(supported))})')
+    return fmt
+
+
+def error_curves(evaluation, names, lengths):
+    """Mean final position (m) and heading (rad) errors of each model at each window length."""
+    curves = {}
+    for name in names:
+        position, heading = [], []
+        for length in lengths:
+            p_all, h_all = [], []
+            for piece, path in zip(evaluation.pieces, evaluation.paths[name]):
+                i, j = ev.window_pairs(piece.t, length)
+                p, h = ev.relative_errors(path, piece.truth, i, j)
+                p_all.append(p)
+                h_all.append(h)
+            p_all = np.concatenate(p_all) if p_all else np.zeros(0)
+            h_all = np.concatenate(h_all) if h_all else np.zeros(0)
+            position.append(p_all.mean() if len(p_all) else math.nan)
+            heading.append(h_all.mean() if len(h_all) else math.nan)
+        curves[name] = (np.array(position), np.array(heading))
+    return curves
+
+
+def plot_evaluation(path, evaluation, names, windows=(5.0, 10.0), fmt: str = 'png',
+                    paths: int = 3, dpi: int = 110) -> None:
+    """
+    Draw the mean final errors against window length and the longest pieces' paths.
+
+    Parameters
+    ----------
+    path : path-like
+        Image to write.
+    evaluation : Evaluation
+        The scores (:func:`tracked_kinematics.core.evaluate.evaluate`).
+    names : sequence of str
+        Models to draw, in order.
+    windows : sequence of float
+        The windows of the report, marked on the curves (which run to three times the
+        longest, or the longest piece).
+    fmt : str
+        Image format (the target's extension: the path may be a temporary name).
+    paths : int
+        How many pieces to draw (the longest ones).
+    dpi : int
+        Resolution.
+
+    """
+    longest = max((p.duration for p in evaluation.pieces), default=0.0)
+    top = max(min(longest, 3.0 * max(windows)), 1.0)
+    lengths = np.unique(np.concatenate([np.linspace(top / 15, top, 15),
+                                        [w for w in windows if w <= longest]]))
+    curves = error_curves(evaluation, names, lengths)
+    order = sorted(range(len(evaluation.pieces)), key=lambda k: -evaluation.pieces[k].duration)
+    shown = order[:paths]
+    columns = max(2, len(shown))
+    fig = Figure(figsize=(5.0 * columns, 9.0))
+    FigureCanvasAgg(fig)
+    grid = fig.add_gridspec(2, columns)
+    top_axes = [fig.add_subplot(grid[0, :columns // 2]), fig.add_subplot(grid[0, columns // 2:])]
+    colours = {name: f'C{k}' for k, name in enumerate(names)}
+    for name in names:
+        position, heading = curves[name]
+        top_axes[0].plot(lengths, position, '.-', color=colours[name], label=name)
+        top_axes[1].plot(lengths, np.degrees(heading), '.-', color=colours[name], label=name)
+    top_axes[0].set(xlabel='window (s)', ylabel='mean final position error (m)',
+                    title='odometry: final position error against window length')
+    top_axes[1].set(xlabel='window (s)', ylabel='mean final heading error (deg)',
+                    title='odometry: final heading error against window length')
+    for ax in top_axes:
+        for w in windows:
+            ax.axvline(w, color='grey', lw=0.8, ls=':')
+        ax.grid(True, alpha=0.3)
+        ax.legend(fontsize=8)
+    for column, k in enumerate(shown):
+        ax = fig.add_subplot(grid[1, column])
+        piece = evaluation.pieces[k]
+        ax.plot(piece.truth[:, 0], piece.truth[:, 1], color='black', lw=2.0,
+                label='ground truth')
+        for name in names:
+            odometry = evaluation.paths[name][k]
+            ax.plot(odometry[:, 0], odometry[:, 1], color=colours[name], lw=1.0, label=name)
+        ax.set(xlabel='x (m)', ylabel='y (m)', aspect='equal', adjustable='datalim',
+               title=f'bag {piece.recording + 1}, {piece.t[0]:.0f}-{piece.t[-1]:.0f} s')
+        ax.grid(True, alpha=0.3)
+        ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, format=fmt, dpi=dpi)
