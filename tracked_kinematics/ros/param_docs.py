@@ -50,7 +50,8 @@ SHARED = (
      'offline tools take the same choices as `--encoder-input` and flags.',
      'Checked together: no joint in both `left_joints` and `right_joints`.'),
     ('Command limits', 'COMMAND_LIMIT_PARAMS', COMMAND_LIMIT_PARAMS,
-     'Limits of [`cmd_vel_translator`](nodes/cmd_vel_translator.md#limits-and-the-vehicle-envelope), which '
+     'Limits of [`cmd_vel_translator`]'
+     '(nodes/cmd_vel_translator.md#limits-and-the-vehicle-envelope), which '
      "`plan_trajectory` also reads from a terrain file. The names are diff_drive_controller's; "
      'a velocity limit scales `v_x` and `w` together, so the commanded curvature is kept.',
      ''),

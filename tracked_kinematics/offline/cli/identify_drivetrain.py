@@ -33,8 +33,7 @@ from tracked_kinematics.offline.bags import read_drive_bag
 from tracked_kinematics.offline.cli.common import (
     add_bags_argument, add_command_arguments, add_encoder_arguments, add_force_argument,
     add_output_argument, add_sprocket_radius_argument, ArgumentParser, bounded, command_source,
-    encoder_source, HelpFormatter, names, non_negative, positive, report_json, run_main,
-    warn_unknown_terrain_keys)
+    encoder_source, HelpFormatter, positive, report_json, run_main, warn_unknown_terrain_keys)
 from tracked_kinematics.offline.errors import UsageError
 from tracked_kinematics.offline.outputs import Outputs
 from tracked_kinematics.offline.terrain_file import terrain_text, terrain_values

@@ -35,7 +35,7 @@ from tracked_kinematics.offline.cli.common import (
     add_bags_argument, add_encoder_arguments, add_force_argument, add_ground_truth_arguments,
     add_ground_truth_topic_argument, add_output_argument, add_sprocket_radius_argument,
     ArgumentParser, bounded, encoder_source, ground_truth_source, HelpFormatter, names,
-    non_negative, positive, report_json, run_main, TRACK_WIDTH, warn, warn_unknown_terrain_keys)
+    report_json, run_main, TRACK_WIDTH, warn, warn_unknown_terrain_keys)
 from tracked_kinematics.offline.errors import UsageError
 from tracked_kinematics.offline.outputs import Outputs
 from tracked_kinematics.offline.terrain_file import terrain_text, terrain_values
