@@ -114,6 +114,9 @@ def test_unwrap_if_wrapped_reads_continuous_joints():
     assert unwrap_if_wrapped(cumulative) is cumulative
     quiet = np.linspace(-1.0, 1.0, 50)  # within [-pi, pi], no jump: nothing to unwrap
     assert unwrap_if_wrapped(quiet) is quiet
+    # A fast wheel's real step of 3.2 rad (more than pi, less than 1.5 pi) is no wrap.
+    fast = np.array([-1.6, 1.6, -1.6])
+    assert unwrap_if_wrapped(fast) is fast
 
 
 @pytest.mark.parametrize('direction', [1.0, -1.0])

@@ -140,15 +140,19 @@ def travel_from_ticks(tick_increments, ticks_per_revolution: float, radius: floa
 # Joint angles a driver reports wrapped into [-pi, pi] (a continuous joint) are recognised by
 # staying within this bound; cumulative ones leave it as soon as the joint turns half a turn.
 WRAP_LIMIT = math.pi + 1e-6
+# A jump of a wrapped angle across +-pi is "about 2 pi": larger than this in magnitude. A
+# step between pi and this is a fast wheel (a small sprocket at a low encoder rate turns more
+# than half a turn per sample), not a wrap; diff_drive_controller integrates it as it is.
+WRAP_JUMP = 1.5 * math.pi
 
 
 def unwrap_increments(increments):
     """
     Read increments of a wrapped angle as the smallest equivalent ones.
 
-    An increment larger than pi in magnitude is taken to have crossed the +-pi boundary:
-    it is replaced by the one of the same angle within [-pi, pi] (``np.unwrap``'s rule).
-    Works on scalars and arrays.
+    An increment larger than :data:`WRAP_JUMP` (1.5 pi) in magnitude is taken to have crossed
+    the +-pi boundary: it is replaced by the one of the same angle within [-pi, pi]. Smaller
+    ones are kept (a real step of a fast wheel). Works on scalars and arrays.
 
     Parameters
     ----------
@@ -161,8 +165,8 @@ def unwrap_increments(increments):
 
     """
     delta = np.asarray(increments, dtype=float)
-    out = np.where(np.abs(delta) > np.pi, np.remainder(delta + np.pi, 2.0 * np.pi) - np.pi,
-                   delta)
+    out = np.where(np.abs(delta) > WRAP_JUMP,
+                   np.remainder(delta + np.pi, 2.0 * np.pi) - np.pi, delta)
     return float(out) if out.ndim == 0 else out
 
 
@@ -172,8 +176,8 @@ def unwrap_if_wrapped(positions) -> np.ndarray:
 
     The rule, shared by the bag reader and the nodes' :class:`IncrementTracker`: a series of
     angles that stays within [-pi, pi] (:data:`WRAP_LIMIT`) is wrapped when it jumps by
-    more than pi between two samples, and each such jump is read as the smallest equivalent
-    increment (:func:`unwrap_increments`); a series that leaves [-pi, pi] is cumulative and
+    about 2 pi (more than :data:`WRAP_JUMP`) between two samples, and each such jump is read
+    as the smallest equivalent increment (:func:`unwrap_increments`); a series that leaves [-pi, pi] is cumulative and
     kept as it is.
 
     Parameters
@@ -190,7 +194,7 @@ def unwrap_if_wrapped(positions) -> np.ndarray:
     if len(positions) < 2 or np.max(np.abs(positions)) > WRAP_LIMIT:
         return positions
     steps = np.diff(positions)
-    if not np.any(np.abs(steps) > math.pi):
+    if not np.any(np.abs(steps) > WRAP_JUMP):
         return positions
     return positions[0] + np.concatenate([[0.0], np.cumsum(unwrap_increments(steps))])
 
@@ -275,9 +279,9 @@ class IncrementTracker:
             d_left = left - base_left
             d_right = right - base_right
             wrapped = self._wrapped
-            if wrapped[0] and abs(d_left) > math.pi:
+            if wrapped[0] and abs(d_left) > WRAP_JUMP:
                 d_left = unwrap_increments(d_left)
-            if wrapped[1] and abs(d_right) > math.pi:
+            if wrapped[1] and abs(d_right) > WRAP_JUMP:
                 d_right = unwrap_increments(d_right)
             return d_left * factor, d_right * factor
         modulus = 1 << bits
