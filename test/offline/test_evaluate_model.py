@@ -178,7 +178,7 @@ def _still_bag(path, seconds=20.0):
 
 @pytest.mark.parametrize('extra, status, pattern', [
     (['--ground-truth-topic', '/vicon'], 2, 'no topic /vicon for the ground truth'),
-    (['--sprocket-radius', '-1'], 2, 'must be a finite number > 0, got -1'),
+    (['--sprocket-radius', '-1'], 2, 'must be in [0.005, 5] m, got -1'),
     (['--prediction-dt', '3'], 2, '--prediction-dt (3 s) must be shorter than --horizon (2 s)'),
     (['--window', '5', '5'], 2, '--window lists a value twice: 5 5'),
     (['--plot', 'x.nope'], 2, "--plot: format 'nope' is not supported"),

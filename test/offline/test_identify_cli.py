@@ -104,7 +104,8 @@ def test_spin_in_place_mode(tmp_path, capsys):
     write_bag(path, rec, 'rosbag1', ground_truth='tf')
     out = tmp_path / 'sym.yaml'
     status, stdout, err = run([path, '--ground-truth-topic', '/tf', '--track-width', B,
-                               '--spin-in-place', '--output', out], capsys)
+                               '--sprocket-radius', 0.1, '--spin-in-place', '--output', out],
+                              capsys)
     assert status == 0, err
     assert 'chi = 0.5260' in stdout
     values = read_params_file(out)

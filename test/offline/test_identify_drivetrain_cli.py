@@ -22,7 +22,10 @@ def sim_bag(tmp_path_factory):
 
 
 def run(argv, capsys):
-    status = cli.main([str(a) for a in argv])
+    argv = [str(a) for a in argv]
+    if '--sprocket-radius' not in argv and '--params' not in argv:
+        argv += ['--sprocket-radius', '0.1']  # the vehicle: there is no default one
+    status = cli.main(argv)
     err = capsys.readouterr().err
     return status, err
 
@@ -52,7 +55,8 @@ def test_commands_and_speeds_that_do_not_overlap_are_bad_input(tmp_path, capsys)
 
 @pytest.mark.parametrize('params, pattern', [
     ('a: [1, 2\n', r'base.yaml: not valid YAML'),
-    ('drivetrain:\n  delay: -1\n', r'base.yaml: drivetrain.delay must be >= 0, got -1$'),
+    ('sprocket_radius: 0.1\ndrivetrain:\n  delay: -1\n',
+     r'base.yaml: drivetrain.delay must be >= 0, got -1$'),
 ])
 def test_bad_parameter_files_are_bad_input(sim_bag, tmp_path, capsys, params, pattern):
     base = tmp_path / 'base.yaml'
@@ -81,7 +85,7 @@ def test_a_bug_in_the_core_surfaces_as_a_traceback(sim_bag, tmp_path, capsys, mo
         raise ValueError('bug')
     monkeypatch.setattr(cli, 'fit_drivetrain', bug)
     with pytest.raises(ValueError, match='^bug$'):
-        cli.main([str(sim_bag), '-o', str(tmp_path / 'o.yaml')])
+        cli.main([str(sim_bag), '-o', str(tmp_path / 'o.yaml'), '--sprocket-radius', '0.1'])
     assert capsys.readouterr().err == ''
 
 
@@ -128,7 +132,7 @@ def test_base_file_typos_and_non_numbers(sim_bag, tmp_path, capsys):
     status, err = run([sim_bag, '-o', tmp_path / 'o.yaml', '--params', base], capsys)
     assert status == 2
     assert_one_line(err, r"base.yaml: sprocket_radius must be a finite number > 0, got 'abc'$")
-    base.write_text('drivetrain:\n  time_constnt: 0.2\n')
+    base.write_text('sprocket_radius: 0.1\ndrivetrain:\n  time_constnt: 0.2\n')
     status, err = run([sim_bag, '-o', tmp_path / 'o.yaml', '--params', base], capsys)
     assert status == 0, err
     assert err.splitlines()[0] == (
@@ -138,7 +142,8 @@ def test_base_file_typos_and_non_numbers(sim_bag, tmp_path, capsys):
 
 def test_delay_is_explained_with_its_uncertainty(sim_bag, tmp_path, capsys):
     report = tmp_path / 'd.json'
-    assert cli.main([str(sim_bag), '-o', str(tmp_path / 'd.yaml'), '--report', str(report)]) == 0
+    assert cli.main([str(sim_bag), '-o', str(tmp_path / 'd.yaml'), '--report', str(report),
+                     '--sprocket-radius', '0.1']) == 0
     out = capsys.readouterr().out
     assert re.search(r'delay: of the measured speeds \(encoder stamps\) behind the setpoints '
                      r'\(bag receive times\), any clock offset between the two included; its '

@@ -177,8 +177,8 @@ def unwrap_if_wrapped(positions) -> np.ndarray:
     The rule, shared by the bag reader and the nodes' :class:`IncrementTracker`: a series of
     angles that stays within [-pi, pi] (:data:`WRAP_LIMIT`) is wrapped when it jumps by
     about 2 pi (more than :data:`WRAP_JUMP`) between two samples, and each such jump is read
-    as the smallest equivalent increment (:func:`unwrap_increments`); a series that leaves [-pi, pi] is cumulative and
-    kept as it is.
+    as the smallest equivalent increment (:func:`unwrap_increments`); a series that leaves
+    [-pi, pi] is cumulative and kept as it is.
 
     Parameters
     ----------

@@ -248,7 +248,8 @@ def test_positions_only_joint_states_and_plot(sim_bag, tmp_path):
     data = read_drive_bag(bag, EncoderSource(sprocket_radius=0.1))
     assert data.commands.shape[1] == data.speeds.shape[1] == 2
     plot = tmp_path / 'drive.png'
-    status = cli.main([str(bag), '-o', str(tmp_path / 'out.yaml'), '--plot', str(plot)])
+    status = cli.main([str(bag), '-o', str(tmp_path / 'out.yaml'), '--plot', str(plot),
+                       '--sprocket-radius', '0.1'])
     assert status == 0 and plot.stat().st_size > 10_000
     values = read_params_file(tmp_path / 'out.yaml')
     assert values['drivetrain.delay'] == pytest.approx(0.03, abs=0.011)
@@ -278,7 +279,8 @@ def test_cli_errors_are_one_line_with_their_status(sim_bag, tmp_path, capsys):
     ]
     for argv, message in cases:
         # Commands that hardly change are too little excitation: 3, as in identify_icr.
-        assert cli.main(argv) == (3 if message == 'hardly change' else 2)
+        assert cli.main(argv + ['--sprocket-radius', '0.1']) == (
+            3 if message == 'hardly change' else 2)
         err = capsys.readouterr().err
         assert err.startswith('identify_drivetrain: error:') and message in err
         assert err.count('\n') == 1
@@ -289,7 +291,8 @@ def test_console_script_runs(tmp_path):
     flat = tmp_path / 'flat'
     constant_bag(flat)
     done = subprocess.run([str(BIN / 'identify_drivetrain'), str(flat), '-o',
-                           str(tmp_path / 'x.yaml')], capture_output=True, text=True,
+                           str(tmp_path / 'x.yaml'), '--sprocket-radius', '0.1'],
+                          capture_output=True, text=True,
                           timeout=60)
     assert done.returncode == 3
     assert done.stderr.startswith('identify_drivetrain: error: ') and 'Traceback' not in \

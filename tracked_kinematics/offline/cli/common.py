@@ -23,7 +23,7 @@ from tracked_kinematics.offline.bags import (
 from tracked_kinematics.offline.errors import UsageError
 from tracked_kinematics.offline.outputs import Outputs
 from tracked_kinematics.params import (
-    ENCODER_INPUT_DEFAULTS, INPUT_MODES, SIDE_TOPICS, TERRAIN_DEFAULTS,
+    ENCODER_INPUT_DEFAULTS, INPUT_MODES, SIDE_TOPICS,
     unknown_terrain_parameters)
 
 EXIT_INPUT, EXIT_EXCITATION, EXIT_FIT = 2, 3, 4
@@ -156,10 +156,35 @@ TICKS_PER_REVOLUTION = bounded(1.0, 1e9)
 
 
 def add_sprocket_radius_argument(group) -> None:
-    """Add ``--sprocket-radius``, defaulting to the base terrain file's."""
+    """Add ``--sprocket-radius``, defaulting to the base terrain file's (no other default)."""
     group.add_argument('--sprocket-radius', type=SPROCKET_RADIUS, default=None, metavar='R',
-                       help='m; default from --params, else '
-                       f'{TERRAIN_DEFAULTS["sprocket_radius"]}')
+                       help='m; default from --params (required without it: there is no '
+                       'default vehicle)')
+
+
+def require_vehicle(given, where: str = '--params') -> None:
+    """
+    Refuse a run that lacks the vehicle's dimensions, as the nodes do (no default vehicle).
+
+    Parameters
+    ----------
+    given : mapping
+        Flag name (``--track-width``) to value, None when neither the flag nor ``where``
+        gave it.
+    where : str
+        Where else the values may come from, for the message.
+
+    Raises
+    ------
+    UsageError
+        Naming every missing flag.
+
+    """
+    missing = [flag for flag, value in given.items() if value is None]
+    if missing:
+        raise UsageError(f'{" and ".join(missing)} {"is" if len(missing) == 1 else "are"} '
+                         f'needed (or {where} with them): there is no default vehicle, as '
+                         'diff_drive_controller needs wheel_separation and wheel_radius')
 
 
 def add_encoder_arguments(group) -> None:

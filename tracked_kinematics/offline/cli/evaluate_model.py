@@ -34,12 +34,13 @@ from tracked_kinematics.offline.bags import read_evaluation_bag
 from tracked_kinematics.offline.cli.common import (
     add_bags_argument, add_command_arguments, add_encoder_arguments,
     add_ground_truth_arguments, add_ground_truth_topic_argument, add_sprocket_radius_argument,
-    command_source, encoder_source, ground_truth_source, HelpFormatter, positive, run_main)
+    ArgumentParser, command_source, encoder_source, ground_truth_source, HelpFormatter,
+    positive, require_vehicle, run_main)
 from tracked_kinematics.offline.errors import UsageError
 from tracked_kinematics.offline.outputs import Outputs
 from tracked_kinematics.params import (
     drivetrain_from_values, icr_from_values, positive as check_positive, read_params_file,
-    TERRAIN_DEFAULTS, values_from_drivetrain)
+    values_from_drivetrain)
 
 PROG = 'evaluate_model'
 
@@ -55,7 +56,7 @@ EPILOG = """examples:
 
 def build_parser() -> argparse.ArgumentParser:
     """Return the command line of evaluate_model."""
-    parser = argparse.ArgumentParser(
+    parser = ArgumentParser(
         prog=PROG, description=__doc__.split('\n\n')[1], epilog=EPILOG,
         formatter_class=HelpFormatter)
     add_bags_argument(parser)
@@ -141,8 +142,10 @@ def _vehicle(args, models):
     first = models[0].values
     radius = args.sprocket_radius
     if radius is None:
-        radii = {float(m.values.get('sprocket_radius', TERRAIN_DEFAULTS['sprocket_radius']))
-                 for m in models}
+        given = [m.values.get('sprocket_radius') for m in models]
+        require_vehicle({'--sprocket-radius': None if None in given else 0.0},
+                        'every terrain file')
+        radii = {float(r) for r in given}
         if len(radii) > 1:
             raise UsageError('the terrain files disagree on sprocket_radius ('
                              f'{", ".join(f"{r:g}" for r in sorted(radii))} m): give '
@@ -150,7 +153,8 @@ def _vehicle(args, models):
         radius = radii.pop()
     track_width = args.track_width
     if track_width is None:
-        track_width = float(first.get('track_width', TERRAIN_DEFAULTS['track_width']))
+        require_vehicle({'--track-width': first.get('track_width')}, 'the first terrain file')
+        track_width = float(first['track_width'])
     for name, value in (('sprocket_radius', radius), ('track_width', track_width)):
         if check_positive(value):
             raise UsageError(f'{name} must be a finite number > 0, got {value!r}')

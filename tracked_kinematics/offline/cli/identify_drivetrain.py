@@ -33,12 +33,13 @@ from tracked_kinematics.offline.bags import read_drive_bag
 from tracked_kinematics.offline.cli.common import (
     add_bags_argument, add_command_arguments, add_encoder_arguments, add_force_argument,
     add_output_argument, add_sprocket_radius_argument, ArgumentParser, bounded, command_source,
-    encoder_source, HelpFormatter, positive, report_json, run_main, warn_unknown_terrain_keys)
+    encoder_source, HelpFormatter, positive, report_json, require_vehicle, run_main,
+    warn_unknown_terrain_keys)
 from tracked_kinematics.offline.errors import UsageError
 from tracked_kinematics.offline.outputs import Outputs
 from tracked_kinematics.offline.terrain_file import terrain_text, terrain_values
 from tracked_kinematics.params import (
-    drivetrain_from_values, positive as check_positive, read_params_file, TERRAIN_DEFAULTS,
+    drivetrain_from_values, positive as check_positive, read_params_file,
     values_from_drivetrain)
 
 PROG = 'identify_drivetrain'
@@ -101,7 +102,8 @@ def _base(args):
         warn_unknown_terrain_keys(PROG, args.params, base_values)
     radius = args.sprocket_radius
     if radius is None:
-        radius = base_values.get('sprocket_radius', TERRAIN_DEFAULTS['sprocket_radius'])
+        radius = base_values.get('sprocket_radius')
+    require_vehicle({'--sprocket-radius': radius})
     if check_positive(radius):
         raise UsageError(f'{args.params}: sprocket_radius must be a finite number > 0, got '
                          f'{radius!r}')

@@ -35,7 +35,7 @@ from tracked_kinematics.offline.cli.common import (
     add_bags_argument, add_encoder_arguments, add_force_argument, add_ground_truth_arguments,
     add_ground_truth_topic_argument, add_output_argument, add_sprocket_radius_argument,
     ArgumentParser, bounded, encoder_source, ground_truth_source, HelpFormatter, names,
-    report_json, run_main, TRACK_WIDTH, warn, warn_unknown_terrain_keys)
+    report_json, require_vehicle, run_main, TRACK_WIDTH, warn, warn_unknown_terrain_keys)
 from tracked_kinematics.offline.errors import UsageError
 from tracked_kinematics.offline.outputs import Outputs
 from tracked_kinematics.offline.terrain_file import terrain_text, terrain_values
@@ -75,7 +75,8 @@ def build_parser() -> argparse.ArgumentParser:
     veh = parser.add_argument_group('vehicle')
     add_sprocket_radius_argument(veh)
     veh.add_argument('--track-width', type=TRACK_WIDTH, default=None, metavar='L',
-                     help=f'm; default from --params, else {TERRAIN_DEFAULTS["track_width"]}')
+                     help='m; default from --params (required without it: there is no '
+                     'default vehicle)')
     veh.add_argument('--params', default=None, metavar='BASE.yaml',
                      help='terrain file to start from: vehicle values, starting point, fixed '
                      'scales of --model icr; its other parameters are copied to the output')
@@ -147,6 +148,10 @@ def _vehicle(args):
         'track_width', 'sprocket_radius', 'scale.left', 'scale.right')], merged)
     if problems:
         raise UsageError(f'{args.params or "vehicle"}: {"; ".join(problems)}')
+    require_vehicle({'--track-width': args.track_width if args.track_width is not None
+                     else base_values.get('track_width'),
+                     '--sprocket-radius': args.sprocket_radius if args.sprocket_radius is not None
+                     else base_values.get('sprocket_radius')})
     base = None
     if args.params:
         try:
