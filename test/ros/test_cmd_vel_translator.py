@@ -32,6 +32,8 @@ TIMEOUT = 5.0  # s, deadline of every wait on the graph
 VEHICLE = {'track_width': 0.42, 'sprocket_radius': 0.1}
 VEHICLE_PARAMS = [Parameter(name, value=value) for name, value in VEHICLE.items()]
 IDEAL = icr_from_values(VEHICLE)
+# The same vehicle on a console script's command line (later -p of a name override these).
+VEHICLE_ARGS = [a for name, value in VEHICLE.items() for a in ('-p', f'{name}:={value}')]
 JOINTS = 'probe_joint_commands'
 DEPTH = 1000  # the probe never drops a message, however late it spins
 BIG = 1.7976931348623157e308
@@ -353,7 +355,8 @@ def test_console_script_with_terrain_params_file(ros_context, executor, tmp_path
     (['-p', 'use_stamped:=true', '-p', 'cmd_vel_type:=twist'], 'contradicts'),
 ])
 def test_console_script_exits_2_on_invalid_parameters(tmp_path, args, reason):
-    with ConsoleScript('cmd_vel_translator', '--ros-args', *args, tmp_path=tmp_path) as script:
+    with ConsoleScript('cmd_vel_translator', '--ros-args', *VEHICLE_ARGS, *args,
+                       tmp_path=tmp_path) as script:
         assert script.wait(30.0) == 2
     fatal = [line for line in script.output.splitlines() if 'FATAL' in line]
     assert len(fatal) == 1 and reason in fatal[0], script.output
@@ -431,7 +434,8 @@ def test_huge_twists_never_publish_nan(graph, executor, capfd, limits):
 def test_absurd_values_refused_at_start_and_at_runtime(graph, ros_context, name, value):
     # Item 2 and 3: accepted values gave inf setpoints or killed the publisher.
     with pytest.raises(ParameterError, match=name):
-        CmdVelTranslator(context=ros_context, parameter_overrides=[Parameter(name, value=value)])
+        CmdVelTranslator(context=ros_context,
+                         parameter_overrides=VEHICLE_PARAMS + [Parameter(name, value=value)])
     node, _ = graph()
     old = node.get_parameter(name).value
     result = node.set_parameters([Parameter(name, value=value)])[0]
@@ -440,7 +444,7 @@ def test_absurd_values_refused_at_start_and_at_runtime(graph, ros_context, name,
 
 
 def test_ranges_are_published(ros_context):
-    node = CmdVelTranslator(context=ros_context)
+    node = CmdVelTranslator(context=ros_context, parameter_overrides=VEHICLE_PARAMS)
     rate = node.describe_parameter('rate').floating_point_range[0]
     assert (rate.from_value, rate.to_value) == (1.0, 1000.0)
     timeout = node.describe_parameter('cmd_timeout').floating_point_range[0]
@@ -470,16 +474,16 @@ def test_rate_change_takes_effect_at_once(graph, executor):
 def test_rate_from_params_file_at_start(tmp_path, ros_context, executor):
     params = tmp_path / 'rate.yaml'
     params.write_text('/**:\n  ros__parameters:\n    rate: 1.0e-10\n')
-    with ConsoleScript('cmd_vel_translator', '--ros-args', '--params-file', params,
-                       tmp_path=tmp_path) as script:
+    with ConsoleScript('cmd_vel_translator', '--ros-args', *VEHICLE_ARGS, '--params-file',
+                       params, tmp_path=tmp_path) as script:
         assert script.wait(30.0) == 2
     assert 'rate' in next(line for line in script.output.splitlines() if 'FATAL' in line)
     params.write_text(f'/**:\n  ros__parameters:\n    rate: 200.0\n'
                       f'    joint_velocity_topic: {JOINTS}\n')
     probe = Probe(ros_context)
     executor.add_node(probe.node)
-    with ConsoleScript('cmd_vel_translator', '--ros-args', '--params-file', params,
-                       tmp_path=tmp_path) as script:
+    with ConsoleScript('cmd_vel_translator', '--ros-args', *VEHICLE_ARGS, '--params-file',
+                       params, tmp_path=tmp_path) as script:
         assert spin_until(executor, lambda: len(probe.joints) >= 2, 15.0), script.output
         count, start = len(probe.joints), time.monotonic()
         assert spin_until(executor, lambda: len(probe.joints) >= count + 40, TIMEOUT)
@@ -531,7 +535,7 @@ def test_an_error_in_the_publisher_is_logged_and_it_keeps_publishing(graph, exec
 
 
 def test_publishing_that_keeps_failing_stops_the_node(other_context, capfd):
-    node = CmdVelTranslator(context=other_context)
+    node = CmdVelTranslator(context=other_context, parameter_overrides=VEHICLE_PARAMS)
 
     def broken(msg):
         raise RuntimeError('injected publish fault')
@@ -556,7 +560,8 @@ def test_signals_at_any_moment_exit_0_without_traceback(tmp_path, sig):
     for k, delay in enumerate([rng.uniform(0.4, 1.2), None]):
         run_dir = tmp_path / f'{sig.name}_{k}'
         run_dir.mkdir()
-        script = ConsoleScript('cmd_vel_translator', '--ros-args', '-p', 'rate:=1000.0',
+        script = ConsoleScript('cmd_vel_translator', '--ros-args', *VEHICLE_ARGS,
+                               '-p', 'rate:=1000.0',
                                '-p', f'joint_velocity_topic:={JOINTS}', tmp_path=run_dir)
         if delay is None:  # up and publishing, then a random moment
             deadline = time.monotonic() + 30
@@ -591,7 +596,7 @@ def test_wrong_message_type_on_cmd_vel_is_named(graph, executor, other_context, 
 def test_follows_the_type_of_the_publishers(executor, other_context, capfd):
     # A translator that has seen no publisher subscribes Twist; a TwistStamped publisher
     # (Jazzy's DDC type) appears in another process: the node switches, says so, drives.
-    node = CmdVelTranslator(context=executor.context, parameter_overrides=[
+    node = CmdVelTranslator(context=executor.context, parameter_overrides=VEHICLE_PARAMS + [
         Parameter('joint_velocity_topic', value=JOINTS)])
     executor.add_node(node)
     recorder = Probe(executor.context, cmd_context=other_context, stamped=True)

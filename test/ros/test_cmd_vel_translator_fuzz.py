@@ -126,6 +126,7 @@ def check_published(recorder, values):
 @pytest.fixture
 def translator(ros_context, executor):
     node = CmdVelTranslator(context=ros_context, parameter_overrides=[
+        Parameter('track_width', value=0.42), Parameter('sprocket_radius', value=0.1),
         Parameter('joint_velocity_topic', value=JOINTS)])
     recorder = Recorder(ros_context)
     executor.add_node(node)
