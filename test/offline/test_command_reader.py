@@ -79,7 +79,10 @@ def test_drive_bag_with_cmd_vel_has_the_same_commands(bags):
 
 
 def _fit(argv, capsys):
-    status = identify_drivetrain.main([str(a) for a in argv])
+    argv = [str(a) for a in argv]
+    if '--params' not in argv:
+        argv += ['--sprocket-radius', '0.1']  # the vehicle: there is no default one
+    status = identify_drivetrain.main(argv)
     captured = capsys.readouterr()
     return status, captured.out, captured.err
 

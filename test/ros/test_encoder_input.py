@@ -183,8 +183,9 @@ def test_wrapped_joint_positions_are_unwrapped(harness):
 
 def test_reliable_publishers_get_a_reliable_deep_queue(harness):
     # Issue 15 item 2: no sample a reliable publisher sends is dropped. A burst of 600
-    # messages published while nobody spins all arrive.
-    h = harness(sprocket_radius=0.1)
+    # messages published while nobody spins all arrive. A namespace of its own: publishers of
+    # earlier tests that discovery still lists must not make the topic look best effort.
+    h = harness(sprocket_radius=0.1, namespace='deep_queue')
     topic, = h.input.inputs
     pub = h.driver.node.create_publisher(JointState, 'joint_states', QoSProfile(
         depth=1000, reliability=ReliabilityPolicy.RELIABLE))
