@@ -23,7 +23,7 @@ from tracked_kinematics.offline.bags import (
 from tracked_kinematics.offline.errors import UsageError
 from tracked_kinematics.offline.outputs import Outputs
 from tracked_kinematics.params import (
-    ENCODER_INPUT_DEFAULTS, INPUT_MODES, SIDE_TOPICS,
+    ENCODER_INPUT_DEFAULTS, INPUT_MODES, read_params_file, SIDE_TOPICS,
     unknown_terrain_parameters)
 
 EXIT_INPUT, EXIT_EXCITATION, EXIT_FIT = 2, 3, 4
@@ -252,6 +252,15 @@ def warn_unknown_terrain_keys(prog: str, path, values) -> None:
     """Warn about names of a terrain file that look like typos of known ones."""
     for message in unknown_terrain_parameters(values):
         warn(prog, f'{path}: {message}')
+
+
+def read_base_file(prog: str, path) -> dict:
+    """Read a ``--params`` base terrain file (``{}`` without one), warning about its typos."""
+    if not path:
+        return {}
+    values = read_params_file(path)
+    warn_unknown_terrain_keys(prog, path, values)
+    return values
 
 
 class Signalled(BaseException):

@@ -33,14 +33,13 @@ from tracked_kinematics.offline.bags import read_drive_bag
 from tracked_kinematics.offline.cli.common import (
     add_bags_argument, add_command_arguments, add_encoder_arguments, add_force_argument,
     add_output_argument, add_sprocket_radius_argument, ArgumentParser, bounded, command_source,
-    encoder_source, HelpFormatter, positive, report_json, require_vehicle, run_main,
-    warn_unknown_terrain_keys)
+    encoder_source, HelpFormatter, positive, read_base_file, report_json, require_vehicle,
+    run_main)
 from tracked_kinematics.offline.errors import UsageError
 from tracked_kinematics.offline.outputs import Outputs
 from tracked_kinematics.offline.terrain_file import terrain_text, terrain_values
 from tracked_kinematics.params import (
-    drivetrain_from_values, positive as check_positive, read_params_file,
-    values_from_drivetrain)
+    drivetrain_from_values, positive as check_positive, values_from_drivetrain)
 
 PROG = 'identify_drivetrain'
 MAX_GRID_SAMPLES = 2_000_000
@@ -97,9 +96,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 def _base(args):
     """Read the base terrain values, the sprocket radius and the base drive train (or None)."""
-    base_values = read_params_file(args.params) if args.params else {}
-    if args.params:
-        warn_unknown_terrain_keys(PROG, args.params, base_values)
+    base_values = read_base_file(PROG, args.params)
     radius = args.sprocket_radius
     if radius is None:
         radius = base_values.get('sprocket_radius')

@@ -35,13 +35,12 @@ from tracked_kinematics.offline.cli.common import (
     add_bags_argument, add_encoder_arguments, add_force_argument, add_ground_truth_arguments,
     add_ground_truth_topic_argument, add_output_argument, add_sprocket_radius_argument,
     ArgumentParser, bounded, encoder_source, ground_truth_source, HelpFormatter, names,
-    report_json, require_vehicle, run_main, TRACK_WIDTH, warn, warn_unknown_terrain_keys)
+    read_base_file, report_json, require_vehicle, run_main, TRACK_WIDTH, warn)
 from tracked_kinematics.offline.errors import UsageError
 from tracked_kinematics.offline.outputs import Outputs
 from tracked_kinematics.offline.terrain_file import terrain_text, terrain_values
 from tracked_kinematics.params import (
-    check_values, icr_from_values, read_params_file, TERRAIN_DEFAULTS, TERRAIN_PARAMS,
-    values_from_icr)
+    check_values, icr_from_values, TERRAIN_DEFAULTS, TERRAIN_PARAMS, values_from_icr)
 
 PROG = 'identify_icr'
 MODEL_CHOICES = ('symmetric',) + ident.FIT_MODELS
@@ -134,9 +133,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 def _vehicle(args):
     """Read the base terrain values and check the vehicle dimensions."""
-    base_values = read_params_file(args.params) if args.params else {}
-    if args.params:
-        warn_unknown_terrain_keys(PROG, args.params, base_values)
+    base_values = read_base_file(PROG, args.params)
     merged = {**TERRAIN_DEFAULTS, **{k: v for k, v in base_values.items()
                                      if k in TERRAIN_DEFAULTS}}
     if args.track_width is not None:
