@@ -208,6 +208,18 @@ def test_bad_parameters_refuse_to_start(ros_context):
                 Parameter(k, value=v) for k, v in {**BASE, **overrides}.items()])
 
 
+def test_pose_delay_reaches_the_filter(ros_context):
+    # Issue 16: the ground-truth delay identify_icr finds applies to the node's pose stream.
+    node = IcrEstimatorNode(context=ros_context, parameter_overrides=[
+        Parameter(k, value=v) for k, v in {**BASE, 'pose_delay': 0.25}.items()])
+    assert node.estimator.config.pose_delay == 0.25
+    assert node.set_parameters([Parameter('pose_delay', value=0.1)])[0].successful
+    assert node.estimator.config.pose_delay == 0.1
+    assert not node.set_parameters([Parameter('pose_delay', value=5.0)])[0].successful
+    assert node.estimator.config.pose_delay == 0.1
+    node.destroy_node()
+
+
 def test_console_script_starts_and_exits_cleanly(tmp_path):
     with ConsoleScript('icr_estimator', '--ros-args', '-p', 'track_width:=0.5', '-p',
                        'sprocket_radius:=0.1', '-p', 'icr.y_left:=0.3', '-p',

@@ -48,7 +48,7 @@ from tracked_kinematics.core.models import AdaptiveIcr, ConstantIcr
 from tracked_kinematics.core.prediction import (
     commands_from_twist, hold_speeds, predict_from_commands, predict_path)
 from tracked_kinematics.params import (
-    described_as, drivetrain_from_values, DRIVETRAIN_PARAMS, each, ENCODER_INPUT_PARAMS,
+    described_as, drivetrain_from_values, DRIVETRAIN_PARAMS, each, ENCODER_INPUT_PARAMS, finite,
     icr_from_values, node_name, non_negative, one_of, ParamSpec, positive, ros_name,
     TERRAIN_PARAMS)
 from tracked_kinematics.ros.encoder_input import (
@@ -120,6 +120,10 @@ ESTIMATOR_PARAMS: tuple[ParamSpec, ...] = (
     ParamSpec('max_outliers', _DEFAULTS.max_outliers,
               'Consecutive refused windows after which the filter re-anchors', '',
               positive, low=1, high=1000),
+    ParamSpec('pose_delay', _DEFAULTS.pose_delay,
+              'Delay of the pose stamps behind the encoders (a pose source stamped on receipt, '
+              'as lidar ICP often is): the identification.ground_truth_delay that identify_icr '
+              'writes', 's', finite, low=-1.0, high=2.0),
     ParamSpec('publish_rate', 10.0, 'Rate of icr_estimate and predicted_path', 'Hz',
               positive, low=0.01, high=1000.0),
     ParamSpec('prediction.horizon', 2.0, 'Length of predicted_path (0: not published)', 's',
@@ -172,7 +176,7 @@ def _config(values: Mapping[str, Any]) -> EstimatorConfig:
         initial_std=values['initial_std'], window=values['window'],
         min_window=values['min_window'], max_window=values['max_window'],
         gate_probability=values['gate_probability'],
-        max_outliers=int(values['max_outliers']))
+        max_outliers=int(values['max_outliers']), pose_delay=values['pose_delay'])
 
 
 def _yaw(q) -> float:
