@@ -193,7 +193,8 @@ def test_round_trip_at_rest_then_commanded(graph, executor):
 
 def test_timeout_ramps_to_zero(graph, executor):
     accel, rate = 2.0, 100.0
-    _, probe = graph(cmd_timeout=0.15, max_track_accel=accel, rate=rate)
+    # A timeout longer than a spin of a loaded machine, so the ramp up is never cut.
+    _, probe = graph(cmd_timeout=0.5, max_track_accel=accel, rate=rate)
     assert drive(executor, probe, 0.4, 0.0, reaches((0.4, 0.4)))
     probe.clear()
     # No more commands: after cmd_timeout the setpoints fall at max_track_accel to zero.
@@ -409,7 +410,7 @@ def test_publisher_thread_ends_with_node_and_context(ros_context, executor):
 ], ids=['max_track_accel', 'max_track_speed', 'none', 'twist_accel'])
 def test_huge_twists_never_publish_nan(graph, executor, capfd, limits):
     # Item 1: two finite Twists of +-1.797e308 latched NaN setpoints (inf without limits).
-    _, probe = graph(**AURIGA_VALUES, cmd_timeout=0.2, **limits)
+    _, probe = graph(**AURIGA_VALUES, cmd_timeout=0.5, **limits)
     probe.clear()
     for sign in (1.0, -1.0):
         probe.send(sign * BIG, sign * BIG)
@@ -678,7 +679,8 @@ def test_cmd_timeout_zero_disables_the_timeout(graph, executor, capfd):
 def test_separate_deceleration_limit_ddc_sign(graph, executor):
     # DDC writes max_deceleration negative; up at 0.5 m/s^2, down at 4 m/s^2.
     rate = 100.0
-    _, probe = graph(rate=rate, cmd_timeout=0.2, **{'linear.x.max_acceleration': 0.5,
+    # The timeout outlasts a loaded machine's slowest spin, so the 0.4 s ramp is never cut.
+    _, probe = graph(rate=rate, cmd_timeout=1.0, **{'linear.x.max_acceleration': 0.5,
                                                     'linear.x.max_deceleration': -4.0})
     assert drive(executor, probe, 0.2, 0.0, reaches((0.2, 0.2)))
     up = probe.setpoints()[:, 0]
