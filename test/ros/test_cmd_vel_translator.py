@@ -225,7 +225,9 @@ def test_saturation_keeps_curvature(graph, executor):
 ], ids=['track', 'twist'])
 def test_acceleration_ramp_keeps_curvature(graph, executor, params):
     rate = 50.0
-    _, probe = graph(**AURIGA_VALUES, rate=rate, **params)
+    # cmd_timeout long: a stall of this test process under load must not make the command
+    # stale mid-ramp (the ramp would turn back down and look non-monotone).
+    _, probe = graph(**AURIGA_VALUES, rate=rate, cmd_timeout=10.0, **params)
     probe.clear()
     target = track_setpoints(0.3, 0.4, AURIGA)
     assert drive(executor, probe, 0.3, 0.4, reaches(target))

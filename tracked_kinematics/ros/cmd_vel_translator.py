@@ -189,6 +189,18 @@ class CmdVelTranslator(Node):
 
     def __init__(self, **kwargs):
         super().__init__(NODE_NAME, **kwargs)
+        try:
+            self._start()
+        except BaseException:
+            # Refused parameters (or any failure): no half-built node left for the garbage
+            # collector to destroy later, after its context is gone.
+            if hasattr(self, '_publisher_thread'):
+                self._request_stop()
+                self._publisher_thread.join(5.0)
+            Node.destroy_node(self)
+            raise
+
+    def _start(self) -> None:
         self._params = ParameterTable(self, TRANSLATOR_PARAMS, validate=model_from_values,
                                       on_change=self._on_change)
         values = self._params.values
