@@ -207,7 +207,7 @@ def test_icr_estimator_fuzz(ros_context, executor):
         *VEHICLE, 'max_plausible_speed', 'max_dt', 'publish_rate', 'window', 'min_window',
         'max_window', 'pose_std_xy', 'pose_std_yaw', 'travel_std', 'process_std',
         'initial_std', 'gate_probability', 'max_outliers', 'prediction.horizon',
-        'prediction.dt', 'heading_only')}
+        'prediction.dt', 'heading_only', 'pose_delay')}
     clean_start = [10_000.0]
 
     def pose(t, x, y, yaw):
