@@ -49,13 +49,15 @@ from tracked_kinematics.core.integration import wrap_angle
 from tracked_kinematics.core.kinematics import IcrParams
 from tracked_kinematics.core.models import ConstantIcr
 from tracked_kinematics.core.sim.simulation import TwistTable
+from tracked_kinematics.offline import signals
 from tracked_kinematics.offline.bags import EncoderSource, GroundTruthSource, read_bag
 from tracked_kinematics.offline.cli import identify_icr
 from tracked_kinematics.offline.cli.common import (
     add_force_argument, ArgumentParser, bounded, run_main, SEED)
 from tracked_kinematics.offline.cli.simulate_bag import GROUND_TRUTH_TOPICS, JOINTS, simulate_bag
 from tracked_kinematics.offline.errors import UsageError
-from tracked_kinematics.offline.outputs import check_output, OutputError, Outputs
+from tracked_kinematics.offline.outputs import (
+    check_output, finished, OutputError, Outputs, unfinished)
 from tracked_kinematics.offline.vehicle_file import (
     add_vehicle_arguments, fixed, load_vehicle, overrides_from_args)
 from tracked_kinematics.params import icr_from_values, read_params_file
@@ -270,6 +272,7 @@ class DemoDirectory:
         self.force = force
         self.entries: list[Entry] = []
         self.created: list[Path] = []   # the output directory and parents made by this run
+        self.changed = False            # prepare() has begun to change the directory
 
     @property
     def manifest(self) -> Path:
@@ -404,25 +407,33 @@ class DemoDirectory:
         """
         old = self.read_manifest()
         self._check(planned, old)
-        if not self.directory.exists():
-            try:
-                missing = [p for p in (self.directory, *self.directory.parents)
-                           if not os.path.lexists(p)]
-                for parent in reversed(missing):
-                    parent.mkdir()
-                    self.created.append(parent)
-            except OSError as err:
-                self.fail()
-                raise self._error(f'cannot create it: {err.strerror or err}') from None
-        if not os.access(self.directory, os.W_OK | os.X_OK):
+        if self.directory.exists() and not os.access(self.directory, os.W_OK | os.X_OK):
             raise self._error('is not writable')
-        self._remove(old)
-        self.entries = []
-        for entry in planned:
-            if entry.kind == 'dir' and _lstat(self.directory / entry.path) is None:
-                self.record(entry)
-                (self.directory / entry.path).mkdir()
-        self.save()
+        # From here on the directory changes: held, so that a signal cannot cut a step in
+        # half, and registered, so that an interrupted run undoes it (fail()).
+        with signals.held():
+            self.changed = True
+            unfinished(self)
+            if not self.directory.exists():
+                try:
+                    missing = [p for p in (self.directory, *self.directory.parents)
+                               if not os.path.lexists(p)]
+                    for parent in reversed(missing):
+                        parent.mkdir()
+                        self.created.append(parent)
+                except OSError as err:
+                    self.fail()
+                    raise self._error(f'cannot create it: {err.strerror or err}') from None
+                if not os.access(self.directory, os.W_OK | os.X_OK):
+                    self.fail()
+                    raise self._error('is not writable')
+            self._remove(old)
+            self.entries = []
+            for entry in planned:
+                if entry.kind == 'dir' and _lstat(self.directory / entry.path) is None:
+                    self.record(entry)
+                    (self.directory / entry.path).mkdir()
+            self.save()
 
     def record(self, entry: Entry) -> None:
         """Add an output to the manifest, before it is written."""
@@ -448,17 +459,30 @@ class DemoDirectory:
 
     def fail(self) -> None:
         """Remove what this run created (and the directory, if this run created it)."""
-        self._remove(self.entries)
-        self.entries = []
-        if self.created:
-            with contextlib.suppress(OSError):
-                self.manifest.unlink()
-            for path in reversed(self.created):
+        if not self.changed:
+            return   # refused before any change: the directory is as it was
+        with signals.held():
+            self._remove(self.entries)
+            self.entries = []
+            if self.created:
                 with contextlib.suppress(OSError):
-                    path.rmdir()
-        elif self.manifest.exists():
-            with contextlib.suppress(OSError):
-                self.save()
+                    self.manifest.unlink()
+                for path in reversed(self.created):
+                    with contextlib.suppress(OSError):
+                        path.rmdir()
+                self.created = []
+            elif self.manifest.exists():
+                with contextlib.suppress(OSError):
+                    self.save()
+            finished(self)
+
+    def abort(self) -> None:
+        """Undo an interrupted run (:func:`~tracked_kinematics.offline.outputs.unfinished`)."""
+        self.fail()
+
+    def done(self) -> None:
+        """Keep the outputs: the run has succeeded."""
+        finished(self)
 
 
 # Steps -----------------------------------------------------------------------------------
@@ -618,15 +642,17 @@ def run(args, out) -> int:
         raise DemoError(f'the terrain name {terrain!r} must be a plain file name (it names '
                         'the terrain YAML)')
     outputs = DemoDirectory(directory, force=bool(getattr(args, 'force', False)))
-    outputs.prepare(planned_outputs(spec.name, terrain,
-                                    [heldout_name(k) for k in range(args.paths)]))
     try:
+        outputs.prepare(planned_outputs(spec.name, terrain,
+                                        [heldout_name(k) for k in range(args.paths)]))
         status = _steps(args, out, spec, terrain, overrides, outputs, start)
     except BaseException:
         outputs.fail()
         raise
     if status != 0:
         outputs.fail()
+    else:
+        outputs.done()
     return status
 
 
@@ -669,10 +695,9 @@ def _steps(args, out, spec, terrain, overrides, outputs: DemoDirectory, start) -
     print('   its output; its hold-out table compares the models on 30 s blocks of the '
           'calibration bag:', file=out)
     _indent(printed, out)
-    if status != 0:
-        if status < 128:   # not a signal: identify_icr said why on stderr
-            print(f'{PROG}: identify_icr failed with exit status {status} (reason above); '
-                  'try a longer --duration', file=sys.stderr)
+    if status != 0:   # identify_icr said why on stderr (a signal ends the demo instead)
+        print(f'{PROG}: identify_icr failed with exit status {status} (reason above); '
+              'try a longer --duration', file=sys.stderr)
         return status
     outputs.written()
     yaml_path = directory / f'{terrain}.yaml'
