@@ -15,11 +15,11 @@ them again. Four rules keep a signal from landing there:
   impatient second Ctrl-C cannot interrupt the clean-up;
 - **the whole process**: when a console script of the offline tools starts, the package's
   ``__init__`` calls :func:`install_for_tool`, before numpy, scipy and rosbags are imported
-  (the better part of a second). A signal during the imports or the parsing of the options is
-  held until :func:`~tracked_kinematics.offline.cli.common.run_main` has begun, which then
-  ends the run with the signal's exit status; once the run has ended, signals are ignored, so
-  that the process exits with the run's status and cannot be killed half-way through the
-  interpreter's shutdown;
+  (the better part of a second). A signal during the imports or the parsing of the options,
+  before :func:`~tracked_kinematics.offline.cli.common.run_main` has begun and so before
+  anything can have been written, ends the process at once with the signal's exit status
+  and the one line; once the run has ended, signals are ignored, so that the process exits
+  with the run's status and cannot be killed half-way through the interpreter's shutdown;
 - **outside a run** (a Python program calling the library), a held section holds Ctrl-C the
   same way and raises the KeyboardInterrupt at its end; other signals keep their handlers.
 
@@ -54,7 +54,8 @@ class Signalled(BaseException):
 class _State:
     """What the handler needs to know; changed only in the main thread."""
 
-    __slots__ = ('held', 'pending', 'stopping', 'armed', 'tool', 'borrowed', 'previous')
+    __slots__ = ('held', 'pending', 'stopping', 'armed', 'tool', 'started', 'borrowed',
+                 'previous')
 
     def __init__(self):
         self.held = 0            # depth of held sections
@@ -62,6 +63,7 @@ class _State:
         self.stopping = False    # the run has acted on a signal: ignore further ones
         self.armed = False       # a run (run_main) is under way: act on signals
         self.tool = False        # this process is a console script of the offline tools
+        self.started = False     # ... and its run has begun: it may have written something
         self.borrowed = False    # SIGINT's default handler replaced for a held section
         self.previous = {}       # handlers before run_main (in-process runs restore them)
 
@@ -77,9 +79,25 @@ def _on_signal(signum, frame):
     state = _state
     if state.stopping or state.pending is not None:
         return                   # the run is stopping already, or will at once
+    if state.tool and not state.started and not state.held:
+        _exit_now(signum)        # the tool is starting: nothing can have been written yet
     if state.armed and not state.held:
         _stop(signum)
     state.pending = signum       # acted on when the held section ends, or the run begins
+
+
+def describe(signum: int) -> tuple[int, str]:
+    """Return the exit status and the reason a stop signal ends a run with (130, 'interrupted')."""
+    if signum == signal.SIGINT:
+        return 130, 'interrupted'
+    return 128 + signum, f'terminated by {signal.Signals(signum).name}'
+
+
+def _exit_now(signum: int):
+    status, reason = describe(signum)
+    prog = os.path.basename(sys.argv[0] if sys.argv else '') or 'tracked_kinematics'
+    os.write(2, f'{prog}: error: {reason}\n'.encode())
+    os._exit(status)
 
 
 def _stop(signum: int):
@@ -162,9 +180,9 @@ def install_for_tool() -> None:
     """
     Take the stop signals for the process of an offline tool, at its first import.
 
-    A signal is held until the run begins (:func:`start`, :func:`release`); if the process
-    ends before (``--help``, a usage error), it is ignored. At exit they are ignored, so that
-    the interpreter's shutdown cannot be killed half-way.
+    Until the run begins (:func:`start`), a signal ends the process at once with its status
+    and one line: nothing has been written. At exit they are ignored, so that the
+    interpreter's shutdown cannot be killed half-way.
     """
     if not _in_main_thread() or _state.tool:
         return
@@ -193,6 +211,7 @@ def start() -> bool:
     if not _in_main_thread() or state.armed:
         return False
     _hold()
+    state.started = True
     handlers = {signum: signal.signal(signum, _on_signal) for signum in STOP_SIGNALS}
     if not state.tool:
         state.previous = handlers

@@ -371,6 +371,8 @@ def run_main(prog: str, run, args) -> int:
     mark = begun()
     try:
         status, message = _run_mapped(run, args, outermost)
+        if message is not None:
+            message = f'{prog}: error: {" ".join(str(message).split())}'
     finally:
         if outermost:
             try:
@@ -378,7 +380,7 @@ def run_main(prog: str, run, args) -> int:
             finally:
                 signals.finish()
     if message is not None:
-        print(f'{prog}: error: {" ".join(str(message).split())}', file=sys.stderr)
+        print(message, file=sys.stderr)
     return status
 
 
@@ -401,8 +403,8 @@ def _run_mapped(run, args, outermost: bool):
     except KeyboardInterrupt:
         if not outermost:
             raise
-        return EXIT_INTERRUPTED, 'interrupted'
+        return signals.describe(signal.SIGINT)
     except Signalled as sig:
         if not outermost:
             raise
-        return 128 + sig.signum, f'terminated by {signal.Signals(sig.signum).name}'
+        return signals.describe(sig.signum)

@@ -177,6 +177,8 @@ class Entry:
     before : list of int
         The stamp of a file that was in the way when the entry was recorded (replaced with
         ``--force``): until it changes, it is not the demo's.
+    listed : bool
+        A bag's files were listed once it was written (not stored).
 
     """
 
@@ -185,6 +187,7 @@ class Entry:
     files: list = field(default_factory=list)
     stamp: list = field(default_factory=list)
     before: list = field(default_factory=list)
+    listed: bool = field(default=False, compare=False)
 
     def to_json(self) -> dict:
         """Return the entry as the manifest stores it."""
@@ -203,6 +206,17 @@ class Entry:
         if self.stamp:
             return self.stamp == now
         return not self.before or self.before != now
+
+
+def bag_files(path: str, storage: str) -> list[str]:
+    """
+    Return the files of the bag ``path`` the demo writes (with ``storage``), before it does.
+
+    Recorded with the bag's entry before it is written, so that a run interrupted once the
+    bag is in place but before :meth:`DemoDirectory.written` has listed it still removes it.
+    """
+    name = PurePosixPath(path).name
+    return ['metadata.yaml', f'{name}.{"db3" if storage == "sqlite3" else storage}']
 
 
 def _stamp(info) -> list:
@@ -273,6 +287,7 @@ class DemoDirectory:
         self.entries: list[Entry] = []
         self.created: list[Path] = []   # the output directory and parents made by this run
         self.changed = False            # prepare() has begun to change the directory
+        self.cleared = False            # ... and removed what the previous run wrote
 
     @property
     def manifest(self) -> Path:
@@ -428,6 +443,7 @@ class DemoDirectory:
                     self.fail()
                     raise self._error('is not writable')
             self._remove(old)
+            self.cleared = True
             self.entries = []
             for entry in planned:
                 if entry.kind == 'dir' and _lstat(self.directory / entry.path) is None:
@@ -450,8 +466,9 @@ class DemoDirectory:
             info = _lstat(path)
             if info is None:
                 continue
-            if entry.kind == 'bag' and not entry.files and stat.S_ISDIR(info.st_mode):
+            if entry.kind == 'bag' and not entry.listed and stat.S_ISDIR(info.st_mode):
                 entry.files = sorted(os.listdir(path))
+                entry.listed = True
             elif entry.kind == 'file' and not entry.stamp and stat.S_ISREG(info.st_mode) \
                     and entry.matches(info):
                 entry.stamp = _stamp(info)
@@ -471,7 +488,9 @@ class DemoDirectory:
                     with contextlib.suppress(OSError):
                         path.rmdir()
                 self.created = []
-            elif self.manifest.exists():
+            elif self.cleared and self.manifest.exists():
+                # The previous run's outputs are gone: the manifest lists this run's, none.
+                # (Had removing them failed, it would still list them, for a rerun.)
                 with contextlib.suppress(OSError):
                     self.save()
             finished(self)
@@ -666,7 +685,7 @@ def _steps(args, out, spec, terrain, overrides, outputs: DemoDirectory, start) -
     t = time.perf_counter()
     table = TwistTable(veh)
     calibration = f'calibration/{spec.name}_{terrain}'
-    outputs.record(Entry('bag', calibration))
+    outputs.record(Entry('bag', calibration, bag_files(calibration, args.storage)))
     outputs.record(Entry('file', f'{calibration}.truth.yaml'))
     sim = simulate_bag(directory / calibration, args.vehicle, overrides=overrides,
                        duration=args.duration, seed=args.seed, storage=args.storage,
@@ -715,7 +734,7 @@ def _steps(args, out, spec, terrain, overrides, outputs: DemoDirectory, start) -
     results = []
     for k in range(args.paths):
         name = f'heldout/{heldout_name(k)}'
-        outputs.record(Entry('bag', name))
+        outputs.record(Entry('bag', name, bag_files(name, args.storage)))
         outputs.record(Entry('file', f'{name}.truth.yaml'))
         results.append(heldout_path(k, args, overrides, table, identified, heldout))
         outputs.written()
