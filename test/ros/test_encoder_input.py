@@ -112,6 +112,22 @@ def test_no_readings_and_zero_stamp_are_skipped(harness):
     assert h.steps == []
 
 
+def test_bytes_that_are_no_joint_state_are_skipped_with_a_warning(harness):
+    # The input is taken as bytes (JointStateReader): a writer of garbage on the topic (no
+    # ROS node does that, a bare DDS one might) costs one warning, not the node.
+    h = harness(sprocket_radius=1.0)
+    pub = h.driver.publisher(JointState, 'joint_states')
+    for _ in range(4):
+        pub.publish(b'\x00\x01\x00\x00' + b'\xff' * 40)
+        if spin_until(h.executor, lambda: h.input.received > 0, 0.5):
+            break
+    assert h.input.counts['unreadable'] == 1 and h.warned('no serialised sensor_msgs/JointState')
+    h.send(joint_state(1.0, [0.0, 0.0]))
+    h.send(joint_state(1.1, [0.1, 0.2]))
+    assert h.steps[-1][1:] == pytest.approx((0.1, 0.2, 0.1))
+    assert (h.input.stamp.sec, h.input.stamp.nanosec) == (1, 100_000_000)
+
+
 @pytest.mark.parametrize('t2', [0.9, 1.0])
 def test_time_going_back_restarts_from_the_new_message(harness, t2):
     h = harness(sprocket_radius=1.0)

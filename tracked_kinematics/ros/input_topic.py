@@ -88,12 +88,13 @@ class InputTopic:
     """
 
     def __init__(self, node, msg_type, topic: str, callback: Callable, depth: int = INPUT_DEPTH,
-                 order_key: Callable | None = None):
+                 order_key: Callable | None = None, raw: bool = False):
         self._node = node
         self._msg_type = msg_type
         self._callback = callback
         self._depth = depth
         self._order_key = order_key
+        self._raw = raw
         self.type_name = type_name(msg_type)
         self.topic_name = node.resolve_topic_name(topic)
         self.reliability = self._wanted() or ReliabilityPolicy.BEST_EFFORT
@@ -111,7 +112,7 @@ class InputTopic:
         events = SubscriptionEventCallbacks(incompatible_qos=self._on_incompatible)
         return self._node.create_subscription(self._msg_type, self.topic_name, callback,
                                               input_qos(reliability, self._depth),
-                                              event_callbacks=events)
+                                              event_callbacks=events, raw=self._raw)
 
     def _on_incompatible(self, event) -> None:
         self.check()
