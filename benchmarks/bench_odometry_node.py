@@ -191,13 +191,16 @@ def run_pair(count: int, seconds: float):
 
     The two floods run one after the other, then the two 1 kHz runs, so that each ratio
     compares measurements a few seconds apart. Each target's figures are (flood msg/s, node
-    CPU s per message in the flood, 1 kHz latency median ms, 1 kHz latency p99 ms).
+    CPU s per message in the flood, 1 kHz latency median ms, 1 kHz latency p99 ms, messages
+    lost at 1 kHz).
     """
     flood = {target: measure(target, count, 0.0)[:2] for target in (NODE, RELAY)}
     figures = {}
+    sent = int(seconds * 1000)
     for target in (NODE, RELAY):
-        latencies = measure(target, int(seconds * 1000), 1000.0)[2]
-        figures[target] = (*flood[target], statistics.median(latencies), p99(latencies))
+        latencies = measure(target, sent, 1000.0)[2]
+        figures[target] = (*flood[target], statistics.median(latencies), p99(latencies),
+                           sent - len(latencies))
     return figures
 
 

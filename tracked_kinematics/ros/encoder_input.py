@@ -56,6 +56,9 @@ __all__ = ['check_encoder_values', 'EncoderInput', 'JointStateReader', 'WARN_PER
 # Message type and bit width of each ticks_type.
 _TICKS_MESSAGES = {'int32': (Int32, 32), 'int64': (Int64, 64)}
 _STEP = Status.STEP
+# JointState messages taken from the queue in one turn of the executor when they wait there
+# (the node fell behind): about 2 ms of work here.
+DRAIN = 50
 _SIDES = ('left', 'right')
 
 
@@ -273,7 +276,8 @@ class EncoderInput:
         if self.mode == 'joint_states':
             self._reader = JointStateReader()
             self.inputs = (InputTopic(node, JointState, JOINT_STATES_TOPIC,
-                                      self._on_joint_state, order_key=_stamp_key, raw=True),)
+                                      self._on_joint_state, order_key=_stamp_key, raw=True,
+                                      drain=DRAIN),)
         else:
             if self.mode == 'track_speeds':
                 msg_type = Float64
