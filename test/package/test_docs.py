@@ -21,7 +21,7 @@ LINK = re.compile(r'!?\[[^\]\n]*\]\(\s*<?([^)\s>]+)>?(?:\s+"[^"]*")?\s*\)')
 HEADING = re.compile(r'^#{1,6}\s+(.*?)\s*#*\s*$', re.M)
 FENCED = re.compile(r'^```(\w*)\n(.*?)^```', re.S | re.M)
 NODE_TABLES = {'odometry_node': 'PARAMS', 'cmd_vel_translator': 'TRANSLATOR_PARAMS',
-               'icr_estimator': 'PARAMS'}
+               'icr_estimator': 'PARAMS', 'tracked_simulator': 'SIMULATOR_PARAMS'}
 
 
 def markdown_files():
