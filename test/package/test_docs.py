@@ -175,6 +175,7 @@ def check_command(words):
             return None
         module = importlib.import_module(f'tracked_kinematics.ros.{words[3]}')
         declared = {spec.name for spec in getattr(module, NODE_TABLES[words[3]])}
+        declared.add('use_sim_time')  # every rclpy node declares it
         names = [words[i + 1].split(':=')[0] for i, word in enumerate(words[:-1])
                  if word == '-p']
         unknown = [name for name in names if name not in declared]
