@@ -251,20 +251,62 @@ def test_real_time_factor_changes_at_runtime(graph, executor):
     assert (sim1 - sim0) / (wall1 - wall0) > 3.0
 
 
-def test_lidar_pose_is_delayed_noisy_and_near_the_truth(graph, executor):
-    _, probe = graph(lidar_pose=True, lidar_pose_delay=0.2, lidar_pose_jump_rate=0.0,
-                     lidar_pose_position_noise=0.01, ground_truth_rate=100.0)
-    assert wait_sim(executor, probe, 4.0, 0.5, 0.5)
-    assert len(probe.lidar) >= 20
-    truth = {round(_seconds(m.header.stamp), 6): m.pose.pose.position.x for m in probe.truth}
-    errors = []
-    for msg in probe.lidar:
-        stamp = round(_seconds(msg.header.stamp), 6)
+@pytest.mark.parametrize('stamp', ['measurement', 'receipt'])
+def test_lidar_pose_is_delayed_noisy_and_near_the_truth(graph, executor, stamp):
+    delay = 0.2
+    _, probe = graph(lidar_pose=True, lidar_pose_delay=delay, lidar_pose_jump_rate=0.0,
+                     lidar_pose_position_noise=0.01, ground_truth_rate=100.0,
+                     lidar_pose_stamp=stamp)
+    truth, lidar = {}, []   # every message, however late the probe spins
+    probe.node.create_subscription(
+        Odometry, 'ground_truth/odom', lambda m: truth.setdefault(
+            round(_seconds(m.header.stamp), 6), m.pose.pose.position.x), 5000)
+    probe.node.create_subscription(PoseStamped, 'lidar/pose', lidar.append, 5000)
+    assert wait_sim(executor, probe, 6.0, 0.5, 0.5)
+    assert len(lidar) >= 20
+    # The pose measured at s - delay (receipt) or at s (measurement), against the truth.
+    shift = delay if stamp == 'receipt' else 0.0
+    errors, late = [], []
+    for msg in lidar:
         assert msg.header.frame_id == 'odom'
-        if stamp in truth:
-            errors.append(msg.pose.position.x - truth[stamp])
+        s = _seconds(msg.header.stamp)
+        measured = round(s - shift, 6)
+        if measured in truth and round(s, 6) in truth and truth[measured] > 0.5:
+            errors.append(msg.pose.position.x - truth[measured])
+            late.append(msg.pose.position.x - truth[round(s, 6)])
     assert len(errors) >= 10
     assert 0.001 < np.std(errors) < 0.03 and abs(np.mean(errors)) < 0.01
+    if stamp == 'receipt':  # the stamp is the publication: the pose trails it
+        assert np.mean(late) < -0.5 * delay * 0.4
+
+
+def test_the_same_seed_gives_the_same_readings(ros_context, executor, namespace):
+    """At rest (no setpoints), the encoder and gyro noise depend on the seed alone."""
+    def readings(seed):
+        node = TrackedSimulator(context=ros_context, namespace=namespace, parameter_overrides=[
+            Parameter('seed', value=seed), Parameter('real_time_factor', value=RTF)])
+        probe = Probe(ros_context, namespace)
+        got = {}
+        probe.node.create_subscription(JointState, 'joint_states', lambda m: got.setdefault(
+            round(_seconds(m.header.stamp), 6), tuple(m.velocity) + tuple(m.position)), 5000)
+        probe.node.create_subscription(Imu, 'imu/data', lambda m: got.setdefault(
+            -round(_seconds(m.header.stamp), 6), (m.angular_velocity.z,)), 5000)
+        for each in (node, probe.node):
+            executor.add_node(each)
+        try:
+            # Until 4 s of simulated time: the first ones may go before discovery ends.
+            assert spin_until(executor, lambda: got and max(got) > 4.0, TIMEOUT)
+        finally:
+            for each in (probe.node, node):
+                executor.remove_node(each)
+                each.destroy_node()
+        return got
+
+    first, again, other = readings(4), readings(4), readings(5)
+    common = sorted(set(first) & set(again) & set(other))
+    assert len(common) > 100
+    assert [first[k] for k in common] == [again[k] for k in common]
+    assert all(first[k] != other[k] for k in common)
 
 
 @pytest.mark.parametrize('params, reason', [
@@ -320,6 +362,10 @@ def test_console_script_runs_and_exits_on_sigint(ros_context, executor, tmp_path
                               and probe.left.get_subscription_count() > 0, 30.0), \
                 script.output
             assert drive(executor, probe, 0.5, 0.5, lambda: probe.pose()[0] > 0.5), \
+                script.output
+            probe.send(math.nan, 1e300)  # ignored, clamped: said in a warning
+            assert spin_until(executor, lambda: 'ignored a non-finite setpoint' in script.output
+                              and 'clamped a setpoint' in script.output, TIMEOUT), \
                 script.output
             assert probe.terrain[-1:] == ['grass']
             wall0, sim0 = probe.clock[-1]

@@ -149,15 +149,17 @@ SIMULATOR_PARAMS: tuple[ParamSpec, ...] = (
               read_only=True),
     ParamSpec('gyro_rate', 100.0, 'Rate of imu/data', 'Hz', positive, low=1.0, high=2000.0,
               read_only=True),
-    ParamSpec('gyro_bias', 0.002, "Constant bias of the gyro's yaw rate", 'rad/s', finite,
-              low=-1.0, high=1.0, read_only=True),
+    ParamSpec('gyro_bias', 0.005,
+              "Bias of the gyro's yaw rate at the start (simulate_bag --imu-bias's default)",
+              'rad/s', finite, low=-1.0, high=1.0, read_only=True),
     ParamSpec('gyro_noise', 0.002, 'White noise of one gyro reading', 'rad/s', non_negative,
               low=0.0, high=1.0, read_only=True),
     ParamSpec('gyro_bias_walk', 0.0, 'Random walk of the gyro bias', 'rad/s/sqrt(s)',
               non_negative, low=0.0, high=1.0, read_only=True),
     ParamSpec('gyro_latency', 0.0,
-              'A gyro reading stamped t shows the yaw rate of t - gyro_latency', 's',
-              non_negative, low=0.0, high=1.0, read_only=True),
+              'A gyro reading stamped t shows the yaw rate of t - gyro_latency (negative: '
+              'stamped early, as on the Warthog logs)', 's', finite, low=-1.0, high=1.0,
+              read_only=True),
     ParamSpec('imu_frame', 'base_link', 'header.frame_id of imu/data', check=frame_id,
               read_only=True),
     ParamSpec('ground_truth_rate', 50.0, 'Rate of ground_truth/odom', 'Hz', positive,
@@ -378,10 +380,13 @@ class TrackedSimulator(Node):
     def _on_setpoint(self, side: int, msg: Float64) -> None:
         with self._lock:
             problem = self._holds[side].take(msg.data, self._sim.t, time.monotonic())
-        if problem:
-            self.get_logger().warning(
-                f'{("left", "right")[side]}_track/setpoint: {problem}',
-                throttle_duration_sec=WARN_PERIOD)
+        # One call site per side: rclpy throttles a warning by where it is logged.
+        if problem and side == 0:
+            self.get_logger().warning(f'left_track/setpoint: {problem}',
+                                      throttle_duration_sec=WARN_PERIOD)
+        elif problem:
+            self.get_logger().warning(f'right_track/setpoint: {problem}',
+                                      throttle_duration_sec=WARN_PERIOD)
 
     # Stepping -------------------------------------------------------------------------------
 
