@@ -374,6 +374,11 @@ class TrackedSimulator(Node):
             f'{vehicle.max_track_speed:g} m/s; {values["rate"]:g} Hz steps at '
             f'{self._rtf:g}x real time, seed {values["seed"]}'
             + ('; lidar/pose on' if self._lidar is not None else ''))
+        if self.get_parameter('use_sim_time').value:
+            self.get_logger().warning(
+                'use_sim_time is true, but this node makes the simulated time: it paces its '
+                'steps on the wall clock and publishes /clock itself (give use_sim_time to '
+                'the other nodes only)')
 
     # Setpoints ------------------------------------------------------------------------------
 
