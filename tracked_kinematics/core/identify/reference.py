@@ -99,7 +99,7 @@ SATURATION_SHARE = 0.005
 """Share of gyro readings stuck at the largest magnitude that means saturation."""
 MIN_MOVING_SEGMENTS = 10
 """Fewest moving segments for a heading fit."""
-POSITION_WINDOW = {'gnss': 120.0, 'pose': 10.0}
+POSITION_WINDOW = {'gnss': 30.0, 'pose': 10.0}
 """Default window of the position comparison, s, per source."""
 _MIN_TRAVEL = 0.01
 
@@ -773,8 +773,9 @@ def fit_recordings(recordings, track_width: float, *, base: IcrParams | None = N
             if not drop:
                 break
             free = [n for n in free if n not in drop]
-        s, c, x = vals['s'], vals['c'], vals['x']
-        std_s, std_x, std_c = std.get('s'), std.get('x'), std.get('c')
+        s, c, x = float(vals['s']), float(vals['c']), float(vals['x'])
+        std_s, std_x, std_c = (None if std.get(n) is None else float(std[n])
+                               for n in ('s', 'x', 'c'))
         if not std_s <= DISTANCE_STD_LIMIT * s:
             raise ExcitationError(f'the positions do not determine the distance scale: {s:.3f} '
                                   f'+- {std_s:.2g} (need {DISTANCE_STD_LIMIT:.0%}): drive '
