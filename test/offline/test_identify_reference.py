@@ -169,3 +169,39 @@ def test_a_straight_drive_that_turns_is_refused(field, tmp_path, capsys):
 def test_options_without_a_heading_reference_are_refused(field, tmp_path, capsys, argv, match):
     status, _, err = run([field.bag, *argv, '--output', tmp_path / 'o.yaml', *VEHICLE], capsys)
     assert status == 2 and match in err
+
+
+def test_evaluate_model_scores_heading_only_against_a_gyro(field, tmp_path, capsys):
+    from tracked_kinematics.offline.cli import evaluate_model
+    model = tmp_path / 'imu.yaml'
+    assert run([field.bag, '--imu-topic', '/imu/data', '--output', model, *VEHICLE],
+               capsys)[0] == 0
+    reports = {}
+    for name, ref in (('imu', ['--imu-topic', '/imu/data']),
+                      ('pose', ['--ground-truth-topic', '/ground_truth/pose'])):
+        reports[name] = tmp_path / f'{name}.json'
+        status = evaluate_model.main([str(field.bag), *ref, '--params', str(model),
+                                      '--sprocket-radius', '0.1', '--report',
+                                      str(reports[name])])
+        out, err = capsys.readouterr()
+        assert status == 0, err
+        assert ('heading only' in out) == (name == 'imu')
+    imu, pose = (json.loads(reports[k].read_text()) for k in ('imu', 'pose'))
+    assert imu['reference'] == 'imu' and 'heading only' in imu['scored']
+    for name in ('ideal', 'imu'):
+        win = imu['models'][name]['odometry']['windows']['5']
+        assert win['mean_position_error_m'] is None and win['p90_position_error_m'] is None
+        assert imu['models'][name]['rpe_1m'] is None
+        assert imu['models'][name]['odometry']['horizon']['mean_rmse_translation_m'] is None
+        # The gyro scores heading as the true pose does (its noise: a few hundredths deg).
+        heading = win['mean_heading_error_rad']
+        truth = pose['models'][name]['odometry']['windows']['5']['mean_heading_error_rad']
+        assert heading == pytest.approx(truth, rel=0.15, abs=np.radians(0.05))
+    assert pose['models']['imu']['odometry']['windows']['5']['mean_position_error_m'] > 0
+
+
+def test_evaluate_model_needs_one_reference(field, tmp_path, capsys):
+    from tracked_kinematics.offline.cli import evaluate_model
+    status = evaluate_model.main([str(field.bag), '--params', str(field.truth),
+                                  '--sprocket-radius', '0.1'])
+    assert status == 2 and '--imu-topic' in capsys.readouterr().err
