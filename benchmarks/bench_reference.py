@@ -9,7 +9,8 @@ Benchmark: identify_icr without ground truth (issue 21): the gyro, GNSS. Prints 
    than the plain gyro fit]
 2. Simulation: the Auriga-alpha of the demo, four calibration runs of 240 s with a biased,
    late gyro (0.01 rad/s, 0.08 s) and a 2-m GNSS at 5 Hz, fitted from the gyro alone, the
-   gyro and the GNSS, the true pose (identify_icr's pose fit) and ideal drive; scored on
+   gyro and the GNSS (position windows of 30, 60 and 120 s), the true pose (identify_icr's
+   pose fit) and ideal drive; scored on
    four held-out 60-s runs against the true pose after 5-s windows. [gyro + GNSS position
    within 1.2 x the pose fit's]. Repeated on the same vehicle with its centre of mass at
    the geometric centre and no height (symmetric, quasi-static: nothing for the GNSS to
@@ -39,6 +40,8 @@ from tracked_kinematics.offline.bags.references import read_reference_bag  # noq
 from tracked_kinematics.offline.cli.simulate_bag import simulate_bag  # noqa: E402
 from tracked_kinematics.offline.vehicle_file import load_vehicle  # noqa: E402
 
+WINDOWS = (30.0, 60.0, 120.0)
+"""GNSS position windows compared, s."""
 WARTHOG = ('warthog_grass_2024-07-18_16h59', 'warthog_grass_2024-07-29_14h04',
            'warthog_grass_2024-08-08_16h11')
 
@@ -115,7 +118,7 @@ def simulated(label, overrides) -> None:
         poses = read_bags(train, encoders, GroundTruthSource('/ground_truth/pose'))
         truth = read_bags(test, encoders, GroundTruthSource('/ground_truth/pose'))
         fits = {'gyro': ident.fit_recordings(gyro_only, width).icr}
-        for window in (30.0, 120.0):
+        for window in WINDOWS:
             fit = ident.fit_recordings(refs, width, position_window=window)
             fits[f'gyro+GNSS {window:g} s'] = fit.icr
         fits['pose'] = ident.identify(poses, 'icr_scales', width, holdout=0,

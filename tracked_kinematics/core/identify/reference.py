@@ -99,7 +99,7 @@ SATURATION_SHARE = 0.005
 """Share of gyro readings stuck at the largest magnitude that means saturation."""
 MIN_MOVING_SEGMENTS = 10
 """Fewest moving segments for a heading fit."""
-POSITION_WINDOW = {'gnss': 30.0, 'pose': 10.0}
+POSITION_WINDOW = {'gnss': 120.0, 'pose': 10.0}
 """Default window of the position comparison, s, per source."""
 _MIN_TRAVEL = 0.01
 
