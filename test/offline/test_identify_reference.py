@@ -207,3 +207,50 @@ def test_evaluate_model_needs_one_reference(field, tmp_path, capsys):
     status = evaluate_model.main([str(field.bag), '--params', str(field.truth),
                                   '--sprocket-radius', '0.1'])
     assert status == 2 and '--imu-topic' in capsys.readouterr().err
+
+
+def test_a_measured_straight_fixes_the_distance_scale(field, table, tmp_path, capsys):
+    from tracked_kinematics.core.sim.sensors import gyro_samples
+    from tracked_kinematics.core.sim.simulation import simulate
+    spec = load_vehicle('auriga_alpha', FLAT)
+    t = np.arange(0.0, 40.0, 0.01)
+    speed = 0.6 * np.clip(t - 1.0, 0.0, 1.0) * np.clip(38.0 - t, 0.0, 1.0)
+    enc = spec.robot.encoders
+    # Steered straight, as a driver would: the nominal speeds make equal true speeds.
+    straight = simulate(spec.robot, np.column_stack([speed / enc.scale_left,
+                                                     speed / enc.scale_right]), 0.01, table,
+                        rng=np.random.default_rng(0))
+    gyro = gyro_samples(straight.t, straight.twist[:, 2], GyroModel(bias=0.002, noise_std=0.002),
+                        np.random.default_rng(1))
+    bag = tmp_path / 'straight'
+    sim.write_run(bag, straight, gyro=gyro)
+    x, y = straight.pose[-1, :2] - straight.pose[0, :2]
+    measured = float(np.hypot(x, y))
+    out = tmp_path / 'straight.yaml'
+    status, text, err = run([bag, '--imu-topic', '/imu/data', '--straight-distance',
+                             f'{measured:.4f}', '--params', field.truth, '--output', out,
+                             '--sprocket-radius', '0.1'], capsys)
+    assert status == 0, err
+    values = read_params_file(out)
+    assert values['identification.reference'] == 'imu+straight'
+    assert 'distance_scale' in values['identification.determined']
+    assert 'chi' in values['identification.held']
+    true = field.truth_icr
+    assert 0.5 * (values['scale.left'] + values['scale.right']) == pytest.approx(
+        0.5 * (true.scale_left + true.scale_right), rel=0.005)
+    assert 'straight drive:' in text
+
+
+def test_gnss_as_odometry_of_navsat_transform(table, tmp_path, capsys):
+    bag = sim.simulate_bag(tmp_path / 'navsat', overrides=FLAT, duration=120.0, seed=6,
+                           table=table, ground_truth='odometry', gt_position_noise=0.02,
+                           imu=GyroModel(bias=0.004, noise_std=0.003))
+    out = tmp_path / 'navsat.yaml'
+    status, _, err = run([bag.bag, '--imu-topic', '/imu/data', '--gnss-topic',
+                          '/ground_truth/odom', '--output', out, *VEHICLE], capsys)
+    assert status == 0, err
+    values = read_params_file(out)
+    assert values['identification.reference'] == 'imu+gnss'
+    true = bag.truth_icr
+    assert 0.5 * (values['scale.left'] + values['scale.right']) == pytest.approx(
+        0.5 * (true.scale_left + true.scale_right), abs=0.01)
