@@ -254,3 +254,26 @@ def test_gnss_as_odometry_of_navsat_transform(table, tmp_path, capsys):
     true = bag.truth_icr
     assert 0.5 * (values['scale.left'] + values['scale.right']) == pytest.approx(
         0.5 * (true.scale_left + true.scale_right), abs=0.01)
+
+
+@pytest.mark.parametrize('orientation', ['turning', 'identity'])
+def test_the_reader_takes_the_orientation_only_when_it_turns(field, tmp_path, orientation):
+    from tracked_kinematics.offline.bags.writer import BagWriter
+    run_ = field.run
+    path = tmp_path / orientation
+    t = run_.t[:3000]
+    with BagWriter(path) as bag:
+        for k, tk in enumerate(t):
+            stamp = sim.START_NS + int(round(tk * 1e9))
+            bag.write('/joint_states', stamp, bag.joint_state(
+                stamp, sim.JOINTS, run_.joint_position[k].tolist()))
+            yaw = float(run_.pose[k, 2]) if orientation == 'turning' else 0.0
+            w = float(run_.twist[min(k, len(run_.twist) - 1), 2])
+            bag.write('/imu/data', stamp, bag.imu(stamp, w, yaw=yaw))
+    rec = read_reference_bag(path, EncoderSource(sprocket_radius=0.1), '/imu/data')
+    if orientation == 'turning':
+        assert rec.gyro_rate is None
+        assert np.allclose(np.unwrap(rec.gyro_yaw) - rec.gyro_yaw[0],
+                           run_.pose[:3000, 2] - run_.pose[0, 2], atol=1e-6)
+    else:
+        assert rec.gyro_yaw is None and np.any(rec.gyro_rate != 0)

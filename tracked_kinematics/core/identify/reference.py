@@ -822,7 +822,7 @@ def fit_recordings(recordings, track_width: float, *, base: IcrParams | None = N
         'reference': reference, 'determined': determined, 'held': held,
         'icr': {'track_width': icr.track_width, 'y_left': icr.y_left, 'y_right': icr.y_right,
                 'x': icr.x, 'scale_left': icr.scale_left, 'scale_right': icr.scale_right,
-                'chi': icr.chi, 'eccentricity': icr.eccentricity},
+                'chi': icr.chi, 'eccentricity': icr.eccentricity + 0.0},
         'distance_scale': s, 'scale_ratio': rho, 'turn_gain': u, 'icr_offset': c,
         'standard_errors': {'turn_gain': std_u, 'scale_ratio': std_rho if 'scale_ratio'
                             in determined else None, 'distance_scale': std_s,
