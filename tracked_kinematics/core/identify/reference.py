@@ -12,7 +12,8 @@ The one function a caller needs
 -------------------------------
 ``fit_from_reference(enc_t, left, right, *, track_width, gyro_t=None, gyro_rate=None,
 gyro_yaw=None, pose=None, positions=None, straight_distance=None, base=None,
-imu_delay='auto', pose_delay='auto', segment_length=1.0) -> ReferenceFit``
+imu_delay='auto', pose_delay='auto', segment_length=1.0, position_window=None, hold=())
+-> ReferenceFit``
 
 Plain arrays in (one recording; :func:`fit_recordings` takes several
 :class:`ReferenceRecording`): encoder times (s) and cumulative nominal track travel (m);
@@ -23,8 +24,13 @@ optional pose ``(t, x, y, yaw)`` and optional positions ``(t, x, y)`` in a local
 ``.held`` (lists of ``chi``, ``scale_ratio``, ``distance_scale``, ``icr.x``, ``icr_offset``),
 ``.reference`` (``'imu'``, ``'imu+gnss'``, ...) and ``.report`` (a JSON-ready dict).
 Errors: :class:`~tracked_kinematics.core.errors.SensorDataError` for unusable sensor data
-(a gyro all zero or NaN, saturated; no position fix), ``ExcitationError`` for data that
-cannot determine what is asked, ``FitError`` for an invalid result; one line each.
+(a gyro all zero or NaN, saturated), ``ExcitationError`` for data that cannot determine
+what is asked (too little turning; a "straight" that turns; positions too noisy for the
+distance), ``FitError`` for an invalid result; one line each. A node calls, for example::
+
+    fit = fit_from_reference(enc_t, left, right, track_width=0.42, gyro_t=imu_t,
+                             gyro_rate=imu_wz, base=current_icr)
+    fit.icr, fit.held, fit.report['imu_delay']['delay']
 
 The model
 ---------
@@ -876,8 +882,8 @@ def _delay_report(d: DelayEstimate) -> dict:
 def fit_from_reference(enc_t, left, right, *, track_width: float, gyro_t=None, gyro_rate=None,
                        gyro_yaw=None, pose=None, positions=None,
                        straight_distance: float | None = None, base: IcrParams | None = None,
-                       imu_delay='auto', pose_delay='auto',
-                       segment_length: float = 1.0) -> ReferenceFit:
+                       imu_delay='auto', pose_delay='auto', segment_length: float = 1.0,
+                       position_window: float | None = None, hold=()) -> ReferenceFit:
     """
     Calibrate one recording from plain arrays: the entry point of nodes (module notes).
 
@@ -903,6 +909,8 @@ def fit_from_reference(enc_t, left, right, *, track_width: float, gyro_t=None, g
         Delays of the gyro / pose stamps behind the encoders, s, or estimated.
     segment_length : float
         Heading segments, s.
+    position_window, hold
+        As :func:`fit_recordings`.
 
     Returns
     -------
@@ -913,7 +921,8 @@ def fit_from_reference(enc_t, left, right, *, track_width: float, gyro_t=None, g
     rec = ReferenceRecording(enc_t, left, right, gyro_t, gyro_rate, gyro_yaw, pose, positions)
     return fit_recordings([rec], track_width, base=base, imu_delay=imu_delay,
                           pose_delay=pose_delay, segment_length=segment_length,
-                          straight_distance=straight_distance)
+                          straight_distance=straight_distance,
+                          position_window=position_window, hold=hold)
 
 
 def heading_reference(rec: ReferenceRecording, delay: float, bias: float,
