@@ -145,3 +145,17 @@ def test_an_orientation_yaw_serves_as_the_heading(drive):
     assert fit.scale_ratio == pytest.approx(RHO_TRUE, abs=2e-3)
     assert fit.icr.chi == pytest.approx(TRUE.chi * S_TRUE, rel=5e-3)
     assert abs(fit.biases[0]) < 1e-4
+
+
+def test_heading_reference_removes_bias_and_delay_and_skips_gaps(drive):
+    from tracked_kinematics.core.identify.reference import heading_reference
+    gyro_t, rate = gyro_of(drive, bias=0.02, latency=0.1)
+    keep = (gyro_t < 100.0) | (gyro_t > 103.0)     # a 3-s gap in the gyro
+    rec = ReferenceRecording(drive.enc_t, drive.left, drive.right, gyro_t[keep], rate[keep])
+    ref = heading_reference(rec, 0.1, 0.02)
+    assert not np.any((ref.gt_t > 100.2) & (ref.gt_t < 102.9))
+    before = ref.gt_t < 99.0
+    true = np.interp(ref.gt_t[before], drive.gt_t, np.unwrap(drive.gt_yaw))
+    got = np.unwrap(ref.gt_yaw[before])
+    np.testing.assert_allclose(got - got[0], true - true[0], atol=2e-3)
+    assert np.all(ref.gt_x == 0.0) and np.all(ref.gt_y == 0.0)
