@@ -342,7 +342,7 @@ def test_command_is_finite_within_caps_and_zero_without_a_fresh_deadman(
 @given(st.floats(allow_nan=True, allow_infinity=True), _maybe_time, _maybe_time, _maybe_time,
        _pose, st.booleans())
 def test_any_single_input_gives_a_finite_command(t, deadman_t, encoder_t, reference_t, pose,
-                                                  held):
+                                                 held):
     sup = Supervisor(protocol(30.0), SupervisorConfig(auto_start=True))
     out = sup.update(Inputs(t, held, deadman_t, encoder_t, reference_t, pose))
     assert math.isfinite(out.v) and math.isfinite(out.w)

@@ -167,7 +167,7 @@ class Output:
 
     @property
     def moving(self) -> bool:
-        """True when the command is not zero."""
+        """Return whether the command is not zero."""
         return self.v != 0.0 or self.w != 0.0
 
 
@@ -214,17 +214,17 @@ class Supervisor:
 
     @property
     def state(self) -> str:
-        """The current state."""
+        """Return the current state."""
         return self._d.state
 
     @property
     def centre(self) -> tuple | None:
-        """``(x, y)`` of the geofence centre, or None before start."""
+        """Return ``(x, y)`` of the geofence centre, or None before start."""
         return self._d.centre
 
     @property
     def events(self) -> list:
-        """``(t, state, reason)`` of every state change, oldest first."""
+        """Return ``(t, state, reason)`` of every state change, oldest first."""
         return list(self._d.log)
 
     def start(self, inputs: Inputs) -> tuple[bool, str]:
@@ -239,7 +239,8 @@ class Supervisor:
         """
         d = self._d
         if d.terminal or d.state == 'finished':
-            return False, f'cannot start: the drive is {d.state} ({d.reason}); start the node again'
+            return False, (f'cannot start: the drive is {d.state} ({d.reason}); start the '
+                           'node again')
         if d.state == 'idle':
             pose = inputs.pose
             if pose is None or not all(map(math.isfinite, pose)):
@@ -296,7 +297,7 @@ class Supervisor:
 
     @property
     def last(self) -> Output:
-        """The output of the latest update."""
+        """Return the output of the latest update."""
         return self._last
 
     def _update(self, inputs: Inputs) -> Output:
