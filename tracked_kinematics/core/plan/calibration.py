@@ -223,3 +223,104 @@ def fence_exit(pose, step: Step, centre, radius: float, samples: int = 50) -> fl
 def total_duration(steps) -> float:
     """Return the summed duration of ``steps``, s."""
     return float(sum(s.duration for s in steps))
+
+
+class FenceOdometry:
+    """
+    Dead reckoning of the geofence pose when the reference gives no position (the IMU).
+
+    The heading is the gyro's (integrated yaw rate: right on any terrain, as an uncalibrated
+    vehicle's encoder heading is not: it turns less than its tracks say), the distance the
+    encoders' mean travel times their scales (right to a few per cent before calibration).
+    Good for keeping a geofence over minutes, not for odometry.
+
+    Parameters
+    ----------
+    scale_left, scale_right : float
+        Encoder scales (true travel = scale x nominal).
+
+    """
+
+    def __init__(self, scale_left: float = 1.0, scale_right: float = 1.0):
+        self.scales = (float(scale_left), float(scale_right))
+        self.x = self.y = self.yaw = 0.0
+        self._gyro_t = None
+
+    @property
+    def pose(self) -> tuple[float, float, float]:
+        """Return the current ``(x, y, yaw)``."""
+        return self.x, self.y, self.yaw
+
+    def add_gyro(self, t: float, yaw_rate: float) -> None:
+        """Integrate one gyro sample (``t`` in s, ``yaw_rate`` in rad/s), held since the last."""
+        if not (math.isfinite(t) and math.isfinite(yaw_rate)):
+            return
+        if self._gyro_t is not None and 0.0 < t - self._gyro_t < 1.0:
+            self.yaw += yaw_rate * (t - self._gyro_t)
+        self._gyro_t = t
+
+    def add_travel(self, d_left: float, d_right: float) -> None:
+        """Advance along the current heading by the nominal track travel of one step, m."""
+        ds = 0.5 * (self.scales[0] * d_left + self.scales[1] * d_right)
+        if math.isfinite(ds):
+            self.x += ds * math.cos(self.yaw)
+            self.y += ds * math.sin(self.yaw)
+
+
+@dataclass(frozen=True)
+class CalibrationRecording:
+    """
+    What a calibration drive recorded, as plain arrays (times in ns, on the message stamps).
+
+    Attributes
+    ----------
+    encoder_t : ndarray of int64, shape (N,)
+        Stamps of the encoder steps.
+    encoder : ndarray, shape (N, 2)
+        Cumulative nominal travel of the left and right tracks, m.
+    pose_t : ndarray of int64, shape (M,)
+        Stamps of the reference poses (empty with the IMU reference).
+    pose : ndarray, shape (M, 3)
+        ``(x, y, yaw)``.
+    imu_t : ndarray of int64, shape (K,)
+        Stamps of the gyro samples (empty with the pose reference).
+    imu : ndarray, shape (K, 5)
+        Yaw rate (rad/s) and the orientation quaternion ``(x, y, z, w)``.
+    imu_orientation_covariance0 : ndarray, shape (K,)
+        First element of each sample's orientation covariance (-1: no orientation).
+    cmd_t : ndarray of int64, shape (C,)
+        Times the commands were published (node clock).
+    cmd : ndarray, shape (C, 2)
+        ``(v, w)`` published on cmd_vel.
+
+    """
+
+    encoder_t: np.ndarray
+    encoder: np.ndarray
+    pose_t: np.ndarray
+    pose: np.ndarray
+    imu_t: np.ndarray
+    imu: np.ndarray
+    imu_orientation_covariance0: np.ndarray
+    cmd_t: np.ndarray
+    cmd: np.ndarray
+
+    @classmethod
+    def of(cls, encoder=(), pose=(), imu=(), cmd=()):
+        """
+        Build from lists of rows ``(t_ns, values...)``.
+
+        ``encoder`` rows ``(t, left, right)``, ``pose`` rows ``(t, x, y, yaw)``, ``imu`` rows
+        ``(t, yaw_rate, qx, qy, qz, qw, covariance0)``, ``cmd`` rows ``(t, v, w)``.
+        """
+        def split(rows, width):
+            if not len(rows):
+                return np.zeros(0, np.int64), np.zeros((0, width))
+            t = np.array([r[0] for r in rows], dtype=np.int64)
+            return t, np.array([r[1:] for r in rows], dtype=float).reshape(len(rows), width)
+        enc_t, enc = split(encoder, 2)
+        pose_t, poses = split(pose, 3)
+        imu_t, imu_values = split(imu, 6)
+        cmd_t, cmds = split(cmd, 2)
+        return cls(enc_t, enc, pose_t, poses, imu_t, imu_values[:, :5], imu_values[:, 5],
+                   cmd_t, cmds)

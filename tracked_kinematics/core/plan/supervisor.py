@@ -242,9 +242,10 @@ class Supervisor:
             return False, (f'cannot start: the drive is {d.state} ({d.reason}); start the '
                            'node again')
         if d.state == 'idle':
+            problem = self._stale(inputs)
+            if problem:
+                return False, f'cannot start: {problem}'
             pose = inputs.pose
-            if pose is None or not all(map(math.isfinite, pose)):
-                return False, 'cannot start: no pose yet (encoders / reference)'
             d.centre = (float(pose[0]), float(pose[1]))
             d.index, d.step, d.step_t0 = 0, None, None
             self._set(inputs.t, 'running', '')
@@ -306,12 +307,11 @@ class Supervisor:
         if not math.isfinite(t):
             return self._output(inputs, 0.0, 0.0)
         if d.state == 'idle':
-            if cfg.auto_start and self._deadman_fresh(inputs):
-                ok, message = self.start(inputs)
-                if not ok:
-                    return self._output(inputs, 0.0, 0.0, reason=message)
-            else:
+            if not (cfg.auto_start and self._deadman_fresh(inputs)):
                 return self._output(inputs, 0.0, 0.0)
+            ok, message = self.start(inputs)
+            if not ok:   # waits for the sensors
+                return self._output(inputs, 0.0, 0.0, reason=message)
         if d.state in ('finished', 'stopped'):
             return self._output(inputs, 0.0, 0.0)
         if d.paused_by_user:
