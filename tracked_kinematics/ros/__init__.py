@@ -13,7 +13,8 @@ import signal
 import sys
 import threading
 
-NODE_EXECUTABLES = ('odometry_node', 'cmd_vel_translator', 'icr_estimator')
+NODE_EXECUTABLES = ('odometry_node', 'cmd_vel_translator', 'icr_estimator',
+                    'tracked_simulator')
 
 
 def _exit_quietly(signum, frame):
