@@ -140,7 +140,8 @@ def test_calibration_drive_in_closed_loop(ros_context, executor, tmp_path):
     assert fitted.chi == pytest.approx(truth.chi, rel=0.03), (fitted, truth)
     ideal_error, fitted_error = _heldout_errors(tmp_path, fitted)
     print(f'chi {fitted.chi:.4f} (truth {truth.chi:.4f}, '
-          f'{100 * (fitted.chi / truth.chi - 1):+.1f} %); held-out final position error {fitted_error:.3f} m vs ideal {ideal_error:.3f} m '
+          f'{100 * (fitted.chi / truth.chi - 1):+.1f} %); held-out final position error '
+          f'{fitted_error:.3f} m vs ideal {ideal_error:.3f} m '
           f'({100 * (fitted_error / ideal_error - 1):+.0f} %)')
     assert fitted_error <= 0.2 * ideal_error, (ideal_error, fitted_error)
     assert Path(bag, 'metadata.yaml').is_file()
