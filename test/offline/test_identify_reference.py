@@ -1,0 +1,171 @@
+"""simulate_bag --imu/--gnss and identify_icr without ground truth, end to end, bad input."""
+
+import json
+
+import numpy as np
+import pytest
+from rosbags.highlevel import AnyReader
+from tracked_kinematics.core.sim.sensors import GnssModel, GyroModel
+from tracked_kinematics.core.sim.simulation import TwistTable
+from tracked_kinematics.offline.bags import EncoderSource
+from tracked_kinematics.offline.bags.references import read_reference_bag
+from tracked_kinematics.offline.cli import identify_icr, simulate_bag as sim
+from tracked_kinematics.offline.vehicle_file import load_vehicle
+from tracked_kinematics.params import read_params_file
+
+VEHICLE = ['--sprocket-radius', '0.1', '--track-width', '0.42']
+BIAS, LATENCY = 0.01, 0.08
+
+
+@pytest.fixture(scope='module')
+def table():
+    return TwistTable(load_vehicle('auriga_alpha').robot.vehicle)
+
+
+@pytest.fixture(scope='module')
+def field(tmp_path_factory, table):
+    """Four minutes of the Auriga-alpha with a biased, late gyro and a 0.5-m GNSS."""
+    path = tmp_path_factory.mktemp('field') / 'field'
+    return sim.simulate_bag(
+        path, duration=240.0, seed=4, table=table, gt_rate=10.0,
+        imu=GyroModel(rate=100.0, bias=BIAS, noise_std=0.005, latency=LATENCY),
+        gnss=GnssModel(rate=5.0, noise_std=0.5, dropout=0.05))
+
+
+def run(argv, capsys):
+    status = identify_icr.main([str(a) for a in argv])
+    out, err = capsys.readouterr()
+    return status, out, err.strip()
+
+
+def test_the_simulated_bag_carries_imu_and_gnss_as_robots_do(field):
+    truth = read_params_file(field.truth)
+    assert truth['simulation.imu.bias'] == BIAS
+    assert truth['simulation.imu.latency'] == LATENCY
+    assert truth['simulation.gnss.noise_std'] == 0.5
+    with AnyReader([field.bag]) as reader:
+        imu = [c for c in reader.connections if c.topic == '/imu/data']
+        gnss = [c for c in reader.connections if c.topic == '/gnss/fix']
+        assert imu[0].msgtype == 'sensor_msgs/msg/Imu'
+        assert gnss[0].msgtype == 'sensor_msgs/msg/NavSatFix'
+        first = next(reader.messages(connections=imu))
+        msg = reader.deserialize(first[2], imu[0].msgtype)
+        assert msg.orientation_covariance[0] == -1.0
+        assert msg.linear_acceleration_covariance[0] == -1.0
+        status = [reader.deserialize(raw, c.msgtype).status.status
+                  for c, _, raw in reader.messages(connections=gnss)]
+    assert set(status) == {-1, 0} and 0.01 < status.count(-1) / len(status) < 0.12
+    rec = read_reference_bag(field.bag, EncoderSource(sprocket_radius=0.1), '/imu/data',
+                             '/gnss/fix')
+    # The gyro reads the true rate of LATENCY s before its stamp, plus its bias.
+    steps = np.clip(np.searchsorted(field.run.t, rec.gyro_t - LATENCY, side='right') - 1, 0,
+                    len(field.run.twist) - 1)
+    error = rec.gyro_rate - field.run.twist[steps, 2]
+    assert np.median(error) == pytest.approx(BIAS, abs=0.002)
+    # The fixes, back in the local plane, are the true path within the GNSS noise.
+    t, x, y = rec.positions
+    true_x = np.interp(t, field.run.t, field.run.pose[:, 0])
+    assert np.std(x - true_x) == pytest.approx(0.5, rel=0.15)
+
+
+def test_imu_only_fits_heading_and_holds_the_rest(field, tmp_path, capsys):
+    out, report = tmp_path / 'imu.yaml', tmp_path / 'imu.json'
+    status, text, err = run([field.bag, '--imu-topic', '/imu/data', '--output', out,
+                             '--report', report, *VEHICLE], capsys)
+    assert status == 0, err
+    assert 'held (--params or ideal drive): distance_scale' in text
+    values = read_params_file(out)
+    assert values['identification.reference'] == 'imu'
+    assert values['identification.determined'] == ['chi', 'scale_ratio']
+    assert values['identification.held'] == ['distance_scale', 'icr.x', 'icr_offset']
+    assert values['identification.imu_delay'] == pytest.approx(LATENCY, abs=0.01)
+    assert values['identification.gyro_bias_per_bag'][0] == pytest.approx(BIAS, abs=1e-3)
+    true = field.truth_icr
+    ratio = values['scale.right'] / values['scale.left']
+    assert ratio == pytest.approx(true.scale_right / true.scale_left, abs=0.01)
+    assert values['icr.x'] == 0.0 and values['icr.y_left'] == -values['icr.y_right']
+    doc = json.loads(report.read_text())
+    assert doc['reference'] == 'imu' and doc['held'] == values['identification.held']
+
+
+def test_gnss_fits_the_distance_scale(field, tmp_path, capsys):
+    out = tmp_path / 'gnss.yaml'
+    status, text, err = run([field.bag, '--imu-topic', '/imu/data', '--gnss-topic',
+                             '/gnss/fix', '--output', out, *VEHICLE], capsys)
+    assert status == 0, err
+    values = read_params_file(out)
+    assert values['identification.reference'] == 'imu+gnss'
+    assert 'distance_scale' in values['identification.determined']
+    # Against the fit to the true pose (the best constant-ICR scales of this run; the
+    # averaged stationary model differs, the ICRs of this vehicle move in fast turns).
+    posed = tmp_path / 'pose.yaml'
+    status, _, err = run([field.bag, '--ground-truth-topic', '/ground_truth/pose', '--output',
+                          posed, '--holdout', '0', *VEHICLE], capsys)
+    assert status == 0, err
+    pose = read_params_file(posed)
+    scale = 0.5 * (values['scale.left'] + values['scale.right'])
+    assert scale == pytest.approx(0.5 * (pose['scale.left'] + pose['scale.right']), abs=0.02)
+    # Without GNSS the scale is held at 1.
+    assert field_imu_only(field, tmp_path, capsys) == pytest.approx(2.0, abs=1e-12)
+
+
+def field_imu_only(field, tmp_path, capsys):
+    out = tmp_path / 'imu_only.yaml'
+    assert run([field.bag, '--imu-topic', '/imu/data', '--output', out, *VEHICLE], capsys)[0] == 0
+    values = read_params_file(out)
+    return values['scale.left'] + values['scale.right']
+
+
+def bad_bag(field, path, rates=None, fixes=None):
+    """Write the field run again, with given gyro readings or GNSS fixes."""
+    run_ = field.run
+    gyro = (run_.t, rates) if rates is not None else None
+    sim.write_run(path, run_, gyro=gyro, gnss=fixes)
+    return path
+
+
+@pytest.mark.parametrize('kind, match', [('zeros', 'no angular velocity'),
+                                         ('nan', 'no angular velocity'),
+                                         ('saturated', 'saturated')])
+def test_an_unusable_gyro_is_one_line_and_no_output(field, tmp_path, capsys, kind, match):
+    w = np.r_[field.run.twist[:, 2], 0.0]
+    rates = {'zeros': np.zeros(w.size), 'nan': np.full(w.size, np.nan),
+             'saturated': np.clip(w, -0.3, 0.3)}[kind]
+    bag = bad_bag(field, tmp_path / kind, rates=rates)
+    out = tmp_path / 'out.yaml'
+    status, text, err = run([bag, '--imu-topic', '/imu/data', '--output', out, *VEHICLE],
+                            capsys)
+    assert status == 2
+    assert len(err.splitlines()) == 1 and match in err and err.startswith('identify_icr: error')
+    assert not out.exists()
+
+
+def test_a_gnss_without_fix_is_refused(field, tmp_path, capsys):
+    t = field.run.t[::20]
+    fixes = (t, np.zeros(t.size), np.zeros(t.size), np.zeros(t.size), np.full(t.size, -1))
+    w = np.r_[field.run.twist[:, 2], 0.0]
+    bag = bad_bag(field, tmp_path / 'nofix', rates=w, fixes=fixes)
+    out = tmp_path / 'out.yaml'
+    status, _, err = run([bag, '--imu-topic', '/imu/data', '--gnss-topic', '/gnss/fix',
+                          '--output', out, *VEHICLE], capsys)
+    assert status == 2 and 'no fix' in err and len(err.splitlines()) == 1
+    assert not out.exists()
+
+
+def test_a_straight_drive_that_turns_is_refused(field, tmp_path, capsys):
+    out = tmp_path / 'straight.yaml'
+    status, _, err = run([field.bag, '--imu-topic', '/imu/data', '--straight-distance', '50',
+                          '--output', out, *VEHICLE], capsys)
+    assert status == 3 and 'not a straight drive' in err
+    assert not out.exists()
+
+
+@pytest.mark.parametrize('argv, match', [
+    (['--gnss-topic', '/gnss/fix'], '--imu-topic'),
+    ([], '--ground-truth-topic'),
+    (['--imu-topic', '/imu/data', '--spin-in-place'], '--spin-in-place'),
+    (['--imu-topic', '/imu/data', '--model', 'general_slip'], 'ground-truth pose'),
+])
+def test_options_without_a_heading_reference_are_refused(field, tmp_path, capsys, argv, match):
+    status, _, err = run([field.bag, *argv, '--output', tmp_path / 'o.yaml', *VEHICLE], capsys)
+    assert status == 2 and match in err
