@@ -1,9 +1,10 @@
 """
-The calibration drive in closed loop (issue 22's check), faster than real time.
+The calibration drive in closed loop (issue 22's checks), faster than real time.
 
 tracked_simulator (auriga_alpha on hard floor) + cmd_vel_translator (no limits, so no
-deceleration ramp) + calibration_drive (pose reference), as console scripts in sim time;
-the test holds the deadman, releases it once mid-drive, and watches everything.
+deceleration ramp) + calibration_drive (the pose reference, or the gyro alone), as console
+scripts in sim time; the test holds the deadman, releases it once mid-drive, and watches
+everything.
 """
 
 import json
@@ -70,7 +71,12 @@ class Watcher:
 
 
 def _heldout_errors(tmp_path, fitted: IcrParams, paths=3, duration=60.0):
-    """Mean final position errors of ideal drive and of the fit on new simulated paths."""
+    """
+    Mean final position and heading errors of ideal drive and of the fit on new paths.
+
+    Headings are compared unwrapped (both are continuous), so a dead reckoning that has
+    turned a whole extra turn counts 2 pi, not 0.
+    """
     ideal = IcrParams.ideal(fitted.track_width)
     errors = []
     for k, manoeuvres in enumerate(('random', 'sweep', 'mixed')[:paths]):
@@ -78,13 +84,16 @@ def _heldout_errors(tmp_path, fitted: IcrParams, paths=3, duration=60.0):
                            duration=duration, seed=11 + k, storage='mcap')
         rec = read_bag(sim.bag, EncoderSource(sprocket_radius=0.1),
                        GroundTruthSource('/ground_truth/pose'))
-        truth = sim.run.pose[-1, :2]
-        ends = [dead_reckon(icr, rec.left, rec.right)[-1, :2] for icr in (ideal, fitted)]
-        errors.append([float(np.hypot(*(end - truth))) for end in ends])
+        truth = sim.run.pose[-1]
+        ends = [dead_reckon(icr, rec.left, rec.right)[-1] for icr in (ideal, fitted)]
+        errors.append([[float(np.hypot(*(end[:2] - truth[:2]))),
+                        abs(float(end[2] - truth[2]))] for end in ends])
+    # [ideal, fitted] x [position, heading]
     return np.mean(errors, axis=0)
 
 
-def test_calibration_drive_in_closed_loop(ros_context, executor, tmp_path):
+@pytest.mark.parametrize('reference', ['pose', 'imu'])
+def test_calibration_drive_in_closed_loop(ros_context, executor, tmp_path, reference):
     terrain = tmp_path / 'ideal.yaml'
     terrain.write_text(TERRAIN)
     out, bag = tmp_path / 'calibrated.yaml', tmp_path / 'drive'
@@ -98,6 +107,7 @@ def test_calibration_drive_in_closed_loop(ros_context, executor, tmp_path):
             ConsoleScript('calibration_drive', '--ros-args', '--params-file', terrain,
                           *sim_time, '-p', f'output:={out}', '-p', f'bag:={bag}',
                           '-p', f'duration:={DURATION}', '-p', f'geofence_radius:={FENCE}',
+                          '-p', f'reference:={reference}',
                           '-p', 'auto_start:=true', '-p', 'deadman_timeout:=1.0',
                           '-p', 'encoder_timeout:=2.0', '-p', 'reference_timeout:=2.0',
                           tmp_path=tmp_path) as drive:
@@ -138,10 +148,13 @@ def test_calibration_drive_in_closed_loop(ros_context, executor, tmp_path):
                          storage='mcap').truth_icr
     fitted = icr_from_values(read_params_file(out))
     assert fitted.chi == pytest.approx(truth.chi, rel=0.03), (fitted, truth)
-    ideal_error, fitted_error = _heldout_errors(tmp_path, fitted)
-    print(f'chi {fitted.chi:.4f} (truth {truth.chi:.4f}, '
-          f'{100 * (fitted.chi / truth.chi - 1):+.1f} %); held-out final position error '
-          f'{fitted_error:.3f} m vs ideal {ideal_error:.3f} m '
-          f'({100 * (fitted_error / ideal_error - 1):+.0f} %)')
-    assert fitted_error <= 0.2 * ideal_error, (ideal_error, fitted_error)
+    (ideal_position, ideal_heading), (position, heading) = _heldout_errors(tmp_path, fitted)
+    print(f'{reference}: chi {fitted.chi:.4f} (truth {truth.chi:.4f}, '
+          f'{100 * (fitted.chi / truth.chi - 1):+.1f} %); held-out final errors: position '
+          f'{position:.3f} m vs ideal {ideal_position:.3f} m '
+          f'({100 * (position / ideal_position - 1):+.0f} %), heading {heading:.3f} rad vs '
+          f'ideal {ideal_heading:.3f} rad ({100 * (heading / ideal_heading - 1):+.0f} %)')
+    assert heading <= 0.2 * ideal_heading, (ideal_heading, heading)
+    if reference == 'pose':
+        assert position <= 0.2 * ideal_position, (ideal_position, position)
     assert Path(bag, 'metadata.yaml').is_file()

@@ -59,6 +59,8 @@ POSE_TYPES = {'odometry': Odometry, 'pose_stamped': PoseStamped,
               'pose_with_covariance': PoseWithCovarianceStamped}
 #: Highest rate of the status topic, Hz (and on every state change).
 STATUS_RATE = 2.0
+#: Largest track speed of a vehicle that stands still (the gyro then measures its bias), m/s.
+STILL_SPEED = 0.005
 #: How long the node waits for the nodes of push_to to answer, s.
 PUSH_TIMEOUT = 5.0
 
@@ -188,6 +190,7 @@ class CalibrationDriveNode(Node):
         self._radius = values['sprocket_radius']
         self._deadman = (False, None)
         self._encoder_t = self._reference_t = None
+        self._still = False
         self._pose = None
         self._travel = [0.0, 0.0]
         self._rows = {'encoder': [], 'pose': [], 'imu': [], 'cmd': []}
@@ -248,6 +251,7 @@ class CalibrationDriveNode(Node):
         self._travel[0] += d_left
         self._travel[1] += d_right
         self._rows['encoder'].append((_seconds(self.encoder.stamp), *self._travel))
+        self._still = dt > 0.0 and max(abs(d_left), abs(d_right)) <= STILL_SPEED * dt
         if self._reference == 'imu':
             self._fence.add_travel(d_left, d_right)
             self._pose = self._fence.pose
@@ -274,7 +278,7 @@ class CalibrationDriveNode(Node):
             return
         q = msg.orientation
         self._reference_t = self._now()
-        self._fence.add_gyro(t * 1e-9, rate)
+        self._fence.add_gyro(t * 1e-9, rate, self._still)
         self._pose = self._fence.pose
         self._rows['imu'].append((t, rate, q.x, q.y, q.z, q.w,
                                   float(msg.orientation_covariance[0])))
@@ -294,7 +298,11 @@ class CalibrationDriveNode(Node):
 
     def _inputs_now(self) -> Inputs:
         held, when = self._deadman
-        return Inputs(self._now(), held, when, self._encoder_t, self._reference_t, self._pose)
+        not_ready = '' if self._reference != 'imu' or self._fence.settled else (
+            f'measuring the gyro bias: the vehicle must stand still for '
+            f'{self._fence.settle:g} s first')
+        return Inputs(self._now(), held, when, self._encoder_t, self._reference_t, self._pose,
+                      not_ready)
 
     def _service(self, call):
         def handle(request, response):

@@ -6,7 +6,7 @@ from hypothesis import given, settings, strategies as st
 import numpy as np
 import pytest
 from tracked_kinematics.core.plan.calibration import (
-    ARC_YAW_FRACTIONS, fence_exit, predict_step, protocol, Step, total_duration)
+    ARC_YAW_FRACTIONS, fence_exit, FenceOdometry, predict_step, protocol, Step, total_duration)
 from tracked_kinematics.core.plan.supervisor import (
     cap, Inputs, STATES, Supervisor, SupervisorConfig)
 
@@ -346,3 +346,45 @@ def test_any_single_input_gives_a_finite_command(t, deadman_t, encoder_t, refere
     sup = Supervisor(protocol(30.0), SupervisorConfig(auto_start=True))
     out = sup.update(Inputs(t, held, deadman_t, encoder_t, reference_t, pose))
     assert math.isfinite(out.v) and math.isfinite(out.w)
+
+
+# The geofence pose of the IMU reference ---------------------------------------------
+
+
+def test_fence_odometry_measures_the_gyro_bias_standing_still():
+    fence = FenceOdometry()
+    t = 0.0
+    for _ in range(200):        # 2 s standing, a gyro reading 0.002 rad/s of bias
+        t += 0.01
+        fence.add_gyro(t, 0.002, still=True)
+    assert fence.settled and fence.bias == pytest.approx(0.002)
+    yaw0 = fence.yaw
+    for _ in range(6000):       # a minute driving straight: no heading drift from the bias
+        t += 0.01
+        fence.add_gyro(t, 0.002)
+        fence.add_travel(0.005, 0.005)
+    assert fence.yaw - yaw0 == pytest.approx(0.0, abs=1e-9)
+    assert fence.x == pytest.approx(30.0) and abs(fence.y) < 1e-6
+
+
+def test_fence_odometry_skips_non_finite_and_gaps():
+    fence = FenceOdometry(1.02, 0.98)
+    fence.add_gyro(0.0, 0.5)
+    fence.add_gyro(math.nan, 0.5)
+    fence.add_gyro(5.0, 0.5)           # a 5-s gap is not integrated
+    assert fence.yaw == 0.0 and not fence.settled
+    fence.add_travel(math.nan, 1.0)
+    fence.add_travel(1.0, 1.0)
+    assert fence.pose == pytest.approx((1.0, 0.0, 0.0))
+
+
+def test_start_waits_until_ready():
+    bench = Bench()
+    ok, message = bench.sup.start(Inputs(0.0, True, 0.0, 0.0, 0.0, (0.0, 0.0, 0.0),
+                                         'measuring the gyro bias'))
+    assert not ok and 'gyro bias' in message
+    sup = Supervisor(protocol(30.0), SupervisorConfig(auto_start=True))
+    out = sup.update(Inputs(0.0, True, 0.0, 0.0, 0.0, (0.0, 0.0, 0.0), 'measuring the gyro'))
+    assert out.state == 'idle' and not out.moving and 'gyro' in out.reason
+    out = sup.update(Inputs(0.1, True, 0.1, 0.1, 0.1, (0.0, 0.0, 0.0)))
+    assert out.state == 'running' and out.moving

@@ -229,34 +229,68 @@ class FenceOdometry:
     """
     Dead reckoning of the geofence pose when the reference gives no position (the IMU).
 
-    The heading is the gyro's (integrated yaw rate: right on any terrain, as an uncalibrated
-    vehicle's encoder heading is not: it turns less than its tracks say), the distance the
-    encoders' mean travel times their scales (right to a few per cent before calibration).
-    Good for keeping a geofence over minutes, not for odometry.
+    The heading is the gyro's (integrated yaw rate, less a bias measured while the vehicle
+    stands still: right on any terrain, as an uncalibrated vehicle's encoder heading is not,
+    since it turns less than its tracks say), the distance the encoders' mean travel times
+    their scales (right to a few per cent before calibration). Good for keeping a geofence
+    over minutes, not for odometry: an uncorrected gyro bias of 0.002 rad/s turns the frame
+    by 0.12 rad a minute, 0.36 m at 3 m from the centre.
 
     Parameters
     ----------
     scale_left, scale_right : float
         Encoder scales (true travel = scale x nominal).
+    settle : float
+        Standing time, s, after which the bias counts as measured (:attr:`settled`).
 
     """
 
-    def __init__(self, scale_left: float = 1.0, scale_right: float = 1.0):
+    def __init__(self, scale_left: float = 1.0, scale_right: float = 1.0, settle: float = 1.0):
         self.scales = (float(scale_left), float(scale_right))
         self.x = self.y = self.yaw = 0.0
+        self.settle = float(settle)
         self._gyro_t = None
+        self._still_time = 0.0
+        self._still_sum = 0.0
 
     @property
     def pose(self) -> tuple[float, float, float]:
         """Return the current ``(x, y, yaw)``."""
         return self.x, self.y, self.yaw
 
-    def add_gyro(self, t: float, yaw_rate: float) -> None:
-        """Integrate one gyro sample (``t`` in s, ``yaw_rate`` in rad/s), held since the last."""
+    @property
+    def bias(self) -> float:
+        """Return the gyro bias measured while standing, rad/s (0 before any)."""
+        return self._still_sum / self._still_time if self._still_time > 0.0 else 0.0
+
+    @property
+    def settled(self) -> bool:
+        """Return whether the vehicle stood still long enough to measure the gyro bias."""
+        return self._still_time >= self.settle
+
+    def add_gyro(self, t: float, yaw_rate: float, still: bool = False) -> None:
+        """
+        Integrate one gyro sample held since the last, less the bias.
+
+        Parameters
+        ----------
+        t : float
+            Stamp, s.
+        yaw_rate : float
+            rad/s.
+        still : bool
+            The vehicle stands still (its encoders do not move): the sample measures the
+            bias.
+
+        """
         if not (math.isfinite(t) and math.isfinite(yaw_rate)):
             return
         if self._gyro_t is not None and 0.0 < t - self._gyro_t < 1.0:
-            self.yaw += yaw_rate * (t - self._gyro_t)
+            dt = t - self._gyro_t
+            if still:
+                self._still_time += dt
+                self._still_sum += yaw_rate * dt
+            self.yaw += (yaw_rate - self.bias) * dt
         self._gyro_t = t
 
     def add_travel(self, d_left: float, d_right: float) -> None:

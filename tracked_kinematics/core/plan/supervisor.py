@@ -121,6 +121,8 @@ class Inputs:
     pose : tuple of float or None
         Current pose ``(x, y, yaw)`` in the frame the geofence is kept in (the reference's,
         or dead reckoning); None when unknown.
+    not_ready : str
+        Why the drive may not start yet (the gyro bias is not measured), or ''.
 
     """
 
@@ -130,6 +132,7 @@ class Inputs:
     encoder_t: float | None = None
     reference_t: float | None = None
     pose: tuple | None = None
+    not_ready: str = ''
 
 
 @dataclass(frozen=True, slots=True)
@@ -242,7 +245,7 @@ class Supervisor:
             return False, (f'cannot start: the drive is {d.state} ({d.reason}); start the '
                            'node again')
         if d.state == 'idle':
-            problem = self._stale(inputs)
+            problem = inputs.not_ready or self._stale(inputs)
             if problem:
                 return False, f'cannot start: {problem}'
             pose = inputs.pose
