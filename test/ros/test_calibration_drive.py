@@ -12,9 +12,10 @@ import pytest
 from rclpy.parameter import Parameter
 from std_msgs.msg import String
 from std_srvs.srv import Trigger
-from tracked_kinematics.offline.calibration_files import CalibrationFiles
+from tracked_kinematics.offline.calibration_files import CalibrationFiles, FITTED_KEYS
 from tracked_kinematics.params import read_params_file
 from tracked_kinematics.ros.calibration_drive import CalibrationDriveNode
+from tracked_kinematics.ros.odometry_node import OdometryNode
 from tracked_kinematics.ros.parameters import ParameterError
 
 pytestmark = pytest.mark.ros
@@ -111,6 +112,22 @@ def test_deadman_release_zeroes_the_next_command(drive):
     assert d.run(3.0, until=d.moving)
 
 
+def test_joystick_button_as_the_deadman(drive):
+    from sensor_msgs.msg import Joy
+    d = drive(auto_start=True, deadman_topic='', joy_topic='joy', deadman_button=2)
+    joy = d.robot.node.create_publisher(Joy, 'joy', 10)
+
+    def press(button_down):
+        joy.publish(Joy(buttons=[1, 1, int(button_down), 0]))
+    assert not d.run(1.0, hold=False, until=lambda: press(False) or d.moving())
+    assert d.run(5.0, hold=False, until=lambda: press(True) or d.moving())
+    n = len(d.robot.cmds)
+    press(False)
+    assert spin_until(d.executor, lambda: len(d.robot.cmds) > n, 5.0)
+    assert (d.robot.cmds[n].linear.x, d.robot.cmds[n].angular.z) == (0.0, 0.0)
+    assert d.node.supervisor.last.reason == 'deadman released'
+
+
 def test_stale_deadman_zeroes(drive):
     d = drive(auto_start=True, deadman_timeout=0.2)
     assert d.run(5.0, until=d.moving)
@@ -161,17 +178,25 @@ def test_pause_and_resume(drive):
     assert d.run(3.0, until=d.moving)
 
 
-def test_a_whole_drive_is_fitted_and_written(drive, tmp_path):
+def test_a_whole_drive_is_fitted_written_and_pushed(drive, ros_context, executor, tmp_path):
     out = tmp_path / 'fit.yaml'
     bag = tmp_path / 'drive_bag'
+    odometry = OdometryNode(context=ros_context, parameter_overrides=[
+        Parameter(k, value=v) for k, v in VEHICLE.items()])
+    executor.add_node(odometry)
     d = drive(finisher=CalibrationFiles, auto_start=True, output=str(out), bag=str(bag),
-              duration=30.0, terrain='test_floor')
-    assert d.run(240.0, until=lambda: d.node.exit_status is not None)
-    assert d.node.exit_status == 0
+              duration=30.0, terrain='test_floor', push_to=['odometry_node'])
+    try:
+        assert d.run(240.0, until=lambda: d.node.exit_status is not None)
+        assert d.node.exit_status == 0
+        fitted = {k: odometry.params[k] for k in FITTED_KEYS}
+    finally:
+        odometry.destroy_node()
     assert d.robot.max_distance <= 3.0
     assert all(math.isfinite(c.linear.x) and math.isfinite(c.angular.z) for c in d.robot.cmds)
     assert all(abs(c.linear.x) <= 0.5 and abs(c.angular.z) <= 1.0 for c in d.robot.cmds)
     values = read_params_file(out)
+    assert fitted == {k: values[k] for k in FITTED_KEYS}
     chi = B / (values['icr.y_left'] - values['icr.y_right'])
     assert chi == pytest.approx(AURIGA.chi, rel=0.03)
     assert values['terrain'] == 'test_floor'
@@ -247,5 +272,35 @@ def test_console_script_publishes_zero_when_signalled(ros_context, executor, tmp
             last = robot.cmds[-1]
             assert (last.linear.x, last.angular.z) == (0.0, 0.0), script.output
             assert not (tmp_path / 'never.yaml').exists()
+    finally:
+        robot.node.destroy_node()
+
+
+def test_a_signal_while_fitting_leaves_nothing_behind(ros_context, executor, tmp_path):
+    robot = FakeRobot(ros_context, executor)
+    status = []
+    robot.node.create_subscription(String, '/calibration_drive/status',
+                                   lambda m: status.append(json.loads(m.data)), 10)
+    work = tmp_path / 'work'
+    work.mkdir()
+    params = work / 'robot.yaml'
+    params.write_text(f'/**:\n  ros__parameters:\n    track_width: {B}\n'
+                      f'    sprocket_radius: {RADIUS}\n')
+    try:
+        with ConsoleScript('calibration_drive', '--ros-args', '--params-file', params,
+                           '-p', f'output:={work / "fit.yaml"}', '-p', 'auto_start:=true',
+                           '-p', 'duration:=15.0', '-p', 'encoder_timeout:=2.0',
+                           '-p', 'reference_timeout:=2.0', tmp_path=tmp_path) as script:
+            assert spin_until(executor, lambda: robot.cmds, 30.0), script.output
+
+            def fitting():
+                if robot.tick(DT):
+                    robot.deadman(True)
+                executor.spin_once(timeout_sec=0.005)
+                return bool(status) and status[-1]['phase'] == 'fitting'
+            assert spin_until(executor, fitting, 120.0), script.output
+            script.process.send_signal(signal.SIGINT)
+            assert script.wait(30.0) == 0, script.output
+        assert sorted(p.name for p in work.iterdir()) == ['robot.yaml'], script.output
     finally:
         robot.node.destroy_node()

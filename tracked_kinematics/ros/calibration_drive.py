@@ -61,6 +61,8 @@ POSE_TYPES = {'odometry': Odometry, 'pose_stamped': PoseStamped,
 STATUS_RATE = 2.0
 #: Largest track speed of a vehicle that stands still (the gyro then measures its bias), m/s.
 STILL_SPEED = 0.005
+#: Exit statuses of identify_icr for a signal (SIGHUP, SIGINT, SIGTERM).
+INTERRUPTED = (129, 130, 143)
 #: How long the node waits for the nodes of push_to to answer, s.
 PUSH_TIMEOUT = 5.0
 
@@ -160,7 +162,7 @@ class CalibrationDriveNode(Node):
         ``finisher(values)`` called at start with the parameter values; it checks the output
         paths (raising on a path that may not be written) and returns
         ``finish(recording, topics, log) -> (status, fitted values or None)``, run in a
-        thread when the protocol is done. None: nothing is written (tests).
+        callback of the node when the protocol is done. None: nothing is written (tests).
     on_exit : callable, optional
         ``on_exit(status)`` called, in a callback of the node, when the node is done; the
         console script raises SystemExit there. Default: only record ``exit_status``.
@@ -195,7 +197,6 @@ class CalibrationDriveNode(Node):
         self._travel = [0.0, 0.0]
         self._rows = {'encoder': [], 'pose': [], 'imu': [], 'cmd': []}
         self._phase = 'drive'         # drive -> fitting -> pushing -> done
-        self._thread = None
         self._result = None
         self._pending_push = {}
         self._push_deadline = None
@@ -381,17 +382,14 @@ class CalibrationDriveNode(Node):
     def _after_drive(self) -> None:
         if self._phase == 'drive':
             self._phase = 'fitting'
+            self._publish(0.0, 0.0)
+            self.stop_now()
+            self._publish_status()
             if self._finish is None:
                 self._result = (0, None)
-                return
-            recording, topics = self.recording(), self.topics()
-            self.get_logger().info(
-                f'protocol done: fitting {len(recording.encoder_t)} encoder steps and '
-                f'{len(recording.pose_t) + len(recording.imu_t)} reference samples')
-            self._thread = threading.Thread(target=self._run_finish, args=(recording, topics),
-                                            daemon=True)
-            self._thread.start()
-        elif self._phase == 'fitting' and self._result is not None:
+            else:
+                self._result = self._run_finish(self.recording(), self.topics())
+        if self._phase == 'fitting':
             status, fitted = self._result
             if status == 0 and fitted and self.params['push_to']:
                 self._phase = 'pushing'
@@ -405,13 +403,27 @@ class CalibrationDriveNode(Node):
                     self.get_logger().warning(f'{target} did not answer the push in time')
                 self._done(0)
 
-    def _run_finish(self, recording, topics) -> None:
+    def _run_finish(self, recording, topics):
+        """
+        Write the results, in this callback: a signal meanwhile ends the fit cleanly.
+
+        The fit takes seconds; the command stays zero (cmd_vel_translator's timeout zeroes
+        the tracks too). Run here rather than in a thread, a SIGINT or SIGTERM interrupts the
+        fit as it would identify_icr's, which then removes what it staged.
+        """
+        self.get_logger().info(
+            f'protocol done: fitting {len(recording.encoder_t)} encoder steps and '
+            f'{len(recording.pose_t) + len(recording.imu_t)} reference samples')
         try:
-            result = self._finish(recording, topics, self.get_logger())
-        except Exception as err:  # noqa: BLE001 -- the drive ends with one line, not a trace
-            self.get_logger().error(f'writing the results failed: {type(err).__name__}: {err}')
-            result = (1, None)
-        self._result = result
+            status, fitted = self._finish(recording, topics, self.get_logger())
+        except (ValueError, OSError) as err:   # the package's errors, a full disk
+            self.get_logger().error(f'writing the results failed: {err}')
+            return 2, None
+        if status in INTERRUPTED:
+            # A signal during the fit: a node ends cleanly on a signal (exit 0).
+            self.get_logger().warning('interrupted while fitting: nothing written')
+            raise KeyboardInterrupt
+        return status, fitted
 
     def _push(self, fitted: Mapping[str, float]) -> None:
         request = SetParametersAtomically.Request()
