@@ -174,7 +174,8 @@ class CalibrationDriveNode(Node):
     def __init__(self, finisher: Callable | None = None,
                  on_exit: Callable[[int], None] | None = None, **kwargs):
         super().__init__(NODE_NAME, **kwargs)
-        self.params = ParameterTable(self, PARAMS, validate=validate)
+        self.params = ParameterTable(self, PARAMS, validate=validate, on_change=self._apply)
+        self.encoder = None
         values = self.params.values
         self._finish = finisher(values) if finisher is not None else None
         self._on_exit = on_exit
@@ -237,6 +238,14 @@ class CalibrationDriveNode(Node):
             f'{deadman.strip()}; '
             + ('starts when the deadman is held' if values['auto_start']
                else 'call ~/start to begin'))
+
+    def _apply(self, values: Mapping[str, Any]) -> None:
+        """Take runtime changes of the terrain and encoder values into use (the rest is fixed)."""
+        icr = icr_from_values(values)
+        self._fence.scales = (icr.scale_left, icr.scale_right)
+        self._radius = values['sprocket_radius']
+        if self.encoder is not None:
+            self.encoder.configure(values)
 
     # --- inputs -------------------------------------------------------------------------
 
