@@ -23,7 +23,7 @@ import sys
 from tracked_kinematics.params import (COMMAND_LIMIT_PARAMS, DRIVETRAIN_PARAMS,
                                        ENCODER_INPUT_PARAMS, ParamSpec, TERRAIN_PARAMS)
 from tracked_kinematics.ros import (calibration_drive, cmd_vel_translator, icr_estimator,
-                                    odometry_node)
+                                    odometry_node, tracked_simulator)
 
 ROOT = Path(__file__).resolve().parents[2]
 OUTPUT = ROOT / 'docs' / 'parameters.md'
@@ -68,6 +68,9 @@ NODES = (
     ('icr_estimator', icr_estimator.PARAMS,
      'Checked together: the terrain, drive-train and encoder checks above, and '
      '`min_window <= window < max_window`.'),
+    ('tracked_simulator', tracked_simulator.SIMULATOR_PARAMS,
+     'Checked together: the vehicle file loads (every problem of it named) and `terrain` is '
+     "one of the shipped terrains or the vehicle file's own `friction.terrain`."),
     ('calibration_drive', calibration_drive.PARAMS,
      'Checked together: the terrain and encoder checks above, and a deadman '
      '(`deadman_topic` or `joy_topic`). `output`, the report beside it and `bag` are checked '
@@ -194,9 +197,9 @@ def parameters_markdown() -> str:
     for node, specs, together in NODES:
         shared, own = _split(specs)
         listed = ', '.join(f'[{heading.lower()}](#{_anchor(heading)})' for heading in shared)
-        out += ['', f'### {node}', '',
-                f'Page: [{node}](nodes/{node}.md). Declares the shared tables {listed}, and '
-                'its own:', '']
+        declares = (f'Declares the shared tables {listed}, and its own:' if shared
+                    else 'Its parameters:')
+        out += ['', f'### {node}', '', f'Page: [{node}](nodes/{node}.md). {declares}', '']
         out += table(own)
         out += ['', together]
     return '\n'.join(out) + '\n'

@@ -75,7 +75,6 @@ from tracked_kinematics.ros.parameters import ParameterTable
 NODE_NAME = 'tracked_simulator'
 
 MAX_LAG = 0.25  # s of wall time behind schedule after which the backlog is dropped
-MIN_WAKE = 0.002  # s, shortest sleep of the stepping thread (it takes several steps then)
 WARN_PERIOD = 1.0  # s, throttle of the warnings on recurring bad input
 LAG_WARN_PERIOD = 10.0  # s, throttle of the "cannot keep up" warning
 FAILURE_LIMIT = 1.0  # s of failing steps after which the node stops
@@ -119,6 +118,10 @@ SIMULATOR_PARAMS: tuple[ParamSpec, ...] = (
               low=0, high=2**31 - 1, read_only=True),
     ParamSpec('rate', 100.0, 'Rate of the simulation steps, in simulated time', 'Hz',
               positive, low=10.0, high=2000.0, read_only=True),
+    ParamSpec('clock_rate', 200.0,
+              'Largest rate of /clock, in wall time: the steps due are taken together, then '
+              '/clock is published once (every step when the steps are slower)', 'Hz',
+              positive, low=1.0, high=10000.0, read_only=True),
     ParamSpec('setpoint_timeout', 0.5,
               'Age (in simulated and in wall time, whichever ends later) beyond which a '
               'track setpoint counts as zero; 0 = no timeout', 's', non_negative, low=0.0,
@@ -146,15 +149,17 @@ SIMULATOR_PARAMS: tuple[ParamSpec, ...] = (
               read_only=True),
     ParamSpec('gyro_rate', 100.0, 'Rate of imu/data', 'Hz', positive, low=1.0, high=2000.0,
               read_only=True),
-    ParamSpec('gyro_bias', 0.002, "Constant bias of the gyro's yaw rate", 'rad/s', finite,
-              low=-1.0, high=1.0, read_only=True),
+    ParamSpec('gyro_bias', 0.005,
+              "Bias of the gyro's yaw rate at the start (simulate_bag --imu-bias's default)",
+              'rad/s', finite, low=-1.0, high=1.0, read_only=True),
     ParamSpec('gyro_noise', 0.002, 'White noise of one gyro reading', 'rad/s', non_negative,
               low=0.0, high=1.0, read_only=True),
     ParamSpec('gyro_bias_walk', 0.0, 'Random walk of the gyro bias', 'rad/s/sqrt(s)',
               non_negative, low=0.0, high=1.0, read_only=True),
     ParamSpec('gyro_latency', 0.0,
-              'A gyro reading stamped t shows the yaw rate of t - gyro_latency', 's',
-              non_negative, low=0.0, high=1.0, read_only=True),
+              'A gyro reading stamped t shows the yaw rate of t - gyro_latency (negative: '
+              'stamped early, as on the Warthog logs)', 's', finite, low=-1.0, high=1.0,
+              read_only=True),
     ParamSpec('imu_frame', 'base_link', 'header.frame_id of imu/data', check=frame_id,
               read_only=True),
     ParamSpec('ground_truth_rate', 50.0, 'Rate of ground_truth/odom', 'Hz', positive,
@@ -282,7 +287,8 @@ class TrackedSimulator(Node):
         spec = self._terrains.spec
         robot = spec.robot
         self._lock = threading.Lock()
-        self._terrain = values['terrain']
+        self._terrain = self._wanted_terrain = values['terrain']
+        self._builders: list[threading.Thread] = []
         self._dt = 1.0 / values['rate']
         self._sim = LiveSimulator(robot, self._dt, self._terrains.table(self._terrain))
         timeout = values['setpoint_timeout'] or math.inf
@@ -352,6 +358,7 @@ class TrackedSimulator(Node):
                                  lambda msg: self._on_setpoint(1, msg), 10)
 
         self._rtf = values['real_time_factor']
+        self._clock_period = 1.0 / values['clock_rate']
         self._stop = threading.Event()
         self._wake = threading.Event()
         self.context.on_shutdown(self._request_stop)
@@ -367,16 +374,24 @@ class TrackedSimulator(Node):
             f'{vehicle.max_track_speed:g} m/s; {values["rate"]:g} Hz steps at '
             f'{self._rtf:g}x real time, seed {values["seed"]}'
             + ('; lidar/pose on' if self._lidar is not None else ''))
+        if self.get_parameter('use_sim_time').value:
+            self.get_logger().warning(
+                'use_sim_time is true, but this node makes the simulated time: it paces its '
+                'steps on the wall clock and publishes /clock itself (give use_sim_time to '
+                'the other nodes only)')
 
     # Setpoints ------------------------------------------------------------------------------
 
     def _on_setpoint(self, side: int, msg: Float64) -> None:
         with self._lock:
             problem = self._holds[side].take(msg.data, self._sim.t, time.monotonic())
-        if problem:
-            self.get_logger().warning(
-                f'{("left", "right")[side]}_track/setpoint: {problem}',
-                throttle_duration_sec=WARN_PERIOD)
+        # One call site per side: rclpy throttles a warning by where it is logged.
+        if problem and side == 0:
+            self.get_logger().warning(f'left_track/setpoint: {problem}',
+                                      throttle_duration_sec=WARN_PERIOD)
+        elif problem:
+            self.get_logger().warning(f'right_track/setpoint: {problem}',
+                                      throttle_duration_sec=WARN_PERIOD)
 
     # Stepping -------------------------------------------------------------------------------
 
@@ -410,7 +425,7 @@ class TrackedSimulator(Node):
                     self._steps(due)
                 failing_since = None
                 next_wall = wall0 + (self._sim.t + self._dt - sim0) / rtf
-                wait = max(MIN_WAKE, next_wall - time.monotonic())
+                wait = max(self._clock_period, next_wall - time.monotonic())
                 if self._wake.wait(wait):
                     self._wake.clear()
             except Exception as err:  # noqa: BLE001 -- keep the simulation alive, say why
@@ -428,35 +443,42 @@ class TrackedSimulator(Node):
     _rescheduled = False
 
     def _steps(self, count: int) -> None:
-        """Take ``count`` steps, publishing what the sensors sample on the way."""
-        starts, rates = [], []
-        for _ in range(count):
-            with self._lock:
-                wall = time.monotonic()
-                t0 = self._sim.t
-                left = self._holds[0].current(t0, wall)
-                right = self._holds[1].current(t0, wall)
-                state = self._sim.step(left, right)
-            starts.append(t0)
-            rates.append(state.twist[2])
-            t = state.t
-            _stamp(self._clock_msg.clock, t)
-            self._clock_pub.publish(self._clock_msg)
+        """
+        Take ``count`` steps, then publish /clock and what the sensors sampled.
+
+        /clock goes first, at the last step's time, so that no message is ever stamped
+        ahead of the clock.
+        """
+        pending = []
+        with self._lock:
+            wall = time.monotonic()
+            t0, dt = self._sim.t, self._dt
+            left, right = self._holds
+            commands = [(left.current(t0 + k * dt, wall), right.current(t0 + k * dt, wall))
+                        for k in range(count)]
+            steps = self._sim.step_many(commands)
+        times = steps.t.tolist()
+        for k, t in enumerate(times):
             if self._encoder_due.due(t):
-                self._publish_joints(state)
+                pending.append((self._publish_joints, (t, *self._encoders.read(
+                    steps.travel[k], steps.nominal[k]))))
             if self._truth_due.due(t):
-                self._publish_truth(state)
+                pending.append((self._publish_truth, (steps.state(k),)))
             if self._lidar is not None:
-                for measured, pose in self._lidar.push(t, state.pose):
-                    self._publish_lidar(t if self._lidar_on_receipt else measured, pose)
-        stamps, z_rates = self._gyro.push(np.asarray(starts), np.asarray(rates))
+                for measured, pose in self._lidar.push(t, steps.pose[k]):
+                    pending.append((self._publish_lidar,
+                                    (t if self._lidar_on_receipt else measured, pose)))
+        stamps, z_rates = self._gyro.push(steps.t - dt, steps.twist[:, 2])
+        _stamp(self._clock_msg.clock, self._sim.t)
+        self._clock_pub.publish(self._clock_msg)
+        for publish, args in pending:
+            publish(*args)
         for stamp, z_rate in zip(stamps.tolist(), z_rates.tolist()):
             self._publish_gyro(stamp, z_rate)
 
-    def _publish_joints(self, state) -> None:
-        position, velocity = self._encoders.read(state.travel, state.nominal)
+    def _publish_joints(self, t: float, position, velocity) -> None:
         msg = self._joint_msg
-        _stamp(msg.header.stamp, state.t)
+        _stamp(msg.header.stamp, t)
         msg.position = position.tolist()
         msg.velocity = velocity.tolist()
         self._joint_pub.publish(msg)
@@ -499,32 +521,49 @@ class TrackedSimulator(Node):
     # Parameters and shutdown ------------------------------------------------------------------
 
     def _on_change(self, values: Mapping[str, Any]) -> None:
-        terrain = values['terrain']
-        table = self._terrains.table(terrain)  # built here, in the executor, if new
         timeout = values['setpoint_timeout'] or math.inf
         with self._lock:
-            changed = terrain != self._terrain
-            self._terrain = terrain
-            self._sim.set_table(table)
             for hold in self._holds:
                 hold.timeout = timeout
             if values['real_time_factor'] != self._rtf:
                 self._rtf = values['real_time_factor']
                 self._rescheduled = True
                 self._wake.set()
-            t = self._sim.t
-        if changed:
+        terrain = values['terrain']
+        if terrain != self._wanted_terrain:
+            # The new dynamics take a fraction of a second to tabulate: in a thread, so that
+            # neither the steps nor the setpoints wait; the old terrain holds until then.
+            self._wanted_terrain = terrain
+            builder = threading.Thread(target=self._switch_terrain, args=(terrain,),
+                                       name='terrain', daemon=True)
+            self._builders = [b for b in self._builders if b.is_alive()] + [builder]
+            builder.start()
+
+    def _switch_terrain(self, terrain: str) -> None:
+        """Tabulate the dynamics of ``terrain``, then use them from the next step (thread)."""
+        try:
+            table = self._terrains.table(terrain)
+            with self._lock:
+                if terrain != self._wanted_terrain or self._stop.is_set():
+                    return  # superseded by a later change, or shutting down
+                self._terrain = terrain
+                self._sim.set_table(table)
+                t = self._sim.t
             known = self._terrains.known[terrain]
             self.get_logger().info(
                 f'terrain {terrain} (mu_x {known.mu_x:g}, mu_y {known.mu_y:g}) from '
                 f't = {t:.3f} s')
             self._terrain_pub.publish(String(data=terrain))
+        except Exception as err:  # noqa: BLE001 -- the old terrain stays; say why
+            if not self._stop.is_set():
+                self.get_logger().error(f'cannot switch to terrain {terrain}: {err!r}')
 
     def destroy_node(self):
         """Stop the stepping thread, then destroy the node."""
         self._request_stop()
-        if self._thread.is_alive() and self._thread is not threading.current_thread():
-            self._thread.join(5.0)
+        for thread in [self._thread, *self._builders]:
+            if thread.is_alive() and thread is not threading.current_thread():
+                thread.join(5.0)
         super().destroy_node()
 
 

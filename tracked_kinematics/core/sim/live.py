@@ -138,6 +138,42 @@ class SimState:
     command: tuple
 
 
+@dataclass(frozen=True)
+class Steps:
+    """
+    The true states after each of several steps (:meth:`LiveSimulator.step_many`).
+
+    Attributes
+    ----------
+    t : ndarray, shape (n,)
+        Simulated time at the end of each step, s.
+    pose, twist : ndarray, shape (n, 3)
+        As :class:`SimState`'s, one row per step.
+    nominal, true_speeds, travel, command : ndarray, shape (n, 2)
+        As :class:`SimState`'s, one row per step.
+
+    """
+
+    t: np.ndarray
+    pose: np.ndarray
+    twist: np.ndarray
+    nominal: np.ndarray
+    true_speeds: np.ndarray
+    travel: np.ndarray
+    command: np.ndarray
+
+    def __len__(self) -> int:
+        """Return the number of steps."""
+        return len(self.t)
+
+    def state(self, k: int) -> SimState:
+        """Return step ``k`` as a :class:`SimState`."""
+        return SimState(float(self.t[k]), tuple(self.pose[k].tolist()),
+                        tuple(self.twist[k].tolist()), tuple(self.nominal[k].tolist()),
+                        tuple(self.true_speeds[k].tolist()), tuple(self.travel[k].tolist()),
+                        tuple(self.command[k].tolist()))
+
+
 class LiveSimulator:
     """
     Step the simulated robot by ``dt`` per call, given the track setpoints in force.
@@ -221,6 +257,53 @@ class LiveSimulator:
         self.state = SimState(self.steps * self.dt, (float(x[0]), float(y[0]), float(theta[0])),
                               (v_x, v_y, w), nominal, true, travel, (left, right))
         return self.state
+
+    def step_many(self, commands) -> Steps:
+        """
+        Take one step per row of ``commands``, vectorised over the steps.
+
+        The same as calling :meth:`step` on each row (to rounding): the drive train runs
+        sample by sample, the dynamics and the arc integration on all steps at once, which
+        is what makes a simulation many times faster than real time cheap.
+
+        Parameters
+        ----------
+        commands : array_like, shape (n, 2)
+            Commanded nominal track speeds (left, right) of each step, m/s; finite.
+
+        Returns
+        -------
+        Steps
+
+        Raises
+        ------
+        ValueError
+            On a non-finite command or a wrong shape (no step is taken then).
+
+        """
+        commands = np.asarray(commands, dtype=float).reshape(-1, 2)
+        if not np.all(np.isfinite(commands)):
+            raise ValueError('commands must be finite')
+        n = len(commands)
+        prev = self.state
+        nominal = np.array([self._drives.step(left, right)
+                            for left, right in commands.tolist()]).reshape(n, 2)
+        true = nominal * np.asarray(self._scale)
+        speeds = np.vstack([np.asarray(prev.true_speeds)[None], true])
+        mean = 0.5 * (speeds[1:] + speeds[:-1])
+        twist = np.stack(self.table(mean[:, 0], mean[:, 1]), axis=-1).reshape(n, 3)
+        x, y, theta = integrate_twist(twist[:, 0], twist[:, 1], twist[:, 2], self.dt,
+                                      prev.pose)
+        noms = np.vstack([np.asarray(prev.nominal)[None], nominal])
+        travel = np.asarray(prev.travel) + np.cumsum(0.5 * (noms[1:] + noms[:-1]) * self.dt,
+                                                     axis=0)
+        t = (self.steps + np.arange(1, n + 1)) * self.dt
+        steps = Steps(t, np.column_stack([x, y, theta]), twist, nominal, true, travel,
+                      commands)
+        if n:
+            self.steps += n
+            self.state = steps.state(n - 1)
+        return steps
 
 
 class SetpointHold:

@@ -108,8 +108,8 @@ class Schedule:
     """
     The steps at which a sensor of ``rate`` samples a simulation stepped every ``dt``.
 
-    Sample ``k`` is due at ``k / rate``; it is taken at the first step at or after that time
-    (exact when ``rate`` divides the step rate, otherwise within one step).
+    Sample ``k >= 1`` is due at ``k / rate``; it is taken at the first step at or after that
+    time (exact when ``rate`` divides the step rate, otherwise within one step).
 
     Parameters
     ----------
@@ -125,7 +125,7 @@ class Schedule:
             raise ValueError(f'rate must be > 0 Hz, got {rate!r}')
         self.rate = float(rate)
         self._slack = 1e-6 * dt
-        self._next = 0
+        self._next = 1
 
     def due(self, t: float) -> bool:
         """Tell whether a sample is due at step time ``t`` (and count it when it is)."""
