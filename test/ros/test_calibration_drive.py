@@ -73,6 +73,18 @@ class Drive:
         return bool(self.robot.cmds) and (self.last.linear.x != 0.0 or self.last.angular.z != 0.0)
 
 
+def assert_zero_on_arrival(d):
+    """The release just published: the callback that takes it in publishes a zero command."""
+    assert spin_until(d.executor, lambda: not d.node._deadman_state()[0], 5.0)
+    released_ns = min(int(when * 1e9) for held, when in d.node._deadmen.values() if not held)
+    after = [row for row in d.node._rows['cmd'] if row[0] >= released_ns - 1000]
+    # The first command after the release was taken in is zero and published in the same
+    # callback (within a few ms, not at the next 20-ms tick); every later one is zero too.
+    assert after and after[0][0] - released_ns < 5_000_000, after[:3]
+    assert all(row[1:] == (0.0, 0.0) for row in after), after[:3]
+    assert spin_until(d.executor, lambda: not d.moving(), 2.0)
+
+
 @pytest.fixture
 def drive(ros_context, executor):
     made = []
@@ -100,12 +112,8 @@ def test_idle_until_start_and_zero_meanwhile(drive):
 def test_deadman_release_zeroes_the_next_command(drive):
     d = drive(auto_start=True)
     assert d.run(5.0, until=d.moving)
-    n = len(d.robot.cmds)
     d.robot.deadman(False)
-    assert spin_until(d.executor, lambda: len(d.robot.cmds) > n, 5.0)
-    # The first command after the release is zero: the release is acted on when it arrives.
-    first = d.robot.cmds[n]
-    assert (first.linear.x, first.angular.z) == (0.0, 0.0)
+    assert_zero_on_arrival(d)
     assert spin_until(d.executor, lambda: d.status and d.status[-1]['state'] == 'paused', 5.0)
     assert d.status[-1]['reason'] == 'deadman released'
     # Held again: the step restarts and the vehicle moves.
@@ -121,11 +129,20 @@ def test_joystick_button_as_the_deadman(drive):
         joy.publish(Joy(buttons=[1, 1, int(button_down), 0]))
     assert not d.run(1.0, hold=False, until=lambda: press(False) or d.moving())
     assert d.run(5.0, hold=False, until=lambda: press(True) or d.moving())
-    n = len(d.robot.cmds)
     press(False)
-    assert spin_until(d.executor, lambda: len(d.robot.cmds) > n, 5.0)
-    assert (d.robot.cmds[n].linear.x, d.robot.cmds[n].angular.z) == (0.0, 0.0)
+    assert_zero_on_arrival(d)
     assert d.node.supervisor.last.reason == 'deadman released'
+
+
+def test_with_a_topic_and_a_button_both_must_be_held(drive):
+    from sensor_msgs.msg import Joy
+    d = drive(auto_start=True, joy_topic='joy', deadman_button=0)
+    joy = d.robot.node.create_publisher(Joy, 'joy', 10)
+    # The topic alone (button up) never moves the robot; with the button it does.
+    assert not d.run(1.5, until=lambda: joy.publish(Joy(buttons=[0])) or d.moving())
+    assert d.run(5.0, until=lambda: joy.publish(Joy(buttons=[1])) or d.moving())
+    joy.publish(Joy(buttons=[0]))
+    assert_zero_on_arrival(d)
 
 
 def test_stale_deadman_zeroes(drive):

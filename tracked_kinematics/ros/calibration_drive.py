@@ -195,7 +195,10 @@ class CalibrationDriveNode(Node):
         self._reference = values['reference']
         self._fence = FenceOdometry(icr.scale_left, icr.scale_right)
         self._radius = values['sprocket_radius']
-        self._deadman = (False, None)
+        # Every configured deadman must be held (with both a topic and a button: both).
+        self._deadmen = {source: (False, None) for source, topic in
+                         (('topic', values['deadman_topic']), ('joy', values['joy_topic']))
+                         if topic}
         self._encoder_t = self._reference_t = None
         self._still = False
         self._pose = None
@@ -298,20 +301,27 @@ class CalibrationDriveNode(Node):
                                   float(msg.orientation_covariance[0])))
 
     def _on_deadman(self, msg) -> None:
-        self._set_deadman(bool(msg.data))
+        self._set_deadman('topic', bool(msg.data))
 
     def _on_joy(self, msg) -> None:
         index = self.params['deadman_button']
-        self._set_deadman(index < len(msg.buttons) and msg.buttons[index] == 1)
+        self._set_deadman('joy', index < len(msg.buttons) and msg.buttons[index] == 1)
 
-    def _set_deadman(self, held: bool) -> None:
-        was = self._deadman[0]
-        self._deadman = (held, self._now())
+    def _set_deadman(self, source: str, held: bool) -> None:
+        was = self._deadman_state()[0]
+        self._deadmen[source] = (held, self._now())
         if was and not held:
             self._on_timer()   # a release is acted on now, not at the next tick
 
+    def _deadman_state(self):
+        """Return (held, when): every configured deadman held, and the oldest message time."""
+        states = list(self._deadmen.values())
+        if any(when is None for _, when in states):
+            return False, None
+        return all(held for held, _ in states), min(when for _, when in states)
+
     def _inputs_now(self) -> Inputs:
-        held, when = self._deadman
+        held, when = self._deadman_state()
         not_ready = '' if self._reference != 'imu' or self._fence.settled else (
             f'measuring the gyro bias: the vehicle must stand still for '
             f'{self._fence.settle:g} s first')
@@ -363,7 +373,7 @@ class CalibrationDriveNode(Node):
         """Return the status as published on ``~/status``."""
         out = self.supervisor.last
         step = self.steps[out.step] if out.step < len(self.steps) else None
-        held, when = self._deadman
+        held, _ = self._deadman_state()
         return {
             'state': out.state, 'reason': out.reason, 'phase': self._phase,
             'step': out.step, 'steps': out.steps, 'step_kind': step.kind if step else None,
