@@ -74,7 +74,7 @@ class Drive:
 
 
 def assert_zero_on_arrival(d):
-    """The release just published: the callback that takes it in publishes a zero command."""
+    """Check that the callback taking in the release just published publishes zero."""
     assert spin_until(d.executor, lambda: not d.node._deadman_state()[0], 5.0)
     released_ns = min(int(when * 1e9) for held, when in d.node._deadmen.values() if not held)
     after = [row for row in d.node._rows['cmd'] if row[0] >= released_ns - 1000]
