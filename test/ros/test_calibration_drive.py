@@ -217,7 +217,7 @@ def test_a_whole_drive_is_fitted_written_and_pushed(drive, ros_context, executor
     chi = B / (values['icr.y_left'] - values['icr.y_right'])
     assert chi == pytest.approx(AURIGA.chi, rel=0.03)
     assert values['terrain'] == 'test_floor'
-    assert values['calibration_drive.reference'] == 'pose'
+    assert values['identification.drive.reference'] == 'pose'
     report = json.loads((tmp_path / 'fit.json').read_text())
     assert report['calibration_drive']['bag'] == str(bag.resolve())
     assert report['icr']['chi'] == pytest.approx(chi)

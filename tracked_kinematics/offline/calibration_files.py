@@ -18,7 +18,7 @@ output paths (docs/output-files.md): ``output``, the report beside it (``OUT.jso
    bag gives the same result;
 3. writes ``output`` and the report together (:class:`~tracked_kinematics.offline.outputs.
    Outputs`: atomic, all or none, an existing file replaced only with ``force``), the
-   terrain file with a ``calibration_drive.*`` record of the drive, the report with a
+   terrain file with an ``identification.drive.*`` record of the drive, the report with a
    ``calibration_drive`` section.
 """
 
@@ -144,14 +144,17 @@ class CalibrationFiles:
     def _write(self, staged, staged_report, bag, topics, argv, log):
         values = read_params_file(staged)
         kept = str(self.bag.resolve()) if self.bag else None
-        values['identification.bags'] = [kept] if kept else []
+        if kept:
+            values['identification.bags'] = [kept]
+        else:   # the temporary bag is gone (and an empty list is no ROS parameter)
+            values.pop('identification.bags', None)
         drive = {'reference': self.values['reference'], 'reference_topic': topics['reference'],
                  'duration': float(self.values['duration']),
                  'geofence_radius': float(self.values['geofence_radius']),
                  'max_speed': float(self.values['max_speed']),
                  'max_yaw_rate': float(self.values['max_yaw_rate']),
                  'bag': kept or 'not kept (no bag parameter)'}
-        values.update({f'calibration_drive.{k}': v for k, v in drive.items()})
+        values.update({f'identification.drive.{k}': v for k, v in drive.items()})
         icr_from_values(values)
         report = json.loads(staged_report.read_text())
         report['tool'] = TOOL
