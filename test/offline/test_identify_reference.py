@@ -15,19 +15,21 @@ from tracked_kinematics.params import read_params_file
 
 VEHICLE = ['--sprocket-radius', '0.1', '--track-width', '0.42']
 BIAS, LATENCY = 0.01, 0.08
+# Quasi-static (no load transfer): constant ICRs describe the vehicle, as the fits assume.
+FLAT = {'centre_of_mass.z': 0.0}
 
 
 @pytest.fixture(scope='module')
 def table():
-    return TwistTable(load_vehicle('auriga_alpha').robot.vehicle)
+    return TwistTable(load_vehicle('auriga_alpha', FLAT).robot.vehicle)
 
 
 @pytest.fixture(scope='module')
 def field(tmp_path_factory, table):
-    """Four minutes of the Auriga-alpha with a biased, late gyro and a 0.5-m GNSS."""
+    """Four minutes of a quasi-static Auriga-alpha, a biased, late gyro and a 0.5-m GNSS."""
     path = tmp_path_factory.mktemp('field') / 'field'
     return sim.simulate_bag(
-        path, duration=240.0, seed=4, table=table, gt_rate=10.0,
+        path, overrides=FLAT, duration=240.0, seed=4, table=table, gt_rate=10.0,
         imu=GyroModel(rate=100.0, bias=BIAS, noise_std=0.005, latency=LATENCY),
         gnss=GnssModel(rate=5.0, noise_std=0.5, dropout=0.05))
 
@@ -169,3 +171,109 @@ def test_a_straight_drive_that_turns_is_refused(field, tmp_path, capsys):
 def test_options_without_a_heading_reference_are_refused(field, tmp_path, capsys, argv, match):
     status, _, err = run([field.bag, *argv, '--output', tmp_path / 'o.yaml', *VEHICLE], capsys)
     assert status == 2 and match in err
+
+
+def test_evaluate_model_scores_heading_only_against_a_gyro(field, tmp_path, capsys):
+    from tracked_kinematics.offline.cli import evaluate_model
+    model = tmp_path / 'imu.yaml'
+    assert run([field.bag, '--imu-topic', '/imu/data', '--output', model, *VEHICLE],
+               capsys)[0] == 0
+    reports = {}
+    for name, ref in (('imu', ['--imu-topic', '/imu/data']),
+                      ('pose', ['--ground-truth-topic', '/ground_truth/pose'])):
+        reports[name] = tmp_path / f'{name}.json'
+        status = evaluate_model.main([str(field.bag), *ref, '--params', str(model),
+                                      '--sprocket-radius', '0.1', '--report',
+                                      str(reports[name])])
+        out, err = capsys.readouterr()
+        assert status == 0, err
+        assert ('heading only' in out) == (name == 'imu')
+    imu, pose = (json.loads(reports[k].read_text()) for k in ('imu', 'pose'))
+    assert imu['reference'] == 'imu' and 'heading only' in imu['scored']
+    for name in ('ideal', 'imu'):
+        win = imu['models'][name]['odometry']['windows']['5']
+        assert win['mean_position_error_m'] is None and win['p90_position_error_m'] is None
+        assert imu['models'][name]['rpe_1m'] is None
+        assert imu['models'][name]['odometry']['horizon']['mean_rmse_translation_m'] is None
+        # The gyro scores heading as the pose does, within the pose's own noise (0.002 rad).
+        heading = win['mean_heading_error_rad']
+        truth = pose['models'][name]['odometry']['windows']['5']['mean_heading_error_rad']
+        assert heading == pytest.approx(truth, rel=0.15, abs=0.002)
+    assert pose['models']['imu']['odometry']['windows']['5']['mean_position_error_m'] > 0
+
+
+def test_evaluate_model_needs_one_reference(field, tmp_path, capsys):
+    from tracked_kinematics.offline.cli import evaluate_model
+    status = evaluate_model.main([str(field.bag), '--params', str(field.truth),
+                                  '--sprocket-radius', '0.1'])
+    assert status == 2 and '--imu-topic' in capsys.readouterr().err
+
+
+def test_a_measured_straight_fixes_the_distance_scale(field, table, tmp_path, capsys):
+    from tracked_kinematics.core.sim.sensors import gyro_samples
+    from tracked_kinematics.core.sim.simulation import simulate
+    spec = load_vehicle('auriga_alpha', FLAT)
+    t = np.arange(0.0, 40.0, 0.01)
+    speed = 0.6 * np.clip(t - 1.0, 0.0, 1.0) * np.clip(38.0 - t, 0.0, 1.0)
+    enc = spec.robot.encoders
+    # Steered straight, as a driver would: the nominal speeds make equal true speeds.
+    straight = simulate(spec.robot, np.column_stack([speed / enc.scale_left,
+                                                     speed / enc.scale_right]), 0.01, table,
+                        rng=np.random.default_rng(0))
+    gyro = gyro_samples(straight.t, straight.twist[:, 2], GyroModel(bias=0.002, noise_std=0.002),
+                        np.random.default_rng(1))
+    bag = tmp_path / 'straight'
+    sim.write_run(bag, straight, gyro=gyro)
+    x, y = straight.pose[-1, :2] - straight.pose[0, :2]
+    measured = float(np.hypot(x, y))
+    out = tmp_path / 'straight.yaml'
+    status, text, err = run([bag, '--imu-topic', '/imu/data', '--straight-distance',
+                             f'{measured:.4f}', '--params', field.truth, '--output', out,
+                             '--sprocket-radius', '0.1'], capsys)
+    assert status == 0, err
+    values = read_params_file(out)
+    assert values['identification.reference'] == 'imu+straight'
+    assert 'distance_scale' in values['identification.determined']
+    assert 'chi' in values['identification.held']
+    true = field.truth_icr
+    assert 0.5 * (values['scale.left'] + values['scale.right']) == pytest.approx(
+        0.5 * (true.scale_left + true.scale_right), rel=0.005)
+    assert 'straight drive:' in text
+
+
+def test_gnss_as_odometry_of_navsat_transform(table, tmp_path, capsys):
+    bag = sim.simulate_bag(tmp_path / 'navsat', overrides=FLAT, duration=120.0, seed=6,
+                           table=table, ground_truth='odometry', gt_position_noise=0.02,
+                           imu=GyroModel(bias=0.004, noise_std=0.003))
+    out = tmp_path / 'navsat.yaml'
+    status, _, err = run([bag.bag, '--imu-topic', '/imu/data', '--gnss-topic',
+                          '/ground_truth/odom', '--output', out, *VEHICLE], capsys)
+    assert status == 0, err
+    values = read_params_file(out)
+    assert values['identification.reference'] == 'imu+gnss'
+    true = bag.truth_icr
+    assert 0.5 * (values['scale.left'] + values['scale.right']) == pytest.approx(
+        0.5 * (true.scale_left + true.scale_right), abs=0.01)
+
+
+@pytest.mark.parametrize('orientation', ['turning', 'identity'])
+def test_the_reader_takes_the_orientation_only_when_it_turns(field, tmp_path, orientation):
+    from tracked_kinematics.offline.bags.writer import BagWriter
+    run_ = field.run
+    path = tmp_path / orientation
+    t = run_.t[:3000]
+    with BagWriter(path) as bag:
+        for k, tk in enumerate(t):
+            stamp = sim.START_NS + int(round(tk * 1e9))
+            bag.write('/joint_states', stamp, bag.joint_state(
+                stamp, sim.JOINTS, run_.joint_position[k].tolist()))
+            yaw = float(run_.pose[k, 2]) if orientation == 'turning' else 0.0
+            w = float(run_.twist[min(k, len(run_.twist) - 1), 2])
+            bag.write('/imu/data', stamp, bag.imu(stamp, w, yaw=yaw))
+    rec = read_reference_bag(path, EncoderSource(sprocket_radius=0.1), '/imu/data')
+    if orientation == 'turning':
+        assert rec.gyro_rate is None
+        assert np.allclose(np.unwrap(rec.gyro_yaw) - rec.gyro_yaw[0],
+                           run_.pose[:3000, 2] - run_.pose[0, 2], atol=1e-6)
+    else:
+        assert rec.gyro_yaw is None and np.any(rec.gyro_rate != 0)

@@ -30,7 +30,8 @@ from .problem import (
     check_heading_weight, DEFAULT_HEADING_WEIGHT, LOSSES, robust_cost, SegmentProblem)
 from .procedure import DataTime, Identification, identify, ModelEvaluation
 from .reference import (
-    check_gyro, check_saturation, fit_from_reference, fit_recordings, QUANTITIES,
+    check_gyro, check_saturation, fit_from_reference, fit_recordings, heading_reference,
+    QUANTITIES,
     ReferenceFit, ReferenceRecording)
 from .search_space import (
     BASELINES, bounds, build_model, COMPARE_MODELS, FIT_MODELS, initial_guess, search_box,
@@ -52,7 +53,7 @@ __all__ = [
     'check_gyro', 'check_heading_weight', 'check_identified', 'check_saturation',
     'correct_ground_truth', 'covered_spans', 'ddc_parameters', 'dead_reckoning', 'estimate_delay',
     'estimate_delay_arrays', 'estimate_delays', 'fit', 'fit_drivetrain', 'fit_from_reference',
-    'fit_recordings', 'fixed_delay', 'gap_threshold', 'identify', 'initial_guess',
-    'prediction_errors', 'resample', 'robust_cost', 'search_box', 'spin_in_place',
+    'fit_recordings', 'fixed_delay', 'gap_threshold', 'heading_reference', 'identify',
+    'initial_guess', 'prediction_errors', 'resample', 'robust_cost', 'search_box', 'spin_in_place',
     'steering_efficiency_guess', 'stretches',
 ]

@@ -12,7 +12,8 @@ The one function a caller needs
 -------------------------------
 ``fit_from_reference(enc_t, left, right, *, track_width, gyro_t=None, gyro_rate=None,
 gyro_yaw=None, pose=None, positions=None, straight_distance=None, base=None,
-imu_delay='auto', pose_delay='auto', segment_length=1.0) -> ReferenceFit``
+imu_delay='auto', pose_delay='auto', segment_length=1.0, position_window=None, hold=())
+-> ReferenceFit``
 
 Plain arrays in (one recording; :func:`fit_recordings` takes several
 :class:`ReferenceRecording`): encoder times (s) and cumulative nominal track travel (m);
@@ -23,8 +24,13 @@ optional pose ``(t, x, y, yaw)`` and optional positions ``(t, x, y)`` in a local
 ``.held`` (lists of ``chi``, ``scale_ratio``, ``distance_scale``, ``icr.x``, ``icr_offset``),
 ``.reference`` (``'imu'``, ``'imu+gnss'``, ...) and ``.report`` (a JSON-ready dict).
 Errors: :class:`~tracked_kinematics.core.errors.SensorDataError` for unusable sensor data
-(a gyro all zero or NaN, saturated; no position fix), ``ExcitationError`` for data that
-cannot determine what is asked, ``FitError`` for an invalid result; one line each.
+(a gyro all zero or NaN, saturated), ``ExcitationError`` for data that cannot determine
+what is asked (too little turning; a "straight" that turns; positions too noisy for the
+distance), ``FitError`` for an invalid result; one line each. A node calls, for example::
+
+    fit = fit_from_reference(enc_t, left, right, track_width=0.42, gyro_t=imu_t,
+                             gyro_rate=imu_wz, base=current_icr)
+    fit.icr, fit.held, fit.report['imu_delay']['delay']
 
 The model
 ---------
@@ -99,7 +105,7 @@ SATURATION_SHARE = 0.005
 """Share of gyro readings stuck at the largest magnitude that means saturation."""
 MIN_MOVING_SEGMENTS = 10
 """Fewest moving segments for a heading fit."""
-POSITION_WINDOW = {'gnss': 30.0, 'pose': 10.0}
+POSITION_WINDOW = {'gnss': 120.0, 'pose': 10.0}
 """Default window of the position comparison, s, per source."""
 _MIN_TRAVEL = 0.01
 
@@ -575,7 +581,7 @@ def _delay_of_pose(rec_list, pose_delay):
 def fit_recordings(recordings, track_width: float, *, base: IcrParams | None = None,
                    imu_delay='auto', pose_delay='auto', segment_length: float = 1.0,
                    straight_distance: float | None = None,
-                   position_window: float | None = None) -> ReferenceFit:
+                   position_window: float | None = None, hold=()) -> ReferenceFit:
     """
     Calibrate from gyro, pose and/or positions over several recordings (module notes).
 
@@ -595,6 +601,9 @@ def fit_recordings(recordings, track_width: float, *, base: IcrParams | None = N
         The recordings are one straight drive of this many metres.
     position_window : float, optional
         s; default :data:`POSITION_WINDOW` per source.
+    hold : sequence of str
+        Quantities of :data:`QUANTITIES` to hold at ``base`` even where the data determine
+        them (``('scale_ratio',)``: the plain gyro fit of symmetric scales).
 
     Returns
     -------
@@ -609,6 +618,9 @@ def fit_recordings(recordings, track_width: float, *, base: IcrParams | None = N
     recs = list(recordings)
     if not recs:
         raise ValueError('no recordings')
+    hold = tuple(hold)
+    if any(q not in QUANTITIES for q in hold):
+        raise ValueError(f'hold must name some of {", ".join(QUANTITIES)}, got {hold!r}')
     if not (math.isfinite(track_width) and track_width > 0):
         raise ValueError(f'track_width must be > 0, got {track_width!r}')
     if not segment_length > 0:
@@ -669,7 +681,9 @@ def fit_recordings(recordings, track_width: float, *, base: IcrParams | None = N
     # 1. Heading: u, v and the biases.
     determined, held = [], []
     hold_u = None
-    if turned < MIN_TURN:
+    if 'chi' in hold:
+        hold_u = base_s / base_w
+    elif turned < MIN_TURN:
         if straight_distance is None:
             raise ExcitationError(f'the heading reference turns {turned:.2f} rad in all over '
                                   f'the moving segments (need {MIN_TURN:g}): drive turns too')
@@ -691,7 +705,8 @@ def fit_recordings(recordings, track_width: float, *, base: IcrParams | None = N
         std_rho = (_param_std(cov, used, 0) * 2 * u / (u - v) ** 2)
     else:
         std_rho = math.inf
-    if not (std_rho <= RATIO_STD_LIMIT) or not math.isfinite(rho) or rho <= 0:
+    if 'scale_ratio' in hold or not (std_rho <= RATIO_STD_LIMIT) or not math.isfinite(rho) \
+            or rho <= 0:
         hold_ratio = (base_rho - 1.0) / (base_rho + 1.0)
         p, cov, used, heading_stats = _heading_fit(sources, len(recs), hold_u=hold_u,
                                                    hold_ratio=hold_ratio)
@@ -760,10 +775,11 @@ def fit_recordings(recordings, track_width: float, *, base: IcrParams | None = N
             blk = _position_block(source, r, basis, t, data[1], data[2], window)
             if blk is not None:
                 blocks.append(blk)
-    if blocks and straight_distance is None:
+    if blocks and straight_distance is None and 'distance_scale' not in hold:
         sigma = dict.fromkeys({b.source for b in blocks}, 1.0)
         pose_grade = any(b.source == 'pose' for b in blocks)
-        free = ['s', 'x'] + (['c'] if pose_grade else [])
+        free = [n for n, q in (('s', 'distance_scale'), ('x', 'icr.x'), ('c', 'icr_offset'))
+                if q not in hold and (n != 'c' or pose_grade)]
         fixed = {'s': base_s, 'c': base_c, 'x': base.x}
         for attempt in range(3):
             vals, std, noise = _position_fit(blocks, free, fixed, sigma)
@@ -812,7 +828,7 @@ def fit_recordings(recordings, track_width: float, *, base: IcrParams | None = N
         'reference': reference, 'determined': determined, 'held': held,
         'icr': {'track_width': icr.track_width, 'y_left': icr.y_left, 'y_right': icr.y_right,
                 'x': icr.x, 'scale_left': icr.scale_left, 'scale_right': icr.scale_right,
-                'chi': icr.chi, 'eccentricity': icr.eccentricity},
+                'chi': icr.chi, 'eccentricity': icr.eccentricity + 0.0},
         'distance_scale': s, 'scale_ratio': rho, 'turn_gain': u, 'icr_offset': c,
         'standard_errors': {'turn_gain': std_u, 'scale_ratio': std_rho if 'scale_ratio'
                             in determined else None, 'distance_scale': std_s,
@@ -866,8 +882,8 @@ def _delay_report(d: DelayEstimate) -> dict:
 def fit_from_reference(enc_t, left, right, *, track_width: float, gyro_t=None, gyro_rate=None,
                        gyro_yaw=None, pose=None, positions=None,
                        straight_distance: float | None = None, base: IcrParams | None = None,
-                       imu_delay='auto', pose_delay='auto',
-                       segment_length: float = 1.0) -> ReferenceFit:
+                       imu_delay='auto', pose_delay='auto', segment_length: float = 1.0,
+                       position_window: float | None = None, hold=()) -> ReferenceFit:
     """
     Calibrate one recording from plain arrays: the entry point of nodes (module notes).
 
@@ -893,6 +909,8 @@ def fit_from_reference(enc_t, left, right, *, track_width: float, gyro_t=None, g
         Delays of the gyro / pose stamps behind the encoders, s, or estimated.
     segment_length : float
         Heading segments, s.
+    position_window, hold
+        As :func:`fit_recordings`.
 
     Returns
     -------
@@ -903,4 +921,41 @@ def fit_from_reference(enc_t, left, right, *, track_width: float, gyro_t=None, g
     rec = ReferenceRecording(enc_t, left, right, gyro_t, gyro_rate, gyro_yaw, pose, positions)
     return fit_recordings([rec], track_width, base=base, imu_delay=imu_delay,
                           pose_delay=pose_delay, segment_length=segment_length,
-                          straight_distance=straight_distance)
+                          straight_distance=straight_distance,
+                          position_window=position_window, hold=hold)
+
+
+def heading_reference(rec: ReferenceRecording, delay: float, bias: float,
+                      rate: float = 10.0) -> Recording:
+    """
+    Return a Recording whose ground truth is the gyro's heading: to score heading only.
+
+    The gyro heading (``delay`` removed from its stamps, ``bias`` rad/s taken off its rates)
+    at ``rate`` Hz, positions all zero (not measured: a scorer must not report them).
+
+    Parameters
+    ----------
+    rec : ReferenceRecording
+        With a gyro.
+    delay : float
+        s of gyro stamps behind the encoders (:attr:`ReferenceFit.imu_delay`).
+    bias : float
+        rad/s (:attr:`ReferenceFit.biases`).
+    rate : float
+        Samples per second of the reference, Hz.
+
+    """
+    if rec.gyro_t is None:
+        raise ValueError('the recording has no gyro')
+    rec = _clean_gyro(rec)
+    t, heading = _gyro_heading(rec, delay)
+    heading = heading - bias * (t - t[0])
+    grid = np.arange(t[0], t[-1], 1.0 / rate)
+    # Only inside gap-free gyro stretches: a gap leaves the heading unknown.
+    gap = gap_threshold(t)
+    k = np.clip(np.searchsorted(t, grid, side='right'), 1, len(t) - 1)
+    ok = (t[k] - t[k - 1]) <= gap
+    grid = grid[ok]
+    zeros = np.zeros(grid.size)
+    return Recording(rec.enc_t, rec.left, rec.right, grid, zeros, zeros,
+                     wrap_angle(np.interp(grid, t, heading)), name=rec.name)

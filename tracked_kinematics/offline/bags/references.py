@@ -3,7 +3,8 @@ Read the references of a robot without ground truth: an IMU's gyro, GNSS, a pose
 
 :func:`read_reference_bag` streams the encoders (as :func:`.reader.read_bag` does) and any
 of: a sensor_msgs/Imu topic (the yaw rate ``angular_velocity.z``, or the yaw of
-``orientation`` when every message gives one: ``orientation_covariance[0] != -1``), a
+``orientation`` when every message gives one, ``orientation_covariance[0] != -1``, and it
+turns at all), a
 position topic (sensor_msgs/NavSatFix with ``status.status >= 0``, converted to the
 east-north plane at the first fix by :mod:`tracked_kinematics.core.geodesy`; or
 nav_msgs/Odometry, navsat_transform's, positions only) and a ground-truth pose. It returns
@@ -87,7 +88,10 @@ class _References:
             raise SensorDataError(f'{self.path}: no Imu messages on {self.imu_topic}')
         data = _sort_unique(data)
         t, wz, yaw, given = data.T
-        if np.all(given > 0) and np.all(np.isfinite(yaw)):
+        # An orientation that never turns (a driver filling identity with covariance 0 instead
+        # of -1) is no heading: the rates are used then.
+        turns = np.all(np.isfinite(yaw)) and np.ptp(np.unwrap(yaw)) > 1e-3
+        if np.all(given > 0) and turns:
             return t, None, yaw
         return t, wz, None
 

@@ -76,7 +76,7 @@ def run(args, out, outputs) -> None:
     extras = {'model': 'icr_scales', 'method': 'reference', 'date': date, 'bags': bags,
               'reference': fit.reference, 'determined': list(fit.determined),
               'held': list(fit.held), 'segment_length': float(args.segment_length or 1.0),
-              'chi': icr.chi, 'eccentricity': icr.eccentricity,
+              'chi': icr.chi, 'eccentricity': icr.eccentricity + 0.0,   # not -0.0
               'distance_scale': fit.distance_scale, 'scale_ratio': fit.scale_ratio}
     if args.imu_topic:
         extras['imu_delay'] = float(fit.imu_delay.delay)

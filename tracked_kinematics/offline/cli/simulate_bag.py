@@ -485,7 +485,7 @@ def build_parser() -> argparse.ArgumentParser:
                      help='the gyro is stamped this late behind the truth (the encoders are '
                           'not), s; identify_icr finds it as imu_delay')
     imu.add_argument('--imu-saturation', type=bounded(0.01, 100.0, 'rad/s'), default=math.inf,
-                     help='largest rate the gyro reports, rad/s (default: none)')
+                     help='largest rate the gyro reports, rad/s (inf: none)')
     gnss = parser.add_argument_group('GNSS (--gnss: sensor_msgs/NavSatFix on /gnss/fix)')
     gnss.add_argument('--gnss', action='store_true', help='record a GNSS receiver')
     gnss.add_argument('--gnss-rate', type=bounded(0.1, 100.0, 'Hz'), default=5.0,
