@@ -27,8 +27,8 @@ class FakeRobot:
     with the node's clock.
     """
 
-    def __init__(self, ros_context, executor, truth=AURIGA, name='fake_robot'):
-        self.node = Node(name, context=ros_context)
+    def __init__(self, ros_context, executor, truth=AURIGA, name='fake_robot', namespace=''):
+        self.node = Node(name, context=ros_context, namespace=namespace)
         executor.add_node(self.node)
         self.executor = executor
         self.truth = truth

@@ -34,13 +34,15 @@ RTF = 3.0
 DURATION = 60.0          # s of protocol motion (sim time)
 FENCE = 3.0
 TERRAIN = '/**:\n  ros__parameters:\n    track_width: 0.42\n    sprocket_radius: 0.1\n'
+# Every node of the loop in a namespace of its own (/clock stays global: it is absolute).
+NS = '/closed_loop'
 
 
 class Watcher:
     """The test's node, in sim time: holds the deadman and records what the others do."""
 
     def __init__(self, context, executor):
-        self.node = Node('closed_loop_watcher', context=context,
+        self.node = Node('closed_loop_watcher', context=context, namespace=NS,
                          parameter_overrides=[Parameter('use_sim_time', value=True)])
         executor.add_node(self.node)
         reliable = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
@@ -56,7 +58,7 @@ class Watcher:
                 Float64, f'{side}_track/setpoint',
                 lambda m, side=side: self.setpoints[side].append((self.now(), m.data)), reliable)
         self.node.create_subscription(Odometry, 'ground_truth/odom', self._on_truth, reliable)
-        self.node.create_subscription(String, '/calibration_drive/status',
+        self.node.create_subscription(String, 'calibration_drive/status',
                                       lambda m: self.status.update(json.loads(m.data)), 10)
 
     def now(self):
@@ -107,11 +109,11 @@ def test_calibration_drive_in_closed_loop(ros_context, executor, tmp_path, refer
     terrain = tmp_path / 'ideal.yaml'
     terrain.write_text(TERRAIN)
     out, bag = tmp_path / 'calibrated.yaml', tmp_path / 'drive'
-    sim_time = ['-p', 'use_sim_time:=true']
+    sim_time = ['-p', 'use_sim_time:=true', '-r', f'__ns:={NS}']
     watcher = Watcher(ros_context, executor)
     with ConsoleScript('tracked_simulator', '--ros-args', '-p', 'vehicle:=auriga_alpha',
                        '-p', 'terrain:=hard_floor', '-p', f'real_time_factor:={RTF}',
-                       tmp_path=tmp_path) as sim, \
+                       '-r', f'__ns:={NS}', tmp_path=tmp_path) as sim, \
             ConsoleScript('cmd_vel_translator', '--ros-args', '--params-file', terrain,
                           *sim_time, tmp_path=tmp_path) as translator, \
             ConsoleScript('calibration_drive', '--ros-args', '--params-file', terrain,
@@ -124,7 +126,7 @@ def test_calibration_drive_in_closed_loop(ros_context, executor, tmp_path, refer
         def logs():
             return '\n'.join(p.output[-3000:] for p in (sim, translator, drive))
 
-        simulator = AsyncParameterClient(watcher.node, 'tracked_simulator')
+        simulator = AsyncParameterClient(watcher.node, f'{NS}/tracked_simulator')
 
         def set_real_time_factor(factor):
             assert simulator.wait_for_services(30.0), logs()

@@ -22,6 +22,8 @@ pytestmark = pytest.mark.ros
 
 VEHICLE = {'track_width': B, 'sprocket_radius': RADIUS}
 DT = 0.02
+# Every node of these tests in a namespace of its own, off the topics of the other tests.
+NS = '/calibration_drive_test'
 
 
 class Drive:
@@ -31,16 +33,16 @@ class Drive:
         values = {**VEHICLE, 'output': 'unused.yaml', 'duration': 15.0, 'rate': 50.0,
                   'encoder_timeout': 2.0, 'reference_timeout': 2.0, **overrides}
         self.node = CalibrationDriveNode(
-            finisher=finisher, context=ros_context,
+            finisher=finisher, context=ros_context, namespace=NS,
             parameter_overrides=[Parameter(k, value=v) for k, v in values.items()])
         executor.add_node(self.node)
         self.executor = executor
-        self.robot = FakeRobot(ros_context, executor)
+        self.robot = FakeRobot(ros_context, executor, namespace=NS)
         self.status = []
         self.robot.node.create_subscription(
-            String, '/calibration_drive/status', lambda m: self.status.append(json.loads(m.data)),
+            String, 'calibration_drive/status', lambda m: self.status.append(json.loads(m.data)),
             10)
-        self.clients = {name: self.robot.node.create_client(Trigger, f'/calibration_drive/{name}')
+        self.clients = {name: self.robot.node.create_client(Trigger, f'calibration_drive/{name}')
                         for name in ('start', 'pause', 'stop')}
         assert spin_until(executor, lambda: self.robot.cmds, 10.0)
         assert spin_until(executor, lambda: self.robot.joints.get_subscription_count() > 0
@@ -73,15 +75,33 @@ class Drive:
         return bool(self.robot.cmds) and (self.last.linear.x != 0.0 or self.last.angular.z != 0.0)
 
 
-def assert_zero_on_arrival(d):
-    """Check that the callback taking in the release just published publishes zero."""
-    assert spin_until(d.executor, lambda: not d.node._deadman_state()[0], 5.0)
-    released_ns = min(int(when * 1e9) for held, when in d.node._deadmen.values() if not held)
-    after = [row for row in d.node._rows['cmd'] if row[0] >= released_ns - 1000]
-    # The first command after the release was taken in is zero and published in the same
-    # callback (within a few ms, not at the next 20-ms tick); every later one is zero too.
-    assert after and after[0][0] - released_ns < 5_000_000, after[:3]
-    assert all(row[1:] == (0.0, 0.0) for row in after), after[:3]
+def release_and_check(d, release):
+    """
+    Release the deadman by ``release()``; check that the node acts on it when it arrives.
+
+    The release's own callback must publish a zero command (not wait for the next tick), and
+    every command after it must be zero; commands published before it arrived may still be
+    in flight to the robot. The timer holds the original bound method, so the spy below sees
+    only the call that the deadman callback makes.
+    """
+    rows = d.node._rows['cmd']
+    calls = []
+    tick = d.node._on_timer
+
+    def spy():
+        before = len(rows)
+        tick()
+        calls.append(rows[before:])
+    d.node._on_timer = spy
+    try:
+        release()
+        assert spin_until(d.executor, lambda: calls, 5.0)
+    finally:
+        del d.node._on_timer
+    assert len(calls) == 1 and calls[0] and calls[0][-1][1:] == (0.0, 0.0), calls
+    start = rows.index(calls[0][-1])
+    spin_until(d.executor, lambda: False, 0.3)
+    assert all(row[1:] == (0.0, 0.0) for row in rows[start:]), rows[start:]
     assert spin_until(d.executor, lambda: not d.moving(), 2.0)
 
 
@@ -112,8 +132,7 @@ def test_idle_until_start_and_zero_meanwhile(drive):
 def test_deadman_release_zeroes_the_next_command(drive):
     d = drive(auto_start=True)
     assert d.run(5.0, until=d.moving)
-    d.robot.deadman(False)
-    assert_zero_on_arrival(d)
+    release_and_check(d, lambda: d.robot.deadman(False))
     assert spin_until(d.executor, lambda: d.status and d.status[-1]['state'] == 'paused', 5.0)
     assert d.status[-1]['reason'] == 'deadman released'
     # Held again: the step restarts and the vehicle moves.
@@ -129,8 +148,7 @@ def test_joystick_button_as_the_deadman(drive):
         joy.publish(Joy(buttons=[1, 1, int(button_down), 0]))
     assert not d.run(1.0, hold=False, until=lambda: press(False) or d.moving())
     assert d.run(5.0, hold=False, until=lambda: press(True) or d.moving())
-    press(False)
-    assert_zero_on_arrival(d)
+    release_and_check(d, lambda: press(False))
     assert d.node.supervisor.last.reason == 'deadman released'
 
 
@@ -141,8 +159,7 @@ def test_with_a_topic_and_a_button_both_must_be_held(drive):
     # The topic alone (button up) never moves the robot; with the button it does.
     assert not d.run(1.5, until=lambda: joy.publish(Joy(buttons=[0])) or d.moving())
     assert d.run(5.0, until=lambda: joy.publish(Joy(buttons=[1])) or d.moving())
-    joy.publish(Joy(buttons=[0]))
-    assert_zero_on_arrival(d)
+    release_and_check(d, lambda: joy.publish(Joy(buttons=[0])))
 
 
 def test_stale_deadman_zeroes(drive):
@@ -198,11 +215,12 @@ def test_pause_and_resume(drive):
 def test_a_whole_drive_is_fitted_written_and_pushed(drive, ros_context, executor, tmp_path):
     out = tmp_path / 'fit.yaml'
     bag = tmp_path / 'drive_bag'
-    odometry = OdometryNode(context=ros_context, parameter_overrides=[
-        Parameter(k, value=v) for k, v in VEHICLE.items()])
+    overrides = {**VEHICLE, 'publish_tf': False}
+    odometry = OdometryNode(context=ros_context, namespace=NS, parameter_overrides=[
+        Parameter(k, value=v) for k, v in overrides.items()])
     executor.add_node(odometry)
     d = drive(finisher=CalibrationFiles, auto_start=True, output=str(out), bag=str(bag),
-              duration=30.0, terrain='test_floor', push_to=['odometry_node'])
+              duration=30.0, terrain='test_floor', push_to=[f'{NS}/odometry_node'])
     try:
         assert d.run(240.0, until=lambda: d.node.exit_status is not None)
         assert d.node.exit_status == 0
@@ -221,13 +239,18 @@ def test_a_whole_drive_is_fitted_written_and_pushed(drive, ros_context, executor
     report = json.loads((tmp_path / 'fit.json').read_text())
     assert report['calibration_drive']['bag'] == str(bag.resolve())
     assert report['icr']['chi'] == pytest.approx(chi)
+    drive_report = report['calibration_drive']
+    assert len(drive_report['steps']) == 10 and drive_report['events'][0]['state'] == 'running'
+    assert drive_report['events'][-1]['state'] == 'finished'
+    assert drive_report['identify_icr'].startswith(f'identify_icr {bag.resolve()} ')
     # identify_icr reads the bag back to the same result.
     again = tmp_path / 'again.yaml'
     base = tmp_path / 'base.yaml'
     base.write_text(f'/**:\n  ros__parameters:\n    track_width: {B}\n'
                     f'    sprocket_radius: {RADIUS}\n')
     subprocess.run([str(Path(__import__('sys').executable).parent / 'identify_icr'), str(bag),
-                    '--ground-truth-topic', '/ground_truth/odom', '--params', str(base),
+                    '--ground-truth-topic', f'{NS}/ground_truth/odom',
+                    '--encoder-topic', f'{NS}/joint_states', '--params', str(base),
                     '--output', str(again)], check=True, capture_output=True, timeout=300)
     refit = read_params_file(again)
     for key in ('icr.y_left', 'icr.y_right', 'icr.x', 'scale.left', 'scale.right'):
@@ -260,12 +283,13 @@ def test_refuses_bad_parameters(ros_context, overrides, text):
 
 @pytest.mark.parametrize('sig', [signal.SIGINT, signal.SIGTERM])
 def test_console_script_publishes_zero_when_signalled(ros_context, executor, tmp_path, sig):
-    robot = FakeRobot(ros_context, executor)
+    robot = FakeRobot(ros_context, executor, namespace=NS)
     params = tmp_path / 'robot.yaml'
     params.write_text(f'/**:\n  ros__parameters:\n    track_width: {B}\n'
                       f'    sprocket_radius: {RADIUS}\n')
     try:
         with ConsoleScript('calibration_drive', '--ros-args', '--params-file', params,
+                           '-r', f'__ns:={NS}',
                            '-p', f'output:={tmp_path / "never.yaml"}', '-p', 'auto_start:=true',
                            '-p', 'encoder_timeout:=2.0', '-p', 'reference_timeout:=2.0',
                            tmp_path=tmp_path) as script:
@@ -294,9 +318,9 @@ def test_console_script_publishes_zero_when_signalled(ros_context, executor, tmp
 
 
 def test_a_signal_while_fitting_leaves_nothing_behind(ros_context, executor, tmp_path):
-    robot = FakeRobot(ros_context, executor)
+    robot = FakeRobot(ros_context, executor, namespace=NS)
     status = []
-    robot.node.create_subscription(String, '/calibration_drive/status',
+    robot.node.create_subscription(String, 'calibration_drive/status',
                                    lambda m: status.append(json.loads(m.data)), 10)
     work = tmp_path / 'work'
     work.mkdir()
@@ -305,6 +329,7 @@ def test_a_signal_while_fitting_leaves_nothing_behind(ros_context, executor, tmp
                       f'    sprocket_radius: {RADIUS}\n')
     try:
         with ConsoleScript('calibration_drive', '--ros-args', '--params-file', params,
+                           '-r', f'__ns:={NS}',
                            '-p', f'output:={work / "fit.yaml"}', '-p', 'auto_start:=true',
                            '-p', 'duration:=15.0', '-p', 'encoder_timeout:=2.0',
                            '-p', 'reference_timeout:=2.0', tmp_path=tmp_path) as script:

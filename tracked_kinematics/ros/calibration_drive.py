@@ -177,6 +177,16 @@ class CalibrationDriveNode(Node):
     def __init__(self, finisher: Callable | None = None,
                  on_exit: Callable[[int], None] | None = None, **kwargs):
         super().__init__(NODE_NAME, **kwargs)
+        try:
+            self._start(finisher, on_exit)
+        except BaseException:
+            # Refused parameters or outputs: no half-built node left for the garbage
+            # collector to destroy later, after its context is gone (as cmd_vel_translator).
+            self._zero_sent = True
+            Node.destroy_node(self)
+            raise
+
+    def _start(self, finisher, on_exit) -> None:
         self.params = ParameterTable(self, PARAMS, validate=validate, on_change=self._apply)
         self.encoder = None
         values = self.params.values
@@ -399,8 +409,13 @@ class CalibrationDriveNode(Node):
     def topics(self) -> dict:
         """Return the resolved topic names of the recording (for the bag)."""
         return {'joint_names': [self.params['left_joints'][0], self.params['right_joints'][0]],
-                'joint_states': '/joint_states', 'reference': self._inputs[0].topic_name,
-                'cmd_vel': self._cmd_pub.topic_name, 'reference_kind': self._reference}
+                'joint_states': f'{self.get_namespace().rstrip("/")}/joint_states',
+                'reference': self._inputs[0].topic_name,
+                'cmd_vel': self._cmd_pub.topic_name, 'reference_kind': self._reference,
+                'steps': [{'kind': s.kind, 'v': s.v, 'w': s.w, 'duration': s.duration}
+                          for s in self.steps],
+                'events': [{'t': t, 'state': state, 'reason': reason}
+                           for t, state, reason in self.supervisor.events]}
 
     def _after_drive(self) -> None:
         if self._phase == 'drive':
