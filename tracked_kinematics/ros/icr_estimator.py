@@ -55,7 +55,7 @@ from tracked_kinematics.ros.encoder_input import (
     check_encoder_values, EncoderInput, WARN_PERIOD)
 from tracked_kinematics.ros.input_topic import CHECK_PERIOD, InputTopic, steady_timer
 from tracked_kinematics.ros.main import run
-from tracked_kinematics.ros.parameters import ParameterTable
+from tracked_kinematics.ros.parameters import destroyed_on_failure, ParameterTable
 
 NODE_NAME = 'icr_estimator'
 
@@ -210,6 +210,10 @@ class IcrEstimatorNode(Node):
 
     def __init__(self, **kwargs):
         super().__init__(NODE_NAME, **kwargs)
+        with destroyed_on_failure(self):
+            self._start()
+
+    def _start(self) -> None:
         self.params = ParameterTable(self, PARAMS, validate=validate, on_change=self._apply)
         values = self.params.values
         self.encoder = None

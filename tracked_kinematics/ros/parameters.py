@@ -14,11 +14,13 @@ parameters it is derived from at runtime until it is set explicitly.
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Mapping
+import contextlib
 import math
 from typing import Any
 
 from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescriptor,
                                 SetParametersResult)
+from rclpy.node import Node
 from rclpy.parameter import Parameter
 from tracked_kinematics.params import missing_message, ParamSpec
 
@@ -266,3 +268,19 @@ class ParameterTable:
         self._derived_now = set()
         if self._on_change is not None:
             self._on_change(self.values)
+
+
+@contextlib.contextmanager
+def destroyed_on_failure(node: Node):
+    """
+    Destroy ``node`` when the block that builds it raises (refused parameters, a bad name).
+
+    A half-built node is otherwise left to the garbage collector, which may destroy it later,
+    after its context has been shut down, where rcl can hang. The base class's
+    ``destroy_node`` is used: the subclass's may need what was never built.
+    """
+    try:
+        yield node
+    except BaseException:
+        Node.destroy_node(node)
+        raise
