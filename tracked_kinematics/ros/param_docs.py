@@ -22,8 +22,8 @@ import sys
 
 from tracked_kinematics.params import (COMMAND_LIMIT_PARAMS, DRIVETRAIN_PARAMS,
                                        ENCODER_INPUT_PARAMS, ParamSpec, TERRAIN_PARAMS)
-from tracked_kinematics.ros import (cmd_vel_translator, icr_estimator, odometry_node,
-                                    tracked_simulator)
+from tracked_kinematics.ros import (calibration_drive, cmd_vel_translator, icr_estimator,
+                                    odometry_node, tracked_simulator)
 
 ROOT = Path(__file__).resolve().parents[2]
 OUTPUT = ROOT / 'docs' / 'parameters.md'
@@ -71,6 +71,10 @@ NODES = (
     ('tracked_simulator', tracked_simulator.SIMULATOR_PARAMS,
      'Checked together: the vehicle file loads (every problem of it named) and `terrain` is '
      "one of the shipped terrains or the vehicle file's own `friction.terrain`."),
+    ('calibration_drive', calibration_drive.PARAMS,
+     'Checked together: the terrain and encoder checks above, and a deadman '
+     '(`deadman_topic` or `joy_topic`). `output`, the report beside it and `bag` are checked '
+     'as files at start ([output files](output-files.md)).'),
 )
 
 _TYPES = ((bool, 'bool'), (int, 'integer'), (float, 'double'), (str, 'string'),
