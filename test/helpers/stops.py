@@ -104,14 +104,27 @@ class Feeder:
         self._context.try_shutdown()
 
 
+def _catches_sigterm(pid: int) -> bool:
+    """Return whether process ``pid`` has a handler for SIGTERM (from /proc)."""
+    try:
+        with open(f'/proc/{pid}/status') as status:
+            for line in status:
+                if line.startswith('SigCgt:'):
+                    return bool(int(line.split()[1], 16) >> (signal.SIGTERM - 1) & 1)
+    except OSError:
+        pass
+    return False
+
+
 def stop_once(name: str, rng: random.Random, workdir: Path, env: dict[str, str] | None = None,
               startup: float = 3.0, hang_timeout: float = 60.0, when: str | None = None,
               signals: tuple[int, ...] | None = None) -> Stop:
     """
     Start ``name``, signal it at a random instant, wait for it to exit.
 
-    ``when`` is ``'startup'`` (a random instant of its first ``startup`` s, which should
-    cover the node's own start-up on this machine: imports, parameters), ``'running'`` (a
+    ``when`` is ``'startup'`` (a random instant of the first ``startup`` s after the package
+    has begun to catch SIGTERM, which should cover the node's own start-up on this machine:
+    imports, parameters), ``'running'`` (a
     random instant of the first 0.5 s after its first log line, input flowing) or None,
     either at random: both phases are hit whatever the machine's speed. ``signals`` are
     sent in order with random gaps of up to 0.2 s; by default one or (three times in ten)
@@ -128,6 +141,13 @@ def stop_once(name: str, rng: random.Random, workdir: Path, env: dict[str, str] 
         started = time.monotonic()
         when = when or rng.choice(['startup', 'running'])
         if when == 'startup':
+            # From the moment the package catches SIGTERM (its first lines): before, the
+            # interpreter itself is starting, and a signal there takes Python's own course
+            # (death, or a KeyboardInterrupt in its site import) before any code of ours.
+            deadline = started + hang_timeout
+            while (not _catches_sigterm(process.pid) and process.poll() is None
+                   and time.monotonic() < deadline):
+                time.sleep(0.002)
             time.sleep(rng.uniform(0.0, startup))
         else:  # once up, at a random moment of the input
             deadline = started + hang_timeout
