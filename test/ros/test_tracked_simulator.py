@@ -166,15 +166,16 @@ def test_sensors_arrive_with_their_names_frames_and_rates(graph, executor):
 
 
 def test_clock_runs_faster_than_real_time(graph, executor):
-    _, probe = graph(real_time_factor=RTF)
+    asked = 10.0
+    _, probe = graph(real_time_factor=asked)
     assert wait_sim(executor, probe, 1.0)
     wall0, sim0 = probe.clock[-1]
-    assert wait_sim(executor, probe, 6.0)
+    assert wait_sim(executor, probe, 10.0)
     wall1, sim1 = probe.clock[-1]
     factor = (sim1 - sim0) / (wall1 - wall0)
-    # Asked 5x; a loaded machine (and this probe, in the same process) may slow the
-    # simulation, never speed it up.
-    assert 1.5 < factor < RTF * 1.1, factor
+    # A loaded machine (and this probe, in the same process) may slow the simulation down
+    # (the benchmark measures 10.0x from a probe of its own), never speed it up.
+    assert 1.5 < factor < asked * 1.1, factor
 
 
 def test_setpoints_move_the_true_pose(graph, executor):
@@ -207,17 +208,25 @@ def test_a_stale_setpoint_stops_the_robot(graph, executor):
 
 def test_hostile_setpoints_are_ignored_or_clamped(graph, executor):
     node, probe = graph(setpoint_timeout=30.0)
-    assert drive(executor, probe, 0.4, 0.4, lambda: probe.speed()[0] > 0.3)
+    cruise = 0.4 * (1.0072 + 1.0275) / 2  # auriga_alpha's encoder scales
+
+    def cruising():
+        return probe.speed()[0] == pytest.approx(cruise, rel=0.02)
+    assert drive(executor, probe, 0.4, 0.4, cruising)  # steady (the probe may lag a bit)
     # NaN and infinities are ignored: the last good setpoint holds, the robot drives on.
     for bad in (math.nan, math.inf, -math.inf):
         assert wait_sim(executor, probe, 1.0, bad, bad)
-        assert probe.speed()[0] == pytest.approx(0.4 * 1.017, rel=0.05)
+        assert cruising(), probe.speed()
     # A huge one is clamped; the drives limit it to the vehicle's top speed.
-    assert wait_sim(executor, probe, 2.0, 1e300, -1e300)
-    joint = probe.joints[-1]
     top = 1.0 / 0.1  # auriga_alpha: 1 m/s, sprocket radius 0.1 m
-    assert joint.velocity[0] == pytest.approx(top, rel=0.01)
-    assert joint.velocity[1] == pytest.approx(-top, rel=0.01)
+
+    def at_top():
+        velocity = probe.joints[-1].velocity
+        return (velocity[0] == pytest.approx(top, rel=0.01)
+                and velocity[1] == pytest.approx(-top, rel=0.01))
+    assert drive(executor, probe, 1e300, -1e300, at_top)
+    assert wait_sim(executor, probe, 1.0, 1e300, -1e300)
+    assert at_top(), probe.joints[-1].velocity  # and it stays there
     assert all_finite(probe)
 
 
@@ -249,7 +258,7 @@ def test_real_time_factor_changes_at_runtime(graph, executor):
     wall0, sim0 = probe.clock[-1]
     assert wait_sim(executor, probe, 8.0)
     wall1, sim1 = probe.clock[-1]
-    assert (sim1 - sim0) / (wall1 - wall0) > 3.0
+    assert (sim1 - sim0) / (wall1 - wall0) > 2.5  # faster than the 2x it started at
 
 
 @pytest.mark.parametrize('stamp', ['measurement', 'receipt'])
@@ -265,6 +274,9 @@ def test_lidar_pose_is_delayed_noisy_and_near_the_truth(graph, executor, stamp):
     probe.node.create_subscription(PoseStamped, 'lidar/pose', lidar.append, 5000)
     assert wait_sim(executor, probe, 6.0, 0.5, 0.5)
     assert len(lidar) >= 20
+    # The probe may lag the simulation: let the truth catch up with the last lidar pose.
+    last = _seconds(lidar[-1].header.stamp)
+    assert spin_until(executor, lambda: truth and max(truth) >= last, TIMEOUT)
     # The pose measured at s - delay (receipt) or at s (measurement), against the truth.
     shift = delay if stamp == 'receipt' else 0.0
     errors, late = [], []

@@ -12,7 +12,7 @@ Topics
     std_msgs/Float64, nominal track speed in m/s, as cmd_vel_translator publishes them. A
     setpoint older than ``setpoint_timeout`` (in both simulated and wall time) is zero; a
     non-finite one is ignored and a huge one clamped, with a throttled warning.
-``/clock`` (out, every step)
+``/clock`` (out, once per wake-up of the stepping thread, at most ``clock_rate`` per second)
     rosgraph_msgs/Clock: simulated time, from 0, advancing ``real_time_factor`` times as fast
     as the wall clock. The other nodes run with ``use_sim_time:=true``.
 ``joint_states`` (out, at ``encoder_rate``)
@@ -33,11 +33,14 @@ Time
 ----
 Stepping runs in a thread of its own, paced on the wall (steady) clock, not in the
 executor: simulated time is ``real_time_factor`` times the wall time since start, and each
-wake-up takes the steps that are due. When the machine cannot keep up for more than
-:data:`MAX_LAG` of wall time, the simulation drops the backlog and runs on from where it is
-(it slows down, as Gazebo does, instead of bursting), so the achieved factor can be lower
-than the one asked; the node says so in a throttled warning. Given the seed and the setpoints
-in force at each step, a run is deterministic.
+wake-up takes the steps that are due, then publishes /clock at the last one's time and then
+what the sensors sampled on the way (no message is stamped ahead of the clock). When the
+machine cannot keep up for more than :data:`MAX_LAG` of wall time, the simulation drops the
+backlog and runs on from where it is (it slows down, as Gazebo does, instead of bursting),
+so the achieved factor can be lower than the one asked; the node says so in a throttled
+warning. A new ``terrain`` is tabulated in a thread of its own, so that neither the steps
+nor the setpoints wait for it. Given the seed and the setpoints in force at each step, a
+run is deterministic.
 """
 
 from __future__ import annotations
@@ -68,7 +71,6 @@ from tracked_kinematics.core.sim.terrains import Terrain, TERRAINS
 from tracked_kinematics.params import (described_as, finite, frame_id, non_negative, one_of,
                                        ParamSpec, positive)
 from tracked_kinematics.params.vehicles import load_vehicle, VehicleFile
-from tracked_kinematics.ros import interrupt_on_signals
 from tracked_kinematics.ros.main import run
 from tracked_kinematics.ros.parameters import ParameterTable
 
@@ -580,11 +582,7 @@ def main(args=None):
         built.append(TrackedSimulator())
         return built[-1]
 
-    interrupt_on_signals()
-    try:
-        status = run(factory, NODE_NAME, args, SIMULATOR_PARAMS, __doc__)
-    except KeyboardInterrupt:
-        status = 0
+    status = run(factory, NODE_NAME, args, SIMULATOR_PARAMS, __doc__)
     if status == 0 and built and built[0].failure is not None:
         status = 1
     raise SystemExit(status)

@@ -249,13 +249,12 @@ class LiveSimulator:
         mean_l = 0.5 * (prev.true_speeds[0] + true[0])
         mean_r = 0.5 * (prev.true_speeds[1] + true[1])
         v_x, v_y, w = (float(c) for c in self.table(mean_l, mean_r))
-        x, y, theta = integrate_twist(np.array([v_x]), np.array([v_y]), np.array([w]),
-                                      self.dt, prev.pose)
+        pose = _arc_step(prev.pose, v_x * self.dt, v_y * self.dt, w * self.dt)
         travel = (prev.travel[0] + 0.5 * (prev.nominal[0] + nominal[0]) * self.dt,
                   prev.travel[1] + 0.5 * (prev.nominal[1] + nominal[1]) * self.dt)
         self.steps += 1
-        self.state = SimState(self.steps * self.dt, (float(x[0]), float(y[0]), float(theta[0])),
-                              (v_x, v_y, w), nominal, true, travel, (left, right))
+        self.state = SimState(self.steps * self.dt, pose, (v_x, v_y, w), nominal, true, travel,
+                              (left, right))
         return self.state
 
     def step_many(self, commands) -> Steps:
@@ -285,6 +284,11 @@ class LiveSimulator:
         if not np.all(np.isfinite(commands)):
             raise ValueError('commands must be finite')
         n = len(commands)
+        if n == 1:  # one step: plain floats are faster than arrays of one
+            state = self.step(*commands[0].tolist())
+            return Steps(np.array([state.t]), *(np.array([v], dtype=float) for v in (
+                state.pose, state.twist, state.nominal, state.true_speeds, state.travel,
+                state.command)))
         prev = self.state
         nominal = np.array([self._drives.step(left, right)
                             for left, right in commands.tolist()]).reshape(n, 2)
@@ -304,6 +308,29 @@ class LiveSimulator:
             self.steps += n
             self.state = steps.state(n - 1)
         return steps
+
+
+def _sinc(x: float) -> float:
+    """``numpy.sinc`` on a float: ``sin(pi x) / (pi x)``, 1 at 0."""
+    y = math.pi * (x if x != 0.0 else 1e-20)
+    return math.sin(y) / y
+
+
+def _arc_step(pose, dx: float, dy: float, dtheta: float) -> tuple:
+    """
+    Pose after one arc of body increments, on floats.
+
+    :func:`~tracked_kinematics.core.integration.integrate` for one step, operation for
+    operation (so a run stepped one by one is the run it integrates at once).
+    """
+    s = _sinc(dtheta / math.pi)
+    c = 0.5 * dtheta * _sinc(dtheta / (2.0 * math.pi)) ** 2
+    chord_x, chord_y = s * dx - c * dy, c * dx + s * dy
+    theta = pose[2] + dtheta
+    start = theta - dtheta
+    cos_t, sin_t = math.cos(start), math.sin(start)
+    return (pose[0] + (cos_t * chord_x - sin_t * chord_y),
+            pose[1] + (sin_t * chord_x + cos_t * chord_y), theta)
 
 
 class SetpointHold:
