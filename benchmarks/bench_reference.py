@@ -3,7 +3,8 @@ Benchmark: identify_icr without ground truth (issue 21): the gyro, GNSS. Prints 
 
 1. Real data, one row per Warthog bag of ../shared/realdata: fit on the other two bags from
    the gyro alone (``/imu/data``), from the lidar ICP (icr_scales, delay estimated), as the
-   plain gyro fit (symmetric scales, nominal distance scale), and the ideal drive; scored on
+   plain gyro fit (symmetric scales, nominal distance scale), the ideal drive, and the gyro
+   and the ICP together (``--imu-topic`` with ``--ground-truth-topic``); scored on
    the held-out bag against its ICP after 5-s windows: mean heading (deg) and position (m)
    error, and the gyro delay found. [heading within 1.15 x the ICP fit's; position no worse
    than the plain gyro fit]
@@ -71,11 +72,13 @@ def real(base: Path) -> None:
     encoders = EncoderSource(sprocket_radius=0.3)
     paths = [base / n for n in WARTHOG]
     gyro = [read_reference_bag(p, encoders, '/imu/data') for p in paths]
+    both = [read_reference_bag(p, encoders, '/imu/data', ground_truth=GroundTruthSource(
+        '/icp/pose')) for p in paths]
     icp = read_bags(paths, encoders, GroundTruthSource('/icp/pose'))
     print('bench_reference: Warthog grass, fit on the two other bags, scored on each against '
           'its ICP after 5-s windows: heading deg / position m')
     print(f'    {"held-out bag":<32}{"gyro fit":>16}{"ICP fit":>16}{"plain gyro":>16}'
-          f'{"ideal":>16}{"imu_delay s":>13}{"gyro/ICP hdg":>14}')
+          f'{"ideal":>16}{"gyro + ICP":>16}{"imu_delay s":>13}{"gyro/ICP hdg":>14}')
     for held, name in enumerate(WARTHOG):
         train = [k for k in range(len(WARTHOG)) if k != held]
         started = time.perf_counter()
@@ -84,11 +87,21 @@ def real(base: Path) -> None:
         plain = ident.fit_recordings([gyro[k] for k in train], 1.08, hold=('scale_ratio',))
         posed = ident.identify([icp[k] for k in train], 'icr_scales', 1.08, holdout=0,
                                ground_truth_delay='auto').icr
-        models = (fit.icr, posed, plain.icr, IcrParams.ideal(1.08))
+        combined = ident.fit_recordings([both[k] for k in train], 1.08).icr
+        models = (fit.icr, posed, plain.icr, IcrParams.ideal(1.08), combined)
         rows = [score(m, [icp[held]]) for m in models]
         cells = ''.join(f'{h:>8.2f} /{p:>6.3f}' for p, h in rows)
         print(f'    {name:<32}{cells}{fit.imu_delay.delay:>13.3f}'
               f'{rows[0][1] / rows[1][1]:>14.2f}   ({wall:.2f} s)')
+
+
+def husky(base: Path) -> None:
+    """Show the one line for the Husky log, whose /imu/data is empty."""
+    try:
+        read_reference_bag(base / 'husky_wetgrass_part1',
+                           EncoderSource(sprocket_radius=0.15875), '/imu/data')
+    except ident.SensorDataError as err:
+        print(f'bench_reference: husky_wetgrass_part1: {err}')
 
 
 def _runs(directory, table, overrides, seeds, duration):
@@ -141,6 +154,7 @@ def main():
     base = folder()
     if (base / 'README.md').is_file():
         real(base)
+        husky(base)
     else:
         print(f'bench_reference: no real data in {base}; give the folder as the argument')
     simulated('Auriga-alpha (demo vehicle)', None)

@@ -80,3 +80,14 @@ def test_identify_icr_imu_only_on_the_warthog(tmp_path, capsys):
     assert values['identification.imu_delay'] == pytest.approx(-0.176, abs=0.01)
     assert values['icr.y_left'] == pytest.approx(0.93, abs=0.03)
     assert values['scale.right'] / values['scale.left'] == pytest.approx(1.02, abs=0.005)
+
+
+def test_a_log_without_gyro_messages_is_one_line(tmp_path, capsys):
+    out = tmp_path / 'husky.yaml'
+    status = identify_icr.main([str(realdata.bag('husky_wetgrass_part1')), '--imu-topic',
+                                '/imu/data', '--output', str(out), '--sprocket-radius',
+                                '0.15875', '--track-width', '0.54'])
+    err = capsys.readouterr().err.strip()
+    assert status == 2 and 'no Imu messages on /imu/data' in err
+    assert len(err.splitlines()) == 1 and 'corrupt' not in err
+    assert not out.exists()

@@ -12,8 +12,8 @@ The one function a caller needs
 -------------------------------
 ``fit_from_reference(enc_t, left, right, *, track_width, gyro_t=None, gyro_rate=None,
 gyro_yaw=None, pose=None, positions=None, straight_distance=None, base=None,
-imu_delay='auto', pose_delay='auto', segment_length=1.0, position_window=None, hold=())
--> ReferenceFit``
+imu_delay='auto', pose_delay='auto', segment_length=1.0, position_window=None, hold=(),
+gnss_antenna=(0, 0)) -> ReferenceFit``
 
 Plain arrays in (one recording; :func:`fit_recordings` takes several
 :class:`ReferenceRecording`): encoder times (s) and cumulative nominal track travel (m);
@@ -463,10 +463,11 @@ class _PositionBlock:
     g: np.ndarray
     window: np.ndarray
     t0: float
+    lever: np.ndarray
 
 
-def _position_block(source, rec, basis, ref_t, ref_x, ref_y, window_s):
-    grid, _, pa, pb, pc, _ = basis
+def _position_block(source, rec, basis, ref_t, ref_x, ref_y, window_s, antenna=(0.0, 0.0)):
+    grid, psi, pa, pb, pc, _ = basis
     inside = (ref_t >= grid[0]) & (ref_t <= grid[-1])
     t = ref_t[inside]
     if t.size < 3:
@@ -479,7 +480,12 @@ def _position_block(source, rec, basis, ref_t, ref_x, ref_y, window_s):
     counts = np.bincount(window)
     if counts[-1] < 3 and len(counts) > 1:
         window[window == len(counts) - 1] = len(counts) - 2
-    return _PositionBlock(source, t, *interp, g, window, float(t[0]))
+    # The antenna (or tracked body) sits at ``antenna`` in base_link: it turns with the robot.
+    heading = np.interp(t, grid, psi)
+    ax, ay = antenna
+    lever = np.column_stack([np.cos(heading) * ax - np.sin(heading) * ay,
+                             np.sin(heading) * ax + np.cos(heading) * ay])
+    return _PositionBlock(source, t, *interp, g, window, float(t[0]), lever)
 
 
 def _centred(values, window):
@@ -510,7 +516,7 @@ def _position_fit(blocks, free, fixed, sigma):
         out = []
         for k, blk in enumerate(blocks):
             theta = p[n_shared + 2 * k] + p[n_shared + 2 * k + 1] * (blk.t - blk.t0)
-            model = vals['s'] * blk.a + vals['c'] * blk.b + vals['x'] * blk.c
+            model = vals['s'] * blk.a + vals['c'] * blk.b + vals['x'] * blk.c + blk.lever
             co, si = np.cos(theta), np.sin(theta)
             rotated = np.column_stack([co * model[:, 0] - si * model[:, 1],
                                        si * model[:, 0] + co * model[:, 1]])
@@ -581,7 +587,8 @@ def _delay_of_pose(rec_list, pose_delay):
 def fit_recordings(recordings, track_width: float, *, base: IcrParams | None = None,
                    imu_delay='auto', pose_delay='auto', segment_length: float = 1.0,
                    straight_distance: float | None = None,
-                   position_window: float | None = None, hold=()) -> ReferenceFit:
+                   position_window: float | None = None, hold=(),
+                   gnss_antenna=(0.0, 0.0)) -> ReferenceFit:
     """
     Calibrate from gyro, pose and/or positions over several recordings (module notes).
 
@@ -604,6 +611,10 @@ def fit_recordings(recordings, track_width: float, *, base: IcrParams | None = N
     hold : sequence of str
         Quantities of :data:`QUANTITIES` to hold at ``base`` even where the data determine
         them (``('scale_ratio',)``: the plain gyro fit of symmetric scales).
+    gnss_antenna : pair of float
+        Position of the GNSS antenna in base_link, m. It matters: an antenna ``a`` ahead of
+        base_link moves with the heading exactly as ICRs ``a`` behind it would
+        (``icr.x = -a``), so an unknown lever arm would be fitted as ``icr.x``.
 
     Returns
     -------
@@ -623,6 +634,9 @@ def fit_recordings(recordings, track_width: float, *, base: IcrParams | None = N
         raise ValueError(f'hold must name some of {", ".join(QUANTITIES)}, got {hold!r}')
     if not (math.isfinite(track_width) and track_width > 0):
         raise ValueError(f'track_width must be > 0, got {track_width!r}')
+    gnss_antenna = tuple(float(a) for a in gnss_antenna)
+    if len(gnss_antenna) != 2 or not all(math.isfinite(a) for a in gnss_antenna):
+        raise ValueError(f'gnss_antenna must be two finite numbers (m), got {gnss_antenna!r}')
     if not segment_length > 0:
         raise ValueError(f'segment_length must be > 0, got {segment_length!r}')
     base = base or IcrParams.ideal(track_width)
@@ -772,7 +786,8 @@ def fit_recordings(recordings, track_width: float, *, base: IcrParams | None = N
                 continue
             t = data[0] - (pose_d.delay if source == 'pose' else 0.0)
             window = position_window or POSITION_WINDOW[source]
-            blk = _position_block(source, r, basis, t, data[1], data[2], window)
+            blk = _position_block(source, r, basis, t, data[1], data[2], window,
+                                  gnss_antenna if source == 'gnss' else (0.0, 0.0))
             if blk is not None:
                 blocks.append(blk)
     if blocks and straight_distance is None and 'distance_scale' not in hold:
@@ -883,7 +898,8 @@ def fit_from_reference(enc_t, left, right, *, track_width: float, gyro_t=None, g
                        gyro_yaw=None, pose=None, positions=None,
                        straight_distance: float | None = None, base: IcrParams | None = None,
                        imu_delay='auto', pose_delay='auto', segment_length: float = 1.0,
-                       position_window: float | None = None, hold=()) -> ReferenceFit:
+                       position_window: float | None = None, hold=(),
+                       gnss_antenna=(0.0, 0.0)) -> ReferenceFit:
     """
     Calibrate one recording from plain arrays: the entry point of nodes (module notes).
 
@@ -909,7 +925,7 @@ def fit_from_reference(enc_t, left, right, *, track_width: float, gyro_t=None, g
         Delays of the gyro / pose stamps behind the encoders, s, or estimated.
     segment_length : float
         Heading segments, s.
-    position_window, hold
+    position_window, hold, gnss_antenna
         As :func:`fit_recordings`.
 
     Returns
@@ -922,7 +938,8 @@ def fit_from_reference(enc_t, left, right, *, track_width: float, gyro_t=None, g
     return fit_recordings([rec], track_width, base=base, imu_delay=imu_delay,
                           pose_delay=pose_delay, segment_length=segment_length,
                           straight_distance=straight_distance,
-                          position_window=position_window, hold=hold)
+                          position_window=position_window, hold=hold,
+                          gnss_antenna=gnss_antenna)
 
 
 def heading_reference(rec: ReferenceRecording, delay: float, bias: float,

@@ -101,6 +101,10 @@ def build_parser() -> argparse.ArgumentParser:
     ref.add_argument('--gnss-topic', default=None, metavar='TOPIC',
                      help='sensor_msgs/NavSatFix (status >= 0) or nav_msgs/Odometry: '
                      'positions for the distance scale (and icr.x where its noise allows)')
+    ref.add_argument('--gnss-antenna', type=bounded(-10.0, 10.0, 'm'), nargs=2,
+                     default=(0.0, 0.0), metavar=('X', 'Y'),
+                     help='position of the GNSS antenna in base_link, m (an offset antenna '
+                     'would otherwise pass for icr.x)')
     ref.add_argument('--straight-distance', type=bounded(0.1, 100000.0, 'm'), default=None,
                      metavar='M',
                      help='the bags are one straight drive of M metres (measured): fixes the '

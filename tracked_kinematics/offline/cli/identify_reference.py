@@ -69,7 +69,7 @@ def run(args, out, outputs) -> None:
         recordings, track_width, base=_held_base(base, track_width, args.model),
         imu_delay=_delay_option(args.imu_delay), pose_delay=_delay_option(
             args.ground_truth_delay), segment_length=args.segment_length or 1.0,
-        straight_distance=args.straight_distance)
+        straight_distance=args.straight_distance, gnss_antenna=tuple(args.gnss_antenna))
     date = datetime.now(timezone.utc).isoformat(timespec='seconds')
     bags = [str(Path(b).resolve()) for b in args.bags]
     icr = fit.icr

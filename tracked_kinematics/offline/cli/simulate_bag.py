@@ -502,6 +502,9 @@ def build_parser() -> argparse.ArgumentParser:
                       help='the fixes are stamped this late, s')
     gnss.add_argument('--gnss-dropout', type=bounded(0.0, 1.0), default=0.0,
                       help='probability that a fix is missing (status -1, NO_FIX)')
+    gnss.add_argument('--gnss-antenna', type=bounded(-10.0, 10.0, 'm'), nargs=2,
+                      default=(0.0, 0.0), metavar=('X', 'Y'),
+                      help='antenna position in base_link, m')
     gnss.add_argument('--gnss-status', choices=tuple(GNSS_STATUS), default='fix',
                       help='status of a good fix: fix (standalone), sbas, gbas (RTK)')
     output = parser.add_argument_group('output')
@@ -530,7 +533,8 @@ def _gnss_model(args) -> GnssModel | None:
         return None
     return GnssModel(rate=args.gnss_rate, noise_std=args.gnss_noise,
                      correlation_time=args.gnss_correlation_time, latency=args.gnss_latency,
-                     dropout=args.gnss_dropout, status=GNSS_STATUS[args.gnss_status])
+                     dropout=args.gnss_dropout, antenna_x=args.gnss_antenna[0],
+                     antenna_y=args.gnss_antenna[1], status=GNSS_STATUS[args.gnss_status])
 
 
 def _run(args, out) -> int:
