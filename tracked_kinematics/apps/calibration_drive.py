@@ -5,17 +5,17 @@ The node (:class:`tracked_kinematics.ros.calibration_drive.CalibrationDriveNode`
 protocol and records; :class:`tracked_kinematics.offline.calibration_files.CalibrationFiles`
 checks the output paths at start and writes the bag, the terrain file and the report at the
 end. The node ends the process with the finisher's exit status (0: written; 2: an output or
-input problem; 3: too little excitation; 4: the fit failed, as identify_icr's). rclpy's own
-SIGINT / SIGTERM handlers are taken out, so that a signal ends ``spin`` with the context
-still valid and the node's last act, publishing a zero command, reaches cmd_vel_translator.
+input problem; 3: too little excitation; 4: the fit failed, as identify_icr's; 0 after a
+signal, as every node). A signal stops the node through run() (the node is destroyed, and
+publishes its zero command, before the context shuts down) and ends a fit under way.
 Reference: docs/nodes/calibration_drive.md.
 """
 
 from __future__ import annotations
 
+import signal
 import sys
 
-import rclpy
 from tracked_kinematics.offline.calibration_files import CalibrationFiles
 from tracked_kinematics.ros import calibration_drive as node
 from tracked_kinematics.ros.main import run
@@ -26,10 +26,18 @@ def _exit(status: int) -> None:
 
 
 def _make_node():
-    # rclpy's handlers shut the context down at the signal, before the node could publish
-    # its zero command; main's own handler (a KeyboardInterrupt) is what remains.
-    rclpy.signals.uninstall_signal_handlers()
-    return node.CalibrationDriveNode(finisher=CalibrationFiles, on_exit=_exit)
+    made = node.CalibrationDriveNode(finisher=CalibrationFiles, on_exit=_exit)
+    # A signal also ends a fit under way at once (its identify_icr process), then goes on
+    # to the handler run() installed (a stop request). run() restores its own at the end.
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        previous = signal.getsignal(sig)
+
+        def handler(signum, frame, previous=previous):
+            made.cancel()
+            if callable(previous):
+                previous(signum, frame)
+        signal.signal(sig, handler)
+    return made
 
 
 def main(args=None):

@@ -13,9 +13,10 @@ output paths (docs/output-files.md): ``output``, the report beside it (``OUT.jso
    ``sensor_msgs/Imu`` on the IMU topic) with its own stamps, and ``cmd_vel``. With ``bag``
    it is renamed onto that path (kept even when the fit fails: the drive can be fitted again
    with ``identify_icr``); without, it lives in a temporary directory removed at the end;
-2. runs ``identify_icr`` on that bag, as its command line would (the node's terrain values
-   as ``--params``; the command is written into the report), so that ``identify_icr`` on the
-   bag gives the same result;
+2. runs ``identify_icr`` on that bag, as its command line (a process of its own, which
+   :meth:`CalibrationFiles.cancel` ends on a signal), with the node's terrain values as
+   ``--params``; the command is written into the report, so ``identify_icr`` on the bag
+   gives the same result;
 3. writes ``output`` and the report together (:class:`~tracked_kinematics.offline.outputs.
    Outputs`: atomic, all or none, an existing file replaced only with ``force``), the
    terrain file with an ``identification.drive.*`` record of the drive, the report with a
@@ -24,12 +25,12 @@ output paths (docs/output-files.md): ``output``, the report beside it (``OUT.jso
 
 from __future__ import annotations
 
-import contextlib
 from datetime import datetime, timezone
-import io
 import json
 from pathlib import Path
 import shutil
+import subprocess
+import sys
 import tempfile
 
 import numpy as np
@@ -44,6 +45,8 @@ from tracked_kinematics.params import (
 TOOL = 'calibration_drive'
 #: Keys of the node's values that go into the base file of the fit.
 _BASE_KEYS = tuple(spec.name for spec in TERRAIN_PARAMS) + ('left_joints', 'right_joints')
+#: The status of a fit ended by :meth:`CalibrationFiles.cancel` (as identify_icr's on SIGINT).
+INTERRUPTED = 130
 #: The terrain values a fit sets, and that push_to sends.
 FITTED_KEYS = ('icr.y_left', 'icr.y_right', 'icr.x', 'scale.left', 'scale.right')
 
@@ -79,10 +82,19 @@ class CalibrationFiles:
         self.report = check_output('output (its report)', report_path(self.output), self.force)
         self.bag = check_output('bag', values['bag'], directory=True) if values['bag'] \
             else None
+        self._cancelled = False
+        self._process = None
         if self.values['reference'] == 'imu' and not _has_imu_reference():
             raise ValueError(
                 'reference imu: this identify_icr cannot fit from a gyro yet (no --imu-topic); '
                 'use reference:=pose')
+
+    def cancel(self) -> None:
+        """End a fit under way (a signal): the call returns :data:`INTERRUPTED` soon."""
+        self._cancelled = True
+        process = self._process
+        if process is not None and process.poll() is None:
+            process.terminate()
 
     def __call__(self, recording, topics, log):
         """Write everything; return ``(exit status, fitted values or None)``."""
@@ -121,13 +133,21 @@ class CalibrationFiles:
             write_params_file(base, {k: self.values[k] for k in _BASE_KEYS if k in self.values})
             staged, staged_report = work / 'fit.yaml', work / 'fit.json'
             argv = self.command(bag, topics, base, staged, staged_report)
-            out, err = io.StringIO(), io.StringIO()
-            with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
-                status = identify_icr.main(argv)
-            for line in out.getvalue().splitlines():
+            if self._cancelled:
+                return INTERRUPTED, None
+            # identify_icr as a process of its own: the node can end it at once on a signal
+            # (cancel); whatever it staged lies in ``work``, removed below either way.
+            self._process = subprocess.Popen(
+                [sys.executable, '-m', 'tracked_kinematics.offline.cli.identify_icr', *argv],
+                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+            out, err = self._process.communicate()
+            status = self._process.returncode
+            if self._cancelled or status < 0:
+                return INTERRUPTED, None
+            for line in out.splitlines():
                 if line.strip() and not line.startswith('wrote '):
                     log.info(line)
-            for line in err.getvalue().splitlines():
+            for line in err.splitlines():
                 if line.strip() and status:
                     log.error(line)
                 elif line.strip():

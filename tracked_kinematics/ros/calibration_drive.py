@@ -443,11 +443,10 @@ class CalibrationDriveNode(Node):
 
     def _run_finish(self, recording, topics):
         """
-        Write the results, in this callback: a signal meanwhile ends the fit cleanly.
+        Write the results, in this callback; :meth:`cancel` (a signal) ends the fit cleanly.
 
         The fit takes seconds; the command stays zero (cmd_vel_translator's timeout zeroes
-        the tracks too). Run here rather than in a thread, a SIGINT or SIGTERM interrupts the
-        fit as it would identify_icr's, which then removes what it staged.
+        the tracks too). A cancelled fit writes nothing and the node ends with status 0.
         """
         self.get_logger().info(
             f'protocol done: fitting {len(recording.encoder_t)} encoder steps and '
@@ -460,8 +459,14 @@ class CalibrationDriveNode(Node):
         if status in INTERRUPTED:
             # A signal during the fit: a node ends cleanly on a signal (exit 0).
             self.get_logger().warning('interrupted while fitting: nothing written')
-            raise KeyboardInterrupt
+            return 0, None
         return status, fitted
+
+    def cancel(self) -> None:
+        """End a fit under way (the console script calls this on SIGINT or SIGTERM)."""
+        cancel = getattr(self._finish, 'cancel', None)
+        if cancel is not None:
+            cancel()
 
     def _push(self, fitted: Mapping[str, float]) -> None:
         request = SetParametersAtomically.Request()
