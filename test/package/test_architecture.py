@@ -34,6 +34,8 @@ FORBIDDEN = {
     'offline': ('rclpy', f'{PKG}.ros', 'tf2_ros'),
     # Reading and writing bags is a library the command lines use, never the reverse.
     'offline/bags': (f'{PKG}.offline.cli',),
+    # So is the diff_drive_controller converter: controllers files in, parameter files out.
+    'offline/ddc': (f'{PKG}.offline.cli', f'{PKG}.offline.bags', 'rosbags'),
     'ros': ('rosbags', f'{PKG}.offline'),
 }
 
