@@ -24,7 +24,8 @@ import time
 
 import numpy as np
 from tracked_kinematics.core.kinematics import IcrParams
-from tracked_kinematics.core.sim.dynamics import averaged_icr, icr_map, IcrMap, StationarySolver
+from tracked_kinematics.core.sim.dynamics import StationarySolver
+from tracked_kinematics.core.sim.icr_maps import averaged_icr, icr_map, IcrMap
 from tracked_kinematics.offline.cli.common import (
     add_force_argument, ArgumentParser, bounded, run_main)
 from tracked_kinematics.offline.outputs import Outputs
