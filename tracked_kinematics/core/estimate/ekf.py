@@ -235,10 +235,18 @@ class SlipEstimator:
         return self._receive(t, (math.nan, math.nan, yaw), True)
 
     def configure(self, config: EstimatorConfig) -> None:
-        """Use new noise, window and gate settings from the next measurement on."""
+        """
+        Use new noise, window and gate settings from the next measurement on.
+
+        With ``adaptive_noise`` off, ``travel_std`` applies as given from then on (what the
+        adaptation learnt is forgotten); a shorter ``noise_memory`` keeps the newest windows.
+        """
         self.config = config
         self._log.span = config.max_window + 1.0
         self._excess = deque(self._excess, maxlen=config.noise_memory)
+        if not config.adaptive_noise:
+            self._excess.clear()
+            self.noise_scale = 1.0
 
     def set_initial(self, p0) -> None:
         """Set the parameters :meth:`reset` returns to (the estimate itself is kept)."""
