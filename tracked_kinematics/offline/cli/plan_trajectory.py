@@ -198,7 +198,8 @@ def _run(args, out) -> int:
     with _outputs(args) as outputs:
         vehicle, icr, values = _load(args)
         robot = vehicle.robot
-        limits = limits_from(values, robot, args.max_track_speed, args.max_track_accel)
+        limits = limits_from(values, robot, args.max_track_speed, args.max_track_accel,
+                             source=str(args.params or ''))
         speed = args.speed or 0.5 * min(limits.max_track_speed, robot.drivetrain.max_speed)
         if args.compare:
             return _compare(robot, vehicle.name, limits, speed, args.dt, out)
