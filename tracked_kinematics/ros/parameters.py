@@ -20,7 +20,10 @@ from typing import Any
 from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescriptor,
                                 SetParametersResult)
 from rclpy.parameter import Parameter
-from tracked_kinematics.params import missing_message, ParamSpec
+from tracked_kinematics.params import missing_message, ParamSpec, unknown_parameters
+
+# Parameters every rclpy node declares itself.
+NODE_PARAMETERS = ('use_sim_time', 'start_type_description_service')
 
 
 class ParameterError(ValueError):
@@ -161,7 +164,7 @@ class ParameterTable:
             except ValueError as err:
                 problems.append(str(err))
         if problems:
-            raise ParameterError('invalid parameters: ' + '; '.join(problems))
+            raise ParameterError('invalid parameters: ' + '; '.join(problems + self._typos()))
         if derived:
             node.set_parameters([Parameter(name, value=value) for name, value in derived.items()])
         self.values: dict[str, Any] = values
@@ -170,6 +173,19 @@ class ParameterTable:
         node.add_pre_set_parameters_callback(self._pre_set)
         node.add_on_set_parameters_callback(self._on_set)
         node.add_post_set_parameters_callback(self._post_set)
+
+    def _typos(self) -> list[str]:
+        """
+        Name the given parameters the node does not declare that look like typos of its own.
+
+        A refused start often comes from one (``track_widht`` leaves ``track_width``
+        missing): the FATAL line names it, ``unknown 'track_widht' (did you mean
+        'track_width'?)``. Other undeclared names (a ``/**`` section for several nodes) are
+        left to the warning the node logs once it runs.
+        """
+        given = getattr(self._node, '_parameter_overrides', {})
+        return unknown_parameters(given, [*self.specs, *NODE_PARAMETERS], only_close=True,
+                                  ignored='', what='unknown')
 
     def _declare_problem(self, spec: ParamSpec, err: Exception) -> str:
         """Say why a value given at start was refused, in the table's words if possible."""
