@@ -11,10 +11,11 @@ the mean joint position of each side, with the effective geometry it builds in
     linear     = (d_left + d_right) / 2
     angular    = (d_right - d_left) / separation
 
-That is the tread-ICR model of INTERFACE.md with symmetric ICRs at ``+-separation / 2``
-(``icr.x = 0``), ``sprocket_radius = wheel_radius`` and ``scale.* = *_wheel_radius_multiplier``:
-``w = (V_r - V_l) / (y_left - y_right)`` and ``v_x = (V_r + V_l) / 2`` give the same numbers,
-and the steering efficiency is ``chi = wheel_separation / separation = 1 / multiplier``.
+That is the tread-ICR model of docs/model.md (section Kinematics) with symmetric ICRs at
+``+-separation / 2`` (``icr.x = 0``), ``sprocket_radius = wheel_radius`` and ``scale.* =
+*_wheel_radius_multiplier``: ``w = (V_r - V_l) / (y_left - y_right)`` and ``v_x = (V_r +
+V_l) / 2`` give the same numbers, and the steering efficiency is ``chi = wheel_separation /
+separation = 1 / multiplier``.
 
 A multiplier below 1 (a robot that turns faster than its wheel separation says) would put
 the ICRs inside the tracks, ``chi > 1``, which no tread model allows and every node refuses.
