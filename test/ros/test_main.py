@@ -114,13 +114,19 @@ def test_node_help_does_not_start_ros(tmp_path, name):
     assert script.output.startswith(f'usage: ros2 run tracked_kinematics {name}')
 
 
+def odometry_node_with_typo(tmp_path, vehicle):
+    """Start odometry_node with a params file of ``vehicle`` lines and ``track_widht``."""
+    params = tmp_path / 'p.yaml'
+    params.write_text('/**:\n  ros__parameters:\n' + ''.join(f'    {line}\n' for line in vehicle)
+                      + '    track_widht: 0.5\n')
+    return ConsoleScript('odometry_node', '--ros-args', '--params-file', params,
+                         tmp_path=tmp_path)
+
+
 @pytest.mark.ros
 def test_typo_in_params_file_is_named(tmp_path):
-    params = tmp_path / 'p.yaml'
-    params.write_text('/**:\n  ros__parameters:\n    track_width: 0.42\n'
-                      '    sprocket_radius: 0.1\n    track_widht: 0.5\n')
-    with ConsoleScript('odometry_node', '--ros-args', '--params-file', params,
-                       tmp_path=tmp_path) as script:
+    with odometry_node_with_typo(tmp_path, ['track_width: 0.42', 'sprocket_radius: 0.1']) \
+            as script:
         deadline = time.monotonic() + 30
         while 'track_widht' not in script.output and time.monotonic() < deadline:
             time.sleep(0.05)
@@ -160,11 +166,7 @@ def test_a_start_that_is_not_refused_leaves_typos_to_the_warning(ros_context):
 
 @pytest.mark.ros
 def test_typo_that_refuses_the_start_is_named_in_the_fatal_line(tmp_path):
-    params = tmp_path / 'p.yaml'
-    params.write_text('/**:\n  ros__parameters:\n    sprocket_radius: 0.1\n'
-                      '    track_widht: 0.5\n')
-    with ConsoleScript('odometry_node', '--ros-args', '--params-file', params,
-                       tmp_path=tmp_path) as script:
+    with odometry_node_with_typo(tmp_path, ['sprocket_radius: 0.1']) as script:
         assert script.wait(30) == 2
     fatal = [line for line in script.output.splitlines() if 'FATAL' in line]
     assert len(fatal) == 1, script.output
