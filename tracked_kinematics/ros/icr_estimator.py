@@ -36,7 +36,6 @@ from nav_msgs.msg import Odometry, Path
 import numpy as np
 from rcl_interfaces.msg import Parameter as ParameterMsg, ParameterType
 from rcl_interfaces.srv import SetParametersAtomically
-from rclpy.node import Node
 from sensor_msgs.msg import Imu
 from std_msgs.msg import Float64MultiArray, MultiArrayDimension
 from std_srvs.srv import Trigger
@@ -55,7 +54,7 @@ from tracked_kinematics.ros.encoder_input import (
     check_encoder_values, EncoderInput, WARN_PERIOD)
 from tracked_kinematics.ros.input_topic import CHECK_PERIOD, InputTopic, steady_timer
 from tracked_kinematics.ros.main import run
-from tracked_kinematics.ros.parameters import ParameterTable
+from tracked_kinematics.ros.parameters import TableNode
 
 NODE_NAME = 'icr_estimator'
 
@@ -227,26 +226,19 @@ def _stamp(seconds: float) -> Time:
     return Time(sec=sec, nanosec=nanosec)
 
 
-class IcrEstimatorNode(Node):
+class IcrEstimatorNode(TableNode):
     """
     Online ICR estimation and motion prediction for a tracked vehicle.
 
-    Parameters
-    ----------
-    **kwargs
-        Passed to :class:`rclpy.node.Node` (``context``, ``parameter_overrides``, ...).
-
-    Raises
-    ------
-    tracked_kinematics.ros.parameters.ParameterError
-        When the parameters given at start are invalid.
-
+    A :class:`~tracked_kinematics.ros.parameters.TableNode` of :data:`PARAMS`: ``**kwargs``
+    go to :class:`rclpy.node.Node`; ``ParameterError`` when the parameters given at start are
+    invalid.
     """
 
     def __init__(self, **kwargs):
-        super().__init__(NODE_NAME, **kwargs)
-        self.params = ParameterTable(self, PARAMS, validate=validate, on_change=self._apply)
-        values = self.params.values
+        super().__init__(NODE_NAME, PARAMS, validate, **kwargs)
+
+    def _start(self, values: Mapping[str, Any]) -> None:
         self.encoder = None
         self._timer = None
         self.estimator = self._build_estimator(values)

@@ -9,6 +9,9 @@ The default rule of the specs (:func:`tracked_kinematics.params.resolve`) holds 
 ``required`` parameter that is not given stops the node at start, naming it; a ``derived``
 one not given takes its computed value (``ros2 param get`` shows it) and follows the
 parameters it is derived from at runtime until it is set explicitly.
+
+:class:`TableNode` is the start of a node built on such a table: declare, check, build, and
+destroy the half-built node when any of it fails.
 """
 
 from __future__ import annotations
@@ -19,6 +22,7 @@ from typing import Any
 
 from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescriptor,
                                 SetParametersResult)
+from rclpy.node import Node
 from rclpy.parameter import Parameter
 from tracked_kinematics.params import missing_message, ParamSpec, unknown_parameters
 
@@ -282,3 +286,53 @@ class ParameterTable:
         self._derived_now = set()
         if self._on_change is not None:
             self._on_change(self.values)
+
+
+class TableNode(Node):
+    """
+    A node whose parameters are one table: declared and checked, then the node is built.
+
+    A subclass builds itself from the checked values in :meth:`_start` and takes valid runtime
+    changes into use in :meth:`_apply`. When the start fails (refused parameters, a topic name
+    rclpy refuses, any error), the half-built node is destroyed before the error propagates:
+    nothing is left for the garbage collector to destroy after its context is gone.
+
+    Parameters
+    ----------
+    name : str
+        Node name.
+    specs : iterable of ParamSpec
+        The node's parameters (:attr:`params` holds them).
+    validate : callable, optional
+        ``validate(values)`` raising ``ValueError`` for an invalid combination
+        (:class:`ParameterTable`).
+    **kwargs
+        Passed to :class:`rclpy.node.Node` (``context``, ``parameter_overrides``, ...).
+
+    Raises
+    ------
+    ParameterError
+        When the parameters given at start are invalid.
+
+    """
+
+    def __init__(self, name: str, specs: Iterable[ParamSpec],
+                 validate: Callable[[Mapping[str, Any]], None] | None = None, **kwargs):
+        super().__init__(name, **kwargs)
+        try:
+            self.params = ParameterTable(self, specs, validate=validate, on_change=self._apply)
+            self._start(self.params.values)
+        except BaseException:
+            self._abandon()
+            Node.destroy_node(self)
+            raise
+
+    def _start(self, values: Mapping[str, Any]) -> None:
+        """Build the node from the checked start values (publishers, subscriptions, ...)."""
+        raise NotImplementedError
+
+    def _apply(self, values: Mapping[str, Any]) -> None:
+        """Take the values of a valid runtime parameter change into use."""
+
+    def _abandon(self) -> None:
+        """Stop what a failed :meth:`_start` began that destroying the node does not (threads)."""
