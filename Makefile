@@ -1,6 +1,7 @@
 # The two commands of the README:
 #   make demo   set up .venv (first time), then simulate, identify_icr and compare odometry
 #   make test   set up .venv (first time) and run the whole test suite
+# make stress [RUNS=2 STOPS=40]: the suite RUNS times beside RUNS busy loops, then random stops
 # .ci/run calls `make test`.
 
 PYTHON ?= python3
@@ -8,7 +9,7 @@ VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 
-.PHONY: setup demo test bench clean
+.PHONY: setup demo test bench stress clean
 
 setup: $(STAMP)
 
@@ -24,6 +25,9 @@ demo: setup
 
 test: setup
 	$(PY) -m pytest
+
+stress: setup
+	$(PY) tools/stress.py --runs $(or $(RUNS),2) --stops $(or $(STOPS),40)
 
 bench: setup
 	for script in benchmarks/bench_*.py; do $(PY) $$script || exit 1; done

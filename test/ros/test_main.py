@@ -1,10 +1,12 @@
 """ros/main.run: --help, one FATAL line and exit 2 for any start-up failure, typo warnings."""
 
+import os
 import signal
 import time
 
 from helpers.ros_helpers import ConsoleScript
 import pytest
+import rclpy
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from tracked_kinematics.params import ParamSpec, positive
@@ -185,3 +187,58 @@ def test_signal_is_a_clean_exit(tmp_path, sig):
         script.process.send_signal(sig)
         assert script.wait(30) == 0
     assert 'Traceback' not in script.output
+
+
+class _Recorder(Node):
+    """A node that signals its own process from a timer and records how it was stopped."""
+
+    def __init__(self, log, signals=1):
+        super().__init__('interrupted')
+        self.log = log
+        self._left = signals
+        self.create_timer(0.01, self._tick)
+
+    def _tick(self):
+        self.log.append('tick')
+        if self._left > 0:
+            self._left -= 1
+            os.kill(os.getpid(), signal.SIGINT)
+
+    def destroy_node(self):
+        self.log.append(('destroyed, context ok', self.context.ok()))
+        super().destroy_node()
+
+
+@pytest.mark.parametrize('signals', [1, 2])
+def test_a_signal_is_an_orderly_stop(monkeypatch, signals):
+    # The signal is a request, never a KeyboardInterrupt inside rclpy: run() stops the
+    # executor, destroys the node while its context is up, then shuts the context down. A
+    # try_shutdown that meets another shutdown ("rcl_shutdown already called") is no crash.
+    from rclpy._rclpy_pybind11 import RCLError
+    real = rclpy.try_shutdown
+
+    def racing(*args, **kwargs):
+        real(*args, **kwargs)
+        raise RCLError('failed to shutdown: rcl_shutdown already called on the given context')
+
+    monkeypatch.setattr(rclpy, 'try_shutdown', racing)
+    log = []
+    before = signal.getsignal(signal.SIGINT)
+    assert run(lambda: _Recorder(log, signals), 'interrupted', ['interrupted']) == 0
+    assert 'tick' in log and log[-1] == ('destroyed, context ok', True)
+    assert not rclpy.ok()
+    assert signal.getsignal(signal.SIGINT) is before  # the test process's handler is back
+
+
+def test_a_callback_that_raises_is_a_traceback_after_an_orderly_stop():
+    # A bug is not swallowed: the error reaches the caller once the node is down.
+    log = []
+
+    def factory():
+        node = _Recorder(log, signals=0)
+        node.create_timer(0.02, lambda: (_ for _ in ()).throw(ZeroDivisionError('bug')))
+        return node
+
+    with pytest.raises(ZeroDivisionError, match='bug'):
+        run(factory, 'interrupted', ['interrupted'])
+    assert log[-1] == ('destroyed, context ok', True) and not rclpy.ok()

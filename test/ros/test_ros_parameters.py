@@ -5,7 +5,8 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from tracked_kinematics.params import icr_from_values, ParamSpec, positive, TERRAIN_PARAMS
 from tracked_kinematics.ros.main import run
-from tracked_kinematics.ros.parameters import ParameterError, ParameterTable, TableNode
+from tracked_kinematics.ros.parameters import (destroyed_on_failure, ParameterError,
+                                               ParameterTable, TableNode)
 
 SPECS = TERRAIN_PARAMS + (
     ParamSpec('left_joints', ['left_sprocket_joint'], 'Joints of the left track'),
@@ -21,8 +22,9 @@ VEHICLE = [Parameter('track_width', value=0.42), Parameter('sprocket_radius', va
 def make(ros_context, overrides=(), changes=None, vehicle=VEHICLE):
     node = Node('table_test', context=ros_context,
                 parameter_overrides=list(vehicle) + list(overrides))
-    table = ParameterTable(node, SPECS, validate=icr_from_values,
-                           on_change=(changes.append if changes is not None else None))
+    with destroyed_on_failure(node):  # a refused start leaves no node to the collector
+        table = ParameterTable(node, SPECS, validate=icr_from_values,
+                               on_change=(changes.append if changes is not None else None))
     return node, table
 
 

@@ -13,10 +13,12 @@ import signal
 import sys
 import threading
 
-NODE_EXECUTABLES = ('odometry_node', 'cmd_vel_translator', 'icr_estimator')
+NODE_EXECUTABLES = ('odometry_node', 'cmd_vel_translator', 'icr_estimator', 'tracked_simulator',
+                    'calibration_drive')
 
 
-def _exit_quietly(signum, frame):
+def exit_quietly(signum, frame):
+    """Leave at once with status 0: the handler while a node executable imports."""
     # Nothing has started yet (no ROS context, no output): leave at once. An exception
     # raised here could surface inside a C extension's initialisation as an ImportError.
     os._exit(0)
@@ -25,26 +27,4 @@ def _exit_quietly(signum, frame):
 if (os.path.basename(sys.argv[0] if sys.argv else '') in NODE_EXECUTABLES
         and threading.current_thread() is threading.main_thread()):
     for _signal in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(_signal, _exit_quietly)
-
-
-def _exit_now(signum, frame):
-    os._exit(0)
-
-
-def _interrupt(signum, frame):
-    for sig in (signal.SIGINT, signal.SIGTERM):  # a second signal, in the shutdown: leave
-        signal.signal(sig, _exit_now)
-    raise KeyboardInterrupt
-
-
-def interrupt_on_signals() -> None:
-    """
-    Make the next SIGINT or SIGTERM a KeyboardInterrupt, and the one after an exit 0.
-
-    For a node's ``main`` before :func:`tracked_kinematics.ros.main.run`, which then turns
-    the KeyboardInterrupt into a clean shutdown (and installs its own handlers while it runs).
-    """
-    if threading.current_thread() is threading.main_thread():
-        for sig in (signal.SIGINT, signal.SIGTERM):
-            signal.signal(sig, _interrupt)
+        signal.signal(_signal, exit_quietly)

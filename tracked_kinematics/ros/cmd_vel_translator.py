@@ -64,7 +64,6 @@ from tracked_kinematics.core.kinematics import IcrParams
 from tracked_kinematics.params import (COMMAND_LIMIT_PARAMS, described_as, icr_from_values,
                                        LIMIT_FIELDS, limits_from_values, non_negative, one_of,
                                        ParamSpec, positive, ros_name, TERRAIN_PARAMS)
-from tracked_kinematics.ros import interrupt_on_signals
 from tracked_kinematics.ros.main import run
 from tracked_kinematics.ros.parameters import TableNode
 
@@ -551,11 +550,7 @@ def main(args=None):
         built.append(CmdVelTranslator())
         return built[-1]
 
-    interrupt_on_signals()
-    try:
-        status = run(factory, NODE_NAME, args, TRANSLATOR_PARAMS, __doc__)
-    except KeyboardInterrupt:  # a signal outside run()'s own handling (rclpy.init, ...)
-        status = 0
+    status = run(factory, NODE_NAME, args, TRANSLATOR_PARAMS, __doc__)
     if status == 0 and built and built[0].failure is not None:
         status = 1
     raise SystemExit(status)

@@ -12,8 +12,12 @@ What a user sees at the edges of a node's life is decided here, once for the thr
 - Parameters a params file or ``-p`` sets that the node does not declare (a typo such as
   ``track_widht``) are named in a warning with the closest known name; ROS would ignore
   them silently.
-- SIGINT and SIGTERM at any moment end the node cleanly with exit status 0: an error that a
-  callback raises because the context was shut down under it is the shutdown, not a crash.
+- SIGINT and SIGTERM at any moment end the node cleanly with exit status 0. They are a
+  request (:class:`StopRequest`), never an exception raised inside rclpy: the node spins in
+  a thread of its own while the main thread waits for a signal, then stops the executor,
+  destroys the node and shuts the context down, in that order. A second signal while
+  stopping is one more request. Before :func:`run` starts (the imports),
+  :mod:`tracked_kinematics.ros` makes a signal an immediate exit 0.
 """
 
 from __future__ import annotations
@@ -26,13 +30,17 @@ import sys
 import threading
 
 import rclpy
+import rclpy.executors
 from rclpy.executors import ExternalShutdownException
-from tracked_kinematics import params
+from rclpy.signals import SignalHandlerOptions
+from tracked_kinematics import params, ros
 from tracked_kinematics.params import ParamSpec
 from tracked_kinematics.ros.parameters import ParameterError
 import yaml
 
 EXIT_STARTUP = 2
+STOP_POLL_PERIOD = 0.05  # s: how soon the main thread sees a signal's stop request
+JOIN_TIMEOUT = 5.0  # s: how long a running callback may delay the shutdown
 
 
 class StartupError(Exception):
@@ -167,14 +175,40 @@ def run(node_factory: Callable[[], 'rclpy.node.Node'], name: str, args=None,
     if '--help' in plain or '-h' in plain:
         print(_usage(name, summary, specs))
         return 0
-    with _signals_interrupt():
-        try:
-            return _run(node_factory, name, user_args, argv, specs)
-        except KeyboardInterrupt:
-            return 0
+    stop = StopRequest()
+    with stop.installed():
+        return _run(node_factory, name, user_args, argv, specs, stop)
 
 
-def _run(node_factory, name, user_args, argv, specs) -> int:
+class StopRequest:
+    """
+    SIGINT and SIGTERM as a request to stop, acted upon by the main thread in its own time.
+
+    The handler only sets a flag: it takes no lock and calls nothing of rclpy, so a signal
+    that lands while the main thread is inside rclpy (building a Task, taking a message,
+    shutting down) cannot leave anything half done. rclpy's own handlers are not installed
+    (``SignalHandlerOptions.NO``); a second signal is one more request, and is harmless.
+    """
+
+    def __init__(self) -> None:
+        self.signum: int | None = None
+
+    @property
+    def requested(self) -> bool:
+        """Return whether a signal asked the node to stop."""
+        return self.signum is not None
+
+    def _handle(self, signum, frame) -> None:
+        self.signum = signum
+
+    @contextlib.contextmanager
+    def installed(self):
+        """Handle SIGINT and SIGTERM while the block runs (main thread only)."""
+        with _signal_handlers(self._handle):
+            yield self
+
+
+def _run(node_factory, name, user_args, argv, specs, stop: StopRequest) -> int:
     logger = rclpy.logging.get_logger(name)
     ros_args = _ros_args(user_args)
     try:
@@ -188,8 +222,10 @@ def _run(node_factory, name, user_args, argv, specs) -> int:
     except StartupError as err:
         logger.fatal(str(err))
         return EXIT_STARTUP
+    if stop.requested:
+        return 0
     try:
-        rclpy.init(args=argv)
+        rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
     except Exception as err:  # noqa: BLE001 -- rcl refuses arguments with RCLError
         logger.fatal(f'cannot start: {" ".join(str(err).split())}')
         return EXIT_STARTUP
@@ -200,35 +236,78 @@ def _run(node_factory, name, user_args, argv, specs) -> int:
         except ParameterError as err:
             logger.fatal(str(err))
             return EXIT_STARTUP
-        except (KeyboardInterrupt, ExternalShutdownException):
+        except ExternalShutdownException:
             return 0
         except Exception as err:  # noqa: BLE001 -- any failure to start is one FATAL line
             if not rclpy.ok():
-                return 0  # a signal shut the context down while the node was being built
+                return 0  # the node shut the context down while it was being built
             logger.fatal(f'cannot start: {type(err).__name__}: {" ".join(str(err).split())}')
             return EXIT_STARTUP
+        if stop.requested:
+            return 0
         for message in unknown_parameters(given, specs):
             node.get_logger().warning(message)
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    except Exception:
-        # A callback that raced the shutdown (publisher's context invalid, ...) is part of
-        # the shutdown; anything else while the context is still up is a real error.
-        if rclpy.ok():
-            raise
+        _spin_until_stopped(node, stop)
     finally:
-        with _signals_ignored():
-            if node is not None:
-                try:
-                    node.destroy_node()
-                except Exception:  # noqa: BLE001 -- destroying after a signal may fail
-                    pass
+        error = None
+        if node is not None:  # the node first, then its context
             try:
-                rclpy.try_shutdown()
-            except Exception:  # noqa: BLE001 -- a signal's shutdown may have raced this one
-                pass
+                node.destroy_node()
+            except Exception as err:  # noqa: BLE001 -- a node that shut its context down
+                error = err if rclpy.ok() else None
+        try:
+            rclpy.try_shutdown()
+        except Exception:  # noqa: BLE001 -- a node's own shutdown may have raced this one
+            pass
+        if error is not None:
+            raise error
     return 0
+
+
+def _spin_until_stopped(node, stop: StopRequest) -> None:
+    """
+    Spin ``node`` in a thread of its own until a signal or the node's context stops it.
+
+    The main thread only waits: the signal handler therefore never runs inside rclpy. On a
+    stop request the executor is woken and its thread joined before the node is destroyed
+    and the context shut down, in that order. An exception a callback raises (a bug) is
+    raised again here, after the spinning thread has ended.
+    """
+    executor = rclpy.executors.SingleThreadedExecutor(context=node.context)
+    executor.add_node(node)
+    done = threading.Event()
+    state = {'stopping': False, 'error': None}
+
+    def spin() -> None:
+        try:
+            while not state['stopping'] and node.context.ok():
+                executor.spin_once()
+        except ExternalShutdownException:
+            pass
+        except BaseException as err:  # noqa: BLE001 -- handed to the main thread
+            if node.context.ok():
+                state['error'] = err
+        finally:
+            done.set()
+
+    thread = threading.Thread(target=spin, name=f'{node.get_name()}_executor', daemon=True)
+    thread.start()
+    try:
+        while not stop.requested and not done.wait(STOP_POLL_PERIOD):
+            pass
+    finally:
+        state['stopping'] = True
+        executor.wake()
+        thread.join(JOIN_TIMEOUT)
+        if thread.is_alive():  # a callback that does not return: the shutdown will end it
+            node.get_logger().warning(
+                f'a callback is still running {JOIN_TIMEOUT:g} s after the stop request; '
+                'shutting down under it')
+            rclpy.try_shutdown(context=node.context)
+            thread.join(JOIN_TIMEOUT)
+        executor.shutdown(timeout_sec=0)
+    if state['error'] is not None:
+        raise state['error']
 
 
 _SIGNALS = (signal.SIGINT, signal.SIGTERM)
@@ -247,20 +326,7 @@ def _signal_handlers(handler):
         yield
     finally:
         for sig, old in previous.items():
-            signal.signal(sig, old)
-
-
-def _signals_interrupt():
-    """
-    SIGINT and SIGTERM raise KeyboardInterrupt in the main thread, whatever it is doing.
-
-    rclpy's own handler (installed by ``rclpy.init``) shuts the context down and then calls
-    this one, so a signal ends ``spin`` the same way at any moment, and one that arrives
-    before ``rclpy.init`` or while the node is built ends the node quietly too.
-    """
-    return _signal_handlers(signal.default_int_handler)
-
-
-def _signals_ignored():
-    """Ignore further signals while the node is destroyed: one signal is enough."""
-    return _signal_handlers(signal.SIG_IGN)
+            # A node's console script is about to exit: a late signal (a second Ctrl-C, a
+            # SIGTERM during the interpreter's finalisation, where Python resets its own
+            # handlers to the default action) is ignored rather than let kill the process.
+            signal.signal(sig, signal.SIG_IGN if old is ros.exit_quietly else old)

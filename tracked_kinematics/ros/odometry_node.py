@@ -36,7 +36,7 @@ from tracked_kinematics.ros.encoder_input import (
 from tracked_kinematics.ros.input_topic import CHECK_PERIOD, steady_timer
 from tracked_kinematics.ros.main import run
 from tracked_kinematics.ros.odometry_message import OdometrySerializer
-from tracked_kinematics.ros.parameters import ParameterTable
+from tracked_kinematics.ros.parameters import destroyed_on_failure, ParameterTable
 
 NODE_NAME = 'odometry_node'
 
@@ -107,6 +107,10 @@ class OdometryNode(Node):
 
     def __init__(self, **kwargs):
         super().__init__(NODE_NAME, **kwargs)
+        with destroyed_on_failure(self):
+            self._start()
+
+    def _start(self) -> None:
         self.params = ParameterTable(self, PARAMS, validate=validate, on_change=self._apply)
         values = self.params.values
         self.odometry = Odometry(icr_from_values(values), _noise(values))

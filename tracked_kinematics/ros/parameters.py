@@ -17,6 +17,7 @@ destroy the half-built node when any of it fails.
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Mapping
+import contextlib
 import math
 from typing import Any
 
@@ -288,6 +289,22 @@ class ParameterTable:
             self._on_change(self.values)
 
 
+@contextlib.contextmanager
+def destroyed_on_failure(node: Node):
+    """
+    Destroy ``node`` when the block that builds it raises (refused parameters, a bad name).
+
+    A half-built node is otherwise left to the garbage collector, which may destroy it later,
+    after its context has been shut down, where rcl can hang. The base class's
+    ``destroy_node`` is used: the subclass's may need what was never built.
+    """
+    try:
+        yield node
+    except BaseException:
+        Node.destroy_node(node)
+        raise
+
+
 class TableNode(Node):
     """
     A node whose parameters are one table: declared and checked, then the node is built.
@@ -319,13 +336,14 @@ class TableNode(Node):
     def __init__(self, name: str, specs: Iterable[ParamSpec],
                  validate: Callable[[Mapping[str, Any]], None] | None = None, **kwargs):
         super().__init__(name, **kwargs)
-        try:
-            self.params = ParameterTable(self, specs, validate=validate, on_change=self._apply)
-            self._start(self.params.values)
-        except BaseException:
-            self._abandon()
-            Node.destroy_node(self)
-            raise
+        with destroyed_on_failure(self):
+            try:
+                self.params = ParameterTable(self, specs, validate=validate,
+                                             on_change=self._apply)
+                self._start(self.params.values)
+            except BaseException:
+                self._abandon()
+                raise
 
     def _start(self, values: Mapping[str, Any]) -> None:
         """Build the node from the checked start values (publishers, subscriptions, ...)."""

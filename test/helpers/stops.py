@@ -1,0 +1,177 @@
+"""
+Stopping a node's console script at a random instant, with its input flowing.
+
+Shared by the suite (a few stops per node) and ``make stress`` (``tools/stress.py``: many,
+beside CPU-bound processes). A stop is a SIGINT or SIGTERM, sometimes a second one shortly
+after, sent at a random moment of the node's life: while it imports, while it builds itself,
+or while it takes a 1 kHz input. The outcome records the exit status, whether the node was
+up (its first log line) when signalled, a traceback in its output, and a hang (no exit in
+``hang_timeout`` s).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+import os
+from pathlib import Path
+import random
+import signal
+import subprocess
+import sys
+import threading
+import time
+
+BIN = Path(sys.executable).parent
+VEHICLE_ARGS = ('-p', 'track_width:=0.42', '-p', 'sprocket_radius:=0.1')
+
+#: Per node: extra arguments and the words of its first log line once it is up.
+NODES = {
+    'odometry_node': (('-p', 'publish_tf:=false'), 'ICR model'),
+    'cmd_vel_translator': (('-p', 'rate:=1000.0'), 'ICR model'),
+    'icr_estimator': ((), 'estimating'),
+}
+
+
+@dataclass
+class Stop:
+    """What one stop did."""
+
+    node: str
+    signals: tuple[str, ...]
+    delay: float
+    up: bool
+    status: int | None  # None: it hung (was killed)
+    traceback: bool
+    output: str
+
+    @property
+    def before_python(self) -> bool:
+        """
+        Return whether the signal's default action ended the process before it ran any code.
+
+        In the interpreter's own start-up (some tens of ms, before the package's first
+        line can install a handler) nothing can catch a signal; it has written nothing yet.
+        """
+        return (self.status is not None and self.status < 0 and not self.up
+                and not self.output.strip())
+
+    @property
+    def clean(self) -> bool:
+        """Return whether the stop was clean: exit 0 (or ended before Python ran), no trace."""
+        return (self.status == 0 or self.before_python) and not self.traceback
+
+
+class Feeder:
+    """Publish joint_states and cmd_vel at about 1 kHz from a thread, on a context of its own."""
+
+    def __init__(self, domain_id: int, rate: float = 1000.0) -> None:
+        import rclpy
+        from rclpy.node import Node
+        from geometry_msgs.msg import Twist
+        from sensor_msgs.msg import JointState
+        self._context = rclpy.Context()
+        rclpy.init(context=self._context, domain_id=domain_id,
+                   signal_handler_options=rclpy.signals.SignalHandlerOptions.NO)
+        self._node = Node('stress_feeder', context=self._context)
+        self._joints = self._node.create_publisher(JointState, 'joint_states', 10)
+        self._cmd = self._node.create_publisher(Twist, 'cmd_vel', 10)
+        self._msg = JointState(name=['left_sprocket_joint', 'right_sprocket_joint'])
+        self._twist = Twist()
+        self._period = 1.0 / rate
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._loop, daemon=True)
+        self._thread.start()
+
+    def _loop(self) -> None:
+        i = 0
+        t0 = time.time()
+        while not self._stop.wait(self._period):
+            i += 1
+            t = t0 + i * self._period
+            sec = int(t)
+            self._msg.header.stamp.sec, self._msg.header.stamp.nanosec = sec, int((t - sec) * 1e9)
+            self._msg.position = [1e-3 * i, 1.2e-3 * i]
+            self._joints.publish(self._msg)
+            self._twist.linear.x, self._twist.angular.z = 0.3, 0.2 * ((i // 500) % 2)
+            self._cmd.publish(self._twist)
+
+    def close(self) -> None:
+        """Stop publishing, destroy the node, then shut the context down."""
+        self._stop.set()
+        self._thread.join(5.0)
+        self._node.destroy_node()
+        self._context.try_shutdown()
+
+
+def stop_once(name: str, rng: random.Random, workdir: Path, env: dict[str, str] | None = None,
+              startup: float = 3.0, hang_timeout: float = 60.0, when: str | None = None,
+              signals: tuple[int, ...] | None = None) -> Stop:
+    """
+    Start ``name``, signal it at a random instant, wait for it to exit.
+
+    ``when`` is ``'startup'`` (a random instant of its first ``startup`` s, which should
+    cover the node's own start-up on this machine: imports, parameters), ``'running'`` (a
+    random instant of the first 0.5 s after its first log line, input flowing) or None,
+    either at random: both phases are hit whatever the machine's speed. ``signals`` are
+    sent in order with random gaps of up to 0.2 s; by default one or (three times in ten)
+    two of SIGINT and SIGTERM at random.
+    """
+    extra, up_words = NODES[name]
+    workdir.mkdir(parents=True, exist_ok=True)
+    out_path = workdir / f'{name}.log'
+    with open(out_path, 'w') as out:
+        process = subprocess.Popen(
+            [str(BIN / name), '--ros-args', *VEHICLE_ARGS, *extra], stdout=out,
+            stderr=subprocess.STDOUT,
+            env={**os.environ, 'PYTHONUNBUFFERED': '1', **(env or {})})
+        started = time.monotonic()
+        when = when or rng.choice(['startup', 'running'])
+        if when == 'startup':
+            time.sleep(rng.uniform(0.0, startup))
+        else:  # once up, at a random moment of the input
+            deadline = started + hang_timeout
+            while (up_words not in out_path.read_text(errors='replace')
+                   and process.poll() is None and time.monotonic() < deadline):
+                time.sleep(0.01)
+            time.sleep(rng.uniform(0.0, 0.5))
+        delay = time.monotonic() - started
+        up = up_words in out_path.read_text(errors='replace')
+        if signals is None:
+            sigs = [rng.choice([signal.SIGINT, signal.SIGTERM])]
+            if rng.random() < 0.3:
+                sigs.append(rng.choice([signal.SIGINT, signal.SIGTERM]))
+        else:
+            sigs = list(signals)
+        for k, sig in enumerate(sigs):
+            if process.poll() is None:
+                process.send_signal(sig)
+            if k + 1 < len(sigs):
+                time.sleep(rng.uniform(0.0, 0.2))
+        try:
+            status = process.wait(hang_timeout)
+        except subprocess.TimeoutExpired:
+            process.kill()
+            process.wait()
+            status = None
+    output = out_path.read_text(errors='replace')
+    return Stop(name, tuple(s.name for s in sigs), delay, up, status,
+                'Traceback' in output, output)
+
+
+def summary(stops: list[Stop]) -> str:
+    """Return the counts a person reads: per node, clean / traceback / hang / exit codes."""
+    lines = []
+    for name in sorted({s.node for s in stops}):
+        mine = [s for s in stops if s.node == name]
+        up = [s for s in mine if s.up]
+        codes = sorted({s.status for s in mine if s.status not in (0, None)})
+        lines.append(
+            f'{name:20s} stops {len(mine):3d} (up {len(up):3d}, twice '
+            f'{sum(len(s.signals) > 1 for s in mine):3d}): clean {sum(s.clean for s in mine):3d}'
+            f', tracebacks {sum(s.traceback for s in mine):2d}'
+            f', hangs {sum(s.status is None for s in mine):2d}'
+            f', non-zero exits {sum(s.status not in (0, None) for s in mine):2d}'
+            + (f' {codes}' if codes else '')
+            + f' (once up: {sum(s.status not in (0, None) for s in up)}; ended before '
+            f'Python ran: {sum(s.before_python for s in mine)})')
+    return '\n'.join(lines)
