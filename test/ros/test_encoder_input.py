@@ -125,6 +125,22 @@ def test_no_readings_and_zero_stamp_are_skipped(harness):
     assert h.steps == []
 
 
+def test_bytes_that_are_no_joint_state_are_skipped_with_a_warning(harness):
+    # The input is taken as bytes (JointStateReader): a writer of garbage on the topic (no
+    # ROS node does that, a bare DDS one might) costs one warning, not the node.
+    h = harness(sprocket_radius=1.0)
+    pub = h.driver.publisher(JointState, 'joint_states')
+    for _ in range(4):
+        pub.publish(b'\x00\x01\x00\x00' + b'\xff' * 40)
+        if spin_until(h.executor, lambda: h.input.received > 0, 0.5):
+            break
+    assert h.input.counts['unreadable'] == 1 and h.warned('no serialised sensor_msgs/JointState')
+    h.send(joint_state(1.0, [0.0, 0.0]))
+    h.send(joint_state(1.1, [0.1, 0.2]))
+    assert h.steps[-1][1:] == pytest.approx((0.1, 0.2, 0.1))
+    assert (h.input.stamp.sec, h.input.stamp.nanosec) == (1, 100_000_000)
+
+
 @pytest.mark.parametrize('t2', [0.9, 1.0])
 def test_time_going_back_restarts_from_the_new_message(harness, t2):
     h = harness(sprocket_radius=1.0)
@@ -206,10 +222,55 @@ def test_reliable_publishers_get_a_reliable_deep_queue(harness):
                       and not topic.switching and pub.get_subscription_count() >= 1, 5.0)
     qos = topic.subscription.qos_profile
     assert (qos.reliability, qos.depth) == (ReliabilityPolicy.RELIABLE, 1000)
+    turns = []
+    drained = topic.subscription.callback
+    topic.subscription.callback = lambda data: (turns.append(1), drained(data))
     for i in range(600):
         pub.publish(joint_state(1.0 + 0.001 * i, [0.001 * i, 0.001 * i]))
     assert spin_until(h.executor, lambda: h.input.received >= 600, 10.0)
     assert h.input.received == 600 and len(h.steps) == 599, h.input.counts
+    # The backlog is taken in batches (InputTopic's drain), each in one turn of the executor.
+    assert len(turns) < 300
+
+
+class FakeHandle:
+    """A subscription handle whose queue holds ``queued``; raises InvalidHandle when empty."""
+
+    def __init__(self, queued, destroyed=False):
+        self.queued = list(queued)
+        self.destroyed = destroyed
+
+    def __enter__(self):
+        from rclpy.exceptions import InvalidHandle
+        if self.destroyed and not self.queued:
+            raise InvalidHandle('destroyed')
+
+    def __exit__(self, *exc):
+        return False
+
+    def take_message(self, msg_type, raw):
+        assert raw  # as the joint_states input subscribes
+        return (self.queued.pop(0), None) if self.queued else None
+
+
+@pytest.mark.parametrize('queued, destroyed, passed', [
+    ([], False, 1), ([b'2', b'3'], False, 3), ([b'%d' % i for i in range(2, 200)], False, 51),
+    ([b'2'], True, 2)])
+def test_drain_passes_on_what_waits_in_order_up_to_its_limit(harness, queued, destroyed,
+                                                             passed):
+    from types import SimpleNamespace
+    from tracked_kinematics.ros.encoder_input import DRAIN
+    h = harness()
+    topic, = h.input.inputs
+    seen = []
+    topic._callback = seen.append
+    handle = FakeHandle(queued, destroyed)
+    real, topic._subscription = topic._subscription, SimpleNamespace(handle=handle)
+    try:
+        topic._drained(b'1')
+    finally:
+        topic._subscription = real
+    assert DRAIN == 50 and seen == [b'%d' % i for i in range(1, passed + 1)]
 
 
 def test_switching_to_reliable_mid_stream_loses_and_repeats_nothing(harness):

@@ -18,8 +18,10 @@ import os
 from pathlib import Path, PurePosixPath
 import stat
 
+from tracked_kinematics.offline import signals
 from tracked_kinematics.offline.errors import UsageError
-from tracked_kinematics.offline.outputs import check_output, OutputError, Outputs
+from tracked_kinematics.offline.outputs import (
+    check_output, finished, OutputError, Outputs, unfinished)
 
 PROG = 'tracked_kinematics_demo'
 MANIFEST = '.tracked_kinematics_demo'
@@ -51,6 +53,8 @@ class Entry:
     before : list of int
         The stamp of a file that was in the way when the entry was recorded (replaced with
         ``--force``): until it changes, it is not the demo's.
+    listed : bool
+        A bag's files were listed once it was written (not stored).
 
     """
 
@@ -59,6 +63,7 @@ class Entry:
     files: list = field(default_factory=list)
     stamp: list = field(default_factory=list)
     before: list = field(default_factory=list)
+    listed: bool = field(default=False, compare=False)
 
     def to_json(self) -> dict:
         """Return the entry as the manifest stores it."""
@@ -77,6 +82,17 @@ class Entry:
         if self.stamp:
             return self.stamp == now
         return not self.before or self.before != now
+
+
+def bag_files(path: str, storage: str) -> list[str]:
+    """
+    Return the files of the bag ``path`` the demo writes (with ``storage``), before it does.
+
+    Recorded with the bag's entry before it is written, so that a run interrupted once the
+    bag is in place but before :meth:`DemoDirectory.written` has listed it still removes it.
+    """
+    name = PurePosixPath(path).name
+    return ['metadata.yaml', f'{name}.{"db3" if storage == "sqlite3" else storage}']
 
 
 def _stamp(info) -> list:
@@ -146,6 +162,8 @@ class DemoDirectory:
         self.force = force
         self.entries: list[Entry] = []
         self.created: list[Path] = []   # the output directory and parents made by this run
+        self.changed = False            # prepare() has begun to change the directory
+        self.cleared = False            # ... and removed what the previous run wrote
 
     @property
     def manifest(self) -> Path:
@@ -280,25 +298,34 @@ class DemoDirectory:
         """
         old = self.read_manifest()
         self._check(planned, old)
-        if not self.directory.exists():
-            try:
-                missing = [p for p in (self.directory, *self.directory.parents)
-                           if not os.path.lexists(p)]
-                for parent in reversed(missing):
-                    parent.mkdir()
-                    self.created.append(parent)
-            except OSError as err:
-                self.fail()
-                raise self._error(f'cannot create it: {err.strerror or err}') from None
-        if not os.access(self.directory, os.W_OK | os.X_OK):
+        if self.directory.exists() and not os.access(self.directory, os.W_OK | os.X_OK):
             raise self._error('is not writable')
-        self._remove(old)
-        self.entries = []
-        for entry in planned:
-            if entry.kind == 'dir' and _lstat(self.directory / entry.path) is None:
-                self.record(entry)
-                (self.directory / entry.path).mkdir()
-        self.save()
+        # From here on the directory changes: held, so that a signal cannot cut a step in
+        # half, and registered, so that an interrupted run undoes it (fail()).
+        with signals.held():
+            self.changed = True
+            unfinished(self)
+            if not self.directory.exists():
+                try:
+                    missing = [p for p in (self.directory, *self.directory.parents)
+                               if not os.path.lexists(p)]
+                    for parent in reversed(missing):
+                        parent.mkdir()
+                        self.created.append(parent)
+                except OSError as err:
+                    self.fail()
+                    raise self._error(f'cannot create it: {err.strerror or err}') from None
+                if not os.access(self.directory, os.W_OK | os.X_OK):
+                    self.fail()
+                    raise self._error('is not writable')
+            self._remove(old)
+            self.cleared = True
+            self.entries = []
+            for entry in planned:
+                if entry.kind == 'dir' and _lstat(self.directory / entry.path) is None:
+                    self.record(entry)
+                    (self.directory / entry.path).mkdir()
+            self.save()
 
     def record(self, entry: Entry) -> None:
         """Add an output to the manifest, before it is written."""
@@ -315,8 +342,9 @@ class DemoDirectory:
             info = _lstat(path)
             if info is None:
                 continue
-            if entry.kind == 'bag' and not entry.files and stat.S_ISDIR(info.st_mode):
+            if entry.kind == 'bag' and not entry.listed and stat.S_ISDIR(info.st_mode):
                 entry.files = sorted(os.listdir(path))
+                entry.listed = True
             elif entry.kind == 'file' and not entry.stamp and stat.S_ISREG(info.st_mode) \
                     and entry.matches(info):
                 entry.stamp = _stamp(info)
@@ -324,14 +352,29 @@ class DemoDirectory:
 
     def fail(self) -> None:
         """Remove what this run created (and the directory, if this run created it)."""
-        self._remove(self.entries)
-        self.entries = []
-        if self.created:
-            with contextlib.suppress(OSError):
-                self.manifest.unlink()
-            for path in reversed(self.created):
+        if not self.changed:
+            return   # refused before any change: the directory is as it was
+        with signals.held():
+            self._remove(self.entries)
+            self.entries = []
+            if self.created:
                 with contextlib.suppress(OSError):
-                    path.rmdir()
-        elif self.manifest.exists():
-            with contextlib.suppress(OSError):
-                self.save()
+                    self.manifest.unlink()
+                for path in reversed(self.created):
+                    with contextlib.suppress(OSError):
+                        path.rmdir()
+                self.created = []
+            elif self.cleared and self.manifest.exists():
+                # The previous run's outputs are gone: the manifest lists this run's, none.
+                # (Had removing them failed, it would still list them, for a rerun.)
+                with contextlib.suppress(OSError):
+                    self.save()
+            finished(self)
+
+    def abort(self) -> None:
+        """Undo an interrupted run (:func:`~tracked_kinematics.offline.outputs.unfinished`)."""
+        self.fail()
+
+    def done(self) -> None:
+        """Keep the outputs: the run has succeeded."""
+        finished(self)

@@ -28,9 +28,15 @@ The rules (docs/output-files.md):
   without ``--force`` the rename never replaces a file that appeared meanwhile;
 - a replaced file keeps its permission bits; a new one gets ``0666 & ~umask``.
 
-A run killed with SIGKILL can leave only such hidden temporary files behind, never a
-truncated file or a bag without its ``metadata.yaml`` at a target path; a rerun ignores
-them (they can be deleted at any time).
+Signals (:mod:`tracked_kinematics.offline.signals`): creating a temporary file and
+taking charge of it, the commit and the removal run in held sections, so that a SIGINT or
+SIGTERM never cuts them in half. A signal before the commit's first rename removes
+everything staged; one that arrives once the renames have begun lets them finish (the
+outputs are then complete) and ends the run after. :func:`abort_unfinished` removes what an
+interrupted run left staged wherever the signal landed (``run_main`` calls it at the end of
+every run). A run killed with SIGKILL can leave only such hidden temporary files behind,
+never a truncated file or a bag without its ``metadata.yaml`` at a target path; a rerun
+ignores them (they can be deleted at any time).
 """
 
 from __future__ import annotations
@@ -43,6 +49,7 @@ import stat
 import tempfile
 
 from tracked_kinematics.core.errors import TrackedKinematicsError
+from tracked_kinematics.offline import signals
 
 _KINDS = {stat.S_IFDIR: 'a directory', stat.S_IFCHR: 'a character device',
           stat.S_IFBLK: 'a block device', stat.S_IFIFO: 'a FIFO', stat.S_IFSOCK: 'a socket',
@@ -53,6 +60,49 @@ TEMP_MARK = '.tmp-'
 
 class OutputError(TrackedKinematicsError):
     """An output path that cannot or may not be written; the message names the flag."""
+
+
+_UNFINISHED: dict[int, tuple[int, object]] = {}
+"""Work that a failed run must undo (objects with ``abort()``): id -> (order begun, work)."""
+_BEGUN = [0]
+
+
+def unfinished(work) -> None:
+    """
+    Register ``work`` (an object with ``abort()``) as begun: undone if the run fails.
+
+    :class:`Outputs` registers itself while it holds staged files; the demo its directory.
+    Call it in a held section together with the step that makes the work need undoing.
+    """
+    if id(work) not in _UNFINISHED:
+        _BEGUN[0] += 1
+        _UNFINISHED[id(work)] = (_BEGUN[0], work)
+
+
+def finished(work) -> None:
+    """Unregister ``work``: committed or undone."""
+    _UNFINISHED.pop(id(work), None)
+
+
+def begun() -> int:
+    """Return a mark for :func:`abort_unfinished`: the work begun so far."""
+    return _BEGUN[0]
+
+
+def abort_unfinished(since: int = 0) -> None:
+    """
+    Undo, newest first, the work begun after the mark ``since`` and not finished.
+
+    The safety net of an interrupted run: a signal can land where no ``except`` sees it (as
+    ``Outputs.__exit__`` is entered, before its first line), and what was staged must go
+    all the same. ``run_main`` calls it when a run has ended.
+    """
+    with signals.held():
+        for order, work in sorted(_UNFINISHED.values(), key=lambda item: -item[0]):
+            if order > since:
+                with contextlib.suppress(OSError):
+                    work.abort()
+                finished(work)
 
 
 def _what(mode: int) -> str:
@@ -228,18 +278,24 @@ class Outputs:
         target, directory = self._targets[flag]
         parent = target.parent if str(target.parent) else Path('.')
         prefix = f'.{target.name}{TEMP_MARK}'
-        if directory:
-            # A hidden directory holding the bag under its own name, so that the bag's files
-            # (NAME.db3, NAME.mcap) and metadata.yaml are those the final path needs.
-            holder = Path(tempfile.mkdtemp(prefix=prefix, dir=parent))
-            tmp = holder / target.name
-        else:
-            # The target's extension last: writers that pick the format by it (matplotlib).
-            fd, name = tempfile.mkstemp(prefix=prefix, suffix=target.suffix, dir=parent)
-            os.close(fd)
-            tmp = Path(name)
-            os.chmod(tmp, _mode_for(target))
-        self._staged[flag] = tmp
+        # Held: a signal between creating the temporary file and recording it here would
+        # leave a file that nothing removes.
+        with signals.held():
+            if directory:
+                # A hidden directory holding the bag under its own name, so that the bag's
+                # files (NAME.db3, NAME.mcap) and metadata.yaml are those the final path needs.
+                tmp = Path(tempfile.mkdtemp(prefix=prefix, dir=parent)) / target.name
+                self._staged[flag] = tmp
+                unfinished(self)
+            else:
+                # The target's extension last: writers that pick the format by it
+                # (matplotlib).
+                fd, name = tempfile.mkstemp(prefix=prefix, suffix=target.suffix, dir=parent)
+                tmp = Path(name)
+                self._staged[flag] = tmp
+                unfinished(self)
+                os.close(fd)
+                os.chmod(tmp, _mode_for(target))
         return tmp
 
     @contextlib.contextmanager
@@ -256,8 +312,9 @@ class Outputs:
             yield tmp
             _fsync_tree(tmp)
         except BaseException:
-            _discard(tmp, self._targets[flag][1])
-            self._staged.pop(flag, None)
+            with signals.held():
+                _discard(tmp, self._targets[flag][1])
+                self._staged.pop(flag, None)
             raise
 
     def write_bytes(self, flag: str, data: bytes) -> None:
@@ -288,11 +345,18 @@ class Outputs:
             removed.
 
         """
+        with signals.held():
+            return self._commit()
+
+    def _commit(self) -> list[Path]:
         done: list[tuple[Path, Path | None]] = []
         try:
             for flag in self._staged:
                 target, directory = self._targets[flag]
                 check_output(flag, target, self.force, directory)
+            # A signal so far: nothing is renamed, everything staged is removed. From the
+            # first rename on, the commit completes and the signal ends the run after it.
+            signals.raise_pending()
             for flag, tmp in list(self._staged.items()):
                 target, directory = self._targets[flag]
                 backup = None
@@ -319,13 +383,16 @@ class Outputs:
                         _remove(target)
             self.abort()
             raise
+        finished(self)
         return [target for target, _ in done]
 
     def abort(self) -> None:
         """Remove every staged output (the targets are left as they were)."""
-        for flag, tmp in self._staged.items():
-            _discard(tmp, self._targets[flag][1])
-        self._staged.clear()
+        with signals.held():
+            for flag, tmp in list(self._staged.items()):
+                _discard(tmp, self._targets[flag][1])
+                del self._staged[flag]
+            finished(self)
 
     def __enter__(self) -> Outputs:
         """Start the run."""

@@ -20,6 +20,7 @@ from collections.abc import Callable
 
 from rclpy.clock import Clock, ClockType
 from rclpy.event_handler import SubscriptionEventCallbacks
+from rclpy.exceptions import InvalidHandle
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 # Queue of an input subscription: one second at 1 kHz (ros2_control's fastest common update
@@ -88,16 +89,18 @@ class InputTopic:
     """
 
     def __init__(self, node, msg_type, topic: str, callback: Callable, depth: int = INPUT_DEPTH,
-                 order_key: Callable | None = None):
+                 order_key: Callable | None = None, raw: bool = False, drain: int = 0):
         self._node = node
         self._msg_type = msg_type
         self._callback = callback
         self._depth = depth
         self._order_key = order_key
+        self._raw = raw
+        self._drain = drain
         self.type_name = type_name(msg_type)
         self.topic_name = node.resolve_topic_name(topic)
         self.reliability = self._wanted() or ReliabilityPolicy.BEST_EFFORT
-        self._subscription = self._subscribe(self.reliability, callback)
+        self._subscription = self._subscribe(self.reliability, self._steady_callback)
         self._old = None  # the subscription being replaced, while it is
         self._expected = 0
         self._passed: set = set()
@@ -111,7 +114,7 @@ class InputTopic:
         events = SubscriptionEventCallbacks(incompatible_qos=self._on_incompatible)
         return self._node.create_subscription(self._msg_type, self.topic_name, callback,
                                               input_qos(reliability, self._depth),
-                                              event_callbacks=events)
+                                              event_callbacks=events, raw=self._raw)
 
     def _on_incompatible(self, event) -> None:
         self.check()
@@ -194,7 +197,7 @@ class InputTopic:
             self._pass_on(msg, key)
         # Messages the old one passed on may still wait in the new one's queue: drop those
         # until the first new one, then hand the callback over.
-        self._subscription.callback = self._callback if self._order_key is None \
+        self._subscription.callback = self._steady_callback if self._order_key is None \
             else self._on_new_after
 
     def _pass_on(self, msg, key) -> bool:
@@ -230,7 +233,27 @@ class InputTopic:
     def _on_new_after(self, msg) -> None:
         if self._pass_on(msg, self._order_key(msg)):
             self._passed = set()
-            self._subscription.callback = self._callback
+            self._subscription.callback = self._steady_callback
+
+    @property
+    def _steady_callback(self) -> Callable:
+        """Return the callback of the subscription when no switch is under way."""
+        return self._drained if self._drain else self._callback
+
+    def _drained(self, msg) -> None:
+        """Pass on ``msg``, then up to ``drain`` messages that wait in the queue after it."""
+        callback = self._callback
+        callback(msg)
+        handle = self._subscription.handle
+        for _ in range(self._drain):
+            try:
+                with handle:
+                    taken = handle.take_message(self._msg_type, self._raw)
+            except InvalidHandle:  # destroyed (the node is shutting down)
+                return
+            if taken is None:
+                return
+            callback(taken[0])
 
     @property
     def subscription(self):

@@ -8,8 +8,9 @@ Odometry` integrates them and propagates the covariance; this node copies the nu
 docs/nodes/odometry_node.md (topics, input modes, bad input, covariance).
 
 ``track_width`` and ``sprocket_radius`` must be given (there is no default vehicle); the
-tread ICRs default to the ideal drive of that width. Once a second the node checks its
-output topic: another publisher of odometry there (a second instance) is named in a warning.
+tread ICRs default to the ideal drive of that width. Once a second the node checks its input
+(:meth:`EncoderInput.check`) and its output topic: another publisher of odometry there (a
+second instance) is named in a warning.
 """
 
 from __future__ import annotations
@@ -26,7 +27,7 @@ from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from std_srvs.srv import Trigger
 from tracked_kinematics.core.covariance import TrackNoise
-from tracked_kinematics.core.integration import quaternion_from_yaw, stamp_ns
+from tracked_kinematics.core.integration import quaternion_from_yaw
 from tracked_kinematics.core.odometry import Odometry
 from tracked_kinematics.params import (ENCODER_INPUT_PARAMS, frame_id, icr_from_values,
                                        non_negative, ParamSpec, TERRAIN_PARAMS,
@@ -123,9 +124,11 @@ class OdometryNode(Node):
         self._last_publish_ns = None
         self.encoder = None
         self._apply(values)
-        self.encoder = EncoderInput(self, values, self._on_step)
+        self.encoder = EncoderInput(self, values, self._on_step, check_timer=False)
         self.create_service(Trigger, '~/reset', self._on_reset)
-        self._check_timer = steady_timer(self, CHECK_PERIOD, self._check_output)
+        # One timer for the input's checks and the output's: every timer of the node costs
+        # each turn of the executor (each message) a little.
+        self._check_timer = steady_timer(self, CHECK_PERIOD, self._check)
         self._warned_publishers = 0
         icr = self.odometry.icr
         derived = [name for name in ('icr.y_left', 'icr.y_right')
@@ -141,6 +144,10 @@ class OdometryNode(Node):
             + (f'at up to {values["publish_rate"]:g} Hz' if values['publish_rate'] > 0
                else 'at the input rate')
             + ('' if self._broadcaster is None else ' with TF'))
+
+    def _check(self) -> None:
+        self.encoder.check()
+        self._check_output()
 
     def _check_output(self) -> None:
         """Warn when another node publishes on the odometry topic too (two instances)."""
@@ -204,16 +211,16 @@ class OdometryNode(Node):
             return
         # Rate cap by message time, in integer nanoseconds so that it is exact; a stamp
         # before the last published one (time went back) publishes at once.
-        stamp = self.encoder.stamp
-        now_ns = stamp_ns(stamp.sec, stamp.nanosec)
+        encoder = self.encoder
+        now_ns = encoder.stamp_ns
         last = self._last_publish_ns
         if (self._min_period_ns and last is not None
                 and 0 <= now_ns - last < self._min_period_ns):
             return
-        if self._publish(stamp):
+        if self._publish(*encoder.stamp_fields):
             self._last_publish_ns = now_ns
 
-    def _publish(self, stamp) -> bool:
+    def _publish(self, sec: int, nanosec: int) -> bool:
         odometry = self.odometry
         x, y, theta = odometry.pose
         twist, twist_covariance = odometry.take_twist()
@@ -226,11 +233,10 @@ class OdometryNode(Node):
         if qw < 0.0:
             qz, qw = -qz, -qw
         self._publisher.publish(self._serializer.serialize(
-            stamp.sec, stamp.nanosec, x, y, qz, qw, odometry.covariance_upper, twist,
-            twist_covariance))
+            sec, nanosec, x, y, qz, qw, odometry.covariance_upper, twist, twist_covariance))
         if self._broadcaster is not None:
             transform = self._transform
-            transform.header.stamp = stamp
+            transform.header.stamp = self.encoder.stamp
             transform.transform.translation.x = x
             transform.transform.translation.y = y
             transform.transform.rotation.z = qz

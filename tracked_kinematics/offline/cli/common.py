@@ -12,16 +12,17 @@ import json
 import math
 import signal
 import sys
-import threading
 
 import numpy as np
 from tracked_kinematics.core.errors import (
     ExcitationError, IdentificationError, TrackedKinematicsError)
+from tracked_kinematics.offline import signals
 from tracked_kinematics.offline.bags import (
     CMD_VEL_TOPIC, COMMAND_KINDS, CommandSource, EncoderSource, GroundTruthSource,
     SETPOINT_TOPICS)
 from tracked_kinematics.offline.errors import UsageError
-from tracked_kinematics.offline.outputs import Outputs
+from tracked_kinematics.offline.outputs import abort_unfinished, begun, Outputs
+from tracked_kinematics.offline.signals import Signalled
 from tracked_kinematics.params import (
     ENCODER_INPUT_DEFAULTS, INPUT_MODES, read_params_file, SIDE_TOPICS,
     unknown_terrain_parameters)
@@ -315,26 +316,6 @@ def read_base_file(prog: str, path) -> dict:
     return values
 
 
-class Signalled(BaseException):
-    """SIGTERM or SIGHUP arrived; raised in the main thread so that outputs are cleaned up."""
-
-    def __init__(self, signum: int):
-        super().__init__(signum)
-        self.signum = signum
-
-
-_STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
-
-
-def _raise_signalled(signum, frame):
-    # The first signal ends the run; further ones must not interrupt the clean-up.
-    for other in _STOP_SIGNALS:
-        signal.signal(other, signal.SIG_IGN)
-    if signum == signal.SIGINT:
-        raise KeyboardInterrupt
-    raise Signalled(signum)
-
-
 def ground_truth_delay(text: str):
     """Argument type of ``--ground-truth-delay``: ``'auto'`` or a finite number of seconds."""
     if text == 'auto':
@@ -440,32 +421,55 @@ def run_main(prog: str, run, args) -> int:
     failed, :data:`EXIT_INPUT` for any other
     :class:`~tracked_kinematics.core.errors.TrackedKinematicsError` (a bag, option,
     parameter or output-path problem) and for an :class:`OSError` (a file the user named, a
-    full disk), 130 for Ctrl-C, 143 for SIGTERM (129 for SIGHUP): the signal is raised as an
-    exception, so :class:`~tracked_kinematics.offline.outputs.Outputs` removes what the run
-    staged and nothing new is left behind; further signals are ignored until the run has
-    ended (a second Ctrl-C cannot interrupt the clean-up). Any other exception is a bug: it
-    is not caught, and surfaces as a traceback.
-    """
-    def fail(status, err):
-        print(f'{prog}: error: {" ".join(str(err).split())}', file=sys.stderr)
-        return status
+    full disk), 130 for Ctrl-C, 143 for SIGTERM (129 for SIGHUP). Any other exception is a
+    bug: it is not caught, and surfaces as a traceback.
 
-    previous = {}
-    if threading.current_thread() is threading.main_thread():
-        for signum in _STOP_SIGNALS:
-            previous[signum] = signal.signal(signum, _raise_signalled)
+    Signals (:mod:`tracked_kinematics.offline.signals`): the signal is raised as an
+    exception, so that :class:`~tracked_kinematics.offline.outputs.Outputs` removes what the
+    run staged, and whatever the run left staged is removed when it has ended
+    (:func:`~tracked_kinematics.offline.outputs.abort_unfinished`); further signals are
+    ignored until then (a second Ctrl-C cannot interrupt the clean-up), and so is one that
+    arrives once the run's work has ended. A run inside a run (the demo runs identify_icr's
+    ``main``) lets the signal's exception through to the outer one, which reports it.
+    """
+    outermost = signals.start()
+    mark = begun()
     try:
-        return run(args, sys.stdout)
-    except ExcitationError as err:
-        return fail(EXIT_EXCITATION, err)
-    except IdentificationError as err:
-        return fail(EXIT_FIT, err)
-    except (TrackedKinematicsError, OSError) as err:
-        return fail(EXIT_INPUT, err)
-    except KeyboardInterrupt:
-        return fail(EXIT_INTERRUPTED, 'interrupted')
-    except Signalled as sig:
-        return fail(128 + sig.signum, f'terminated by {signal.Signals(sig.signum).name}')
+        status, message = _run_mapped(run, args, outermost)
+        if message is not None:
+            message = f'{prog}: error: {" ".join(str(message).split())}'
     finally:
-        for signum, handler in previous.items():
-            signal.signal(signum, handler)
+        if outermost:
+            try:
+                abort_unfinished(mark)
+            finally:
+                signals.finish()
+    if message is not None:
+        print(message, file=sys.stderr)
+    return status
+
+
+def _run_mapped(run, args, outermost: bool):
+    """Run; return its status and error message (None), or those of the error it raised."""
+    try:
+        try:
+            if outermost:
+                signals.release()    # a signal since the process started ends the run here
+            return run(args, sys.stdout), None
+        finally:
+            if outermost:
+                signals.hold()
+    except ExcitationError as err:
+        return EXIT_EXCITATION, err
+    except IdentificationError as err:
+        return EXIT_FIT, err
+    except (TrackedKinematicsError, OSError) as err:
+        return EXIT_INPUT, err
+    except KeyboardInterrupt:
+        if not outermost:
+            raise
+        return signals.describe(signal.SIGINT)
+    except Signalled as sig:
+        if not outermost:
+            raise
+        return signals.describe(sig.signum)

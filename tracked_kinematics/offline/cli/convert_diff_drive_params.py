@@ -12,7 +12,8 @@ Prints what it mapped (``DDC key = value -> our key = value``) and what it could
 why; warnings (the converted robot differs from the DDC one) go to stderr. Exit status 0
 written; 2 for bad input (missing or unreadable file, not YAML, no DDC section or several
 without ``--controller``, no ``wheel_separation`` / ``wheel_radius``, invalid values) or an
-output that may not be written; nothing is written then.
+output that may not be written; nothing is written then; 130, 143 interrupted (Ctrl-C,
+SIGTERM), nothing written (docs/output-files.md).
 """
 
 from __future__ import annotations
@@ -21,11 +22,11 @@ import argparse
 import os
 import sys
 
-from tracked_kinematics.offline.ddc import convert_file, DdcError, report_lines
+from tracked_kinematics.offline.cli.common import run_main
+from tracked_kinematics.offline.ddc import convert_file, report_lines
 from tracked_kinematics.offline.outputs import OutputError, Outputs
 
 PROG = 'convert_diff_drive_params'
-EXIT_INPUT = 2
 
 _EPILOG = """\
 examples:
@@ -63,30 +64,26 @@ def _same_file(a: str, b) -> bool:
         return False
 
 
-def main(argv=None) -> int:
-    """Run ``convert_diff_drive_params``; return the exit status."""
-    args = build_parser().parse_args(argv)
-    try:
-        with Outputs(force=args.force) as out:
-            target = out.add('--output', args.output)
-            if _same_file(args.controllers, target):
-                raise OutputError(f'--output {target} is the input file; choose another path')
-            conversion = convert_file(args.controllers, args.controller)
-            out.write_text('--output', conversion.yaml_text(source=args.controllers))
-    except (DdcError, OutputError) as err:
-        print(f'{PROG}: error: {" ".join(str(err).split())}', file=sys.stderr)
-        return EXIT_INPUT
-    except KeyboardInterrupt:
-        print(f'{PROG}: interrupted; nothing written', file=sys.stderr)
-        return 130
-    print('\n'.join(report_lines(conversion)))
+def _run(args, out) -> int:
+    with Outputs(force=args.force) as outputs:
+        target = outputs.add('--output', args.output)
+        if _same_file(args.controllers, target):
+            raise OutputError(f'--output {target} is the input file; choose another path')
+        conversion = convert_file(args.controllers, args.controller)
+        outputs.write_text('--output', conversion.yaml_text(source=args.controllers))
+    print('\n'.join(report_lines(conversion)), file=out)
     print(f'\nwrote {target}: ' + ', '.join(
         f'{section} {len(values)} parameters'
-        for section, values in conversion.sections().items()))
-    sys.stdout.flush()
+        for section, values in conversion.sections().items()), file=out)
+    out.flush()
     for warning in conversion.warnings:
         print(f'{PROG}: warning: {warning}', file=sys.stderr)
     return 0
+
+
+def main(argv=None) -> int:
+    """Run ``convert_diff_drive_params``; return the exit status."""
+    return run_main(PROG, _run, build_parser().parse_args(argv))
 
 
 if __name__ == '__main__':

@@ -37,6 +37,7 @@ from tracked_kinematics.core.errors import InvalidParameters
 from tracked_kinematics.core.kinematics import IcrParams
 from tracked_kinematics.core.sim.manoeuvres import manoeuvre, MANOEUVRES
 from tracked_kinematics.core.sim.simulation import GroundTruth, Run, simulate, TwistTable
+from tracked_kinematics.offline import signals
 from tracked_kinematics.offline.bags import BagWriter, STORAGES
 from tracked_kinematics.offline.cli.common import (
     add_force_argument, ArgumentParser, bounded, run_main, SEED)
@@ -251,12 +252,13 @@ def simulate_bag(output: str | os.PathLike, vehicle: str | os.PathLike = 'auriga
     check_settings(duration, rate, setpoint_rate, gt_rate)
     truth = Path(truth) if truth is not None else truth_path(output)
     created = []
-    if parents:
-        missing = [p for p in (output.parent, *output.parent.parents) if not p.exists()]
-        for parent in reversed(missing):
-            parent.mkdir()
-            created.append(parent)
     try:
+        if parents:
+            missing = [p for p in (output.parent, *output.parent.parents) if not p.exists()]
+            for parent in reversed(missing):
+                with signals.held():   # made and recorded, or neither
+                    parent.mkdir()
+                    created.append(parent)
         with Outputs(force=force) as out:
             out.add('OUT', output, directory=True)
             out.add('--truth', truth)
@@ -294,9 +296,10 @@ def simulate_bag(output: str | os.PathLike, vehicle: str | os.PathLike = 'auriga
                 "best explain this\nrun's true motion. Written by "
                 f'{PROG}; valid as --params-file.')))
     except BaseException:
-        for parent in reversed(created):
-            with contextlib.suppress(OSError):
-                parent.rmdir()
+        with signals.held():
+            for parent in reversed(created):
+                with contextlib.suppress(OSError):
+                    parent.rmdir()
         raise
     return SimulatedBag(output, truth, icr, run, counts, spec)
 

@@ -52,8 +52,8 @@ from tracked_kinematics.offline.cli import identify_icr
 from tracked_kinematics.offline.cli.common import (
     add_force_argument, ArgumentParser, bounded, run_main, SEED)
 from tracked_kinematics.offline.cli.simulate_bag import GROUND_TRUTH_TOPICS, JOINTS, simulate_bag
-from tracked_kinematics.offline.demo_directory import (DemoDirectory, DemoError, Entry,
-                                                       planned_outputs)
+from tracked_kinematics.offline.demo_directory import (bag_files, DemoDirectory, DemoError,
+                                                       Entry, planned_outputs)
 from tracked_kinematics.offline.outputs import Outputs
 from tracked_kinematics.offline.vehicle_file import (
     add_vehicle_arguments, fixed, load_vehicle, overrides_from_args)
@@ -301,15 +301,17 @@ def run(args, out) -> int:
         raise DemoError(f'the terrain name {terrain!r} must be a plain file name (it names '
                         'the terrain YAML)')
     outputs = DemoDirectory(directory, force=bool(getattr(args, 'force', False)))
-    outputs.prepare(planned_outputs(spec.name, terrain,
-                                    [heldout_name(k) for k in range(args.paths)]))
     try:
+        outputs.prepare(planned_outputs(spec.name, terrain,
+                                        [heldout_name(k) for k in range(args.paths)]))
         status = _steps(args, out, spec, terrain, overrides, outputs, start)
     except BaseException:
         outputs.fail()
         raise
     if status != 0:
         outputs.fail()
+    else:
+        outputs.done()
     return status
 
 
@@ -323,7 +325,7 @@ def _steps(args, out, spec, terrain, overrides, outputs: DemoDirectory, start) -
     t = time.perf_counter()
     table = TwistTable(veh)
     calibration = f'calibration/{spec.name}_{terrain}'
-    outputs.record(Entry('bag', calibration))
+    outputs.record(Entry('bag', calibration, bag_files(calibration, args.storage)))
     outputs.record(Entry('file', f'{calibration}.truth.yaml'))
     sim = simulate_bag(directory / calibration, args.vehicle, overrides=overrides,
                        duration=args.duration, seed=args.seed, storage=args.storage,
@@ -352,10 +354,9 @@ def _steps(args, out, spec, terrain, overrides, outputs: DemoDirectory, start) -
     print('   its output; its hold-out table compares the models on 30 s blocks of the '
           'calibration bag:', file=out)
     _indent(printed, out)
-    if status != 0:
-        if status < 128:   # not a signal: identify_icr said why on stderr
-            print(f'{PROG}: identify_icr failed with exit status {status} (reason above); '
-                  'try a longer --duration', file=sys.stderr)
+    if status != 0:   # identify_icr said why on stderr (a signal ends the demo instead)
+        print(f'{PROG}: identify_icr failed with exit status {status} (reason above); '
+              'try a longer --duration', file=sys.stderr)
         return status
     outputs.written()
     yaml_path = directory / f'{terrain}.yaml'
@@ -373,7 +374,7 @@ def _steps(args, out, spec, terrain, overrides, outputs: DemoDirectory, start) -
     results = []
     for k in range(args.paths):
         name = f'heldout/{heldout_name(k)}'
-        outputs.record(Entry('bag', name))
+        outputs.record(Entry('bag', name, bag_files(name, args.storage)))
         outputs.record(Entry('file', f'{name}.truth.yaml'))
         results.append(heldout_path(k, args, overrides, table, identified, heldout))
         outputs.written()
