@@ -40,6 +40,8 @@ setup(
             'convert_diff_drive_params ='
             ' tracked_kinematics.offline.cli.convert_diff_drive_params:main',
             'evaluate_model = tracked_kinematics.offline.cli.evaluate_model:main',
+            'tracked_simulator = tracked_kinematics.ros.tracked_simulator:main',
+            'calibration_drive = tracked_kinematics.apps.calibration_drive:main',
         ],
     },
 )

@@ -29,6 +29,7 @@ NODES = {
     'odometry_node': (('-p', 'publish_tf:=false'), 'ICR model'),
     'cmd_vel_translator': (('-p', 'rate:=1000.0'), 'ICR model'),
     'icr_estimator': ((), 'estimating'),
+    'tracked_simulator': (('-p', 'real_time_factor:=10.0'), 'simulating'),
 }
 
 

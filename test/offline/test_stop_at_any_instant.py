@@ -41,9 +41,12 @@ from tracked_kinematics.offline.cli.simulate_bag import simulate_bag
 from tracked_kinematics.offline.signals import TOOL_EXECUTABLES
 
 BIN = Path(sys.executable).parent
-INSTANTS = 20
-"""Signalled runs per tool: 10 spread over its life, 5 at its first output, 5 at its commit."""
-KINDS = ('spread',) * 10 + ('first output',) * 5 + ('commit',) * 5
+SCALE = max(1, int(os.environ.get('TRACKED_KINEMATICS_STOP_SCALE', '1')))
+"""``make stress`` sets TRACKED_KINEMATICS_STOP_SCALE=4: four times the instants."""
+KINDS = (('spread',) * 3 + ('first output',) + ('commit',)) * SCALE
+"""Per tool, per scale: 3 instants spread over its life, 1 at its first output, 1 at its
+commit (the suite's share; ``make stress`` runs 20 per tool)."""
+INSTANTS = len(KINDS)
 PARALLEL = 2
 DEADLINE = 300.0
 """Seconds: generous bounds of every wait (a loaded 2-core machine)."""
@@ -200,10 +203,12 @@ def plans(rng, life):
     """Return the :data:`INSTANTS` signal plans of a tool that lives ``life`` seconds."""
     spread = KINDS.count('spread')
     out = []
+    spread_index = 0
     for k, kind in enumerate(KINDS):
         signum = (signal.SIGINT, signal.SIGTERM)[k % 2]
-        if kind == 'spread':
-            when = 1.1 * life * (k + rng.random()) / spread
+        if kind == 'spread':  # the i-th of them in the i-th slice of its life
+            when = 1.1 * life * (spread_index + rng.random()) / spread
+            spread_index += 1
         else:
             when = (kind, rng.uniform(0.0, 0.02))
         second = None

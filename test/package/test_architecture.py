@@ -14,9 +14,10 @@ CORE_JOBS = tuple(f'{PKG}.core.{job}'
                   for job in ('identify', 'estimate', 'sim', 'plan', 'evaluate'))
 # Per ring (a folder of the package, most specific first): module prefixes it must never
 # import. A module obeys every rule whose folder contains it.
+APPS = f'{PKG}.apps'
 FORBIDDEN = {
     'core': ROS_LIBS + (f'{PKG}.offline', f'{PKG}.ros', f'{PKG}.params', f'{PKG}.share',
-                        'yaml', 'matplotlib'),
+                        APPS, 'yaml', 'matplotlib'),
     # The core's foundation knows none of the jobs built on it.
     'core/.': CORE_JOBS,
     # Identification fits models to data; it never needs the simulator, the planner or the
@@ -30,13 +31,17 @@ FORBIDDEN = {
     'core/estimate': (f'{PKG}.core.sim', f'{PKG}.core.plan', f'{PKG}.core.evaluate'),
     # Evaluation scores what identification and estimation produce, on recorded data.
     'core/evaluate': (f'{PKG}.core.sim', f'{PKG}.core.plan'),
-    'params': ROS_LIBS + (f'{PKG}.offline', f'{PKG}.ros', 'matplotlib'),
-    'offline': ('rclpy', f'{PKG}.ros', 'tf2_ros'),
+    'params': ROS_LIBS + (f'{PKG}.offline', f'{PKG}.ros', APPS, 'matplotlib'),
+    'offline': ('rclpy', f'{PKG}.ros', 'tf2_ros', APPS),
     # Reading and writing bags is a library the command lines use, never the reverse.
     'offline/bags': (f'{PKG}.offline.cli',),
     # So is the diff_drive_controller converter: controllers files in, parameter files out.
     'offline/ddc': (f'{PKG}.offline.cli', f'{PKG}.offline.bags', 'rosbags'),
-    'ros': ('rosbags', f'{PKG}.offline'),
+    'ros': ('rosbags', f'{PKG}.offline', APPS),
+    # The composition roots: console scripts that join a node of ros/ and the file code of
+    # offline/ (calibration_drive). They may import every ring; no ring imports them, and
+    # they import no third-party ROS or bag library themselves beyond rclpy's signals.
+    'apps': ('rosbags', 'nav_msgs', 'geometry_msgs', 'sensor_msgs', 'std_msgs', 'std_srvs'),
 }
 
 
@@ -106,6 +111,9 @@ def test_every_ring_has_modules():
     ('offline/bags/reader.py', 'from tracked_kinematics.offline.cli import common\n',
      'offline/bags'),
     ('params/tables.py', 'from tracked_kinematics.ros import odometry_node\n', 'params'),
+    ('ros/calibration_drive.py', 'from tracked_kinematics.apps import calibration_drive\n',
+     'ros'),
+    ('offline/cli/identify_icr.py', 'from ...apps import calibration_drive\n', 'offline'),
 ])
 def test_checker_catches_a_wrong_arrow(tmp_path, rel, source, ring):
     # The test above must be able to fail: a module as if at ``rel`` with a wrong import

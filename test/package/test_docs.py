@@ -21,7 +21,8 @@ LINK = re.compile(r'!?\[[^\]\n]*\]\(\s*<?([^)\s>]+)>?(?:\s+"[^"]*")?\s*\)')
 HEADING = re.compile(r'^#{1,6}\s+(.*?)\s*#*\s*$', re.M)
 FENCED = re.compile(r'^```(\w*)\n(.*?)^```', re.S | re.M)
 NODE_TABLES = {'odometry_node': 'PARAMS', 'cmd_vel_translator': 'TRANSLATOR_PARAMS',
-               'icr_estimator': 'PARAMS'}
+               'icr_estimator': 'PARAMS', 'calibration_drive': 'PARAMS',
+               'tracked_simulator': 'SIMULATOR_PARAMS'}
 
 
 def markdown_files():
@@ -70,10 +71,11 @@ def test_parameters_md_is_current():
 
 
 def test_parameters_md_lists_every_parameter_of_every_node():
-    from tracked_kinematics.ros import cmd_vel_translator, icr_estimator, odometry_node
+    from tracked_kinematics.ros import (calibration_drive, cmd_vel_translator, icr_estimator,
+                                        odometry_node)
     text = (DOCS / 'parameters.md').read_text()
     for table in (odometry_node.PARAMS, cmd_vel_translator.TRANSLATOR_PARAMS,
-                  icr_estimator.PARAMS):
+                  icr_estimator.PARAMS, calibration_drive.PARAMS):
         for spec in table:
             assert f'| `{spec.name}` |' in text, spec.name
 
@@ -175,6 +177,7 @@ def check_command(words):
             return None
         module = importlib.import_module(f'tracked_kinematics.ros.{words[3]}')
         declared = {spec.name for spec in getattr(module, NODE_TABLES[words[3]])}
+        declared.add('use_sim_time')  # every rclpy node declares it
         names = [words[i + 1].split(':=')[0] for i, word in enumerate(words[:-1])
                  if word == '-p']
         unknown = [name for name in names if name not in declared]

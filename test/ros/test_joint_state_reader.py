@@ -72,6 +72,24 @@ def test_a_repeated_layout_is_read_in_place():
         assert_reads(reader, joint_state('base_link', names, 1, 2, [0.5, 0.6], velocity, effort))
 
 
+def test_padding_is_not_part_of_the_layout():
+    # CDR's padding bytes are not initialised: a writer may send other garbage there in each
+    # message. Here (frame id '', these names): after the frame id's NUL, after the second
+    # name's, and before the positions' elements (aligned to 8).
+    reader = JointStateReader()
+    names = ['left_sprocket_joint', 'right_sprocket_joint']
+    data = serialize_message(joint_state('', names, 1, 2, [0.5, 0.25], [], []))
+    reader.read(data)
+    msg = joint_state('', names, 3, 4, [1.5, -2.0], [], [])
+    garbled = bytearray(serialize_message(msg))
+    assert garbled[76:80] == b'\x02\x00\x00\x00'  # the count of the positions
+    for padding in (17, 18, 19, 73, 74, 75, 80, 81, 82, 83):
+        garbled[padding] ^= 0x5A
+    sec, nanosec, read_names, position, velocity = reader.read(bytes(garbled))
+    assert isinstance(position, tuple)
+    assert (sec, nanosec, read_names, position, velocity) == (3, 4, names, (1.5, -2.0), ())
+
+
 @pytest.mark.parametrize('data', [b'', b'\x00\x01\x00\x00', b'\x00\x01\x00\x00' + b'\xff' * 40,
                                   b'not a JointState at all'])
 def test_bytes_that_are_no_joint_state_read_as_none(data):

@@ -62,3 +62,54 @@ def test_builds_launch_description():  # pragma: no cover - needs a ROS install
     spec.loader.exec_module(module)
     description = module.generate_launch_description()
     assert len(description.entities) == 4
+
+
+# launch/simulation.launch.py (issue 22) ---------------------------------------------------
+
+SIM_LAUNCH = ROOT / 'launch' / 'simulation.launch.py'
+
+
+@pytest.fixture(scope='module')
+def sim_tree():
+    return ast.parse(SIM_LAUNCH.read_text(), filename=str(SIM_LAUNCH))
+
+
+def _node_calls(tree):
+    return {ast.literal_eval(_keyword(call, 'executable')): call for call in _calls(tree, 'Node')}
+
+
+def test_simulation_compiles_and_starts_the_three_nodes(sim_tree):
+    compile(SIM_LAUNCH.read_text(), str(SIM_LAUNCH), 'exec')
+    nodes = _node_calls(sim_tree)
+    assert set(nodes) == {'tracked_simulator', 'cmd_vel_translator', 'odometry_node'}
+    assert set(nodes) <= set(console_scripts())
+    for call in nodes.values():
+        assert ast.literal_eval(_keyword(call, 'package')) == 'tracked_kinematics'
+
+
+def test_simulation_runs_the_robot_nodes_on_the_simulated_clock(sim_tree):
+    """The translator and odometry use /clock; the simulator, which publishes it, does not."""
+    sim_time = next(node.value for node in ast.walk(sim_tree)
+                    if isinstance(node, ast.Assign) and getattr(node.targets[0], 'id', '')
+                    == 'sim_time')
+    assert ast.literal_eval(sim_time) == {'use_sim_time': True}
+    nodes = _node_calls(sim_tree)
+    for name in ('cmd_vel_translator', 'odometry_node'):
+        parameters = _keyword(nodes[name], 'parameters')
+        assert 'sim_time' in {getattr(e, 'id', None) for e in parameters.elts}
+    simulator = ast.dump(_keyword(nodes['tracked_simulator'], 'parameters'))
+    assert 'use_sim_time' not in simulator and 'sim_time' not in simulator
+
+
+def test_simulation_arguments_are_simulator_parameters(sim_tree):
+    from tracked_kinematics.ros.tracked_simulator import SIMULATOR_PARAMS
+    declared = {ast.literal_eval(call.args[0])
+                for call in _calls(sim_tree, 'DeclareLaunchArgument')}
+    assert declared == {'vehicle', 'terrain', 'real_time_factor', 'params_file'}
+    assert declared - {'params_file'} <= {spec.name for spec in SIMULATOR_PARAMS}
+    values = {node.targets[0].id: ast.literal_eval(node.value) for node in ast.walk(sim_tree)
+              if isinstance(node, ast.Assign) and getattr(node.targets[0], 'id', '')
+              .startswith('DEFAULT_')}
+    assert (ROOT / 'config' / 'vehicles' / f'{values["DEFAULT_VEHICLE"]}.yaml').is_file()
+    icr = icr_from_values(read_params_file(ROOT / 'config' / values['DEFAULT_TERRAIN']))
+    assert 0.0 < icr.chi <= 1.0

@@ -24,6 +24,10 @@ class FitError(IdentificationError):
     """The optimiser did not converge, or converged to an invalid model."""
 
 
+class SensorDataError(TrackedKinematicsError):
+    """A reference sensor's data that cannot be used (a gyro without rates, saturated; no fix)."""
+
+
 class PlanningError(TrackedKinematicsError):
     """A planning request that cannot be met; the message says why, on one line."""
 

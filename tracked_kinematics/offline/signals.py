@@ -30,6 +30,7 @@ thread holds nothing.
 from __future__ import annotations
 
 import atexit
+import contextlib
 import os
 import signal
 import sys
@@ -96,7 +97,8 @@ def describe(signum: int) -> tuple[int, str]:
 def _exit_now(signum: int):
     status, reason = describe(signum)
     prog = os.path.basename(sys.argv[0] if sys.argv else '') or 'tracked_kinematics'
-    os.write(2, f'{prog}: error: {reason}\n'.encode())
+    with contextlib.suppress(OSError):    # no stderr: the status says it
+        os.write(2, f'{prog}: error: {reason}\n'.encode())
     os._exit(status)
 
 

@@ -103,8 +103,9 @@ class JointStateReader:
     the lengths of the arrays. The first message of a layout is deserialised by rclpy, the
     layout is worked out from the CDR rules and checked against rclpy's values (any
     mismatch, another encoding, a big-endian writer: no layout, and rclpy reads every such
-    message); each later message whose bytes up to the positions and whose array lengths are
-    those of the layout is read in place with :func:`struct.unpack_from`.
+    message); each later message with the same encoding, frame id, names and array lengths
+    (the same bytes there; CDR's padding, which is not initialised, is not compared) is read
+    in place with :func:`struct.unpack_from`.
 
     """
 
@@ -124,11 +125,8 @@ class JointStateReader:
         """
         layout = self._layout
         if layout is not None:
-            (size, prefix, velocity_count, velocity_count_at, effort_count, effort_count_at,
-             names, positions, positions_at, velocities, velocities_at) = layout
-            if (len(data) == size and data.startswith(prefix, 12) and data.startswith(_CDR_LE)
-                    and data.startswith(velocity_count, velocity_count_at)
-                    and data.startswith(effort_count, effort_count_at)):
+            size, fixed, names, positions, positions_at, velocities, velocities_at = layout
+            if len(data) == size and all(data.startswith(part, at) for at, part in fixed):
                 sec, nanosec = _LE_STAMP.unpack_from(data, _HEAD)
                 return (sec, nanosec, names, positions.unpack_from(data, positions_at),
                         velocities.unpack_from(data, velocities_at))
@@ -166,37 +164,46 @@ def _layout(data: bytes, msg):
     Return where the fields of ``msg`` lie in ``data`` (rclpy read the one from the other).
 
     None unless every field is where the CDR rules put it and holds the value rclpy read.
+    The layout holds the size, the parts of ``data`` that every message of the layout has
+    (``(offset, bytes)``: the encapsulation, the strings and the counts, not the padding),
+    the names, and the format and offset of the positions and of the velocities.
     """
     if not data.startswith(_CDR_LE):
         return None
+    parts = [(0, _HEAD)]  # (start, end) in data
+
+    def part(start, end):
+        if start == parts[-1][1]:
+            parts[-1] = (parts[-1][0], end)
+        else:
+            parts.append((start, end))
+        return end
+
     try:
         if _LE_STAMP.unpack_from(data, _HEAD) != (msg.header.stamp.sec,
                                                   msg.header.stamp.nanosec):
             return None
-        offset = _string_end(data, _HEAD + 8, msg.header.frame_id)
-        offset = _count_end(data, offset, len(msg.name))
+        offset = _HEAD + 8  # after header.stamp
+        offset = part(_aligned(offset, 4), _string_end(data, offset, msg.header.frame_id))
+        offset = part(_aligned(offset, 4), _count_end(data, offset, len(msg.name)))
         for name in msg.name:
-            offset = _string_end(data, offset, name)
+            offset = part(_aligned(offset, 4), _string_end(data, offset, name))
         places = []
         for values in (msg.position, msg.velocity, msg.effort):
-            count_at = _aligned(offset, 4)
-            offset = _count_end(data, count_at, len(values))
+            offset = part(_aligned(offset, 4), _count_end(data, offset, len(values)))
             if values:  # the elements are aligned to 8, an empty array takes no padding
                 offset = _aligned(offset, 8)
             end = offset + 8 * len(values)
             if data[offset:end] != _doubles(len(values)).pack(*values):
                 return None
-            places.append((count_at, offset))
+            places.append(offset)
             offset = end
     except (_Elsewhere, struct.error, UnicodeError):
         return None
-    (positions_count_at, positions_at), (velocities_count_at, velocities_at), \
-        (effort_count_at, _) = places
-    return (len(data), data[12:positions_count_at + 4],
-            data[velocities_count_at:velocities_count_at + 4], velocities_count_at,
-            data[effort_count_at:effort_count_at + 4], effort_count_at, list(msg.name),
-            _doubles(len(msg.position)), positions_at, _doubles(len(msg.velocity)),
-            velocities_at)
+    positions_at, velocities_at, _ = places
+    return (len(data), tuple((start, data[start:end]) for start, end in parts),
+            list(msg.name), _doubles(len(msg.position)), positions_at,
+            _doubles(len(msg.velocity)), velocities_at)
 
 
 def _stamp_key(data: bytes) -> int:

@@ -7,7 +7,9 @@ The face of the sub-package; the modules behind it hold the derivations and refe
 :mod:`.spin` (Martinez eq. 16) and :mod:`.procedure` (:func:`identify`) for the motion
 models, :mod:`.ddc` for the tuned diff_drive_controller they are compared with;
 :mod:`.delay` (the ground-truth stamps' delay behind the encoders, model-free);
-:mod:`.drive_data` and :mod:`.drivetrain` for the drive train.
+:mod:`.drive_data` and :mod:`.drivetrain` for the drive train; :mod:`.reference`
+(:func:`fit_from_reference`: calibration from a gyro, GNSS or a measured straight, for robots
+without a ground-truth pose).
 """
 
 from .ddc import ddc_parameters, DDC_PARAMS, TunedDiffDrive
@@ -27,26 +29,31 @@ from .fitting import (
 from .problem import (
     check_heading_weight, DEFAULT_HEADING_WEIGHT, LOSSES, robust_cost, SegmentProblem)
 from .procedure import DataTime, Identification, identify, ModelEvaluation
+from .reference import (
+    check_gyro, check_saturation, fit_from_reference, fit_recordings, heading_reference,
+    QUANTITIES,
+    ReferenceFit, ReferenceRecording)
 from .search_space import (
     BASELINES, bounds, build_model, COMPARE_MODELS, FIT_MODELS, initial_guess, search_box,
     steering_efficiency_guess)
 from .segments import (
     build_segments, covered_spans, gap_threshold, Recording, Segments, stretches)
 from .spin import spin_in_place, SpinResult
-from ..errors import ExcitationError, FitError, IdentificationError
+from ..errors import ExcitationError, FitError, IdentificationError, SensorDataError
 
 __all__ = [
     'BASELINES', 'COMPARE_MODELS', 'DDC_PARAMS', 'DEFAULT_HEADING_WEIGHT', 'DataTime',
-    'DelayEstimate', 'DriveData', 'DriveTrainFit', 'ErrorStats', 'Excitation',
-    'ExcitationError', 'FIT_MODELS', 'FitError', 'FitResult', 'HoldOut', 'Identification',
-    'IdentificationError', 'LOSSES', 'METHODS', 'MIN_BLOCKS', 'MIN_MOVING_SEGMENTS',
-    'MIN_SEGMENTS', 'MIN_STRAIGHT', 'MIN_TURNING', 'MIN_WINDOWS', 'ModelEvaluation',
-    'REFERENCE_RESIDUAL', 'Recording', 'STD_LIMITS', 'SegmentProblem', 'Segments',
-    'SpinResult', 'TunedDiffDrive', 'Uncertain', 'UncertainError', 'auto_heading_weight',
-    'bounds', 'build_model', 'build_segments', 'check_excitation', 'check_heading_weight',
-    'check_identified', 'correct_ground_truth', 'covered_spans', 'ddc_parameters',
-    'dead_reckoning', 'estimate_delay', 'estimate_delay_arrays', 'estimate_delays', 'fit',
-    'fit_drivetrain', 'fixed_delay', 'gap_threshold', 'identify', 'initial_guess',
-    'prediction_errors', 'resample', 'robust_cost', 'search_box', 'spin_in_place',
+    'DelayEstimate', 'DriveData', 'DriveTrainFit', 'ErrorStats', 'Excitation', 'ExcitationError',
+    'FIT_MODELS', 'FitError', 'FitResult', 'HoldOut', 'Identification', 'IdentificationError',
+    'LOSSES', 'METHODS', 'MIN_BLOCKS', 'MIN_MOVING_SEGMENTS', 'MIN_SEGMENTS', 'MIN_STRAIGHT',
+    'MIN_TURNING', 'MIN_WINDOWS', 'ModelEvaluation', 'QUANTITIES', 'REFERENCE_RESIDUAL',
+    'Recording', 'ReferenceFit', 'ReferenceRecording', 'SensorDataError', 'STD_LIMITS',
+    'SegmentProblem', 'Segments', 'SpinResult', 'TunedDiffDrive', 'Uncertain', 'UncertainError',
+    'auto_heading_weight', 'bounds', 'build_model', 'build_segments', 'check_excitation',
+    'check_gyro', 'check_heading_weight', 'check_identified', 'check_saturation',
+    'correct_ground_truth', 'covered_spans', 'ddc_parameters', 'dead_reckoning', 'estimate_delay',
+    'estimate_delay_arrays', 'estimate_delays', 'fit', 'fit_drivetrain', 'fit_from_reference',
+    'fit_recordings', 'fixed_delay', 'gap_threshold', 'heading_reference', 'identify',
+    'initial_guess', 'prediction_errors', 'resample', 'robust_cost', 'search_box', 'spin_in_place',
     'steering_efficiency_guess', 'stretches',
 ]

@@ -24,6 +24,7 @@ import numpy as np
 from rosbags.highlevel import AnyReader
 from tracked_kinematics.core.encoders import (
     counter_increments, travel_from_ticks, travel_from_velocities, unwrap_if_wrapped)
+from tracked_kinematics.core.errors import SensorDataError
 from tracked_kinematics.core.identify import DriveData, Recording
 from tracked_kinematics.core.integration import compose, stamp_ns, yaw_from_quaternion
 from tracked_kinematics.offline.errors import BagError
@@ -555,7 +556,7 @@ def _guarded(path: Path, read, *args):
         reader = _open(path)
         with reader:
             return read(reader, path, *args)
-    except BagError:
+    except (BagError, SensorDataError):   # already one line about the bag's content
         raise
     except Exception as err:  # noqa: BLE001 -- rosbags and sqlite raise many kinds
         detail = ' '.join(str(err).split()) or type(err).__name__

@@ -166,6 +166,48 @@ class BagWriter:
             header=self.header(stamp_ns, parent), child_frame_id=child, transform=transform)
         return types['tf2_msgs/msg/TFMessage'](transforms=[stamped])
 
+    def imu(self, stamp_ns: int, w_z: float, frame_id: str = 'imu_link',
+            rate_variance: float = 0.0, yaw: float | None = None,
+            yaw_variance: float = 1e-4):
+        """
+        sensor_msgs/Imu with the gyro's z rate (and, with ``yaw``, an orientation).
+
+        Without ``yaw`` the orientation is not provided; linear acceleration never is: their
+        covariances' first element is -1 (the message's convention).
+        ``angular_velocity_covariance`` is diagonal with ``rate_variance`` (rad^2/s^2).
+        """
+        types = self._types
+        vec = types['geometry_msgs/msg/Vector3']
+        unknown = np.zeros(9)
+        unknown[0] = -1.0
+        cov = np.zeros(9)
+        cov[[0, 4, 8]] = rate_variance
+        if yaw is None:
+            orientation = types['geometry_msgs/msg/Quaternion'](x=0.0, y=0.0, z=0.0, w=0.0)
+            orientation_cov = unknown.copy()
+        else:
+            orientation = self.pose(0.0, 0.0, yaw).orientation
+            orientation_cov = np.zeros(9)
+            orientation_cov[[0, 4, 8]] = yaw_variance
+        return types['sensor_msgs/msg/Imu'](
+            header=self.header(stamp_ns, frame_id), orientation=orientation,
+            orientation_covariance=orientation_cov,
+            angular_velocity=vec(x=0.0, y=0.0, z=float(w_z)), angular_velocity_covariance=cov,
+            linear_acceleration=vec(x=0.0, y=0.0, z=0.0),
+            linear_acceleration_covariance=unknown.copy())
+
+    def nav_sat_fix(self, stamp_ns: int, latitude: float, longitude: float, altitude: float,
+                    status: int = 0, position_variance: float = 0.0, frame_id: str = 'gps'):
+        """sensor_msgs/NavSatFix (GPS service) with a diagonal known covariance, m^2."""
+        types = self._types
+        cov = np.zeros(9)
+        cov[[0, 4, 8]] = position_variance
+        return types['sensor_msgs/msg/NavSatFix'](
+            header=self.header(stamp_ns, frame_id),
+            status=types['sensor_msgs/msg/NavSatStatus'](status=int(status), service=1),
+            latitude=float(latitude), longitude=float(longitude), altitude=float(altitude),
+            position_covariance=cov, position_covariance_type=2)
+
     def float64(self, value: float):
         """std_msgs/Float64."""
         return self._types['std_msgs/msg/Float64'](data=float(value))

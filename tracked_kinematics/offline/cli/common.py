@@ -330,11 +330,11 @@ def ground_truth_delay(text: str):
     return value
 
 
-def add_ground_truth_topic_argument(parser) -> None:
-    """Add ``--ground-truth-topic`` (required)."""
-    parser.add_argument('--ground-truth-topic', required=True, metavar='TOPIC',
+def add_ground_truth_topic_argument(parser, required: bool = True, extra: str = '') -> None:
+    """Add ``--ground-truth-topic`` (required unless ``required`` is False)."""
+    parser.add_argument('--ground-truth-topic', required=required, metavar='TOPIC',
                         help='ground-truth pose of the vehicle: Odometry, PoseStamped, '
-                        'PoseWithCovarianceStamped or TFMessage')
+                        'PoseWithCovarianceStamped or TFMessage' + extra)
 
 
 def add_ground_truth_arguments(group, delay: bool = True) -> None:

@@ -8,6 +8,11 @@ windows, drift, evo's relative pose error per 1 m and 10 m), predictions over a 
 the measured travel and from the commands through the file's drive train, and with
 ``--online`` the same for the icr_estimator's EKF replayed over the bags from each file.
 
+With ``--imu-topic`` instead of ``--ground-truth-topic`` the reference is the gyro: heading
+only (its bias and delay behind the encoders estimated as identify_icr does); the position
+figures are null in the report and ``-`` in the table, and there is no prediction from the
+commands.
+
 Exit status, as identify_icr: 0 success; 2 bad input (missing bag, topic or joint; unreadable
 bag or terrain file; invalid option; an output that may not be written); 3 too little data
 (no gap-free stretch of encoders and ground truth).
@@ -31,6 +36,7 @@ from tracked_kinematics.core import identify as ident
 from tracked_kinematics.core.errors import ExcitationError, InvalidParameters
 from tracked_kinematics.core.kinematics import IcrParams
 from tracked_kinematics.offline.bags import read_evaluation_bag
+from tracked_kinematics.offline.bags.references import read_reference_bag
 from tracked_kinematics.offline.cli.common import (
     add_bags_argument, add_command_arguments, add_encoder_arguments,
     add_ground_truth_arguments, add_ground_truth_topic_argument, add_sprocket_radius_argument,
@@ -51,6 +57,7 @@ EPILOG = """examples:
       --report eval.json --plot eval.png
   evaluate_model field.bag --ground-truth-topic /gps/odom --params grass.yaml gravel.yaml \\
       --window 2 5 10 30 --horizon 3 --command-source cmd_vel
+  evaluate_model drive/ --imu-topic /imu/data --params grass.yaml   # heading only
 """
 
 
@@ -60,7 +67,11 @@ def build_parser() -> argparse.ArgumentParser:
         prog=PROG, description=__doc__.split('\n\n')[1], epilog=EPILOG,
         formatter_class=HelpFormatter)
     add_bags_argument(parser)
-    add_ground_truth_topic_argument(parser)
+    add_ground_truth_topic_argument(parser, required=False,
+                                    extra=' (or --imu-topic)')
+    parser.add_argument('--imu-topic', default=None, metavar='TOPIC',
+                        help='instead of a ground-truth pose, a gyro (sensor_msgs/Imu): scores '
+                        'heading only; the position figures are null')
     parser.add_argument('--params', nargs='+', required=True, metavar='A.yaml',
                         help='terrain files to score (each named by its file stem)')
     enc = parser.add_argument_group('encoders')
@@ -162,6 +173,11 @@ def _vehicle(args, models):
 
 
 def _check_options(args) -> None:
+    if bool(args.ground_truth_topic) == bool(args.imu_topic):
+        raise UsageError('give --ground-truth-topic (a pose) or --imu-topic (a gyro, heading '
+                         'only), one of them')
+    if args.imu_topic and args.online:
+        raise UsageError('--online needs --ground-truth-topic (the estimator uses poses)')
     if args.prediction_dt >= args.horizon:
         raise UsageError(f'--prediction-dt ({args.prediction_dt:g} s) must be shorter than '
                          f'--horizon ({args.horizon:g} s)')
@@ -190,8 +206,59 @@ def _delays(args, recordings):
     return [pooled] * len(recordings), pooled.describe()
 
 
+def _read_imu(args, track_width, radius):
+    """Read every bag with the gyro as a heading-only reference (bias and delay removed)."""
+    encoders = encoder_source(args, radius)
+    found = [read_reference_bag(bag, encoders, args.imu_topic, progress=sys.stderr.isatty())
+             for bag in args.bags]
+    try:
+        gyro = ident.fit_recordings(found, track_width)
+    except ExcitationError as err:
+        raise ExcitationError(f'the gyro cannot be timed and de-biased: {err}') from None
+    delay = gyro.imu_delay
+    data, records = [], []
+    for bag, rec, bias in zip(args.bags, found, gyro.biases):
+        reference = ident.heading_reference(rec, delay.delay, bias)
+        data.append(ev.Data(reference, None))
+        records.append({
+            'bag': str(Path(bag).resolve()), 'name': Path(bag).name,
+            'duration_s': reference.duration, 'encoder_samples': len(rec.enc_t),
+            'ground_truth_samples': 0, 'gyro_samples': len(rec.gyro_t),
+            'gyro_bias_rad_s': float(bias), 'imu_delay_s': float(delay.delay),
+            'ground_truth_delay_s': None, 'ground_truth_delay_std_s': None,
+            'ground_truth_delay_source': None, 'commands': None, 'command_samples': 0})
+    account = f'none (gyro reference); the gyro: {delay.describe()}'
+    return data, records, account
+
+
+def _heading_only(report) -> dict:
+    """Null every position figure of a report scored against a gyro (they were not measured)."""
+    for entry in report['models'].values():
+        odo = entry['odometry']
+        for win in odo['windows'].values():
+            for key in ('mean_position_error_m', 'p90_position_error_m', 'mean_distance_m',
+                        'drift_pct'):
+                win[key] = None
+        odo['drift_pct'] = None
+        for key in list(odo['horizon']):
+            if 'translation' in key:
+                odo['horizon'][key] = None
+        for key in list(entry):
+            if key.startswith('rpe_'):
+                entry[key] = None
+        entry['rpe'] = None
+        entry['prediction'] = None
+    for piece in report['pieces']:
+        piece['path_length_m'] = None
+    report['reference'] = 'imu'
+    report['scored'] = 'heading only: the gyro measures no position'
+    return report
+
+
 def _read(args, track_width, radius):
     """Read every bag; return recordings (delay taken off), their commands, records, delay."""
+    if args.imu_topic:
+        return _read_imu(args, track_width, radius)
     encoders = encoder_source(args, radius)
     ground_truth = ground_truth_source(args)
     commands = command_source(args, track_width)
@@ -255,6 +322,9 @@ def _print_table(report, out) -> None:
           f'{cut["seconds"]:.0f} s in {cut["pieces"]} gap-free pieces ({cut["gaps"]} gaps, '
           f'{jumps})', file=out)
     print(f'ground-truth delay behind the encoders: {report["ground_truth_delay"]}', file=out)
+    if report.get('reference') == 'imu':
+        print('reference: the gyro, heading only: position figures are not scored (null in '
+              'the report, - below)', file=out)
     sources = sorted({r['commands'] for r in recs if r['commands']})
     if not sources:
         print('no commands in the bags: no prediction from commands', file=out)
@@ -417,6 +487,8 @@ def _run(args, out) -> int:
                                   'without a gap: nothing to score')
         report = _finite(_report(args, models, records, account, evaluation, candidates, runs,
                                  track_width, radius))
+        if args.imu_topic:
+            report = _heading_only(report)
         _print_table(report, out)
         if args.report:
             outputs.write_text('--report', json.dumps(report, indent=2, allow_nan=False)

@@ -51,6 +51,10 @@ EPILOG = """examples:
   identify_icr calib.bag --ground-truth-topic /tf --ground-truth-parent-frame map \\
       --params base.yaml --model general_slip --output grass.yaml --terrain grass
   identify_icr spins/ --ground-truth-topic /mocap/pose --spin-in-place --output sym.yaml
+  identify_icr drive/ --imu-topic /imu/data --output grass.yaml --sprocket-radius 0.3 \\
+      --track-width 1.08       # no ground truth: the gyro fits chi and the scale ratio
+  identify_icr drive/ --imu-topic /imu/data --gnss-topic /gps/fix --output grass.yaml \\
+      --params grass_base.yaml  # GNSS for the distance scale
 """
 
 
@@ -61,13 +65,20 @@ def _heading_weight(text: str):
     return None if text == 'auto' else _HEADING_WEIGHT(text)
 
 
+def _delay(text: str):
+    if text == 'auto':
+        return text
+    return bounded(-5.0, 5.0, 's')(text)
+
+
 def build_parser() -> argparse.ArgumentParser:
     """Return the command line of identify_icr."""
     parser = ArgumentParser(
         prog=PROG, description=__doc__.split('\n\n')[1], epilog=EPILOG,
         formatter_class=HelpFormatter)
     add_bags_argument(parser)
-    add_ground_truth_topic_argument(parser)
+    add_ground_truth_topic_argument(parser, required=False,
+                                    extra=' (required unless --imu-topic is given)')
     add_output_argument(parser)
     enc = parser.add_argument_group('encoders')
     add_encoder_arguments(enc)
@@ -80,6 +91,24 @@ def build_parser() -> argparse.ArgumentParser:
                      help='terrain file to start from: vehicle values, starting point, fixed '
                      'scales of --model icr; its other parameters are copied to the output')
     add_ground_truth_arguments(parser.add_argument_group('ground truth'))
+    ref = parser.add_argument_group(
+        'no ground truth (docs/tools/identify_icr.md#no-ground-truth-use-the-imu)')
+    ref.add_argument('--imu-topic', default=None, metavar='TOPIC',
+                     help='sensor_msgs/Imu: the gyro as the heading reference (alone or with '
+                     '--ground-truth-topic); fits chi and the scale ratio, holds the rest')
+    ref.add_argument('--imu-delay', type=_delay, default='auto', metavar='auto|SECONDS',
+                     help='delay of the IMU stamps behind the encoders: auto estimates it')
+    ref.add_argument('--gnss-topic', default=None, metavar='TOPIC',
+                     help='sensor_msgs/NavSatFix (status >= 0) or nav_msgs/Odometry: '
+                     'positions for the distance scale (and icr.x where its noise allows)')
+    ref.add_argument('--gnss-antenna', type=bounded(-10.0, 10.0, 'm'), nargs=2,
+                     default=(0.0, 0.0), metavar=('X', 'Y'),
+                     help='position of the GNSS antenna in base_link, m (an offset antenna '
+                     'would otherwise pass for icr.x)')
+    ref.add_argument('--straight-distance', type=bounded(0.1, 100000.0, 'm'), default=None,
+                     metavar='M',
+                     help='the bags are one straight drive of M metres (measured): fixes the '
+                     'distance scale')
     fit = parser.add_argument_group('fit')
     fit.add_argument('--model', choices=MODEL_CHOICES, default='icr_scales',
                      help='model to fit and write')
@@ -420,8 +449,8 @@ def _outputs(args) -> Outputs:
     outputs = Outputs(force=args.force)
     outputs.add('--output', args.output)
     outputs.add('--report', args.report)
-    if args.plot and args.spin_in_place:
-        warn(PROG, '--plot is not drawn with --spin-in-place')
+    if args.plot and (args.spin_in_place or _uses_references(args)):
+        warn(PROG, '--plot is not drawn with --spin-in-place or without a ground-truth pose')
     elif args.plot:
         from tracked_kinematics.offline.plots import check_format
         outputs.add('--plot', args.plot)
@@ -439,7 +468,17 @@ def _run(args, out) -> int:
     return 0
 
 
+def _uses_references(args) -> bool:
+    return bool(args.imu_topic or args.gnss_topic or args.straight_distance is not None)
+
+
 def _identify(args, out, outputs) -> None:
+    if _uses_references(args):
+        from tracked_kinematics.offline.cli import identify_reference
+        identify_reference.run(args, out, outputs)
+        return
+    if not args.ground_truth_topic:
+        raise UsageError('give --ground-truth-topic (a pose) or --imu-topic (a gyro)')
     unknown = [m for m in args.compare if m not in ident.COMPARE_MODELS]
     if unknown:
         raise UsageError(f'--compare: unknown model {", ".join(unknown)}; choose from '

@@ -6,8 +6,13 @@ The bag holds what a real calibration run would: ``/joint_states`` (sensor_msgs/
 pose (geometry_msgs/PoseStamped on ``/ground_truth/pose``, or nav_msgs/Odometry on
 ``/ground_truth/odom``), and the commanded setpoints ``/left_track/setpoint`` and
 ``/right_track/setpoint`` (std_msgs/Float64, m/s), so the drive train can be identified from
-it too. Next to it, ``OUT.truth.yaml`` holds the vehicle's averaged stationary ICR model in the
-terrain format (a valid ``--params-file``): the ground truth an identification should find.
+it too; with ``--imu`` a gyro on ``/imu/data`` (sensor_msgs/Imu, ``angular_velocity.z`` with
+bias, noise, latency; ``orientation_covariance[0] = -1``) and with ``--gnss`` a receiver on
+``/gnss/fix`` (sensor_msgs/NavSatFix with noise, dropouts and fix status), the sensors of a
+robot without ground truth (:mod:`tracked_kinematics.core.sim.sensors`). Next to it,
+``OUT.truth.yaml`` holds the vehicle's averaged stationary ICR model in the terrain format (a
+valid ``--params-file``): the ground truth an identification should find, and the sensor
+settings used (``simulation.imu.*``, ``simulation.gnss.*``).
 
 Python API for scripts and demos: :func:`simulate_bag` does it all in one call;
 :func:`write_run` records any :class:`~tracked_kinematics.core.sim.simulation.Run`.
@@ -34,8 +39,11 @@ from typing import Any
 
 import numpy as np
 from tracked_kinematics.core.errors import InvalidParameters
+from tracked_kinematics.core.geodesy import GeoOrigin
 from tracked_kinematics.core.kinematics import IcrParams
 from tracked_kinematics.core.sim.manoeuvres import manoeuvre, MANOEUVRES
+from tracked_kinematics.core.sim.sensors import (
+    enu_to_geodetic, gnss_samples, GnssModel, gyro_samples, GyroModel)
 from tracked_kinematics.core.sim.simulation import GroundTruth, Run, simulate, TwistTable
 from tracked_kinematics.offline import signals
 from tracked_kinematics.offline.bags import BagWriter, STORAGES
@@ -52,6 +60,11 @@ JOINTS = ('left_sprocket_joint', 'right_sprocket_joint')
 START_NS = 1_700_000_000 * 1_000_000_000
 """Stamp of the first sample (fixed, so that the same seed gives the same messages)."""
 GROUND_TRUTH_TOPICS = {'pose': '/ground_truth/pose', 'odometry': '/ground_truth/odom'}
+IMU_TOPIC = '/imu/data'
+GNSS_TOPIC = '/gnss/fix'
+GNSS_ORIGIN = GeoOrigin(46.7815, -71.2750, 100.0)
+"""Where the simulated GNSS puts the start of the run (a field near Quebec City)."""
+GNSS_STATUS = {'fix': 0, 'sbas': 1, 'gbas': 2}
 MAX_SAMPLES = 1_000_000
 """Most encoder or ground-truth samples of one run (2.8 h at 100 Hz), checked before any work."""
 RATES = {'rate': (1.0, 2000.0), 'setpoint_rate': (1.0, 2000.0), 'gt_rate': (0.1, 1000.0)}
@@ -100,7 +113,8 @@ def truth_path(bag: str | os.PathLike) -> Path:
 def write_run(path: str | os.PathLike, run: Run, storage: str = 'sqlite3',
               setpoint_rate: float | None = None, ground_truth: str = 'pose',
               ground_truth_topic: str | None = None, frame_id: str = 'map',
-              joints: Sequence[str] = JOINTS, start_ns: int = START_NS) -> dict:
+              joints: Sequence[str] = JOINTS, start_ns: int = START_NS, gyro=None,
+              gnss=None, imu_noise: float = 0.0, gnss_noise: float = 0.0) -> dict:
     """
     Record a simulated run as a bag, messages in time order.
 
@@ -126,6 +140,13 @@ def write_run(path: str | os.PathLike, run: Run, storage: str = 'sqlite3',
         Names of the left and right sprocket joints.
     start_ns : int
         Stamp of the run's time 0, ns.
+    gyro : tuple of ndarray, optional
+        ``(stamps, z_rate)`` of a gyro (s, rad/s), written on :data:`IMU_TOPIC`.
+    gnss : tuple of ndarray, optional
+        ``(stamps, latitude, longitude, altitude, status)`` of a receiver, written on
+        :data:`GNSS_TOPIC`.
+    imu_noise, gnss_noise : float
+        Standard deviations written as the messages' covariances (rad/s, m).
 
     Returns
     -------
@@ -148,6 +169,9 @@ def write_run(path: str | os.PathLike, run: Run, storage: str = 'sqlite3',
     stamps = [start_ns + np.round(run.t * 1e9).astype(np.int64),
               start_ns + np.round(run.t[setpoint_idx] * 1e9).astype(np.int64),
               start_ns + np.round(run.gt_t * 1e9).astype(np.int64)]
+    for extra in (gyro, gnss):
+        stamps.append(np.zeros(0, dtype=np.int64) if extra is None else
+                      start_ns + np.round(np.asarray(extra[0]) * 1e9).astype(np.int64))
     kinds = np.concatenate([np.full(len(s), k) for k, s in enumerate(stamps)])
     index = np.concatenate([np.arange(len(s)) for s in stamps])
     order = np.lexsort((kinds, np.concatenate(stamps)))
@@ -161,6 +185,13 @@ def write_run(path: str | os.PathLike, run: Run, storage: str = 'sqlite3',
     gt_twist = run.twist[gt_step].tolist()
     counts = {'/joint_states': len(stamps[0]), '/left_track/setpoint': len(stamps[1]),
               '/right_track/setpoint': len(stamps[1]), gt_topic: len(stamps[2])}
+    if gyro is not None:
+        counts[IMU_TOPIC] = len(stamps[3])
+        gyro_z = np.asarray(gyro[1], dtype=float).tolist()
+    if gnss is not None:
+        counts[GNSS_TOPIC] = len(stamps[4])
+        fixes = np.column_stack([np.nan_to_num(np.asarray(v, dtype=float), nan=0.0)
+                                 for v in gnss[1:]]).tolist()
     names = list(joints)
     with BagWriter(path, storage) as bag:
         for stamp, kind, i in zip(all_stamps.tolist(), kinds[order].tolist(),
@@ -171,6 +202,13 @@ def write_run(path: str | os.PathLike, run: Run, storage: str = 'sqlite3',
             elif kind == 1:
                 bag.write('/left_track/setpoint', stamp, bag.float64(commands[i][0]))
                 bag.write('/right_track/setpoint', stamp, bag.float64(commands[i][1]))
+            elif kind == 3:
+                bag.write(IMU_TOPIC, stamp, bag.imu(stamp, gyro_z[i],
+                                                    rate_variance=imu_noise ** 2))
+            elif kind == 4:
+                lat, lon, alt, status = fixes[i]
+                bag.write(GNSS_TOPIC, stamp, bag.nav_sat_fix(
+                    stamp, lat, lon, alt, int(status), position_variance=gnss_noise ** 2))
             elif ground_truth == 'pose':
                 bag.write(gt_topic, stamp, bag.pose_stamped(stamp, *gt[i], frame_id=frame_id))
             else:
@@ -188,7 +226,9 @@ def simulate_bag(output: str | os.PathLike, vehicle: str | os.PathLike = 'auriga
                  ground_truth: str = 'pose', ground_truth_topic: str | None = None,
                  storage: str = 'sqlite3', truth: str | os.PathLike | None = None,
                  table: TwistTable | None = None, force: bool = False,
-                 parents: bool = True) -> SimulatedBag:
+                 parents: bool = True, imu: GyroModel | None = None,
+                 gnss: GnssModel | None = None,
+                 gnss_origin: GeoOrigin = GNSS_ORIGIN) -> SimulatedBag:
     """
     Simulate a run of a vehicle, write it as a bag and its true ICR model as YAML.
 
@@ -232,6 +272,13 @@ def simulate_bag(output: str | os.PathLike, vehicle: str | os.PathLike = 'auriga
         Replace an existing truth file (never an existing bag).
     parents : bool
         Create missing parent directories of the bag (the command line does not).
+    imu : GyroModel, optional
+        Record a gyro on :data:`IMU_TOPIC` (its bias, noise, latency, rate in the truth file).
+    gnss : GnssModel, optional
+        Record a GNSS receiver on :data:`GNSS_TOPIC`, the run's start at ``gnss_origin``
+        (x east, y north).
+    gnss_origin : GeoOrigin
+        Latitude, longitude and altitude of the run's start.
 
     Returns
     -------
@@ -281,15 +328,40 @@ def simulate_bag(output: str | os.PathLike, vehicle: str | os.PathLike = 'auriga
                     raise InvalidParameters(f'{spec.path}: {err}') from None
             run = simulate(robot, cmd[held], dt, table,
                            GroundTruth(gt_rate, gt_position_noise, gt_yaw_noise), rng)
-            with out.path('OUT') as tmp:
-                counts = write_run(tmp, run, storage, setpoint_rate, ground_truth,
-                                   ground_truth_topic)
-            icr = robot.true_icr()
-            out.write_text('--truth', params_text(truth_values(spec, icr, run, {
+            gyro = fixes = None
+            simulation = {
                 'bag': output.name, 'manoeuvres': manoeuvres, 'duration': float(duration),
                 'seed': int(seed), 'rate': float(rate), 'setpoint_rate': float(setpoint_rate),
                 'gt_rate': float(gt_rate), 'gt_position_noise': float(gt_position_noise),
-                'gt_yaw_noise': float(gt_yaw_noise)}), comment=(
+                'gt_yaw_noise': float(gt_yaw_noise)}
+            if imu is not None:
+                # Sensors draw from their own streams: adding one leaves the run unchanged.
+                gyro = gyro_samples(run.t, run.twist[:, 2], imu, np.random.default_rng([seed, 1]))
+                simulation.update({f'imu.{k}': float(getattr(imu, k)) for k in (
+                    'rate', 'bias', 'noise_std', 'bias_walk', 'latency', 'scale', 'saturation')
+                    if math.isfinite(getattr(imu, k))})
+                simulation.update({'imu.topic': IMU_TOPIC, 'imu.expected_imu_delay':
+                                   float(imu.latency)})
+            if gnss is not None:
+                stamps, east, north, status = gnss_samples(
+                    run.t, *run.pose.T, gnss, np.random.default_rng([seed, 2]))
+                lat, lon, alt = enu_to_geodetic(east, north, np.zeros(east.size), gnss_origin)
+                fixes = (stamps, lat, lon, alt, status)
+                simulation.update({f'gnss.{k}': float(getattr(gnss, k)) for k in (
+                    'rate', 'noise_std', 'correlation_time', 'latency', 'dropout', 'antenna_x',
+                    'antenna_y')})
+                simulation.update({'gnss.status': int(gnss.status), 'gnss.topic': GNSS_TOPIC,
+                                   'gnss.origin_latitude': gnss_origin.latitude,
+                                   'gnss.origin_longitude': gnss_origin.longitude,
+                                   'gnss.origin_altitude': gnss_origin.altitude})
+            with out.path('OUT') as tmp:
+                counts = write_run(tmp, run, storage, setpoint_rate, ground_truth,
+                                   ground_truth_topic, gyro=gyro, gnss=fixes,
+                                   imu_noise=imu.noise_std if imu else 0.0,
+                                   gnss_noise=gnss.noise_std if gnss else 0.0)
+            icr = robot.true_icr()
+            out.write_text('--truth', params_text(truth_values(spec, icr, run, simulation),
+                                                  comment=(
                 f'True kinematic model of the simulated {spec.name} on {spec.terrain}: tread '
                 'ICRs\naveraged over the 21 x 21 stationary ICR map (Martinez et al. 2005, '
                 'sec. 5.2) and\nthe simulated encoder scales. run_fit: the constant ICRs that '
@@ -369,7 +441,9 @@ def build_parser() -> argparse.ArgumentParser:
                '  simulate_bag run1 --vehicle auriga_alpha --duration 180 --seed 1\n'
                '  simulate_bag sweep.bag --vehicle packbot --manoeuvres sweep --storage rosbag1\n'
                '  simulate_bag turf --vehicle packbot --mu-y 0.9 --terrain turf '
-               '--ground-truth odometry --storage mcap')
+               '--ground-truth odometry --storage mcap\n'
+               '  simulate_bag field --imu --imu-bias 0.01 --imu-latency 0.1 --gnss '
+               '--gnss-noise 2')
     parser.add_argument('output', help='bag to create: a rosbag2 directory, or X.bag with '
                                        '--storage rosbag1 (must not exist; its directory must)')
     add_vehicle_arguments(parser.add_argument_group('vehicle and terrain'))
@@ -400,6 +474,39 @@ def build_parser() -> argparse.ArgumentParser:
                          help='ground-truth position noise (standard deviation), m, 0-1')
     sensors.add_argument('--gt-noise-yaw', type=bounded(0.0, 1.0, 'rad'), default=0.002,
                          help='ground-truth heading noise (standard deviation), rad, 0-1')
+    imu = parser.add_argument_group('IMU (--imu: sensor_msgs/Imu on /imu/data, gyro only)')
+    imu.add_argument('--imu', action='store_true', help='record a gyro')
+    imu.add_argument('--imu-rate', type=bounded(1.0, 2000.0, 'Hz'), default=100.0,
+                     help='gyro rate, Hz')
+    imu.add_argument('--imu-bias', type=bounded(-1.0, 1.0, 'rad/s'), default=0.005,
+                     help='gyro bias, rad/s')
+    imu.add_argument('--imu-noise', type=bounded(0.0, 1.0, 'rad/s'), default=0.002,
+                     help='white noise of one reading (standard deviation), rad/s')
+    imu.add_argument('--imu-bias-walk', type=bounded(0.0, 0.1, 'rad/s/sqrt(s)'), default=0.0,
+                     help='random walk of the bias, rad/s/sqrt(s)')
+    imu.add_argument('--imu-latency', type=bounded(-1.0, 1.0, 's'), default=0.0,
+                     help='the gyro is stamped this late behind the truth (the encoders are '
+                          'not), s; identify_icr finds it as imu_delay')
+    imu.add_argument('--imu-saturation', type=bounded(0.01, 100.0, 'rad/s'), default=math.inf,
+                     help='largest rate the gyro reports, rad/s (inf: none)')
+    gnss = parser.add_argument_group('GNSS (--gnss: sensor_msgs/NavSatFix on /gnss/fix)')
+    gnss.add_argument('--gnss', action='store_true', help='record a GNSS receiver')
+    gnss.add_argument('--gnss-rate', type=bounded(0.1, 100.0, 'Hz'), default=5.0,
+                      help='fix rate, Hz')
+    gnss.add_argument('--gnss-noise', type=bounded(0.0, 100.0, 'm'), default=2.0,
+                      help='position noise per axis (standard deviation), m: 1-3 standalone, '
+                           '0.02 RTK')
+    gnss.add_argument('--gnss-correlation-time', type=bounded(0.0, 3600.0, 's'), default=0.0,
+                      help='time constant of the position error, s (0: white)')
+    gnss.add_argument('--gnss-latency', type=bounded(-1.0, 5.0, 's'), default=0.0,
+                      help='the fixes are stamped this late, s')
+    gnss.add_argument('--gnss-dropout', type=bounded(0.0, 1.0), default=0.0,
+                      help='probability that a fix is missing (status -1, NO_FIX)')
+    gnss.add_argument('--gnss-antenna', type=bounded(-10.0, 10.0, 'm'), nargs=2,
+                      default=(0.0, 0.0), metavar=('X', 'Y'),
+                      help='antenna position in base_link, m')
+    gnss.add_argument('--gnss-status', choices=tuple(GNSS_STATUS), default='fix',
+                      help='status of a good fix: fix (standalone), sbas, gbas (RTK)')
     output = parser.add_argument_group('output')
     output.add_argument('--ground-truth', choices=tuple(GROUND_TRUTH_TOPICS), default='pose',
                         help='ground truth as geometry_msgs/PoseStamped or nav_msgs/Odometry')
@@ -413,6 +520,23 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _imu_model(args) -> GyroModel | None:
+    if not args.imu:
+        return None
+    return GyroModel(rate=args.imu_rate, bias=args.imu_bias, noise_std=args.imu_noise,
+                     bias_walk=args.imu_bias_walk, latency=args.imu_latency,
+                     saturation=args.imu_saturation)
+
+
+def _gnss_model(args) -> GnssModel | None:
+    if not args.gnss:
+        return None
+    return GnssModel(rate=args.gnss_rate, noise_std=args.gnss_noise,
+                     correlation_time=args.gnss_correlation_time, latency=args.gnss_latency,
+                     dropout=args.gnss_dropout, antenna_x=args.gnss_antenna[0],
+                     antenna_y=args.gnss_antenna[1], status=GNSS_STATUS[args.gnss_status])
+
+
 def _run(args, out) -> int:
     result = simulate_bag(
         args.output, args.vehicle, overrides=overrides_from_args(args),
@@ -421,7 +545,7 @@ def _run(args, out) -> int:
         gt_position_noise=args.gt_noise_xy, gt_yaw_noise=args.gt_noise_yaw,
         ground_truth=args.ground_truth, ground_truth_topic=getattr(args, 'gt_topic', None),
         storage=args.storage, truth=getattr(args, 'truth', None), force=args.force,
-        parents=False)
+        parents=False, imu=_imu_model(args), gnss=_gnss_model(args))
     run, icr = result.run, result.truth_icr
     print(f'vehicle      {result.vehicle.name} on {result.vehicle.terrain} '
           f'({result.vehicle.path})', file=out)

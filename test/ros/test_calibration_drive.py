@@ -1,0 +1,348 @@
+"""calibration_drive on real topics: each safety rule, the end of the drive, the console script."""
+
+import json
+import math
+from pathlib import Path
+import signal
+import subprocess
+
+from helpers.fake_robot import AURIGA, B, FakeRobot, RADIUS
+from helpers.ros_helpers import ConsoleScript, spin_until
+import pytest
+from rclpy.parameter import Parameter
+from std_msgs.msg import String
+from std_srvs.srv import Trigger
+from tracked_kinematics.offline.calibration_files import CalibrationFiles, FITTED_KEYS
+from tracked_kinematics.params import read_params_file
+from tracked_kinematics.ros.calibration_drive import CalibrationDriveNode
+from tracked_kinematics.ros.odometry_node import OdometryNode
+from tracked_kinematics.ros.parameters import ParameterError
+
+pytestmark = pytest.mark.ros
+
+VEHICLE = {'track_width': B, 'sprocket_radius': RADIUS}
+DT = 0.02
+# Every node of these tests in a namespace of its own, off the topics of the other tests.
+NS = '/calibration_drive_test'
+
+
+class Drive:
+    """An in-process calibration_drive beside a fake robot, stepped by the test."""
+
+    def __init__(self, ros_context, executor, finisher=None, **overrides):
+        values = {**VEHICLE, 'output': 'unused.yaml', 'duration': 15.0, 'rate': 50.0,
+                  'encoder_timeout': 2.0, 'reference_timeout': 2.0, **overrides}
+        self.node = CalibrationDriveNode(
+            finisher=finisher, context=ros_context, namespace=NS,
+            parameter_overrides=[Parameter(k, value=v) for k, v in values.items()])
+        executor.add_node(self.node)
+        self.executor = executor
+        self.robot = FakeRobot(ros_context, executor, namespace=NS)
+        self.status = []
+        self.robot.node.create_subscription(
+            String, 'calibration_drive/status', lambda m: self.status.append(json.loads(m.data)),
+            10)
+        self.clients = {name: self.robot.node.create_client(Trigger, f'calibration_drive/{name}')
+                        for name in ('start', 'pause', 'stop')}
+        assert spin_until(executor, lambda: self.robot.cmds, 10.0)
+        assert spin_until(executor, lambda: self.robot.joints.get_subscription_count() > 0
+                          and self.robot.poses.get_subscription_count() > 0, 10.0)
+
+    def run(self, seconds, hold=True, until=None, **step):
+        """Step the robot for ``seconds`` of wall time (or until ``until()``), deadman held."""
+        import time
+        end = time.monotonic() + seconds
+        while time.monotonic() < end:
+            if self.robot.tick(DT, **step) and hold:
+                self.robot.deadman(True)
+            self.executor.spin_once(timeout_sec=0.005)
+            if until is not None and until():
+                return True
+        return False
+
+    def call(self, name):
+        client = self.clients[name]
+        assert spin_until(self.executor, client.service_is_ready, 10.0)
+        future = client.call_async(Trigger.Request())
+        assert spin_until(self.executor, future.done, 10.0)
+        return future.result()
+
+    @property
+    def last(self):
+        return self.robot.cmds[-1]
+
+    def moving(self):
+        return bool(self.robot.cmds) and (self.last.linear.x != 0.0 or self.last.angular.z != 0.0)
+
+
+def release_and_check(d, release):
+    """
+    Release the deadman by ``release()``; check that the node acts on it when it arrives.
+
+    The release's own callback must publish a zero command (not wait for the next tick), and
+    every command after it must be zero; commands published before it arrived may still be
+    in flight to the robot. The timer holds the original bound method, so the spy below sees
+    only the call that the deadman callback makes.
+    """
+    rows = d.node._rows['cmd']
+    calls = []
+    tick = d.node._on_timer
+
+    def spy():
+        before = len(rows)
+        tick()
+        calls.append(rows[before:])
+    d.node._on_timer = spy
+    try:
+        release()
+        assert spin_until(d.executor, lambda: calls, 5.0)
+    finally:
+        del d.node._on_timer
+    assert len(calls) == 1 and calls[0] and calls[0][-1][1:] == (0.0, 0.0), calls
+    start = rows.index(calls[0][-1])
+    spin_until(d.executor, lambda: False, 0.3)
+    assert all(row[1:] == (0.0, 0.0) for row in rows[start:]), rows[start:]
+    assert spin_until(d.executor, lambda: not d.moving(), 2.0)
+
+
+@pytest.fixture
+def drive(ros_context, executor):
+    made = []
+
+    def make(**kwargs):
+        made.append(Drive(ros_context, executor, **kwargs))
+        return made[-1]
+    yield make
+    for d in made:
+        d.node.destroy_node()
+        d.robot.node.destroy_node()
+
+
+def test_idle_until_start_and_zero_meanwhile(drive):
+    d = drive()
+    d.run(0.5)
+    assert not d.moving() and d.node.supervisor.state == 'idle'
+    assert d.status and d.status[-1]['state'] == 'idle'
+    result = d.call('start')
+    assert result.success, result.message
+    assert d.run(2.0, until=d.moving)
+    assert d.status[-1]['state'] == 'running'
+
+
+def test_deadman_release_zeroes_the_next_command(drive):
+    d = drive(auto_start=True)
+    assert d.run(5.0, until=d.moving)
+    release_and_check(d, lambda: d.robot.deadman(False))
+    assert spin_until(d.executor, lambda: d.status and d.status[-1]['state'] == 'paused', 5.0)
+    assert d.status[-1]['reason'] == 'deadman released'
+    # Held again: the step restarts and the vehicle moves.
+    assert d.run(3.0, until=d.moving)
+
+
+def test_joystick_button_as_the_deadman(drive):
+    from sensor_msgs.msg import Joy
+    d = drive(auto_start=True, deadman_topic='', joy_topic='joy', deadman_button=2)
+    joy = d.robot.node.create_publisher(Joy, 'joy', 10)
+
+    def press(button_down):
+        joy.publish(Joy(buttons=[1, 1, int(button_down), 0]))
+    assert not d.run(1.0, hold=False, until=lambda: press(False) or d.moving())
+    assert d.run(5.0, hold=False, until=lambda: press(True) or d.moving())
+    release_and_check(d, lambda: press(False))
+    assert d.node.supervisor.last.reason == 'deadman released'
+
+
+def test_with_a_topic_and_a_button_both_must_be_held(drive):
+    from sensor_msgs.msg import Joy
+    d = drive(auto_start=True, joy_topic='joy', deadman_button=0)
+    joy = d.robot.node.create_publisher(Joy, 'joy', 10)
+    # The topic alone (button up) never moves the robot; with the button it does.
+    assert not d.run(1.5, until=lambda: joy.publish(Joy(buttons=[0])) or d.moving())
+    assert d.run(5.0, until=lambda: joy.publish(Joy(buttons=[1])) or d.moving())
+    release_and_check(d, lambda: joy.publish(Joy(buttons=[0])))
+
+
+def test_stale_deadman_zeroes(drive):
+    d = drive(auto_start=True, deadman_timeout=0.2)
+    assert d.run(5.0, until=d.moving)
+    assert d.run(3.0, hold=False, until=lambda: not d.moving())
+    assert 'deadman not held' in d.node.supervisor.last.reason
+
+
+def test_stale_encoders_stop_the_drive(drive):
+    d = drive(auto_start=True, encoder_timeout=0.3)
+    assert d.run(5.0, until=d.moving)
+    assert d.run(3.0, publish_encoders=False, until=lambda: not d.moving())
+    assert d.node.supervisor.state == 'stopped'
+    assert 'encoders stale' in d.node.supervisor.last.reason
+
+
+def test_stale_reference_stops_the_drive(drive):
+    d = drive(auto_start=True, reference_timeout=0.3)
+    assert d.run(5.0, until=d.moving)
+    assert d.run(3.0, publish_pose=False, until=lambda: not d.moving())
+    assert 'reference stale' in d.node.supervisor.last.reason
+    result = d.call('start')
+    assert not result.success and 'reference stale' in result.message
+
+
+def test_stop_service_mid_step(drive):
+    d = drive()
+    d.run(0.3)
+    assert d.call('start').success
+    assert d.run(3.0, until=d.moving)
+    result = d.call('stop')
+    assert result.success
+    # The service answer comes after the zero command was published.
+    assert spin_until(d.executor, lambda: not d.moving(), 1.0)
+    d.run(0.5)
+    assert not d.moving() and d.status[-1]['state'] == 'stopped'
+    assert not d.call('start').success
+
+
+def test_pause_and_resume(drive):
+    d = drive()
+    d.run(0.3)
+    assert d.call('start').success
+    assert d.run(3.0, until=d.moving)
+    assert d.call('pause').success
+    d.run(0.5)
+    assert not d.moving() and d.status[-1]['reason'] == 'paused by ~/pause'
+    assert d.call('start').success
+    assert d.run(3.0, until=d.moving)
+
+
+def test_a_whole_drive_is_fitted_written_and_pushed(drive, ros_context, executor, tmp_path):
+    out = tmp_path / 'fit.yaml'
+    bag = tmp_path / 'drive_bag'
+    overrides = {**VEHICLE, 'publish_tf': False}
+    odometry = OdometryNode(context=ros_context, namespace=NS, parameter_overrides=[
+        Parameter(k, value=v) for k, v in overrides.items()])
+    executor.add_node(odometry)
+    d = drive(finisher=CalibrationFiles, auto_start=True, output=str(out), bag=str(bag),
+              duration=30.0, terrain='test_floor', push_to=[f'{NS}/odometry_node'])
+    try:
+        assert d.run(240.0, until=lambda: d.node.exit_status is not None)
+        assert d.node.exit_status == 0
+        fitted = {k: odometry.params[k] for k in FITTED_KEYS}
+    finally:
+        odometry.destroy_node()
+    assert d.robot.max_distance <= 3.0
+    assert all(math.isfinite(c.linear.x) and math.isfinite(c.angular.z) for c in d.robot.cmds)
+    assert all(abs(c.linear.x) <= 0.5 and abs(c.angular.z) <= 1.0 for c in d.robot.cmds)
+    values = read_params_file(out)
+    assert fitted == {k: values[k] for k in FITTED_KEYS}
+    chi = B / (values['icr.y_left'] - values['icr.y_right'])
+    assert chi == pytest.approx(AURIGA.chi, rel=0.03)
+    assert values['terrain'] == 'test_floor'
+    assert values['identification.drive.reference'] == 'pose'
+    report = json.loads((tmp_path / 'fit.json').read_text())
+    assert report['calibration_drive']['bag'] == str(bag.resolve())
+    assert report['icr']['chi'] == pytest.approx(chi)
+    drive_report = report['calibration_drive']
+    assert len(drive_report['steps']) == 10 and drive_report['events'][0]['state'] == 'running'
+    assert drive_report['events'][-1]['state'] == 'finished'
+    assert drive_report['identify_icr'].startswith(f'identify_icr {bag.resolve()} ')
+    # identify_icr reads the bag back to the same result.
+    again = tmp_path / 'again.yaml'
+    base = tmp_path / 'base.yaml'
+    base.write_text(f'/**:\n  ros__parameters:\n    track_width: {B}\n'
+                    f'    sprocket_radius: {RADIUS}\n')
+    subprocess.run([str(Path(__import__('sys').executable).parent / 'identify_icr'), str(bag),
+                    '--ground-truth-topic', f'{NS}/ground_truth/odom',
+                    '--encoder-topic', f'{NS}/joint_states', '--params', str(base),
+                    '--output', str(again)], check=True, capture_output=True, timeout=300)
+    refit = read_params_file(again)
+    for key in ('icr.y_left', 'icr.y_right', 'icr.x', 'scale.left', 'scale.right'):
+        assert refit[key] == pytest.approx(values[key], abs=1e-9), key
+
+
+def test_refuses_an_existing_output_at_start(ros_context, tmp_path):
+    out = tmp_path / 'exists.yaml'
+    out.write_text('keep me\n')
+    with pytest.raises(Exception, match='exists'):
+        CalibrationDriveNode(finisher=CalibrationFiles, context=ros_context,
+                             parameter_overrides=[Parameter(k, value=v) for k, v in
+                                                  {**VEHICLE, 'output': str(out)}.items()])
+    assert out.read_text() == 'keep me\n'
+
+
+@pytest.mark.parametrize('overrides, text', [
+    ({'output': ''}, 'output must name'),
+    ({'deadman_topic': ''}, 'needs a deadman'),
+    ({'max_speed': 0.0}, 'max_speed'),
+    ({'reference': 'gps'}, 'reference'),
+])
+def test_refuses_bad_parameters(ros_context, overrides, text):
+    values = {**VEHICLE, 'output': 'x.yaml', **overrides}
+    with pytest.raises(ParameterError, match=text):
+        CalibrationDriveNode(context=ros_context,
+                             parameter_overrides=[Parameter(k, value=v)
+                                                  for k, v in values.items()])
+
+
+@pytest.mark.parametrize('sig', [signal.SIGINT, signal.SIGTERM])
+def test_console_script_publishes_zero_when_signalled(ros_context, executor, tmp_path, sig):
+    robot = FakeRobot(ros_context, executor, namespace=NS)
+    params = tmp_path / 'robot.yaml'
+    params.write_text(f'/**:\n  ros__parameters:\n    track_width: {B}\n'
+                      f'    sprocket_radius: {RADIUS}\n')
+    try:
+        with ConsoleScript('calibration_drive', '--ros-args', '--params-file', params,
+                           '-r', f'__ns:={NS}',
+                           '-p', f'output:={tmp_path / "never.yaml"}', '-p', 'auto_start:=true',
+                           '-p', 'encoder_timeout:=2.0', '-p', 'reference_timeout:=2.0',
+                           tmp_path=tmp_path) as script:
+            assert spin_until(executor, lambda: robot.cmds, 30.0), script.output
+
+            def moving():
+                if robot.tick(DT):
+                    robot.deadman(True)
+                executor.spin_once(timeout_sec=0.005)
+                c = robot.cmds[-1]
+                return c.linear.x != 0.0 or c.angular.z != 0.0
+            assert spin_until(executor, moving, 20.0), script.output
+            script.process.send_signal(sig)
+            # The robot keeps its deadman held and its sensors alive: only the signal stops it.
+            import time
+            deadline = time.monotonic() + 20.0
+            while script.process.poll() is None and time.monotonic() < deadline:
+                moving()
+            assert script.process.poll() == 0, script.output
+            spin_until(executor, lambda: False, 0.3)
+            last = robot.cmds[-1]
+            assert (last.linear.x, last.angular.z) == (0.0, 0.0), script.output
+            assert not (tmp_path / 'never.yaml').exists()
+    finally:
+        robot.node.destroy_node()
+
+
+def test_a_signal_while_fitting_leaves_nothing_behind(ros_context, executor, tmp_path):
+    robot = FakeRobot(ros_context, executor, namespace=NS)
+    status = []
+    robot.node.create_subscription(String, 'calibration_drive/status',
+                                   lambda m: status.append(json.loads(m.data)), 10)
+    work = tmp_path / 'work'
+    work.mkdir()
+    params = work / 'robot.yaml'
+    params.write_text(f'/**:\n  ros__parameters:\n    track_width: {B}\n'
+                      f'    sprocket_radius: {RADIUS}\n')
+    try:
+        with ConsoleScript('calibration_drive', '--ros-args', '--params-file', params,
+                           '-r', f'__ns:={NS}',
+                           '-p', f'output:={work / "fit.yaml"}', '-p', 'auto_start:=true',
+                           '-p', 'duration:=15.0', '-p', 'encoder_timeout:=2.0',
+                           '-p', 'reference_timeout:=2.0', tmp_path=tmp_path) as script:
+            assert spin_until(executor, lambda: robot.cmds, 30.0), script.output
+
+            def fitting():
+                if robot.tick(DT):
+                    robot.deadman(True)
+                executor.spin_once(timeout_sec=0.005)
+                return bool(status) and status[-1]['phase'] == 'fitting'
+            assert spin_until(executor, fitting, 120.0), script.output
+            script.process.send_signal(signal.SIGINT)
+            assert script.wait(30.0) == 0, script.output
+        assert sorted(p.name for p in work.iterdir()) == ['robot.yaml'], script.output
+    finally:
+        robot.node.destroy_node()

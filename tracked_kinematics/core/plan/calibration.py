@@ -1,0 +1,360 @@
+"""
+The calibration protocol: what a vehicle drives so that ``identify_icr`` can fit its ICRs.
+
+What each manoeuvre pins comes from the identification's own data (docs/tools/identify_icr.md,
+"Recording a calibration drive", the standard errors of the ``icr_scales`` fit on the real
+Warthog and Husky logs):
+
+- **arcs of several radii, both ways, and turns in place** determine the tread ICRs
+  (``icr.*``): without the curves the ICR standard errors grow two to ten times (Warthog
+  0.013 -> 0.028 m, Husky 0.022 -> 0.28 m: not identified);
+- **straights forwards and backwards** determine the encoder scales (``scale.*``): without
+  them the scale standard error grows three times (0.003 -> 0.009);
+- **several speeds**: curves at varying speed carry some of the scales' information too, and
+  the ICRs should be fitted at the speeds the robot will use;
+- **about three minutes of motion**: two minutes of moving time pinned the Warthog's
+  parameters and the Husky's ICRs, four the Husky's scales; 30 s pinned neither.
+
+:func:`protocol` lays out rounds of that excitation, one round per speed level, each a
+straight forward and back, arcs of three yaw rates (so of several radii) to the left and to
+the right, and a turn in place each way: ten steps per round, 60 s of motion per round by
+default (steps of 6 s, as the DRIVE calibration of Baril et al. 2024 uses), three rounds at
+0.4, 0.7 and 1.0 of the speed cap in the default 180 s. A shorter ``duration`` drives fewer
+rounds (and shorter steps below 60 s). Straights are shortened so that a forward-and-back
+pair stays well inside the geofence. The steps are commands of the ideal body twist
+``(v, w)`` for ``cmd_vel``; the supervisor (:mod:`.supervisor`) plans each one against the
+geofence from the current pose before driving it (:func:`predict_step`, :func:`fence_exit`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+import math
+
+import numpy as np
+
+#: Speed levels of the rounds, as fractions of the speed cap, by number of rounds.
+_LEVELS = {1: (0.7,), 2: (0.5, 1.0), 3: (0.4, 0.7, 1.0)}
+#: Yaw rates of the arcs, as fractions of the yaw-rate cap: three radii per speed.
+ARC_YAW_FRACTIONS = (1.0, 0.6, 0.3)
+#: Motion per round, s (ten steps of 6 s).
+ROUND_SECONDS = 60.0
+#: Shortest step, s: the drive train settles in a few tenths of a second and the fit cuts
+#: the data into 1-s segments.
+MIN_STEP = 1.5
+#: A straight drives at most this fraction of the geofence radius, out and back.
+STRAIGHT_FENCE_FRACTION = 0.6
+MIN_DURATION = 15.0
+MAX_DURATION = 3600.0
+
+
+@dataclass(frozen=True, slots=True)
+class Step:
+    """
+    One step of the protocol: an ideal body twist held for a while.
+
+    Attributes
+    ----------
+    v : float
+        Forward speed, m/s.
+    w : float
+        Yaw rate, rad/s (counter-clockwise positive, REP-103).
+    duration : float
+        s.
+    kind : str
+        What it is for the fit: ``straight``, ``arc``, ``turn`` (in place) or ``return``
+        (towards the geofence centre, inserted by the supervisor).
+
+    """
+
+    v: float
+    w: float
+    duration: float
+    kind: str
+
+    def __post_init__(self):
+        for name in ('v', 'w', 'duration'):
+            value = getattr(self, name)
+            if not math.isfinite(value):
+                raise ValueError(f'step {name} must be finite, got {value!r}')
+        if self.duration <= 0.0:
+            raise ValueError(f'step duration must be > 0, got {self.duration!r}')
+
+    def describe(self) -> str:
+        """Return the step in words, for the status topic and logs."""
+        return f'{self.kind} v {self.v:+.2f} m/s w {self.w:+.2f} rad/s for {self.duration:.1f} s'
+
+
+def _check_positive(**values) -> None:
+    for name, value in values.items():
+        if not (math.isfinite(value) and value > 0.0):
+            raise ValueError(f'{name} must be finite and > 0, got {value!r}')
+
+
+def protocol(duration: float = 180.0, max_speed: float = 0.5, max_yaw_rate: float = 1.0,
+             geofence_radius: float = 3.0) -> tuple[Step, ...]:
+    """
+    Lay out the calibration drive: rounds of straights, arcs and turns in place.
+
+    Parameters
+    ----------
+    duration : float
+        Motion time to plan, s, in [:data:`MIN_DURATION`, :data:`MAX_DURATION`]. Rounds of
+        :data:`ROUND_SECONDS` (one per speed level; below 60 s one round of shorter steps);
+        the steps of a round share its time equally, a straight gives what the geofence cuts
+        off to the other steps of its round.
+    max_speed : float
+        Speed cap, m/s: the fastest straight.
+    max_yaw_rate : float
+        Yaw-rate cap, rad/s: the fastest turn in place and the tightest arc.
+    geofence_radius : float
+        m; a straight goes out at most :data:`STRAIGHT_FENCE_FRACTION` of it.
+
+    Returns
+    -------
+    tuple of Step
+        In driving order. Every command is within the caps.
+
+    Raises
+    ------
+    ValueError
+        For a duration outside its range or a cap that is not a positive number.
+
+    """
+    _check_positive(max_speed=max_speed, max_yaw_rate=max_yaw_rate,
+                    geofence_radius=geofence_radius)
+    if not (MIN_DURATION <= duration <= MAX_DURATION):
+        raise ValueError(f'duration must be in [{MIN_DURATION:g}, {MAX_DURATION:g}] s, got '
+                         f'{duration!r}')
+    rounds = max(1, int(round(duration / ROUND_SECONDS)))
+    levels = _LEVELS.get(rounds) or tuple(_LEVELS[3][i % 3] for i in range(rounds))
+    per_round = duration / rounds
+    steps: list[Step] = []
+    for level in levels:
+        steps.extend(_round(level, per_round, max_speed, max_yaw_rate, geofence_radius))
+    return tuple(steps)
+
+
+def _round(level, seconds, max_speed, max_yaw_rate, fence) -> list[Step]:
+    """One round at ``level`` of the caps: 2 straights, 6 arcs, 2 turns in place."""
+    v = level * max_speed
+    n_steps = 4 + 2 * len(ARC_YAW_FRACTIONS)
+    step = seconds / n_steps
+    straight = min(step, max(MIN_STEP, STRAIGHT_FENCE_FRACTION * fence / v))
+    # What the geofence cuts off the straights goes to the arcs and turns of the round.
+    other = max(MIN_STEP, (seconds - 2.0 * straight) / (n_steps - 2))
+    out = [Step(v, 0.0, straight, 'straight'), Step(-v, 0.0, straight, 'straight')]
+    for fraction in ARC_YAW_FRACTIONS:
+        w = fraction * max_yaw_rate
+        # Tighter arcs at the faster levels too: the yaw rate stays within its cap, the
+        # radius v / w varies with both the level and the fraction.
+        for sign in (1.0, -1.0):
+            out.append(Step(v, sign * w, other, 'arc'))
+    w_turn = max(0.4, level) * max_yaw_rate
+    out += [Step(0.0, w_turn, other, 'turn'), Step(0.0, -w_turn, other, 'turn')]
+    return out
+
+
+def predict_step(pose, v: float, w: float, duration: float, samples: int = 50):
+    """
+    Poses along a step driven by the ideal (nominal) kinematics, exactly along the arc.
+
+    Parameters
+    ----------
+    pose : tuple of float
+        Start pose ``(x, y, yaw)``, m, m, rad.
+    v, w : float
+        Body twist, m/s, rad/s.
+    duration : float
+        s.
+    samples : int
+        Poses returned, evenly spaced in time, the last at ``duration``.
+
+    Returns
+    -------
+    x, y, yaw : ndarray, shape (samples,)
+
+    """
+    t = np.linspace(0.0, duration, samples + 1)[1:]
+    x0, y0, yaw0 = (float(p) for p in pose)
+    theta = w * t
+    # Chord of the arc in the start frame (sin(theta)/w and (1 - cos(theta))/w at w -> 0).
+    s = t * np.sinc(theta / np.pi)
+    c = 0.5 * theta * t * np.sinc(theta / (2.0 * np.pi)) ** 2
+    dx, dy = v * s, v * c
+    cos0, sin0 = math.cos(yaw0), math.sin(yaw0)
+    return x0 + cos0 * dx - sin0 * dy, y0 + sin0 * dx + cos0 * dy, yaw0 + theta
+
+
+def fence_exit(pose, step: Step, centre, radius: float, samples: int = 50) -> float | None:
+    """
+    When a step, driven by the ideal kinematics from ``pose``, first leaves a circle.
+
+    Parameters
+    ----------
+    pose : tuple of float
+        Start pose ``(x, y, yaw)``.
+    step : Step
+        The step.
+    centre : tuple of float
+        ``(x, y)`` of the circle's centre, m.
+    radius : float
+        m.
+    samples : int
+        Poses checked along the step.
+
+    Returns
+    -------
+    float or None
+        Time into the step of the last checked pose still inside before the first one
+        outside (0.0 when the first is outside), s; None when the whole step stays inside.
+        A pose that is not finite counts as outside.
+
+    """
+    x, y, _ = predict_step(pose, step.v, step.w, step.duration, samples)
+    with np.errstate(invalid='ignore'):
+        inside = np.hypot(x - centre[0], y - centre[1]) <= radius
+    if np.all(inside):
+        return None
+    first = int(np.argmin(inside))
+    return step.duration * first / samples
+
+
+def total_duration(steps) -> float:
+    """Return the summed duration of ``steps``, s."""
+    return float(sum(s.duration for s in steps))
+
+
+class FenceOdometry:
+    """
+    Dead reckoning of the geofence pose when the reference gives no position (the IMU).
+
+    The heading is the gyro's (integrated yaw rate, less a bias measured while the vehicle
+    stands still: right on any terrain, as an uncalibrated vehicle's encoder heading is not,
+    since it turns less than its tracks say), the distance the encoders' mean travel times
+    their scales (right to a few per cent before calibration). Good for keeping a geofence
+    over minutes, not for odometry: an uncorrected gyro bias of 0.002 rad/s turns the frame
+    by 0.12 rad a minute, 0.36 m at 3 m from the centre.
+
+    Parameters
+    ----------
+    scale_left, scale_right : float
+        Encoder scales (true travel = scale x nominal).
+    settle : float
+        Standing time, s, after which the bias counts as measured (:attr:`settled`).
+
+    """
+
+    def __init__(self, scale_left: float = 1.0, scale_right: float = 1.0, settle: float = 1.0):
+        self.scales = (float(scale_left), float(scale_right))
+        self.x = self.y = self.yaw = 0.0
+        self.settle = float(settle)
+        self._gyro_t = None
+        self._still_time = 0.0
+        self._still_sum = 0.0
+
+    @property
+    def pose(self) -> tuple[float, float, float]:
+        """Return the current ``(x, y, yaw)``."""
+        return self.x, self.y, self.yaw
+
+    @property
+    def bias(self) -> float:
+        """Return the gyro bias measured while standing, rad/s (0 before any)."""
+        return self._still_sum / self._still_time if self._still_time > 0.0 else 0.0
+
+    @property
+    def settled(self) -> bool:
+        """Return whether the vehicle stood still long enough to measure the gyro bias."""
+        return self._still_time >= self.settle
+
+    def add_gyro(self, t: float, yaw_rate: float, still: bool = False) -> None:
+        """
+        Integrate one gyro sample held since the last, less the bias.
+
+        Parameters
+        ----------
+        t : float
+            Stamp, s.
+        yaw_rate : float
+            rad/s.
+        still : bool
+            The vehicle stands still (its encoders do not move): the sample measures the
+            bias.
+
+        """
+        if not (math.isfinite(t) and math.isfinite(yaw_rate)):
+            return
+        if self._gyro_t is not None and 0.0 < t - self._gyro_t < 1.0:
+            dt = t - self._gyro_t
+            if still:
+                self._still_time += dt
+                self._still_sum += yaw_rate * dt
+            self.yaw += (yaw_rate - self.bias) * dt
+        self._gyro_t = t
+
+    def add_travel(self, d_left: float, d_right: float) -> None:
+        """Advance along the current heading by the nominal track travel of one step, m."""
+        ds = 0.5 * (self.scales[0] * d_left + self.scales[1] * d_right)
+        if math.isfinite(ds):
+            self.x += ds * math.cos(self.yaw)
+            self.y += ds * math.sin(self.yaw)
+
+
+@dataclass(frozen=True)
+class CalibrationRecording:
+    """
+    What a calibration drive recorded, as plain arrays (times in ns, on the message stamps).
+
+    Attributes
+    ----------
+    encoder_t : ndarray of int64, shape (N,)
+        Stamps of the encoder steps.
+    encoder : ndarray, shape (N, 2)
+        Cumulative nominal travel of the left and right tracks, m.
+    pose_t : ndarray of int64, shape (M,)
+        Stamps of the reference poses (empty with the IMU reference).
+    pose : ndarray, shape (M, 3)
+        ``(x, y, yaw)``.
+    imu_t : ndarray of int64, shape (K,)
+        Stamps of the gyro samples (empty with the pose reference).
+    imu : ndarray, shape (K, 5)
+        Yaw rate (rad/s) and the orientation quaternion ``(x, y, z, w)``.
+    imu_orientation_covariance0 : ndarray, shape (K,)
+        First element of each sample's orientation covariance (-1: no orientation).
+    cmd_t : ndarray of int64, shape (C,)
+        Times the commands were published (node clock).
+    cmd : ndarray, shape (C, 2)
+        ``(v, w)`` published on cmd_vel.
+
+    """
+
+    encoder_t: np.ndarray
+    encoder: np.ndarray
+    pose_t: np.ndarray
+    pose: np.ndarray
+    imu_t: np.ndarray
+    imu: np.ndarray
+    imu_orientation_covariance0: np.ndarray
+    cmd_t: np.ndarray
+    cmd: np.ndarray
+
+    @classmethod
+    def of(cls, encoder=(), pose=(), imu=(), cmd=()):
+        """
+        Build from lists of rows ``(t_ns, values...)``.
+
+        ``encoder`` rows ``(t, left, right)``, ``pose`` rows ``(t, x, y, yaw)``, ``imu`` rows
+        ``(t, yaw_rate, qx, qy, qz, qw, covariance0)``, ``cmd`` rows ``(t, v, w)``.
+        """
+        def split(rows, width):
+            if not len(rows):
+                return np.zeros(0, np.int64), np.zeros((0, width))
+            t = np.array([r[0] for r in rows], dtype=np.int64)
+            return t, np.array([r[1:] for r in rows], dtype=float).reshape(len(rows), width)
+        enc_t, enc = split(encoder, 2)
+        pose_t, poses = split(pose, 3)
+        imu_t, imu_values = split(imu, 6)
+        cmd_t, cmds = split(cmd, 2)
+        return cls(enc_t, enc, pose_t, poses, imu_t, imu_values[:, :5], imu_values[:, 5],
+                   cmd_t, cmds)

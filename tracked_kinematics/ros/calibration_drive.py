@@ -1,0 +1,518 @@
+"""
+calibration_drive: drive a calibration protocol on cmd_vel, safely, then fit the terrain.
+
+A thin adapter around the protocol (:func:`~tracked_kinematics.core.plan.calibration.
+protocol`) and the safety supervisor (:class:`~tracked_kinematics.core.plan.supervisor.
+Supervisor`, where every safety rule lives and is tested). At a fixed ``rate`` it gives the
+supervisor the time, the deadman, the freshness of the encoders and of the reference and the
+pose in the geofence frame, and publishes the command it returns on ``cmd_vel``
+(geometry_msgs/Twist, for cmd_vel_translator, whose limits stay the second barrier; a zero
+Twist whenever the vehicle must not move). A deadman release is acted on when its message
+arrives, not at the next tick. It records the encoders (as odometry_node reads them:
+:class:`~tracked_kinematics.ros.encoder_input.EncoderInput`), the reference (``imu_topic``
+or ``pose_topic``) and its own commands; when the protocol is done it hands the recording to
+its finisher, which writes ``output`` (a terrain file), the report beside it and, with
+``bag``, the recording as an MCAP bag, then sets the fitted values in the nodes of
+``push_to`` and ends the node with the finisher's exit status (0 on success).
+
+Services ``~/start``, ``~/pause``, ``~/stop`` (std_srvs/Trigger); status on ``~/status``
+(std_msgs/String, one JSON object per message: docs/nodes/calibration_drive.md). On
+shutdown (SIGINT, SIGTERM, the end) a zero command is published before the node goes.
+
+The node writes no file itself: the ``ros`` ring imports no ``offline`` code. The console
+script (:mod:`tracked_kinematics.apps.calibration_drive`) gives it the finisher of
+:mod:`tracked_kinematics.offline.calibration_files`. Reference: docs/nodes/calibration_drive.md.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+import json
+import math
+import threading
+from typing import Any
+
+from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped, Twist
+from nav_msgs.msg import Odometry
+from rcl_interfaces.msg import Parameter as ParameterMsg, ParameterType
+from rcl_interfaces.srv import SetParametersAtomically
+from rclpy.duration import Duration
+from rclpy.node import Node
+from rclpy.qos import QoSProfile, ReliabilityPolicy
+from sensor_msgs.msg import Imu, Joy
+from std_msgs.msg import Bool, String
+from std_srvs.srv import Trigger
+from tracked_kinematics.core.integration import stamp_ns, yaw_from_quaternion
+from tracked_kinematics.core.plan.calibration import (
+    CalibrationRecording, FenceOdometry, MAX_DURATION, MIN_DURATION, protocol, total_duration)
+from tracked_kinematics.core.plan.supervisor import Inputs, Supervisor, SupervisorConfig
+from tracked_kinematics.params import (
+    described_as, each, ENCODER_INPUT_PARAMS, icr_from_values, node_name, one_of, ParamSpec,
+    positive, ros_name, TERRAIN_PARAMS)
+from tracked_kinematics.ros.encoder_input import check_encoder_values, EncoderInput, WARN_PERIOD
+from tracked_kinematics.ros.input_topic import CHECK_PERIOD, InputTopic, steady_timer
+from tracked_kinematics.ros.parameters import ParameterTable
+
+NODE_NAME = 'calibration_drive'
+REFERENCES = ('pose', 'imu')
+POSE_TYPES = {'odometry': Odometry, 'pose_stamped': PoseStamped,
+              'pose_with_covariance': PoseWithCovarianceStamped}
+#: Highest rate of the status topic, Hz (and on every state change).
+STATUS_RATE = 2.0
+#: Largest track speed of a vehicle that stands still (the gyro then measures its bias), m/s.
+STILL_SPEED = 0.005
+#: With the IMU the geofence is kept in dead reckoning (gyro heading, encoder distance), a few
+#: per cent off at 3 m: more margin than the pose reference's 0.85 / 0.93 of the radius.
+IMU_FENCE = {'plan_fraction': 0.8, 'guard_fraction': 0.87}
+#: Exit statuses of identify_icr for a signal (SIGHUP, SIGINT, SIGTERM).
+INTERRUPTED = (129, 130, 143)
+#: How long the node waits for the nodes of push_to to answer, s.
+PUSH_TIMEOUT = 5.0
+
+
+@described_as("a valid ROS 2 topic name, or '' for none")
+def _optional_topic(value):
+    return None if value == '' else ros_name(value)
+
+
+@described_as('a file name (required)')
+def _file_name(value):
+    return None if value.strip() else 'must name the terrain file to write (-p output:=OUT.yaml)'
+
+
+CALIBRATION_PARAMS: tuple[ParamSpec, ...] = (
+    ParamSpec('reference', 'pose',
+              'What the fit compares the encoders with: pose (pose_topic, e.g. motion capture '
+              'or the ground truth of the simulator) or imu (the gyro of imu_topic)',
+              check=one_of(REFERENCES), read_only=True),
+    ParamSpec('output', '',
+              'Terrain file to write when the protocol ends (required); the report goes beside '
+              'it with the extension .json', check=_file_name, read_only=True),
+    ParamSpec('bag', '', "Also write the recording as an MCAP bag in this new directory ('': "
+              'no bag)', read_only=True),
+    ParamSpec('force', False, 'Replace output files that exist', read_only=True),
+    ParamSpec('terrain', '', 'Terrain name written to the file', read_only=True),
+    ParamSpec('geofence_radius', 3.0, 'Radius of the geofence around the pose at start', 'm',
+              positive, low=0.5, high=1000.0, read_only=True),
+    ParamSpec('max_speed', 0.5, 'Largest |v| commanded', 'm/s', positive, low=0.01,
+              high=10.0, read_only=True),
+    ParamSpec('max_yaw_rate', 1.0, 'Largest |w| commanded', 'rad/s', positive, low=0.01,
+              high=10.0, read_only=True),
+    ParamSpec('duration', 180.0, 'Motion time of the protocol', 's', positive,
+              low=MIN_DURATION, high=MAX_DURATION, read_only=True),
+    ParamSpec('deadman_topic', 'deadman',
+              "Deadman (std_msgs/Bool): the vehicle moves only while it is true and fresh; '' "
+              'when joy_topic is the deadman', check=_optional_topic, read_only=True),
+    ParamSpec('deadman_timeout', 0.3, 'Oldest deadman message that still holds', 's',
+              positive, low=0.01, high=10.0, read_only=True),
+    ParamSpec('joy_topic', '',
+              "Joystick (sensor_msgs/Joy) whose deadman_button is the deadman ('': none)",
+              check=_optional_topic, read_only=True),
+    ParamSpec('deadman_button', 0, 'Index of the deadman button in Joy.buttons', '',
+              low=0, high=255, read_only=True),
+    ParamSpec('auto_start', False, 'Start when the deadman is first held, without ~/start',
+              read_only=True),
+    ParamSpec('imu_topic', 'imu/data', 'Gyro (sensor_msgs/Imu) of reference imu',
+              check=ros_name, read_only=True),
+    ParamSpec('pose_topic', 'ground_truth/odom', 'Pose of base_link of reference pose',
+              check=ros_name, read_only=True),
+    ParamSpec('pose_type', 'odometry',
+              'Message type on pose_topic: odometry, pose_stamped or pose_with_covariance',
+              check=one_of(POSE_TYPES), read_only=True),
+    ParamSpec('encoder_timeout', 0.5,
+              'Encoders silent this long while driving stop the drive', 's', positive,
+              low=0.01, high=10.0, read_only=True),
+    ParamSpec('reference_timeout', 0.5,
+              'Reference silent this long while driving stops the drive', 's', positive,
+              low=0.01, high=10.0, read_only=True),
+    ParamSpec('rate', 20.0, 'Rate of cmd_vel (a zero Twist whenever not moving)', 'Hz',
+              positive, low=1.0, high=1000.0, read_only=True),
+    ParamSpec('push_to', [],
+              'Nodes whose icr.* and scale.* parameters are set to the fit (e.g. '
+              'odometry_node, cmd_vel_translator)', check=each(node_name), read_only=True),
+)
+
+PARAMS = TERRAIN_PARAMS + ENCODER_INPUT_PARAMS + CALIBRATION_PARAMS
+
+
+def validate(values: Mapping[str, Any]) -> None:
+    """
+    Check the node's parameters as a whole.
+
+    Raises
+    ------
+    ValueError
+        For an invalid kinematic model, encoder setup, or no deadman at all.
+
+    """
+    icr_from_values(values)
+    check_encoder_values(values)
+    if not values['deadman_topic'] and not values['joy_topic']:
+        raise ValueError('give deadman_topic or joy_topic: the drive needs a deadman')
+
+
+def _seconds(stamp) -> int:
+    return stamp_ns(stamp.sec, stamp.nanosec)
+
+
+class CalibrationDriveNode(Node):
+    """
+    The calibration drive.
+
+    Parameters
+    ----------
+    finisher : callable, optional
+        ``finisher(values)`` called at start with the parameter values; it checks the output
+        paths (raising on a path that may not be written) and returns
+        ``finish(recording, topics, log) -> (status, fitted values or None)``, run in a
+        callback of the node when the protocol is done. None: nothing is written (tests).
+    on_exit : callable, optional
+        ``on_exit(status)`` called, in a callback of the node, when the node is done; the
+        console script raises SystemExit there. Default: only record ``exit_status``.
+    **kwargs
+        Passed to :class:`rclpy.node.Node`.
+
+    """
+
+    def __init__(self, finisher: Callable | None = None,
+                 on_exit: Callable[[int], None] | None = None, **kwargs):
+        super().__init__(NODE_NAME, **kwargs)
+        try:
+            self._start(finisher, on_exit)
+        except BaseException:
+            # Refused parameters or outputs: no half-built node left for the garbage
+            # collector to destroy later, after its context is gone (as cmd_vel_translator).
+            self._zero_sent = True
+            Node.destroy_node(self)
+            raise
+
+    def _start(self, finisher, on_exit) -> None:
+        self.params = ParameterTable(self, PARAMS, validate=validate, on_change=self._apply)
+        self.encoder = None
+        values = self.params.values
+        self._finish = finisher(values) if finisher is not None else None
+        self._on_exit = on_exit
+        self.exit_status: int | None = None
+        icr = icr_from_values(values)
+        self.steps = protocol(values['duration'], values['max_speed'], values['max_yaw_rate'],
+                              values['geofence_radius'])
+        self.supervisor = Supervisor(self.steps, SupervisorConfig(
+            geofence_radius=values['geofence_radius'], max_speed=values['max_speed'],
+            max_yaw_rate=values['max_yaw_rate'], deadman_timeout=values['deadman_timeout'],
+            encoder_timeout=values['encoder_timeout'],
+            reference_timeout=values['reference_timeout'], auto_start=values['auto_start'],
+            **(IMU_FENCE if values['reference'] == 'imu' else {})))
+        self._reference = values['reference']
+        self._fence = FenceOdometry(icr.scale_left, icr.scale_right)
+        self._radius = values['sprocket_radius']
+        # Every configured deadman must be held (with both a topic and a button: both).
+        self._deadmen = {source: (False, None) for source, topic in
+                         (('topic', values['deadman_topic']), ('joy', values['joy_topic']))
+                         if topic}
+        self._encoder_t = self._reference_t = None
+        self._still = False
+        self._pose = None
+        self._travel = [0.0, 0.0]
+        self._rows = {'encoder': [], 'pose': [], 'imu': [], 'cmd': []}
+        self._phase = 'drive'         # drive -> fitting -> pushing -> done
+        self._result = None
+        self._pending_push = {}
+        self._push_deadline = None
+        self._last_status_ns = None
+        self._last_state = None
+        self._zero_sent = False
+        self._lock = threading.Lock()
+
+        reliable = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
+        self._cmd_pub = self.create_publisher(Twist, 'cmd_vel', reliable)
+        self._status_pub = self.create_publisher(String, '~/status', reliable)
+        self.encoder = EncoderInput(self, values, self._on_step)
+        self._inputs = []
+        if self._reference == 'pose':
+            self._inputs.append(InputTopic(self, POSE_TYPES[values['pose_type']],
+                                           values['pose_topic'], self._on_pose))
+        else:
+            self._inputs.append(InputTopic(self, Imu, values['imu_topic'], self._on_imu))
+        if values['deadman_topic']:
+            self._inputs.append(InputTopic(self, Bool, values['deadman_topic'],
+                                           self._on_deadman, 10))
+        if values['joy_topic']:
+            self._inputs.append(InputTopic(self, Joy, values['joy_topic'], self._on_joy, 10))
+        self._check_timer = steady_timer(self, CHECK_PERIOD, self._check_inputs)
+        self.create_service(Trigger, '~/start', self._service(self.supervisor.start))
+        self.create_service(Trigger, '~/pause', self._service(self.supervisor.pause))
+        self.create_service(Trigger, '~/stop', self._service(self.supervisor.stop))
+        self._timer = self.create_timer(1.0 / values['rate'], self._on_timer)
+        deadman = (f'{self._inputs[1].topic_name}' if values['deadman_topic'] else '') + (
+            f' {self._inputs[-1].topic_name} button {values["deadman_button"]}'
+            if values['joy_topic'] else '')
+        source = self._inputs[0].topic_name
+        self.get_logger().info(
+            f'calibration drive: {len(self.steps)} steps, {total_duration(self.steps):.0f} s '
+            f'of motion, geofence {values["geofence_radius"]:g} m, caps '
+            f'{values["max_speed"]:g} m/s and {values["max_yaw_rate"]:g} rad/s; reference '
+            f'{self._reference} on {source}; {self.encoder.describe()}; deadman '
+            f'{deadman.strip()}; '
+            + ('starts when the deadman is held' if values['auto_start']
+               else 'call ~/start to begin'))
+
+    def _apply(self, values: Mapping[str, Any]) -> None:
+        """Take runtime changes of the terrain and encoder values into use (the rest is fixed)."""
+        icr = icr_from_values(values)
+        self._fence.scales = (icr.scale_left, icr.scale_right)
+        self._radius = values['sprocket_radius']
+        if self.encoder is not None:
+            self.encoder.configure(values)
+
+    # --- inputs -------------------------------------------------------------------------
+
+    def _now(self) -> float:
+        return self.get_clock().now().nanoseconds * 1e-9
+
+    def _check_inputs(self) -> None:
+        for topic in self._inputs:
+            topic.check()
+
+    def _on_step(self, stamp_s: float, d_left: float, d_right: float, dt: float) -> None:
+        self._encoder_t = self._now()
+        self._travel[0] += d_left
+        self._travel[1] += d_right
+        self._rows['encoder'].append((_seconds(self.encoder.stamp), *self._travel))
+        self._still = dt > 0.0 and max(abs(d_left), abs(d_right)) <= STILL_SPEED * dt
+        if self._reference == 'imu':
+            self._fence.add_travel(d_left, d_right)
+            self._pose = self._fence.pose
+
+    def _on_pose(self, msg) -> None:
+        pose = msg.pose if isinstance(msg, PoseStamped) else msg.pose.pose
+        q = pose.orientation
+        values = (pose.position.x, pose.position.y, yaw_from_quaternion(q.x, q.y, q.z, q.w))
+        t = _seconds(msg.header.stamp)
+        if t == 0 or not all(map(math.isfinite, values)):
+            self.get_logger().warning('pose without a stamp or not finite: skipped',
+                                      throttle_duration_sec=WARN_PERIOD)
+            return
+        self._reference_t = self._now()
+        self._pose = values
+        self._rows['pose'].append((t, *values))
+
+    def _on_imu(self, msg) -> None:
+        t = _seconds(msg.header.stamp)
+        rate = msg.angular_velocity.z
+        if t == 0 or not math.isfinite(rate):
+            self.get_logger().warning('imu sample without a stamp or not finite: skipped',
+                                      throttle_duration_sec=WARN_PERIOD)
+            return
+        q = msg.orientation
+        self._reference_t = self._now()
+        self._fence.add_gyro(t * 1e-9, rate, self._still)
+        self._pose = self._fence.pose
+        self._rows['imu'].append((t, rate, q.x, q.y, q.z, q.w,
+                                  float(msg.orientation_covariance[0])))
+
+    def _on_deadman(self, msg) -> None:
+        self._set_deadman('topic', bool(msg.data))
+
+    def _on_joy(self, msg) -> None:
+        index = self.params['deadman_button']
+        self._set_deadman('joy', index < len(msg.buttons) and msg.buttons[index] == 1)
+
+    def _set_deadman(self, source: str, held: bool) -> None:
+        was = self._deadman_state()[0]
+        self._deadmen[source] = (held, self._now())
+        if was and not held:
+            self._on_timer()   # a release is acted on now, not at the next tick
+
+    def _deadman_state(self):
+        """Return (held, when): every configured deadman held, and the oldest message time."""
+        states = list(self._deadmen.values())
+        if any(when is None for _, when in states):
+            return False, None
+        return all(held for held, _ in states), min(when for _, when in states)
+
+    def _inputs_now(self) -> Inputs:
+        held, when = self._deadman_state()
+        not_ready = '' if self._reference != 'imu' or self._fence.settled else (
+            f'measuring the gyro bias: the vehicle must stand still for '
+            f'{self._fence.settle:g} s first')
+        return Inputs(self._now(), held, when, self._encoder_t, self._reference_t, self._pose,
+                      not_ready)
+
+    def _service(self, call):
+        def handle(request, response):
+            with self._lock:
+                response.success, response.message = call(self._inputs_now())
+                self.get_logger().info(f'{call.__name__}: {response.message}')
+                self._tick()
+            return response
+        return handle
+
+    # --- the drive ----------------------------------------------------------------------
+
+    def _on_timer(self) -> None:
+        with self._lock:
+            self._tick()
+
+    def _tick(self) -> None:
+        out = self.supervisor.update(self._inputs_now())
+        self._publish(out.v, out.w)
+        if out.state != self._last_state:
+            self._last_state = out.state
+            text = out.state + (f': {out.reason}' if out.reason else '')
+            if out.state in ('paused', 'stopped', 'returning'):
+                self.get_logger().warning(text)
+            else:
+                self.get_logger().info(text)
+            self._publish_status(out)
+        else:
+            now = self.get_clock().now().nanoseconds
+            if self._last_status_ns is None or now - self._last_status_ns >= 1e9 / STATUS_RATE \
+                    or now < self._last_status_ns:
+                self._publish_status(out)
+        if out.state == 'finished':
+            self._after_drive()
+
+    def _publish(self, v: float, w: float) -> None:
+        msg = Twist()
+        msg.linear.x, msg.angular.z = float(v), float(w)
+        self._cmd_pub.publish(msg)
+        self._rows['cmd'].append((self.get_clock().now().nanoseconds, msg.linear.x,
+                                  msg.angular.z))
+
+    def status(self) -> dict:
+        """Return the status as published on ``~/status``."""
+        out = self.supervisor.last
+        step = self.steps[out.step] if out.step < len(self.steps) else None
+        held, _ = self._deadman_state()
+        return {
+            'state': out.state, 'reason': out.reason, 'phase': self._phase,
+            'step': out.step, 'steps': out.steps, 'step_kind': step.kind if step else None,
+            'step_elapsed': round(out.step_elapsed, 3),
+            'step_duration': step.duration if step else None,
+            'command': [out.v, out.w], 'deadman': held,
+            'distance': None if out.distance is None else round(out.distance, 3),
+            'geofence_radius': self.supervisor.config.geofence_radius,
+            'recorded': {k: len(v) for k, v in self._rows.items()},
+            'exit_status': self.exit_status,
+        }
+
+    def _publish_status(self, out=None) -> None:
+        self._last_status_ns = self.get_clock().now().nanoseconds
+        self._status_pub.publish(String(data=json.dumps(self.status())))
+
+    # --- the end ------------------------------------------------------------------------
+
+    def recording(self) -> CalibrationRecording:
+        """Return what was recorded so far, as arrays."""
+        return CalibrationRecording.of(**self._rows)
+
+    def topics(self) -> dict:
+        """Return the resolved topic names of the recording (for the bag)."""
+        return {'joint_names': [self.params['left_joints'][0], self.params['right_joints'][0]],
+                'joint_states': f'{self.get_namespace().rstrip("/")}/joint_states',
+                'reference': self._inputs[0].topic_name,
+                'cmd_vel': self._cmd_pub.topic_name, 'reference_kind': self._reference,
+                'steps': [{'kind': s.kind, 'v': s.v, 'w': s.w, 'duration': s.duration}
+                          for s in self.steps],
+                'events': [{'t': t, 'state': state, 'reason': reason}
+                           for t, state, reason in self.supervisor.events]}
+
+    def _after_drive(self) -> None:
+        if self._phase == 'drive':
+            self._phase = 'fitting'
+            self._publish(0.0, 0.0)
+            self.stop_now()
+            self._publish_status()
+            if self._finish is None:
+                self._result = (0, None)
+            else:
+                self._result = self._run_finish(self.recording(), self.topics())
+        if self._phase == 'fitting':
+            status, fitted = self._result
+            if status == 0 and fitted and self.params['push_to']:
+                self._phase = 'pushing'
+                self._push(fitted)
+            else:
+                self._done(status)
+        elif self._phase == 'pushing':
+            late = self.get_clock().now().nanoseconds > self._push_deadline
+            if not self._pending_push or late:
+                for target in self._pending_push:
+                    self.get_logger().warning(f'{target} did not answer the push in time')
+                self._done(0)
+
+    def _run_finish(self, recording, topics):
+        """
+        Write the results, in this callback: a signal meanwhile ends the fit cleanly.
+
+        The fit takes seconds; the command stays zero (cmd_vel_translator's timeout zeroes
+        the tracks too). Run here rather than in a thread, a SIGINT or SIGTERM interrupts the
+        fit as it would identify_icr's, which then removes what it staged.
+        """
+        self.get_logger().info(
+            f'protocol done: fitting {len(recording.encoder_t)} encoder steps and '
+            f'{len(recording.pose_t) + len(recording.imu_t)} reference samples')
+        try:
+            status, fitted = self._finish(recording, topics, self.get_logger())
+        except (ValueError, OSError) as err:   # the package's errors, a full disk
+            self.get_logger().error(f'writing the results failed: {err}')
+            return 2, None
+        if status in INTERRUPTED:
+            # A signal during the fit: a node ends cleanly on a signal (exit 0).
+            self.get_logger().warning('interrupted while fitting: nothing written')
+            raise KeyboardInterrupt
+        return status, fitted
+
+    def _push(self, fitted: Mapping[str, float]) -> None:
+        request = SetParametersAtomically.Request()
+        for name in ('icr.y_left', 'icr.y_right', 'icr.x', 'scale.left', 'scale.right'):
+            param = ParameterMsg(name=name)
+            param.value.type = ParameterType.PARAMETER_DOUBLE
+            param.value.double_value = float(fitted[name])
+            request.parameters.append(param)
+        self._push_deadline = self.get_clock().now().nanoseconds + int(PUSH_TIMEOUT * 1e9)
+        for target in self.params['push_to']:
+            client = self.create_client(
+                SetParametersAtomically, f'/{target.strip("/")}/set_parameters_atomically')
+            if not client.wait_for_service(timeout_sec=1.0):
+                self.get_logger().warning(f'cannot push the fit: {client.srv_name} is not '
+                                          'available')
+                continue
+            self._pending_push[target] = client
+            future = client.call_async(request)
+            future.add_done_callback(lambda f, target=target: self._pushed(target, f))
+
+    def _pushed(self, target, future) -> None:
+        self._pending_push.pop(target, None)
+        result = future.result()
+        if result is None or not result.result.successful:
+            reason = 'no answer' if result is None else result.result.reason
+            self.get_logger().warning(f'{target} refused the fitted values: {reason}')
+        else:
+            self.get_logger().info(f'pushed the fitted icr.* and scale.* to {target}')
+
+    def _done(self, status: int) -> None:
+        if self._phase == 'done':
+            return
+        self._phase = 'done'
+        self.exit_status = status
+        self._publish_status()
+        self.get_logger().info(f'calibration drive done (exit status {status})')
+        if self._on_exit is not None:
+            self._on_exit(status)
+
+    def stop_now(self) -> None:
+        """Publish a zero command and wait (briefly) until the subscribers have it."""
+        if self._zero_sent or not self.context.ok():
+            return
+        self._zero_sent = True
+        try:
+            self._cmd_pub.publish(Twist())
+            self._cmd_pub.wait_for_all_acked(Duration(seconds=0.5))
+        except Exception:  # noqa: BLE001 -- a context shut down under us: nothing to send
+            pass
+
+    def destroy_node(self):
+        """Publish a zero command, then destroy the node."""
+        self.stop_now()
+        return super().destroy_node()

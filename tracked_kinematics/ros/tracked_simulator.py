@@ -1,0 +1,588 @@
+"""
+tracked_simulator: the package's simulator as a live robot, in simulated time.
+
+The chain of ``simulate_bag`` (drive train, encoder scales, stationary track-soil dynamics,
+exact arc integration; docs/simulator.md) stepped at a fixed ``rate`` as the track setpoints
+come in (:class:`~tracked_kinematics.core.sim.live.LiveSimulator`), with the sensors of a
+real robot. The maths is the core's; this node keeps time, converts messages and publishes.
+
+Topics
+------
+``left_track/setpoint``, ``right_track/setpoint`` (in)
+    std_msgs/Float64, nominal track speed in m/s, as cmd_vel_translator publishes them. A
+    setpoint older than ``setpoint_timeout`` (in both simulated and wall time) is zero; a
+    non-finite one is ignored and a huge one clamped, with a throttled warning.
+``/clock`` (out, once per wake-up of the stepping thread, at most ``clock_rate`` per second)
+    rosgraph_msgs/Clock: simulated time, from 0, advancing ``real_time_factor`` times as fast
+    as the wall clock. The other nodes run with ``use_sim_time:=true``.
+``joint_states`` (out, at ``encoder_rate``)
+    sensor_msgs/JointState of ``left_joint`` and ``right_joint``: sprocket angles (ticks,
+    noise, optional wrap) and speeds, rad and rad/s.
+``imu/data`` (out, at ``gyro_rate``)
+    sensor_msgs/Imu with the yaw rate of a gyro (bias, noise, latency); no orientation and no
+    acceleration (their covariances' first element is -1).
+``ground_truth/odom`` (out, at ``ground_truth_rate``)
+    nav_msgs/Odometry ``odom_frame`` -> ``base_frame``: the true pose and body twist.
+``lidar/pose`` (out, at ``lidar_pose_rate``, with ``lidar_pose:=true``)
+    geometry_msgs/PoseStamped: delayed, noisy, with occasional jumps, as lidar ICP gives.
+``~/terrain`` (out, latched)
+    std_msgs/String: the terrain the dynamics currently use (a change of ``terrain`` at
+    runtime is applied between two steps, then announced here).
+
+Time
+----
+Stepping runs in a thread of its own, paced on the wall (steady) clock, not in the
+executor: simulated time is ``real_time_factor`` times the wall time since start, and each
+wake-up takes the steps that are due, then publishes /clock at the last one's time and then
+what the sensors sampled on the way (no message is stamped ahead of the clock). When the
+machine cannot keep up for more than :data:`MAX_LAG` of wall time, the simulation drops the
+backlog and runs on from where it is (it slows down, as Gazebo does, instead of bursting),
+so the achieved factor can be lower than the one asked; the node says so in a throttled
+warning. A new ``terrain`` is tabulated in a thread of its own, so that neither the steps
+nor the setpoints wait for it. Given the seed and the setpoints in force at each step, a
+run is deterministic.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+import math
+import threading
+import time
+from typing import Any
+
+from geometry_msgs.msg import PoseStamped
+from nav_msgs.msg import Odometry
+import numpy as np
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import Imu, JointState
+from std_msgs.msg import Float64, String
+from tracked_kinematics.core.command import TRACK_SPEED_ENVELOPE
+from tracked_kinematics.core.errors import InvalidParameters
+from tracked_kinematics.core.integration import quaternion_from_yaw, seconds_to_stamp
+from tracked_kinematics.core.sim.live import LiveSimulator, SetpointHold
+from tracked_kinematics.core.sim.live_sensors import (EncoderReadout, PoseModel, PoseStream,
+                                                      Schedule)
+from tracked_kinematics.core.sim.sensors import GyroModel, GyroStream
+from tracked_kinematics.core.sim.simulation import TwistTable
+from tracked_kinematics.core.sim.terrains import Terrain, TERRAINS
+from tracked_kinematics.params import (described_as, finite, frame_id, non_negative, one_of,
+                                       ParamSpec, positive)
+from tracked_kinematics.params.vehicles import load_vehicle, VehicleFile
+from tracked_kinematics.ros.main import run
+from tracked_kinematics.ros.parameters import ParameterTable
+
+NODE_NAME = 'tracked_simulator'
+
+MAX_LAG = 0.25  # s of wall time behind schedule after which the backlog is dropped
+WARN_PERIOD = 1.0  # s, throttle of the warnings on recurring bad input
+LAG_WARN_PERIOD = 10.0  # s, throttle of the "cannot keep up" warning
+FAILURE_LIMIT = 1.0  # s of failing steps after which the node stops
+
+
+@described_as("a shipped terrain name, or the vehicle file's own friction.terrain")
+def _terrain_name(value) -> str | None:
+    if not isinstance(value, str) or not value:
+        return f'must be a terrain name, got {value!r}'
+    return None
+
+
+@described_as("-1 (the vehicle file's) or >= 0")
+def _vehicle_or_non_negative(value) -> str | None:
+    problem = finite(value)
+    if problem or value == -1.0 or value >= 0.0:
+        return problem
+    return f"must be -1 (the vehicle file's value) or >= 0, got {value!r}"
+
+
+@described_as('a shipped vehicle name or a path to a vehicle file')
+def _vehicle_name(value) -> str | None:
+    if not isinstance(value, str) or not value:
+        return f'must be a vehicle name or path, got {value!r}'
+    return None
+
+
+SIMULATOR_PARAMS: tuple[ParamSpec, ...] = (
+    ParamSpec('vehicle', 'auriga_alpha',
+              'Vehicle: a shipped name (config/vehicles/NAME.yaml: auriga_alpha, packbot) or '
+              'the path of a vehicle file', check=_vehicle_name, read_only=True),
+    ParamSpec('terrain', 'hard_floor',
+              'Terrain (the friction under the tracks): ' + ', '.join(TERRAINS)
+              + ", or the vehicle file's own friction.terrain (its coefficients); can be "
+              'changed at runtime', check=_terrain_name),
+    ParamSpec('real_time_factor', 1.0,
+              'Simulated seconds per wall-clock second (> 1: faster than real time); can be '
+              'changed at runtime', '', positive, low=0.01, high=100.0),
+    ParamSpec('seed', 0, 'Seed of every random source (encoder phase, noise, gyro, lidar '
+              'jumps): a run is reproducible from it and the setpoints', '', non_negative,
+              low=0, high=2**31 - 1, read_only=True),
+    ParamSpec('rate', 100.0, 'Rate of the simulation steps, in simulated time', 'Hz',
+              positive, low=10.0, high=2000.0, read_only=True),
+    ParamSpec('clock_rate', 200.0,
+              'Largest rate of /clock, in wall time: the steps due are taken together, then '
+              '/clock is published once (every step when the steps are slower)', 'Hz',
+              positive, low=1.0, high=10000.0, read_only=True),
+    ParamSpec('setpoint_timeout', 0.5,
+              'Age (in simulated and in wall time, whichever ends later) beyond which a '
+              'track setpoint counts as zero; 0 = no timeout', 's', non_negative, low=0.0,
+              high=60.0),
+    ParamSpec('left_joint', 'left_sprocket_joint', 'Joint name of the left sprocket',
+              check=frame_id, read_only=True),
+    ParamSpec('right_joint', 'right_sprocket_joint', 'Joint name of the right sprocket',
+              check=frame_id, read_only=True),
+    ParamSpec('encoder_rate', 50.0, 'Rate of joint_states (sampled at the simulation steps)',
+              'Hz', positive, low=1.0, high=2000.0, read_only=True),
+    ParamSpec('encoder_position_noise', -1.0,
+              "White noise on the reported joint positions; -1 = the vehicle file's "
+              'encoders.position_noise', 'rad', _vehicle_or_non_negative, low=-1.0, high=10.0,
+              read_only=True),
+    ParamSpec('encoder_velocity_noise', -1.0,
+              "White noise on the reported joint velocities; -1 = the vehicle file's "
+              'encoders.velocity_noise', 'rad/s', _vehicle_or_non_negative, low=-1.0,
+              high=100.0, read_only=True),
+    ParamSpec('encoder_ticks_per_revolution', -1.0,
+              'Encoder ticks per sprocket turn (0: no quantisation); -1 = the vehicle '
+              "file's encoders.ticks_per_revolution", '', _vehicle_or_non_negative,
+              low=-1.0, high=1e9, read_only=True),
+    ParamSpec('encoder_wrap', False,
+              'Report joint positions wrapped to [-pi, pi) (as some motor drivers do)',
+              read_only=True),
+    ParamSpec('gyro_rate', 100.0, 'Rate of imu/data', 'Hz', positive, low=1.0, high=2000.0,
+              read_only=True),
+    ParamSpec('gyro_bias', 0.005,
+              "Bias of the gyro's yaw rate at the start (simulate_bag --imu-bias's default)",
+              'rad/s', finite, low=-1.0, high=1.0, read_only=True),
+    ParamSpec('gyro_noise', 0.002, 'White noise of one gyro reading', 'rad/s', non_negative,
+              low=0.0, high=1.0, read_only=True),
+    ParamSpec('gyro_bias_walk', 0.0, 'Random walk of the gyro bias', 'rad/s/sqrt(s)',
+              non_negative, low=0.0, high=1.0, read_only=True),
+    ParamSpec('gyro_latency', 0.0,
+              'A gyro reading stamped t shows the yaw rate of t - gyro_latency (negative: '
+              'stamped early, as on the Warthog logs)', 's', finite, low=-1.0, high=1.0,
+              read_only=True),
+    ParamSpec('imu_frame', 'base_link', 'header.frame_id of imu/data', check=frame_id,
+              read_only=True),
+    ParamSpec('ground_truth_rate', 50.0, 'Rate of ground_truth/odom', 'Hz', positive,
+              low=1.0, high=2000.0, read_only=True),
+    ParamSpec('odom_frame', 'odom', 'Frame of the true pose (ground_truth/odom)',
+              check=frame_id, read_only=True),
+    ParamSpec('base_frame', 'base_link', 'Child frame of ground_truth/odom', check=frame_id,
+              read_only=True),
+    ParamSpec('lidar_pose', False,
+              'Publish lidar/pose: a delayed, noisy, jumpy pose as lidar ICP gives',
+              read_only=True),
+    ParamSpec('lidar_pose_rate', 10.0, 'Rate of lidar/pose', 'Hz', positive, low=0.1,
+              high=200.0, read_only=True),
+    ParamSpec('lidar_pose_delay', 0.1,
+              'Processing time: the pose measured at t is published at t + delay', 's',
+              non_negative, low=0.0, high=5.0, read_only=True),
+    ParamSpec('lidar_pose_stamp', 'measurement',
+              'Stamp of lidar/pose: measurement (the scan time) or receipt (the publication '
+              "time, as sources stamped on receipt; see icr_estimator's pose_delay)",
+              check=one_of(('measurement', 'receipt')), read_only=True),
+    ParamSpec('lidar_pose_position_noise', 0.01, 'White noise on x and y of lidar/pose', 'm',
+              non_negative, low=0.0, high=10.0, read_only=True),
+    ParamSpec('lidar_pose_yaw_noise', 0.005, 'White noise on the heading of lidar/pose',
+              'rad', non_negative, low=0.0, high=3.0, read_only=True),
+    ParamSpec('lidar_pose_jump_rate', 0.02,
+              'Mean number of jumps (mis-registrations) per second; 0 = none', '1/s',
+              non_negative, low=0.0, high=10.0, read_only=True),
+    ParamSpec('lidar_pose_jump_size', 0.2,
+              'Position shift of a jump (random direction; it stays until the next)', 'm',
+              non_negative, low=0.0, high=100.0, read_only=True),
+    ParamSpec('lidar_pose_jump_yaw', 0.02, 'Standard deviation of the heading shift of a jump',
+              'rad', non_negative, low=0.0, high=3.0, read_only=True),
+    ParamSpec('lidar_pose_frame', 'odom', 'header.frame_id of lidar/pose', check=frame_id,
+              read_only=True),
+)
+
+
+class Terrains:
+    """
+    The terrains of one vehicle and their dynamics tables (built once, on first use).
+
+    Parameters
+    ----------
+    spec : VehicleFile
+        The loaded vehicle; its ``friction.terrain`` names its own coefficients.
+
+    """
+
+    def __init__(self, spec: VehicleFile):
+        self.spec = spec
+        vehicle = spec.robot.vehicle
+        own = Terrain(spec.terrain, vehicle.mu_x, vehicle.mu_y,
+                      f'the friction of the vehicle file {spec.path}')
+        self.known = {**TERRAINS, own.name: own}
+        self._tables: dict[str, TwistTable] = {}
+
+    def check(self, name: str) -> None:
+        """Raise ValueError naming the known terrains when ``name`` is not one."""
+        if name not in self.known:
+            raise ValueError(f'terrain {name!r} is not known (one of: '
+                             f'{", ".join(sorted(self.known))})')
+
+    def table(self, name: str) -> TwistTable:
+        """Return the dynamics of the vehicle on terrain ``name`` (cached)."""
+        self.check(name)
+        if name not in self._tables:
+            vehicle = self.known[name].apply(self.spec.robot.vehicle)
+            self._tables[name] = TwistTable(vehicle)
+        return self._tables[name]
+
+
+def _stamp(msg_stamp, t: float) -> None:
+    msg_stamp.sec, msg_stamp.nanosec = seconds_to_stamp(t)
+
+
+class TrackedSimulator(Node):
+    """
+    Step the simulated vehicle at a fixed rate in simulated time; publish its sensors.
+
+    Parameters
+    ----------
+    **kwargs
+        Forwarded to :class:`rclpy.node.Node` (``context``, ``parameter_overrides``, ...).
+
+    Attributes
+    ----------
+    failure : Exception or None
+        Why the stepping thread gave up and stopped the node, if it did.
+
+    Raises
+    ------
+    tracked_kinematics.ros.parameters.ParameterError
+        When the parameters given at start are invalid (an unknown vehicle or terrain too).
+
+    """
+
+    def __init__(self, **kwargs):
+        super().__init__(NODE_NAME, **kwargs)
+        try:
+            self._start()
+        except BaseException:
+            if hasattr(self, '_thread'):
+                self._request_stop()
+                self._thread.join(5.0)
+            Node.destroy_node(self)
+            raise
+
+    # Start ----------------------------------------------------------------------------------
+
+    def _validate(self, values: Mapping[str, Any]) -> None:
+        """Check the vehicle (loaded once: it is read-only) and the terrain name."""
+        if getattr(self, '_terrains', None) is None:
+            try:
+                spec = load_vehicle(values['vehicle'])
+            except (FileNotFoundError, InvalidParameters) as err:
+                raise ValueError(f'vehicle: {err}') from None
+            self._terrains = Terrains(spec)
+        self._terrains.check(values['terrain'])
+
+    def _start(self) -> None:
+        self._terrains = None
+        self._params = ParameterTable(self, SIMULATOR_PARAMS, validate=self._validate,
+                                      on_change=self._on_change)
+        values = self._params.values
+        spec = self._terrains.spec
+        robot = spec.robot
+        self._lock = threading.Lock()
+        self._terrain = self._wanted_terrain = values['terrain']
+        self._builders: list[threading.Thread] = []
+        self._dt = 1.0 / values['rate']
+        self._sim = LiveSimulator(robot, self._dt, self._terrains.table(self._terrain))
+        timeout = values['setpoint_timeout'] or math.inf
+        self._holds = (SetpointHold(timeout, TRACK_SPEED_ENVELOPE),
+                       SetpointHold(timeout, TRACK_SPEED_ENVELOPE))
+        self.failure: Exception | None = None
+
+        # Random sources: one stream per sensor, so that switching one on or off leaves the
+        # others' noise as it was.
+        enc_rng, gyro_rng, lidar_rng = (np.random.default_rng(s) for s in
+                                        np.random.SeedSequence(values['seed']).spawn(3))
+        enc = robot.encoders
+
+        def chosen(name, own):
+            return own if values[name] == -1.0 else values[name]
+
+        self._encoders = EncoderReadout(
+            enc.sprocket_radius, chosen('encoder_ticks_per_revolution', enc.ticks_per_revolution),
+            chosen('encoder_position_noise', enc.position_noise),
+            chosen('encoder_velocity_noise', enc.velocity_noise), values['encoder_wrap'],
+            enc_rng)
+        self._gyro = GyroStream(GyroModel(
+            rate=values['gyro_rate'], bias=values['gyro_bias'], noise_std=values['gyro_noise'],
+            bias_walk=values['gyro_bias_walk'], latency=values['gyro_latency']), gyro_rng)
+        self._lidar = None
+        if values['lidar_pose']:
+            self._lidar = PoseStream(PoseModel(
+                rate=values['lidar_pose_rate'], delay=values['lidar_pose_delay'],
+                position_noise=values['lidar_pose_position_noise'],
+                yaw_noise=values['lidar_pose_yaw_noise'],
+                jump_rate=values['lidar_pose_jump_rate'],
+                jump_size=values['lidar_pose_jump_size'],
+                jump_yaw=values['lidar_pose_jump_yaw']), lidar_rng)
+        self._lidar_on_receipt = values['lidar_pose_stamp'] == 'receipt'
+        self._encoder_due = Schedule(values['encoder_rate'], self._dt)
+        self._truth_due = Schedule(values['ground_truth_rate'], self._dt)
+
+        # Messages, reused.
+        self._clock_msg = Clock()
+        self._joint_msg = JointState(name=[values['left_joint'], values['right_joint']])
+        self._odom_msg = Odometry()
+        self._odom_msg.header.frame_id = values['odom_frame']
+        self._odom_msg.child_frame_id = values['base_frame']
+        self._imu_msg = Imu()
+        self._imu_msg.header.frame_id = values['imu_frame']
+        self._imu_msg.orientation_covariance[0] = -1.0
+        self._imu_msg.linear_acceleration_covariance[0] = -1.0
+        noise2 = values['gyro_noise'] ** 2
+        for k in (0, 4, 8):
+            self._imu_msg.angular_velocity_covariance[k] = noise2
+        self._pose_msg = PoseStamped()
+        self._pose_msg.header.frame_id = values['lidar_pose_frame']
+
+        self._clock_pub = self.create_publisher(Clock, '/clock', 10)
+        self._joint_pub = self.create_publisher(JointState, 'joint_states', 10)
+        self._imu_pub = self.create_publisher(Imu, 'imu/data', 10)
+        self._odom_pub = self.create_publisher(Odometry, 'ground_truth/odom', 10)
+        self._pose_pub = (self.create_publisher(PoseStamped, 'lidar/pose', 10)
+                          if self._lidar is not None else None)
+        latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                             durability=DurabilityPolicy.TRANSIENT_LOCAL)
+        self._terrain_pub = self.create_publisher(String, '~/terrain', latched)
+        self._terrain_pub.publish(String(data=self._terrain))
+        self.create_subscription(Float64, 'left_track/setpoint',
+                                 lambda msg: self._on_setpoint(0, msg), 10)
+        self.create_subscription(Float64, 'right_track/setpoint',
+                                 lambda msg: self._on_setpoint(1, msg), 10)
+
+        self._rtf = values['real_time_factor']
+        self._clock_period = 1.0 / values['clock_rate']
+        self._stop = threading.Event()
+        self._wake = threading.Event()
+        self.context.on_shutdown(self._request_stop)
+        self._thread = threading.Thread(target=self._loop, name='simulation', daemon=True)
+        self._thread.start()
+
+        vehicle = robot.vehicle
+        self.get_logger().info(
+            f'simulating {spec.name} ({spec.path}) on {self._terrain} (mu_x '
+            f'{self._terrains.known[self._terrain].mu_x:g}, mu_y '
+            f'{self._terrains.known[self._terrain].mu_y:g}): track width '
+            f'{vehicle.track_width:g} m, sprocket radius {enc.sprocket_radius:g} m, up to '
+            f'{vehicle.max_track_speed:g} m/s; {values["rate"]:g} Hz steps at '
+            f'{self._rtf:g}x real time, seed {values["seed"]}'
+            + ('; lidar/pose on' if self._lidar is not None else ''))
+        if self.get_parameter('use_sim_time').value:
+            self.get_logger().warning(
+                'use_sim_time is true, but this node makes the simulated time: it paces its '
+                'steps on the wall clock and publishes /clock itself (give use_sim_time to '
+                'the other nodes only)')
+
+    # Setpoints ------------------------------------------------------------------------------
+
+    def _on_setpoint(self, side: int, msg: Float64) -> None:
+        with self._lock:
+            problem = self._holds[side].take(msg.data, self._sim.t, time.monotonic())
+        # One call site per side: rclpy throttles a warning by where it is logged.
+        if problem and side == 0:
+            self.get_logger().warning(f'left_track/setpoint: {problem}',
+                                      throttle_duration_sec=WARN_PERIOD)
+        elif problem:
+            self.get_logger().warning(f'right_track/setpoint: {problem}',
+                                      throttle_duration_sec=WARN_PERIOD)
+
+    # Stepping -------------------------------------------------------------------------------
+
+    def _request_stop(self) -> None:
+        self._stop.set()
+        self._wake.set()
+
+    def _loop(self) -> None:
+        """Take the steps that are due, then sleep until the next one; until stopped."""
+        wall0, sim0 = time.monotonic(), 0.0
+        failing_since = None
+        while not self._stop.is_set():
+            try:
+                with self._lock:
+                    rtf = self._rtf
+                    if self._rescheduled:
+                        self._rescheduled = False
+                        wall0, sim0 = time.monotonic(), self._sim.t
+                now = time.monotonic()
+                due = int(math.floor((sim0 + (now - wall0) * rtf - self._sim.t) / self._dt
+                                     + 1e-9))
+                lag = due * self._dt / rtf
+                if lag > MAX_LAG:
+                    self.get_logger().warning(
+                        f'cannot keep up with real_time_factor {rtf:g}: {lag:.2f} s behind '
+                        'schedule; running on from here (the simulation slows down)',
+                        throttle_duration_sec=LAG_WARN_PERIOD)
+                    due = max(1, int(MAX_LAG * rtf / self._dt))
+                    wall0, sim0 = now, self._sim.t + due * self._dt
+                if due > 0:
+                    self._steps(due)
+                failing_since = None
+                next_wall = wall0 + (self._sim.t + self._dt - sim0) / rtf
+                wait = max(self._clock_period, next_wall - time.monotonic())
+                if self._wake.wait(wait):
+                    self._wake.clear()
+            except Exception as err:  # noqa: BLE001 -- keep the simulation alive, say why
+                if self._stop.is_set() or not self.context.ok():
+                    break
+                now = time.monotonic()
+                failing_since = now if failing_since is None else failing_since
+                if now - failing_since >= FAILURE_LIMIT:
+                    self._give_up(err)
+                    return
+                self.get_logger().error(f'simulation step failed: {err!r}',
+                                        throttle_duration_sec=WARN_PERIOD)
+                self._wake.wait(0.01)
+
+    _rescheduled = False
+
+    def _steps(self, count: int) -> None:
+        """
+        Take ``count`` steps, then publish /clock and what the sensors sampled.
+
+        /clock goes first, at the last step's time, so that no message is ever stamped
+        ahead of the clock.
+        """
+        pending = []
+        with self._lock:
+            wall = time.monotonic()
+            t0, dt = self._sim.t, self._dt
+            left, right = self._holds
+            commands = [(left.current(t0 + k * dt, wall), right.current(t0 + k * dt, wall))
+                        for k in range(count)]
+            steps = self._sim.step_many(commands)
+        times = steps.t.tolist()
+        for k, t in enumerate(times):
+            if self._encoder_due.due(t):
+                pending.append((self._publish_joints, (t, *self._encoders.read(
+                    steps.travel[k], steps.nominal[k]))))
+            if self._truth_due.due(t):
+                pending.append((self._publish_truth, (steps.state(k),)))
+            if self._lidar is not None:
+                for measured, pose in self._lidar.push(t, steps.pose[k]):
+                    pending.append((self._publish_lidar,
+                                    (t if self._lidar_on_receipt else measured, pose)))
+        stamps, z_rates = self._gyro.push(steps.t - dt, steps.twist[:, 2])
+        _stamp(self._clock_msg.clock, self._sim.t)
+        self._clock_pub.publish(self._clock_msg)
+        for publish, args in pending:
+            publish(*args)
+        for stamp, z_rate in zip(stamps.tolist(), z_rates.tolist()):
+            self._publish_gyro(stamp, z_rate)
+
+    def _publish_joints(self, t: float, position, velocity) -> None:
+        msg = self._joint_msg
+        _stamp(msg.header.stamp, t)
+        msg.position = position.tolist()
+        msg.velocity = velocity.tolist()
+        self._joint_pub.publish(msg)
+
+    def _publish_truth(self, state) -> None:
+        msg = self._odom_msg
+        _stamp(msg.header.stamp, state.t)
+        x, y, theta = state.pose
+        pose = msg.pose.pose
+        pose.position.x, pose.position.y = x, y
+        _, _, pose.orientation.z, pose.orientation.w = quaternion_from_yaw(theta)
+        twist = msg.twist.twist
+        twist.linear.x, twist.linear.y, twist.angular.z = state.twist
+        self._odom_pub.publish(msg)
+
+    def _publish_gyro(self, stamp: float, z_rate: float) -> None:
+        msg = self._imu_msg
+        _stamp(msg.header.stamp, stamp)
+        msg.angular_velocity.z = z_rate
+        self._imu_pub.publish(msg)
+
+    def _publish_lidar(self, stamp: float, pose) -> None:
+        msg = self._pose_msg
+        _stamp(msg.header.stamp, stamp)
+        msg.pose.position.x, msg.pose.position.y = float(pose[0]), float(pose[1])
+        _, _, msg.pose.orientation.z, msg.pose.orientation.w = quaternion_from_yaw(
+            float(pose[2]))
+        self._pose_pub.publish(msg)
+
+    def _give_up(self, err: Exception) -> None:
+        self.failure = err
+        self.get_logger().fatal(
+            f'the simulation has failed for {FAILURE_LIMIT:g} s (last error: {err!r}): '
+            'stopping the node')
+        try:
+            self.context.try_shutdown()
+        except Exception:  # noqa: BLE001 -- shutting down anyway
+            pass
+
+    # Parameters and shutdown ------------------------------------------------------------------
+
+    def _on_change(self, values: Mapping[str, Any]) -> None:
+        timeout = values['setpoint_timeout'] or math.inf
+        with self._lock:
+            for hold in self._holds:
+                hold.timeout = timeout
+            if values['real_time_factor'] != self._rtf:
+                self._rtf = values['real_time_factor']
+                self._rescheduled = True
+                self._wake.set()
+        terrain = values['terrain']
+        if terrain != self._wanted_terrain:
+            # The new dynamics take a fraction of a second to tabulate: in a thread, so that
+            # neither the steps nor the setpoints wait; the old terrain holds until then.
+            self._wanted_terrain = terrain
+            builder = threading.Thread(target=self._switch_terrain, args=(terrain,),
+                                       name='terrain', daemon=True)
+            self._builders = [b for b in self._builders if b.is_alive()] + [builder]
+            builder.start()
+
+    def _switch_terrain(self, terrain: str) -> None:
+        """Tabulate the dynamics of ``terrain``, then use them from the next step (thread)."""
+        try:
+            table = self._terrains.table(terrain)
+            with self._lock:
+                if terrain != self._wanted_terrain or self._stop.is_set():
+                    return  # superseded by a later change, or shutting down
+                self._terrain = terrain
+                self._sim.set_table(table)
+                t = self._sim.t
+            known = self._terrains.known[terrain]
+            self.get_logger().info(
+                f'terrain {terrain} (mu_x {known.mu_x:g}, mu_y {known.mu_y:g}) from '
+                f't = {t:.3f} s')
+            self._terrain_pub.publish(String(data=terrain))
+        except Exception as err:  # noqa: BLE001 -- the old terrain stays; say why
+            if not self._stop.is_set():
+                self.get_logger().error(f'cannot switch to terrain {terrain}: {err!r}')
+
+    def destroy_node(self):
+        """Stop the stepping thread, then destroy the node."""
+        self._request_stop()
+        for thread in [self._thread, *self._builders]:
+            if thread.is_alive() and thread is not threading.current_thread():
+                thread.join(5.0)
+        super().destroy_node()
+
+
+def main(args=None):
+    """
+    Run the node (console script ``tracked_simulator``).
+
+    Exit status 0 after a signal, 2 when it cannot start (invalid parameters, unknown vehicle
+    or terrain), 1 when the simulation had to give up.
+    """
+    built = []
+
+    def factory():
+        built.append(TrackedSimulator())
+        return built[-1]
+
+    status = run(factory, NODE_NAME, args, SIMULATOR_PARAMS, __doc__)
+    if status == 0 and built and built[0].failure is not None:
+        status = 1
+    raise SystemExit(status)
