@@ -10,8 +10,8 @@ from helpers.ddc_odometry import ddc_from_parameters, run_ddc, run_ours, wheel_s
 import numpy as np
 import pytest
 from tracked_kinematics.offline.cli.convert_diff_drive_params import main
+from tracked_kinematics.offline.ddc import convert, convert_file, DdcError
 from tracked_kinematics.params import flatten, icr_from_values, read_params_file
-from tracked_kinematics.params.ddc import convert, convert_file, DdcError
 import yaml
 
 DATA = Path(__file__).resolve().parents[1] / 'data' / 'ddc'
@@ -513,10 +513,11 @@ def test_console_script(tmp_path):
 def test_values_the_nodes_would_refuse_are_refused(monkeypatch):
     # The converted values are checked with the parameter tables the nodes declare, ranges
     # included: a range on track_width (as a table may add) refuses a 1e-300 m vehicle.
-    from tracked_kinematics.params import ddc, ParamSpec, positive, TERRAIN_PARAMS
+    from tracked_kinematics.offline.ddc import mapping
+    from tracked_kinematics.params import ParamSpec, positive, TERRAIN_PARAMS
     ranged = tuple(ParamSpec(s.name, s.default, s.description, s.unit, s.check, low=0.01)
                    if s.name == 'track_width' else s for s in TERRAIN_PARAMS)
-    monkeypatch.setattr(ddc, 'TERRAIN_PARAMS', ranged)
+    monkeypatch.setattr(mapping, 'TERRAIN_PARAMS', ranged)
     assert positive(1e-300) is None
     with pytest.raises(DdcError, match=r'would not start the nodes: track_width must be >= '):
         convert({**GEOMETRY, 'wheel_separation': 1e-300})

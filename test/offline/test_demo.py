@@ -16,6 +16,8 @@ from tracked_kinematics.core.kinematics import IcrParams
 from tracked_kinematics.core.models import IdealDiffDrive
 from tracked_kinematics.core.odometry import Odometry
 from tracked_kinematics.offline.cli import tracked_kinematics_demo as demo
+from tracked_kinematics.offline.demo_directory import (DemoDirectory, DemoError, Entry, MANIFEST,
+                                                       planned_outputs)
 from tracked_kinematics.params import icr_from_values, read_params_file
 
 BIN = Path(sys.executable).parent
@@ -211,18 +213,18 @@ def test_demo_console_script_twice_in_a_row(tmp_path):
 
 # The output directory and its manifest (no simulation) -----------------------------------
 
-PLANNED = demo.planned_outputs('auriga_alpha', 'hard_floor', ['path1_random'])
+PLANNED = planned_outputs('auriga_alpha', 'hard_floor', ['path1_random'])
 
 
 def fake_run(directory, force=False):
     """Prepare ``directory`` and write every planned output as a run would."""
-    outputs = demo.DemoDirectory(directory, force=force)
+    outputs = DemoDirectory(directory, force=force)
     outputs.prepare(PLANNED)
     for entry in PLANNED:
         path = directory / entry.path
         if entry.kind == 'dir':
             continue
-        outputs.record(demo.Entry(entry.kind, entry.path))
+        outputs.record(Entry(entry.kind, entry.path))
         if entry.kind == 'bag':
             path.mkdir()
             (path / 'metadata.yaml').write_text('m\n')
@@ -240,9 +242,9 @@ def test_a_rerun_removes_only_what_the_manifest_lists(tmp_path):
     user = ['notes.yaml', '.dot.yaml', 'calibration/mine.txt', 'heldout/x.yaml']
     for name in user:
         (out / name).write_text('user\n')
-    demo.DemoDirectory(out).prepare(PLANNED)
+    DemoDirectory(out).prepare(PLANNED)
     left = set(tree(out))
-    assert left == set(user) | {'calibration', 'heldout', demo.MANIFEST}
+    assert left == set(user) | {'calibration', 'heldout', MANIFEST}
     assert all((out / name).read_text() == 'user\n' for name in user)
     fake_run(out)
     assert set(tree(out)) == ours | set(user)
@@ -252,18 +254,18 @@ def test_a_listed_file_the_user_changed_is_theirs(tmp_path, capsys):
     out = tmp_path / 'out'
     fake_run(out)
     (out / 'hard_floor.yaml').write_text('edited by hand, longer than before\n')
-    with pytest.raises(demo.DemoError, match='hard_floor.yaml was changed since the demo wrote '
-                                             'it; use --force'):
-        demo.DemoDirectory(out).prepare(PLANNED)
+    with pytest.raises(DemoError, match='hard_floor.yaml was changed since the demo wrote '
+                                        'it; use --force'):
+        DemoDirectory(out).prepare(PLANNED)
     assert (out / 'hard_floor.yaml').read_text().startswith('edited')
     assert (out / 'identify.png').exists()          # refused before anything was removed
     # With --force it is replaced; an unlisted file in the way likewise.
-    outputs = demo.DemoDirectory(out, force=True)
+    outputs = DemoDirectory(out, force=True)
     outputs.prepare(PLANNED)
     assert (out / 'hard_floor.yaml').read_text().startswith('edited')   # until replaced
     assert not (out / 'identify.png').exists()
     # A failed forced run leaves the user's file it did not get to replace.
-    outputs.record(demo.Entry('file', 'hard_floor.yaml'))
+    outputs.record(Entry('file', 'hard_floor.yaml'))
     outputs.fail()
     assert (out / 'hard_floor.yaml').read_text().startswith('edited')
 
@@ -271,11 +273,11 @@ def test_a_listed_file_the_user_changed_is_theirs(tmp_path, capsys):
 def test_an_unlisted_file_in_the_way_needs_force(tmp_path):
     out = tmp_path / 'out'
     out.mkdir()
-    (out / demo.MANIFEST).write_text('{"entries": []}\n')
+    (out / MANIFEST).write_text('{"entries": []}\n')
     (out / 'heldout.csv').write_text('mine\n')
-    with pytest.raises(demo.DemoError, match='heldout.csv exists; use --force'):
-        demo.DemoDirectory(out).prepare(PLANNED)
-    demo.DemoDirectory(out, force=True).prepare(PLANNED)
+    with pytest.raises(DemoError, match='heldout.csv exists; use --force'):
+        DemoDirectory(out).prepare(PLANNED)
+    DemoDirectory(out, force=True).prepare(PLANNED)
     assert (out / 'heldout.csv').read_text() == 'mine\n'   # replaced only when written
 
 
@@ -291,8 +293,8 @@ def test_the_manifest_never_reaches_outside(tmp_path, entry):
     (tmp_path / 'elsewhere' / 'victim.yaml').write_text('keep\n')
     (out / 'link').symlink_to(tmp_path / 'elsewhere')
     (out / 'b').mkdir()
-    (out / demo.MANIFEST).write_text(json.dumps({'entries': [entry]}))
-    demo.DemoDirectory(out).prepare(PLANNED)
+    (out / MANIFEST).write_text(json.dumps({'entries': [entry]}))
+    DemoDirectory(out).prepare(PLANNED)
     assert (tmp_path / 'outside.yaml').read_text() == 'keep\n'
     assert (tmp_path / 'elsewhere' / 'victim.yaml').read_text() == 'keep\n'
     assert (out / 'link').is_symlink()
@@ -322,8 +324,8 @@ def test_links_and_foreign_files_in_a_demo_directory_are_refused(tmp_path, setup
     setup(out, tmp_path)
     before = tree(out)
     for force in (False, True):
-        with pytest.raises(demo.DemoError, match=pattern):
-            demo.DemoDirectory(out, force=force).prepare(PLANNED)
+        with pytest.raises(DemoError, match=pattern):
+            DemoDirectory(out, force=force).prepare(PLANNED)
     assert tree(out) == before
     assert (tmp_path / 'precious.png').read_text() == 'precious\n'
     assert not (tmp_path / 'nowhere.yaml').exists()
@@ -332,11 +334,11 @@ def test_links_and_foreign_files_in_a_demo_directory_are_refused(tmp_path, setup
 def test_an_older_demos_marker_is_not_a_manifest(tmp_path):
     out = tmp_path / 'out'
     out.mkdir()
-    (out / demo.MANIFEST).write_text('written by tracked_kinematics_demo; reruns replace its '
-                                     'outputs\n')
+    (out / MANIFEST).write_text('written by tracked_kinematics_demo; reruns replace its '
+                                'outputs\n')
     (out / 'hard_floor.yaml').write_text('x\n')
-    with pytest.raises(demo.DemoError, match='older demo that kept no list of its files'):
-        demo.DemoDirectory(out).prepare(PLANNED)
+    with pytest.raises(DemoError, match='older demo that kept no list of its files'):
+        DemoDirectory(out).prepare(PLANNED)
     assert (out / 'hard_floor.yaml').read_text() == 'x\n'
 
 

@@ -19,6 +19,7 @@ from tracked_kinematics.offline.cli import (
     icr_map, identify_drivetrain, identify_icr, plan_trajectory, simulate_bag,
     tracked_kinematics_demo)
 from tracked_kinematics.offline.cli.simulate_bag import truth_path
+from tracked_kinematics.offline.demo_directory import MANIFEST
 
 BIN = os.path.dirname(sys.executable)
 
@@ -217,7 +218,7 @@ def test_dev_null_as_root_stays_a_device(tmp_path):
 def test_demo_output_directory_attacks(tmp_path, capsys, make, pattern):
     marked = tmp_path / 'marked'
     marked.mkdir()
-    (marked / tracked_kinematics_demo.MANIFEST).write_text('{"entries": []}\n')
+    (marked / MANIFEST).write_text('{"entries": []}\n')
     (marked / 'thesis.yaml').write_text('keep\n')
     make(tmp_path / 'out')
     before = listing(tmp_path)

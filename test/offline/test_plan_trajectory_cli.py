@@ -4,9 +4,12 @@ The planner itself and the command line's main path: test/core/plan/test_plannin
 """
 
 import errno
+import math
 from pathlib import Path
+import re
 import subprocess
 import sys
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -15,6 +18,9 @@ from tracked_kinematics.core.drivetrain import DriveTrain
 from tracked_kinematics.core.models import IdealDiffDrive
 from tracked_kinematics.core.plan import Planner
 from tracked_kinematics.offline.cli import plan_trajectory
+from tracked_kinematics.offline.errors import UsageError
+from tracked_kinematics.offline.planning import limits_from
+from tracked_kinematics.params import limits_from_values
 
 BIN = Path(sys.executable).parent
 TERRAIN = Path(__file__).resolve().parents[2] / 'config' / 'auriga_alpha_hard_floor.yaml'
@@ -147,6 +153,53 @@ def test_terrain_file_typos_are_named_and_bad_values_are_one_line(tmp_path, caps
     assert status == 2
     assert err == (f'plan_trajectory: error: {terrain}: track_width must be a number, got '
                    "'abc'\n")
+
+
+DRIVE = SimpleNamespace(drivetrain=DriveTrain(max_accel=2.0, max_speed=1.5))
+
+
+@pytest.mark.parametrize('values, expected', [
+    ({}, {'max_track_speed': 1.5, 'max_track_accel': 2.0, 'max_track_decel': 2.0,
+          'max_linear_velocity': math.inf}),
+    # 0, NaN and inf are no limit, as for cmd_vel_translator (NaN was refused before).
+    ({'max_track_speed': 0.0, 'linear.x.max_velocity': math.nan,
+      'angular.z.max_velocity': math.inf},
+     {'max_track_speed': math.inf, 'max_linear_velocity': math.inf,
+      'max_angular_velocity': math.inf}),
+    # A deceleration of either sign is its magnitude; 0 is the acceleration limit (it was
+    # no limit, and a negative one was refused).
+    ({'linear.x.max_acceleration': 1.0, 'linear.x.max_deceleration': -0.5,
+      'angular.z.max_acceleration': 3.0, 'angular.z.max_deceleration': 0.0},
+     {'max_linear_deceleration': 0.5, 'max_angular_deceleration': 3.0}),
+])
+def test_file_limits_mean_what_they_mean_to_the_translator(values, expected):
+    limits = limits_from(values, DRIVE)
+    assert limits == limits_from_values({'max_track_speed': 1.5, 'max_track_accel': 2.0,
+                                         **values})
+    assert {name: getattr(limits, name) for name in expected} == expected
+
+
+def test_command_line_limits_win_and_a_deceleration_follows_them():
+    limits = limits_from({'max_track_speed': 0.5, 'max_track_accel': 1.0}, DRIVE,
+                         max_track_speed=0.8, max_track_accel=3.0)
+    assert (limits.max_track_speed, limits.max_track_accel) == (0.8, 3.0)
+    assert limits.max_track_decel == 3.0
+
+
+@pytest.mark.parametrize('values, message', [
+    ({'max_track_speed': -1.0}, 'max_track_speed must be >= 0'),
+    ({'max_track_speed': 1e6}, 'max_track_speed must be in [0, '),
+    ({'linear.x.max_acceleration': 'fast'}, 'linear.x.max_acceleration must be a number'),
+])
+def test_limits_the_translator_refuses_are_refused(tmp_path, capsys, values, message):
+    with pytest.raises(UsageError, match=r'^t\.yaml: ' + re.escape(message)):
+        limits_from(values, DRIVE, source='t.yaml')
+    terrain = tmp_path / 't.yaml'
+    name, value = next(iter(values.items()))
+    terrain.write_text(TERRAIN.read_text() + f'    {name}: {value!r}\n')
+    status, _, err = call(['--params', terrain, '--goal', '1', '0', '0', '--horizon', '4'],
+                          capsys)
+    assert status == 2 and err.startswith(f'plan_trajectory: error: {terrain}: {message}'), err
 
 
 def test_a_bug_in_the_planner_is_a_traceback(capsys, monkeypatch):

@@ -230,17 +230,18 @@ def test_a_signal_during_the_imports_ends_the_tool_with_one_line(tmp_path, signu
 
 def test_a_signal_while_a_demo_rerun_clears_the_previous_run_keeps_the_users_files(
         tmp_path, capsys, monkeypatch):
+    from tracked_kinematics.offline import demo_directory as directory
     from tracked_kinematics.offline.cli import tracked_kinematics_demo as demo
     out = tmp_path / 'out'
     args = demo.build_parser().parse_args(['--output', str(out), '--paths', '1'])
 
     def steps(args, stdout, spec, terrain, overrides, outputs, start):
         """Write every planned output as the real steps would (no simulation)."""
-        for entry in demo.planned_outputs(spec.name, terrain, [demo.heldout_name(0)]):
+        for entry in directory.planned_outputs(spec.name, terrain, [demo.heldout_name(0)]):
             path = outputs.directory / entry.path
             if entry.kind == 'dir':
                 continue
-            outputs.record(demo.Entry(entry.kind, entry.path))
+            outputs.record(directory.Entry(entry.kind, entry.path))
             if entry.kind == 'bag':
                 path.mkdir()
                 (path / 'metadata.yaml').write_text('m\n')
@@ -252,20 +253,20 @@ def test_a_signal_while_a_demo_rerun_clears_the_previous_run_keeps_the_users_fil
     assert demo.run(args, None) == 0
     (out / 'notes.txt').write_text('mine\n')
     (out / 'calibration' / 'mine.txt').write_text('mine too\n')
-    real = demo.DemoDirectory._remove
+    real = directory.DemoDirectory._remove
 
     def remove_after_a_signal(self, entries):
         if entries:
             kill_self()
         real(self, entries)
-    monkeypatch.setattr(demo.DemoDirectory, '_remove', remove_after_a_signal)
+    monkeypatch.setattr(directory.DemoDirectory, '_remove', remove_after_a_signal)
     monkeypatch.setattr(demo, '_steps', lambda *a: pytest.fail('the signal did not stop it'))
     assert run_main('tracked_kinematics_demo', demo.run, args) == 143
     assert capsys.readouterr().err == 'tracked_kinematics_demo: error: terminated by SIGTERM\n'
     # The previous outputs are gone, all of them (docs/output-files.md), the user's are not.
     left = sorted(str(p.relative_to(out)) for p in out.rglob('*'))
-    assert left == [demo.MANIFEST, 'calibration', 'calibration/mine.txt', 'notes.txt']
-    assert json.loads((out / demo.MANIFEST).read_text())['entries'] == []
+    assert left == [directory.MANIFEST, 'calibration', 'calibration/mine.txt', 'notes.txt']
+    assert json.loads((out / directory.MANIFEST).read_text())['entries'] == []
     assert (out / 'notes.txt').read_text() == 'mine\n'
 
 

@@ -556,16 +556,22 @@ def test_publishing_that_keeps_failing_stops_the_node(other_context, capfd):
 # Issue 14 items 7 and 13: clean signals, a wrong type on cmd_vel --------------------------
 
 
+def stderr_until(executor, capfd, text):
+    """Spin until ``text`` is on stderr or TIMEOUT passes; return the stderr read meanwhile."""
+    err = ''
+    deadline = time.monotonic() + TIMEOUT
+    while time.monotonic() < deadline and text not in err:
+        executor.spin_once(timeout_sec=0.05)
+        err += capfd.readouterr().err
+    return err
+
+
 def test_wrong_message_type_on_cmd_vel_is_named(graph, executor, other_context, capfd):
     _, probe = graph()
     stranger = Node('string_talker', context=other_context)
     stranger.create_publisher(String, 'cmd_vel', 10)
     # The graph is looked at twice a second; the warning names topic, type and publisher.
-    err = ''
-    deadline = time.monotonic() + TIMEOUT
-    while time.monotonic() < deadline and 'std_msgs/msg/String' not in err:
-        executor.spin_once(timeout_sec=0.05)
-        err += capfd.readouterr().err
+    err = stderr_until(executor, capfd, 'std_msgs/msg/String')
     line = next(line for line in err.splitlines() if 'std_msgs/msg/String' in line)
     assert '/cmd_vel' in line and '/string_talker' in line and 'TwistStamped' in line
     stranger.destroy_node()
@@ -606,11 +612,7 @@ def test_forced_type_warns_about_the_other(graph, executor, other_context, capfd
     rclpy.init(context=third)
     talker = Node('twist_talker', context=third)
     talker.create_publisher(Twist, 'cmd_vel', 10)
-    err = ''
-    deadline = time.monotonic() + TIMEOUT
-    while time.monotonic() < deadline and 'twist_talker' not in err:
-        executor.spin_once(timeout_sec=0.05)
-        err += capfd.readouterr().err
+    err = stderr_until(executor, capfd, 'twist_talker')
     assert 'is geometry_msgs/msg/TwistStamped (cmd_vel_type / use_stamped)' in err
     assert 'their commands are not received' in err
     talker.destroy_node()

@@ -89,6 +89,19 @@ def test_nan_reading_is_skipped_and_travel_across_it_kept(harness):
     assert h.warned('non-finite encoder reading')
 
 
+def test_each_kind_of_bad_input_is_logged_once_per_period(harness):
+    # Throttled per kind: a second non-finite reading within WARN_PERIOD is counted, not
+    # logged again; a bad input of another kind right after it still is.
+    h = harness(sprocket_radius=1.0)
+    h.send(joint_state(1.0, [0.0, 0.0]))
+    h.send(joint_state(1.1, [math.inf, 0.2]))
+    h.send(joint_state(1.2, [0.4, math.nan]))
+    h.send(joint_state(0.5, [0.5, 0.5]))   # time went back
+    assert h.input.counts['non_finite'] == 2 and h.input.counts['time_back'] == 1
+    assert len(h.warned('non-finite encoder reading')) == 1
+    assert len(h.warned('time did not advance')) == 1
+
+
 def test_missing_joints_warn_with_names(harness):
     h = harness()
     h.send(joint_state(1.0, [0.0, 0.0], names=['left_wheel', RIGHT]))

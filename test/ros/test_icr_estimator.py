@@ -208,6 +208,56 @@ def test_bad_parameters_refuse_to_start(ros_context):
                 Parameter(k, value=v) for k, v in {**BASE, **overrides}.items()])
 
 
+# Issue 23: every EstimatorConfig field is a node parameter; a value at start and a changed
+# value at runtime both reach the filter, and a value outside its range is refused.
+AT_START = {'min_coverage': 0.5, 'adaptive_noise': False, 'noise_memory': 50, 'prior_std': 0.2,
+            'prior_time': 12.0, 'fallback': False, 'fallback_span': 5.0,
+            'fallback_margin': 0.3}
+AT_RUNTIME = {'min_coverage': 0.95, 'adaptive_noise': True, 'noise_memory': 400,
+              'prior_std': math.inf, 'prior_time': 2.0, 'fallback': True, 'fallback_span': 60.0,
+              'fallback_margin': 0.0}
+REFUSED = {'min_coverage': 0.0, 'noise_memory': 19, 'prior_std': 0.0, 'prior_time': 0.0,
+           'fallback_span': 0.0, 'fallback_margin': 1.0}
+
+
+def test_every_estimator_setting_is_a_parameter():
+    from dataclasses import fields
+    from tracked_kinematics.core.estimate.config import EstimatorConfig
+    from tracked_kinematics.ros.icr_estimator import ESTIMATOR_PARAMS
+    declared = {spec.name: spec for spec in ESTIMATOR_PARAMS}
+    for field in fields(EstimatorConfig):
+        assert field.name in declared, field.name
+        spec = declared[field.name]
+        assert spec.description and spec.default == field.default
+        assert isinstance(spec.default, bool) or spec.has_range, field.name
+    assert set(AT_START) | set(AT_RUNTIME) | {'pose_delay'} <= declared.keys()
+
+
+def test_estimator_settings_reach_the_filter_at_start_and_at_runtime(ros_context):
+    node = IcrEstimatorNode(context=ros_context, parameter_overrides=[
+        Parameter(k, value=v) for k, v in {**BASE, **AT_START}.items()])
+    try:
+        config = node.estimator.config
+        assert {name: getattr(config, name) for name in AT_START} == AT_START
+        results = node.set_parameters([Parameter(k, value=v) for k, v in AT_RUNTIME.items()])
+        assert all(r.successful for r in results), [r.reason for r in results]
+        config = node.estimator.config
+        assert {name: getattr(config, name) for name in AT_RUNTIME} == AT_RUNTIME
+        for name, value in REFUSED.items():
+            result = node.set_parameters([Parameter(name, value=value)])[0]
+            assert not result.successful, name
+            assert getattr(node.estimator.config, name) == AT_RUNTIME[name]
+    finally:
+        node.destroy_node()
+
+
+@pytest.mark.parametrize('name', sorted(REFUSED))
+def test_an_estimator_setting_out_of_range_refuses_to_start(ros_context, name):
+    with pytest.raises(ParameterError, match=name):
+        IcrEstimatorNode(context=ros_context, parameter_overrides=[
+            Parameter(k, value=v) for k, v in {**BASE, name: REFUSED[name]}.items()])
+
+
 def test_pose_delay_reaches_the_filter(ros_context):
     # Issue 16: the ground-truth delay identify_icr finds applies to the node's pose stream.
     node = IcrEstimatorNode(context=ros_context, parameter_overrides=[

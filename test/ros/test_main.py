@@ -11,7 +11,7 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from tracked_kinematics.params import ParamSpec, positive
 from tracked_kinematics.ros.main import params_file_keys, run, StartupError, unknown_parameters
-from tracked_kinematics.ros.parameters import ParameterTable
+from tracked_kinematics.ros.parameters import ParameterError, ParameterTable
 
 SPECS = (ParamSpec('rate', 50.0, 'Publish rate', 'Hz', positive, low=0.1, high=1000.0),
          ParamSpec('count', 3, 'A count', low=1, high=10),
@@ -116,19 +116,64 @@ def test_node_help_does_not_start_ros(tmp_path, name):
     assert script.output.startswith(f'usage: ros2 run tracked_kinematics {name}')
 
 
+def odometry_node_with_typo(tmp_path, vehicle):
+    """Start odometry_node with a params file of ``vehicle`` lines and ``track_widht``."""
+    params = tmp_path / 'p.yaml'
+    params.write_text('/**:\n  ros__parameters:\n' + ''.join(f'    {line}\n' for line in vehicle)
+                      + '    track_widht: 0.5\n')
+    return ConsoleScript('odometry_node', '--ros-args', '--params-file', params,
+                         tmp_path=tmp_path)
+
+
 @pytest.mark.ros
 def test_typo_in_params_file_is_named(tmp_path):
-    params = tmp_path / 'p.yaml'
-    params.write_text('/**:\n  ros__parameters:\n    track_width: 0.42\n'
-                      '    sprocket_radius: 0.1\n    track_widht: 0.5\n')
-    with ConsoleScript('odometry_node', '--ros-args', '--params-file', params,
-                       tmp_path=tmp_path) as script:
+    with odometry_node_with_typo(tmp_path, ['track_width: 0.42', 'sprocket_radius: 0.1']) \
+            as script:
         deadline = time.monotonic() + 30
         while 'track_widht' not in script.output and time.monotonic() < deadline:
             time.sleep(0.05)
         assert script.stop() == 0
     assert "unknown parameter 'track_widht' ignored (did you mean 'track_width'?)" \
         in script.output
+
+
+REQUIRED = (ParamSpec('track_width', 0.42, 'Track width', 'm', positive, required=True),
+            ParamSpec('rate', 50.0, 'Publish rate', 'Hz', positive))
+
+
+def test_a_refused_start_names_the_typo_behind_it(ros_context):
+    # Issue 23: track_widht leaves track_width missing; the refusal names the typo, not only
+    # the missing name. An unknown name that is no typo of a known one is not named there.
+    node = Node('typo_test', context=ros_context, parameter_overrides=[
+        Parameter('track_widht', value=0.5), Parameter('odom_frame', value='odom')])
+    try:
+        with pytest.raises(ParameterError) as refused:
+            ParameterTable(node, REQUIRED)
+    finally:
+        node.destroy_node()
+    message = str(refused.value)
+    assert message.startswith('invalid parameters: track_width has no default')
+    assert message.endswith("; unknown 'track_widht' (did you mean 'track_width'?)")
+    assert 'odom_frame' not in message
+
+
+def test_a_start_that_is_not_refused_leaves_typos_to_the_warning(ros_context):
+    node = Node('typo_test', context=ros_context, parameter_overrides=[
+        Parameter('track_width', value=0.5), Parameter('rat', value=5.0)])
+    try:
+        assert ParameterTable(node, REQUIRED)['rate'] == 50.0
+    finally:
+        node.destroy_node()
+
+
+@pytest.mark.ros
+def test_typo_that_refuses_the_start_is_named_in_the_fatal_line(tmp_path):
+    with odometry_node_with_typo(tmp_path, ['sprocket_radius: 0.1']) as script:
+        assert script.wait(30) == 2
+    fatal = [line for line in script.output.splitlines() if 'FATAL' in line]
+    assert len(fatal) == 1, script.output
+    assert 'track_width has no default' in fatal[0]
+    assert fatal[0].endswith("unknown 'track_widht' (did you mean 'track_width'?)"), fatal[0]
 
 
 @pytest.mark.ros

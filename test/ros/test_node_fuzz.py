@@ -207,7 +207,9 @@ def test_icr_estimator_fuzz(ros_context, executor):
         *VEHICLE, 'max_plausible_speed', 'max_dt', 'publish_rate', 'window', 'min_window',
         'max_window', 'pose_std_xy', 'pose_std_yaw', 'travel_std', 'process_std',
         'initial_std', 'gate_probability', 'max_outliers', 'prediction.horizon',
-        'prediction.dt', 'heading_only', 'pose_delay')}
+        'prediction.dt', 'heading_only', 'pose_delay', 'min_coverage', 'adaptive_noise',
+        'noise_memory', 'prior_std', 'prior_time', 'fallback', 'fallback_span',
+        'fallback_margin')}
     clean_start = [10_000.0]
 
     def pose(t, x, y, yaw):

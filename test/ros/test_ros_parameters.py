@@ -6,7 +6,7 @@ from rclpy.parameter import Parameter
 from tracked_kinematics.params import icr_from_values, ParamSpec, positive, TERRAIN_PARAMS
 from tracked_kinematics.ros.main import run
 from tracked_kinematics.ros.parameters import (destroyed_on_failure, ParameterError,
-                                               ParameterTable)
+                                               ParameterTable, TableNode)
 
 SPECS = TERRAIN_PARAMS + (
     ParamSpec('left_joints', ['left_sprocket_joint'], 'Joints of the left track'),
@@ -121,3 +121,55 @@ def test_run_returns_2_on_invalid_parameters(capfd):
         raise ParameterError('invalid parameters: icr.y_left must be finite')
     assert run(factory, 'probe', args=['probe']) == 2
     assert 'icr.y_left must be finite' in capfd.readouterr().err
+
+
+class _Probe(TableNode):
+    """A TableNode that records what it was given, and fails where told to."""
+
+    def __init__(self, fail_in_start=False, **kwargs):
+        self.fail_in_start = fail_in_start
+        self.calls = []
+        super().__init__('probe_node', SPECS, icr_from_values, **kwargs)
+
+    def _start(self, values):
+        self.calls.append(('start', values['rate']))
+        if self.fail_in_start:
+            raise RuntimeError('no device')
+
+    def _apply(self, values):
+        self.calls.append(('apply', values['rate']))
+
+    def _abandon(self):
+        self.calls.append(('abandon',))
+
+
+def test_a_table_node_builds_from_its_values_and_applies_changes(ros_context):
+    node = _Probe(context=ros_context, parameter_overrides=VEHICLE)
+    try:
+        assert node.params['rate'] == 50.0 and node.calls == [('start', 50.0)]
+        assert node.set_parameters([Parameter('rate', value=5.0)])[0].successful
+        assert node.calls[-1] == ('apply', 5.0)
+    finally:
+        node.destroy_node()
+
+
+@pytest.mark.parametrize('overrides, fail_in_start, error', [
+    ([], False, ParameterError),                                  # no vehicle given
+    (VEHICLE + [Parameter('rate', value=-1.0)], False, ParameterError),
+    (VEHICLE, True, RuntimeError),
+])
+def test_a_table_node_whose_start_fails_is_destroyed(ros_context, overrides, fail_in_start,
+                                                     error):
+    built = []
+
+    class Recorded(_Probe):
+        def _abandon(self):
+            built.append(self)
+            super()._abandon()
+
+    with pytest.raises(error):
+        Recorded(fail_in_start, context=ros_context, parameter_overrides=overrides)
+    node, = built
+    assert node.calls[-1] == ('abandon',)
+    with pytest.raises(Exception, match='destruction was requested'):
+        node.get_name()   # destroyed: nothing left for the garbage collector

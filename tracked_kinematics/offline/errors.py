@@ -1,7 +1,10 @@
 """
-The error types of the offline ring: a bag that cannot give what was asked, a bad option.
+The error types of the offline ring.
 
-Both derive from :class:`tracked_kinematics.core.errors.TrackedKinematicsError`, so that
+A bag that cannot give what was asked, a bad option, a controllers file that cannot be
+converted.
+
+All derive from :class:`tracked_kinematics.core.errors.TrackedKinematicsError`, so that
 :func:`tracked_kinematics.offline.cli.common.run_main` reports them, and the core's own
 errors, as one line with an exit status, and lets anything else surface as a traceback.
 """
@@ -15,3 +18,7 @@ class BagError(TrackedKinematicsError):
 
 class UsageError(TrackedKinematicsError):
     """An invalid option value (exit status 2)."""
+
+
+class DdcError(TrackedKinematicsError):
+    """A controllers file that cannot be converted; the message is one line for the user."""

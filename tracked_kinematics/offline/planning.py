@@ -19,6 +19,7 @@ import sys
 import numpy as np
 from tracked_kinematics.core import identify as ident
 from tracked_kinematics.core.command import CommandLimits
+from tracked_kinematics.core.errors import InvalidParameters
 from tracked_kinematics.core.integration import relative_pose
 from tracked_kinematics.core.kinematics import IcrParams
 from tracked_kinematics.core.models import MotionModel
@@ -28,7 +29,7 @@ from tracked_kinematics.core.sim.simulation import GroundTruth, Robot, simulate,
 from tracked_kinematics.offline.bags import BagWriter
 from tracked_kinematics.offline.errors import UsageError
 from tracked_kinematics.offline.outputs import Outputs
-from tracked_kinematics.params import LIMIT_FIELDS
+from tracked_kinematics.params import LIMIT_FIELDS, limits_from_values
 
 MODELS = ('ideal', 'effective', 'icr', 'general')
 _MODEL_NAMES = {'ideal': 'ideal', 'effective': 'effective_wheel_base', 'icr': 'icr_scales',
@@ -75,26 +76,36 @@ def model_from_terrain(name: str, icr: IcrParams, values=None) -> tuple[MotionMo
     return model, p
 
 
-def limits_from(values, robot: Robot, max_track_speed=None, max_track_accel=None):
-    """Return the translator limits: command line, else terrain file, else drive train."""
-    kwargs = {}
-    for param, field_name in LIMIT_FIELDS.items():
-        if param in values:
-            try:
-                value = float(values[param])
-            except (TypeError, ValueError):
-                raise UsageError(f'{param} must be a number, got {values[param]!r}') from None
-            kwargs[field_name] = math.inf if value == 0.0 else value
+def limits_from(values, robot: Robot, max_track_speed=None, max_track_accel=None,
+                source: str = ''):
+    """
+    Return the translator limits: command line, else terrain file, else drive train.
+
+    The limits mean what they mean to cmd_vel_translator, through the same function
+    (:func:`tracked_kinematics.params.limits_from_values`): 0, NaN (``.nan``) and ``.inf``
+    are no limit, a deceleration of either sign is its magnitude (0 or NaN: the matching
+    acceleration limit), and a value out of its range is refused. ``max_track_speed`` and
+    ``max_track_accel`` that neither the command line nor the file gives are the drive
+    train's.
+
+    Raises
+    ------
+    UsageError
+        For a limit that cmd_vel_translator would refuse; the message names it, after
+        ``source`` (the terrain file) when given.
+
+    """
+    given = {param: values[param] for param in LIMIT_FIELDS if param in values}
     if max_track_speed is not None:
-        kwargs['max_track_speed'] = max_track_speed
+        given['max_track_speed'] = max_track_speed
     if max_track_accel is not None:
-        kwargs['max_track_accel'] = max_track_accel
-    kwargs.setdefault('max_track_speed', robot.drivetrain.max_speed)
-    kwargs.setdefault('max_track_accel', robot.drivetrain.max_accel)
+        given['max_track_accel'] = max_track_accel
+    given.setdefault('max_track_speed', robot.drivetrain.max_speed)
+    given.setdefault('max_track_accel', robot.drivetrain.max_accel)
     try:
-        return CommandLimits(**kwargs)
-    except ValueError as err:
-        raise UsageError(str(err).replace('max_track_', '--max-track-')) from None
+        return limits_from_values(given)
+    except InvalidParameters as err:
+        raise UsageError(f'{source}: {err}' if source else str(err)) from None
 
 
 # Execution on the dynamic simulator ----------------------------------------------------

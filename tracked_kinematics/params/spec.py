@@ -348,7 +348,8 @@ def missing_message(missing) -> str:
 
 
 def unknown_parameters(given: Iterable[str], known: Iterable[ParamSpec | str], *,
-                       only_close: bool = False, ignored: str = ' ignored') -> list[str]:
+                       only_close: bool = False, ignored: str = ' ignored',
+                       what: str = 'unknown parameter') -> list[str]:
     """
     One message per name in ``given`` that ``known`` does not hold, with the closest known name.
 
@@ -366,6 +367,8 @@ def unknown_parameters(given: Iterable[str], known: Iterable[ParamSpec | str], *
         also hold other programs' parameters.
     ignored : str
         What happens to such a name, after it in the message.
+    what : str
+        The words before the name.
 
     Returns
     -------
@@ -383,5 +386,5 @@ def unknown_parameters(given: Iterable[str], known: Iterable[ParamSpec | str], *
         if only_close and not close:
             continue
         hint = f' (did you mean {close[0]!r}?)' if close else ''
-        messages.append(f'unknown parameter {name!r}{ignored}{hint}')
+        messages.append(f'{what} {name!r}{ignored}{hint}')
     return messages

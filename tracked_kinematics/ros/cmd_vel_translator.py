@@ -56,7 +56,6 @@ import time
 from typing import Any
 
 from geometry_msgs.msg import Twist, TwistStamped
-from rclpy.node import Node
 from std_msgs.msg import Float64, Float64MultiArray
 from tracked_kinematics.core.command import (CommandLimiter, CommandLimits, exceeds_envelope,
                                              setpoint_problem, setpoint_twist,
@@ -66,7 +65,7 @@ from tracked_kinematics.params import (COMMAND_LIMIT_PARAMS, described_as, icr_f
                                        LIMIT_FIELDS, limits_from_values, non_negative, one_of,
                                        ParamSpec, positive, ros_name, TERRAIN_PARAMS)
 from tracked_kinematics.ros.main import run
-from tracked_kinematics.ros.parameters import ParameterTable
+from tracked_kinematics.ros.parameters import TableNode
 
 NODE_NAME = 'cmd_vel_translator'
 
@@ -165,44 +164,30 @@ def _describe_timeout(timeout: float) -> str:
     return f'cmd_timeout {timeout:g} s' if math.isfinite(timeout) else 'no cmd_timeout'
 
 
-class CmdVelTranslator(Node):
+class CmdVelTranslator(TableNode):
     """
     Subscribe to twist commands, publish limited track speed setpoints at a fixed rate.
 
-    Parameters
-    ----------
-    **kwargs
-        Forwarded to :class:`rclpy.node.Node` (``context``, ``parameter_overrides``, ...).
+    A :class:`~tracked_kinematics.ros.parameters.TableNode` of :data:`TRANSLATOR_PARAMS`:
+    ``**kwargs`` go to :class:`rclpy.node.Node`; ``ParameterError`` when the parameters given
+    at start are invalid.
 
     Attributes
     ----------
     failure : Exception or None
         Why the publishing thread gave up and stopped the node, if it did.
 
-    Raises
-    ------
-    tracked_kinematics.ros.parameters.ParameterError
-        When the parameters given at start are invalid.
-
     """
 
     def __init__(self, **kwargs):
-        super().__init__(NODE_NAME, **kwargs)
-        try:
-            self._start()
-        except BaseException:
-            # Refused parameters (or any failure): no half-built node left for the garbage
-            # collector to destroy later, after its context is gone; the thread first.
-            if hasattr(self, '_publisher_thread'):
-                self._request_stop()
-                self._publisher_thread.join(5.0)
-            Node.destroy_node(self)
-            raise
+        super().__init__(NODE_NAME, TRANSLATOR_PARAMS, model_from_values, **kwargs)
 
-    def _start(self) -> None:
-        self._params = ParameterTable(self, TRANSLATOR_PARAMS, validate=model_from_values,
-                                      on_change=self._on_change)
-        values = self._params.values
+    def _abandon(self) -> None:
+        if hasattr(self, '_publisher_thread'):
+            self._request_stop()
+            self._publisher_thread.join(5.0)
+
+    def _start(self, values: Mapping[str, Any]) -> None:
         icr, limits = model_from_values(values)
         self._limiter = CommandLimiter(icr, limits, _timeout(values['cmd_timeout']))
         self._lock = threading.Lock()  # the limiter is shared by the executor and publisher
@@ -523,7 +508,7 @@ class CmdVelTranslator(Node):
             'cmd_timeout 0: no timeout; the last command holds until another comes, also '
             'when its publisher dies')
 
-    def _on_change(self, values: Mapping[str, Any]) -> None:
+    def _apply(self, values: Mapping[str, Any]) -> None:
         icr, limits = model_from_values(values)
         timeout = _timeout(values['cmd_timeout'])
         with self._lock:

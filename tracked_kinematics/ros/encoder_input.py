@@ -39,6 +39,7 @@ from collections import Counter
 from collections.abc import Callable, Mapping
 import math
 import struct
+import time
 from typing import Any
 
 from builtin_interfaces.msg import Time
@@ -221,6 +222,28 @@ def _side_means(values, left_index, right_index):
             sum(values[i] for i in right_index) / len(right_index))
 
 
+# What a sample that was not a plain step did, as the log says it (str.format fields: dt,
+# d_left, d_right, left, right, what, mode, max_dt, max_speed).
+_NOTES = {
+    Status.LONG_STEP: '{dt:.6g} s without encoder data (more than max_dt {max_dt:g} s): the '
+                      'travel across the gap ({d_left:.6g}, {d_right:.6g} m) is exact and was '
+                      'integrated as one step',
+    Status.RESUMED: 'encoder jump skipped: the counters or positions restarted ({mode}); '
+                    'integration resumed from the sample after the jump',
+    Status.IMPLAUSIBLE: 'implausible encoder input skipped in {mode}: {what}, faster than '
+                        'max_plausible_speed {max_speed:g} m/s (a glitch, a counter restart or '
+                        'garbage); integration continues from the next plausible sample',
+    Status.NON_FINITE: 'non-finite encoder reading (left {left}, right {right}) in {mode}: '
+                       'message skipped',
+    Status.TIME_BACK: 'encoder time did not advance ({dt:+.6g} s; sim time reset or bag '
+                      'loop?): integration restarted from this message, pose kept',
+    Status.GAP: '{dt:.6g} s without encoder data (max_dt {max_dt:g} s) and only velocities to '
+                'bridge it: integration restarted from this message, the gap is not integrated',
+    Status.KIND_CHANGED: 'joint_states switched between positions and velocities: '
+                         'integration restarted from this message',
+}
+
+
 class EncoderInput:
     """
     Subscribe to the track encoders of the selected mode and report travel steps.
@@ -279,6 +302,7 @@ class EncoderInput:
         self._pending = [None, None]
         self._side_counts = [0, 0]
         self._bits = 64
+        self._noted: dict = {}   # status -> steady time of its last log line
         self.configure(values)
         if self.mode == 'joint_states':
             self._reader = JointStateReader()
@@ -437,45 +461,32 @@ class EncoderInput:
         self._stamp = None
 
     def _note(self, status, kind, left, right, d_left, d_right, dt) -> None:
-        """Log what happened to a sample that was not a plain step (throttled per kind)."""
-        log = self._logger
-        speed = self.tracker.max_speed
+        """
+        Log what happened to a sample that was not a plain step, once per WARN_PERIOD per kind.
+
+        A long step that was integrated exactly is information; every other kind a warning.
+        """
+        now = time.monotonic()
+        last = self._noted.get(status)
+        if last is not None and now - last < WARN_PERIOD:
+            return
+        text = self._note_text(status, kind, left, right, d_left, d_right, dt)
+        if text is None:
+            return
+        self._noted[status] = now
         if status == Status.LONG_STEP:
-            log.info(
-                f'{dt:.6g} s without encoder data (more than max_dt {self.tracker.max_dt:g} s): '
-                f'the travel across the gap ({d_left:.6g}, {d_right:.6g} m) is exact and was '
-                'integrated as one step', throttle_duration_sec=WARN_PERIOD)
-        elif status == Status.RESUMED:
-            log.warning(
-                f'encoder jump skipped: the counters or positions restarted ({self.mode}); '
-                'integration resumed from the sample after the jump',
-                throttle_duration_sec=WARN_PERIOD)
-        elif status == Status.IMPLAUSIBLE:
-            if kind == 'velocity':
-                what = f'track speeds {d_left:.6g}, {d_right:.6g} m/s'
-            else:
-                what = (f'a step of {d_left:.6g}, {d_right:.6g} m in {dt:.6g} s (readings '
-                        f'{left!r}, {right!r})')
-            log.warning(
-                f'implausible encoder input skipped in {self.mode}: {what}, faster than '
-                f'max_plausible_speed {speed:g} m/s (a glitch, a counter restart or garbage); '
-                'integration continues from the next plausible sample',
-                throttle_duration_sec=WARN_PERIOD)
-        elif status == Status.NON_FINITE:
-            log.warning(
-                f'non-finite encoder reading (left {left}, right {right}) in {self.mode}: '
-                'message skipped', throttle_duration_sec=WARN_PERIOD)
-        elif status == Status.TIME_BACK:
-            log.warning(
-                f'encoder time did not advance ({dt:+.6g} s; sim time reset or bag loop?): '
-                'integration restarted from this message, pose kept',
-                throttle_duration_sec=WARN_PERIOD)
-        elif status == Status.GAP:
-            log.warning(
-                f'{dt:.6g} s without encoder data (max_dt {self.tracker.max_dt:g} s) and only '
-                'velocities to bridge it: integration restarted from this message, the gap '
-                'is not integrated', throttle_duration_sec=WARN_PERIOD)
-        elif status == Status.KIND_CHANGED:
-            log.warning(
-                'joint_states switched between positions and velocities: integration '
-                'restarted from this message', throttle_duration_sec=WARN_PERIOD)
+            self._logger.info(text)
+        else:
+            self._logger.warning(text)
+
+    def _note_text(self, status, kind, left, right, d_left, d_right, dt) -> str | None:
+        """Return the log line of a sample that was not a plain step (None: nothing to say)."""
+        template = _NOTES.get(status)
+        if template is None:
+            return None
+        what = (f'track speeds {d_left:.6g}, {d_right:.6g} m/s' if kind == 'velocity' else
+                f'a step of {d_left:.6g}, {d_right:.6g} m in {dt:.6g} s (readings {left!r}, '
+                f'{right!r})')
+        return template.format(dt=dt, d_left=d_left, d_right=d_right, left=left, right=right,
+                               what=what, mode=self.mode, max_dt=self.tracker.max_dt,
+                               max_speed=self.tracker.max_speed)

@@ -36,7 +36,6 @@ from nav_msgs.msg import Odometry, Path
 import numpy as np
 from rcl_interfaces.msg import Parameter as ParameterMsg, ParameterType
 from rcl_interfaces.srv import SetParametersAtomically
-from rclpy.node import Node
 from sensor_msgs.msg import Imu
 from std_msgs.msg import Float64MultiArray, MultiArrayDimension
 from std_srvs.srv import Trigger
@@ -55,7 +54,7 @@ from tracked_kinematics.ros.encoder_input import (
     check_encoder_values, EncoderInput, WARN_PERIOD)
 from tracked_kinematics.ros.input_topic import CHECK_PERIOD, InputTopic, steady_timer
 from tracked_kinematics.ros.main import run
-from tracked_kinematics.ros.parameters import destroyed_on_failure, ParameterTable
+from tracked_kinematics.ros.parameters import TableNode
 
 NODE_NAME = 'icr_estimator'
 
@@ -71,6 +70,16 @@ ICR_LAYOUT = ('y_left', 'y_right', 'x', 'chi', 'e')
 @described_as('> 0 and < 1')
 def _probability(value):
     return positive(value) or (None if value < 1.0 else f'must be < 1, got {value!r}')
+
+
+@described_as('>= 0 and < 1')
+def _fraction_below_one(value):
+    return non_negative(value) or (None if value < 1.0 else f'must be < 1, got {value!r}')
+
+
+@described_as('> 0 or .inf')
+def _positive_or_inf(value):
+    return None if value == math.inf else positive(value)
 
 
 # Longest predicted_path, in poses (prediction.horizon / prediction.dt).
@@ -120,10 +129,37 @@ ESTIMATOR_PARAMS: tuple[ParamSpec, ...] = (
     ParamSpec('max_outliers', _DEFAULTS.max_outliers,
               'Consecutive refused windows after which the filter re-anchors', '',
               positive, low=1, high=1000),
+    ParamSpec('min_coverage', _DEFAULTS.min_coverage,
+              'Fraction of a window the encoder steps must cover; less is an encoder gap and '
+              'the window restarts', '', positive, low=0.01, high=1.0),
     ParamSpec('pose_delay', _DEFAULTS.pose_delay,
               'Delay of the pose stamps behind the encoders (a pose source stamped on receipt, '
               'as lidar ICP often is): the identification.ground_truth_delay that identify_icr '
               'writes', 's', finite, low=-1.0, high=2.0),
+    ParamSpec('adaptive_noise', _DEFAULTS.adaptive_noise,
+              'Raise travel_std (never lower it) to what the innovations of the last '
+              'noise_memory moving windows show; false: travel_std as given'),
+    ParamSpec('noise_memory', _DEFAULTS.noise_memory,
+              'Moving windows the adaptive noise is estimated from (it starts after 20)', '',
+              positive, low=20, high=100_000),
+    ParamSpec('prior_std', _DEFAULTS.prior_std,
+              'Spread of the parameters about start values from a terrain file, in track '
+              "widths; .inf for the paper's random walk (not used when starting from ideal "
+              'drive)', '', _positive_or_inf, low=1e-6, high=math.inf),
+    ParamSpec('prior_time', _DEFAULTS.prior_time,
+              'Memory of the prior: a departure from the start values that the data stop '
+              'supporting fades in this time', 's', positive, low=0.01, high=86400.0),
+    ParamSpec('fallback', _DEFAULTS.fallback,
+              'Publish and predict with the start values from a terrain file until the '
+              "filter's own predictions of the last fallback_span seconds beat theirs by "
+              'fallback_margin (not used when starting from ideal drive)'),
+    ParamSpec('fallback_span', _DEFAULTS.fallback_span,
+              'Seconds of recent windows the fallback compares', 's', positive, low=0.1,
+              high=86400.0),
+    ParamSpec('fallback_margin', _DEFAULTS.fallback_margin,
+              "Fraction by which the filter's recent prediction cost must be below that of the "
+              'start values for its state to be used (0.1: 10 % lower)', '',
+              _fraction_below_one, low=0.0, high=1.0),
     ParamSpec('publish_rate', 10.0, 'Rate of icr_estimate and predicted_path', 'Hz',
               positive, low=0.01, high=1000.0),
     ParamSpec('prediction.horizon', 2.0, 'Length of predicted_path (0: not published)', 's',
@@ -169,14 +205,12 @@ def validate(values: Mapping[str, Any]) -> None:
                          f'{values["prediction.dt"]:g} s = {poses:.6g}')
 
 
+# Every field of EstimatorConfig is a parameter of the same name.
+_CONFIG_FIELDS = tuple(EstimatorConfig.__dataclass_fields__)
+
+
 def _config(values: Mapping[str, Any]) -> EstimatorConfig:
-    return EstimatorConfig(
-        pose_std_xy=values['pose_std_xy'], pose_std_yaw=values['pose_std_yaw'],
-        travel_std=values['travel_std'], process_std=values['process_std'],
-        initial_std=values['initial_std'], window=values['window'],
-        min_window=values['min_window'], max_window=values['max_window'],
-        gate_probability=values['gate_probability'],
-        max_outliers=int(values['max_outliers']), pose_delay=values['pose_delay'])
+    return EstimatorConfig(**{name: values[name] for name in _CONFIG_FIELDS})
 
 
 def _yaw(q) -> float:
@@ -192,30 +226,19 @@ def _stamp(seconds: float) -> Time:
     return Time(sec=sec, nanosec=nanosec)
 
 
-class IcrEstimatorNode(Node):
+class IcrEstimatorNode(TableNode):
     """
     Online ICR estimation and motion prediction for a tracked vehicle.
 
-    Parameters
-    ----------
-    **kwargs
-        Passed to :class:`rclpy.node.Node` (``context``, ``parameter_overrides``, ...).
-
-    Raises
-    ------
-    tracked_kinematics.ros.parameters.ParameterError
-        When the parameters given at start are invalid.
-
+    A :class:`~tracked_kinematics.ros.parameters.TableNode` of :data:`PARAMS`: ``**kwargs``
+    go to :class:`rclpy.node.Node`; ``ParameterError`` when the parameters given at start are
+    invalid.
     """
 
     def __init__(self, **kwargs):
-        super().__init__(NODE_NAME, **kwargs)
-        with destroyed_on_failure(self):
-            self._start()
+        super().__init__(NODE_NAME, PARAMS, validate, **kwargs)
 
-    def _start(self) -> None:
-        self.params = ParameterTable(self, PARAMS, validate=validate, on_change=self._apply)
-        values = self.params.values
+    def _start(self, values: Mapping[str, Any]) -> None:
         self.encoder = None
         self._timer = None
         self.estimator = self._build_estimator(values)

@@ -33,8 +33,9 @@ COMMAND = 'python -m tracked_kinematics.ros.param_docs'
 SHARED = (
     ('Terrain', 'TERRAIN_PARAMS', TERRAIN_PARAMS,
      'The kinematic model of one vehicle on one terrain: what a terrain file holds and '
-     '`identify_icr` writes ([model](model.md)). Without a file the defaults are an ideal '
-     'differential drive of track width 0.42 m.',
+     '`identify_icr` writes ([model](model.md)). There is no default vehicle: '
+     '`track_width` and `sprocket_radius` must be given; the ICRs default to the ideal '
+     'differential drive of that width.',
      'Checked together (`params.icr_from_values`): `icr.y_left > icr.y_right`, and the '
      'steering efficiency chi = `track_width / (icr.y_left - icr.y_right)` in (0, 1], i.e. '
      'the tread ICRs at least `track_width` apart.'),

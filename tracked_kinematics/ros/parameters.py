@@ -9,6 +9,9 @@ The default rule of the specs (:func:`tracked_kinematics.params.resolve`) holds 
 ``required`` parameter that is not given stops the node at start, naming it; a ``derived``
 one not given takes its computed value (``ros2 param get`` shows it) and follows the
 parameters it is derived from at runtime until it is set explicitly.
+
+:class:`TableNode` is the start of a node built on such a table: declare, check, build, and
+destroy the half-built node when any of it fails.
 """
 
 from __future__ import annotations
@@ -22,7 +25,10 @@ from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescr
                                 SetParametersResult)
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from tracked_kinematics.params import missing_message, ParamSpec
+from tracked_kinematics.params import missing_message, ParamSpec, unknown_parameters
+
+# Parameters every rclpy node declares itself.
+NODE_PARAMETERS = ('use_sim_time', 'start_type_description_service')
 
 
 class ParameterError(ValueError):
@@ -163,7 +169,7 @@ class ParameterTable:
             except ValueError as err:
                 problems.append(str(err))
         if problems:
-            raise ParameterError('invalid parameters: ' + '; '.join(problems))
+            raise ParameterError('invalid parameters: ' + '; '.join(problems + self._typos()))
         if derived:
             node.set_parameters([Parameter(name, value=value) for name, value in derived.items()])
         self.values: dict[str, Any] = values
@@ -172,6 +178,19 @@ class ParameterTable:
         node.add_pre_set_parameters_callback(self._pre_set)
         node.add_on_set_parameters_callback(self._on_set)
         node.add_post_set_parameters_callback(self._post_set)
+
+    def _typos(self) -> list[str]:
+        """
+        Name the given parameters the node does not declare that look like typos of its own.
+
+        A refused start often comes from one (``track_widht`` leaves ``track_width``
+        missing): the FATAL line names it, ``unknown 'track_widht' (did you mean
+        'track_width'?)``. Other undeclared names (a ``/**`` section for several nodes) are
+        left to the warning the node logs once it runs.
+        """
+        given = getattr(self._node, '_parameter_overrides', {})
+        return unknown_parameters(given, [*self.specs, *NODE_PARAMETERS], only_close=True,
+                                  ignored='', what='unknown')
 
     def _declare_problem(self, spec: ParamSpec, err: Exception) -> str:
         """Say why a value given at start was refused, in the table's words if possible."""
@@ -284,3 +303,54 @@ def destroyed_on_failure(node: Node):
     except BaseException:
         Node.destroy_node(node)
         raise
+
+
+class TableNode(Node):
+    """
+    A node whose parameters are one table: declared and checked, then the node is built.
+
+    A subclass builds itself from the checked values in :meth:`_start` and takes valid runtime
+    changes into use in :meth:`_apply`. When the start fails (refused parameters, a topic name
+    rclpy refuses, any error), the half-built node is destroyed before the error propagates:
+    nothing is left for the garbage collector to destroy after its context is gone.
+
+    Parameters
+    ----------
+    name : str
+        Node name.
+    specs : iterable of ParamSpec
+        The node's parameters (:attr:`params` holds them).
+    validate : callable, optional
+        ``validate(values)`` raising ``ValueError`` for an invalid combination
+        (:class:`ParameterTable`).
+    **kwargs
+        Passed to :class:`rclpy.node.Node` (``context``, ``parameter_overrides``, ...).
+
+    Raises
+    ------
+    ParameterError
+        When the parameters given at start are invalid.
+
+    """
+
+    def __init__(self, name: str, specs: Iterable[ParamSpec],
+                 validate: Callable[[Mapping[str, Any]], None] | None = None, **kwargs):
+        super().__init__(name, **kwargs)
+        with destroyed_on_failure(self):
+            try:
+                self.params = ParameterTable(self, specs, validate=validate,
+                                             on_change=self._apply)
+                self._start(self.params.values)
+            except BaseException:
+                self._abandon()
+                raise
+
+    def _start(self, values: Mapping[str, Any]) -> None:
+        """Build the node from the checked start values (publishers, subscriptions, ...)."""
+        raise NotImplementedError
+
+    def _apply(self, values: Mapping[str, Any]) -> None:
+        """Take the values of a valid runtime parameter change into use."""
+
+    def _abandon(self) -> None:
+        """Stop what a failed :meth:`_start` began that destroying the node does not (threads)."""

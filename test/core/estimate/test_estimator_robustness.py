@@ -101,6 +101,22 @@ def test_adaptive_noise_learns_the_slip_noise_and_stays_off_without_it():
     assert np.max(np.abs(grass.p - TRUE_ICR)) < np.max(np.abs(fixed.p - TRUE_ICR))
 
 
+def test_adaptive_noise_switched_off_at_runtime_uses_travel_std_as_given():
+    # icr_estimator's adaptive_noise parameter reaches the filter through configure():
+    # switched off, the learnt factor no longer widens the windows' noise.
+    grass = _estimator()
+    _Turning(slip_std=0.3, seed=2).run(grass, 40.0)
+    assert grass.noise_scale > 20.0
+    grass.configure(EstimatorConfig(pose_std_xy=0.005, pose_std_yaw=0.001,
+                                    adaptive_noise=False))
+    assert grass.noise_scale == 1.0
+    _Turning(slip_std=0.3, seed=3).run(grass, 10.0)
+    assert grass.noise_scale == 1.0
+    grass.configure(EstimatorConfig(pose_std_xy=0.005, pose_std_yaw=0.001, noise_memory=20))
+    _Turning(slip_std=0.3, seed=4).run(grass, 20.0)
+    assert grass.noise_scale > 20.0   # learnt again, from the last 20 moving windows
+
+
 def test_prior_holds_identified_values_against_noise_and_yields_to_insistent_data():
     # Right start values on noisy terrain: the prior keeps the estimate near them.
     held, free = [], []

@@ -5,9 +5,9 @@ from dataclasses import replace
 from hypothesis import given, settings, strategies as st
 import numpy as np
 import pytest
-from tracked_kinematics.core.sim.dynamics import (averaged_icr, contact_grid, GRAVITY, icr_map,
-                                                  normal_loads, StationarySolver, tread_icrs,
-                                                  Vehicle)
+from tracked_kinematics.core.sim.dynamics import (contact_grid, GRAVITY, normal_loads,
+                                                  StationarySolver, Vehicle)
+from tracked_kinematics.core.sim.icr_maps import averaged_icr, icr_map, tread_icrs
 
 # Auriga-alpha (Martinez sec. 5.1): L 0.42 m, belts 0.15 m x 0.7 m of contact, 258 kg, centre
 # of mass (-0.015, 0.04) m in the paper's frame = (0.04, 0.015) m in ROS axes.

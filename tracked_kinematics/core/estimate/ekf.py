@@ -52,173 +52,26 @@ reconstructed by us, not from the paper:
   until the filter's own a-priori predictions of the last ``fallback_span`` seconds of
   windows beat theirs by ``fallback_margin``; then it is the filter's state.
 
+The settings and the outcome of a measurement are in :mod:`.config` (imported here too).
 Nothing here imports rclpy; the ``icr_estimator`` node is a thin adapter.
 """
 
 from __future__ import annotations
 
 from collections import deque
-from dataclasses import dataclass
 import functools
 import math
 
 import numpy as np
 from scipy.stats import chi2
 
-from .._checks import require_numbers
+from .config import EstimatorConfig, Outcome
 from ..identify import SegmentProblem, Segments
 from ..integration import relative_pose, wrap_angle
 from ..kinematics import IcrParams
 from ..models import AdaptiveIcr, ConstantIcr, MotionModel
 
-
-@dataclass(frozen=True, slots=True)
-class EstimatorConfig:
-    """
-    Noise model, windows and gates of :class:`SlipEstimator`.
-
-    Attributes
-    ----------
-    pose_std_xy : float
-        Standard deviation of each measured position coordinate, m.
-    pose_std_yaw : float
-        Standard deviation of each measured heading, rad.
-    travel_std : float
-        Model and encoder error per metre travelled in the window (m/m): adds
-        ``(travel_std * travel)^2`` to the position variance and ``2 (travel_std *
-        travel / track_width)^2`` to the heading variance of a window.
-    process_std : float
-        Random-walk standard deviation of each parameter, per square-root second
-        (parameter units / sqrt(s)); larger follows terrain changes faster, noisier.
-    initial_std : float
-        Standard deviation of the initial parameters (parameter units).
-    window : float
-        Length of the window, s: each pose is compared with the newest accepted pose at
-        least this old (the paper's "last few seconds"). Windows of consecutive poses
-        overlap when poses come faster; a longer window averages the pose noise down.
-    min_window : float
-        Shortest window, s: a pose measurement closer than this to the previous one is
-        ignored.
-    max_window : float
-        Poses older than this are forgotten; after a longer outage the next pose starts a
-        new window without an update.
-    gate_probability : float
-        Chi-square probability of the innovation gate (0.9999 refuses one good window in
-        10,000).
-    max_outliers : int
-        Consecutive gated windows after which the filter re-anchors and widens its
-        covariance to ``initial_std``.
-    min_coverage : float
-        Fraction of a window the encoder steps must cover; less is an encoder gap.
-    pose_delay : float
-        Delay of the pose stamps behind the encoders, s (a pose source stamped on receipt:
-        ``identify_icr``'s ``ground_truth_delay``); subtracted from every pose stamp.
-    adaptive_noise : bool
-        Raise ``travel_std`` to what the innovations of the last ``noise_memory`` moving
-        windows show (never below the configured value).
-    noise_memory : int
-        Moving windows (those whose tracks travel at least a tenth of the track width) the
-        adaptive noise is estimated from; it starts after 20.
-    prior_std : float
-        Spread of the parameters about start values taken from a terrain file, as a fraction
-        of the track width (parameter units per metre of track width); ``inf`` for the
-        paper's random walk. Not used when the filter starts from ideal drive.
-    prior_time : float
-        Memory of the prior, s: a departure from the start values that the data stop
-        supporting fades in this time. With the prior, the parameters follow this
-        Ornstein-Uhlenbeck process instead of the random walk of ``process_std``.
-    fallback : bool
-        Stand behind start values taken from a terrain file until the filter predicts the
-        recent windows better (see :attr:`SlipEstimator.estimate`); not used when the
-        filter starts from ideal drive.
-    fallback_span : float
-        Seconds of recent windows the fallback compares, s.
-    fallback_margin : float
-        Fraction by which the filter's recent prediction cost must be below that of the
-        start values for its state to be used (0.1: 10 % lower).
-
-    """
-
-    pose_std_xy: float = 0.02
-    pose_std_yaw: float = 0.01
-    travel_std: float = 0.01
-    process_std: float = 0.1
-    initial_std: float = 1.0
-    window: float = 1.0
-    min_window: float = 0.05
-    max_window: float = 5.0
-    gate_probability: float = 0.9999
-    max_outliers: int = 3
-    min_coverage: float = 0.9
-    pose_delay: float = 0.0
-    adaptive_noise: bool = True
-    noise_memory: int = 300
-    prior_std: float = 0.05
-    prior_time: float = 5.0
-    fallback: bool = True
-    fallback_span: float = 30.0
-    fallback_margin: float = 0.1
-
-    def __post_init__(self):
-        require_numbers(self, finite=('pose_delay',),
-                        positive=('pose_std_xy', 'pose_std_yaw', 'initial_std', 'window',
-                                  'max_window', 'min_coverage', 'prior_std', 'prior_time',
-                                  'fallback_span'),
-                        non_negative=('travel_std', 'process_std', 'min_window',
-                                      'fallback_margin'),
-                        unbounded=('prior_std',))
-        for name in ('adaptive_noise', 'fallback'):
-            if not isinstance(getattr(self, name), bool):
-                raise ValueError(f'{name} must be true or false, got {getattr(self, name)!r}')
-        if not isinstance(self.noise_memory, int) or isinstance(self.noise_memory, bool) \
-                or self.noise_memory < 20:
-            raise ValueError(f'noise_memory must be an integer >= 20, got '
-                             f'{self.noise_memory!r}')
-        if self.fallback_margin >= 1.0:
-            raise ValueError(f'fallback_margin must be in [0, 1), got {self.fallback_margin!r}')
-        if not 0.0 < self.gate_probability < 1.0:
-            raise ValueError(f'gate_probability must be in (0, 1), got {self.gate_probability!r}')
-        if not self.min_window <= self.window < self.max_window:
-            raise ValueError(f'windows must satisfy min_window ({self.min_window}) <= window '
-                             f'({self.window}) < max_window ({self.max_window})')
-        if not isinstance(self.max_outliers, int) or self.max_outliers < 1:
-            raise ValueError(f'max_outliers must be an integer >= 1, got {self.max_outliers!r}')
-        if self.min_coverage > 1.0:
-            raise ValueError(f'min_coverage must be in (0, 1], got {self.min_coverage!r}')
-
-
-@dataclass(frozen=True, slots=True)
-class Outcome:
-    """
-    What :meth:`SlipEstimator.add_pose` did with a measurement.
-
-    Attributes
-    ----------
-    status : str
-        ``'updated'``, ``'anchored'`` (first pose, or a new anchor without update),
-        ``'deferred'`` (waiting for encoder data up to its stamp), ``'short'`` (window
-        below ``min_window``), or a refusal: ``'non_finite'``, ``'stale'``, ``'gap'``,
-        ``'outlier'``, ``'invalid'`` (the update would make the ICRs unphysical).
-    reason : str
-        One line for a log, empty when updated.
-    nis : float
-        Normalised innovation squared of the window (NaN when none was computed).
-
-    """
-
-    status: str
-    reason: str = ''
-    nis: float = math.nan
-
-    @property
-    def accepted(self) -> bool:
-        """Tell whether the measurement updated the parameters."""
-        return self.status == 'updated'
-
-    @property
-    def refused(self) -> bool:
-        """Tell whether the measurement was judged bad (it did not touch the state)."""
-        return self.status in ('non_finite', 'stale', 'gap', 'outlier', 'invalid')
+__all__ = ['EstimatorConfig', 'model_icr', 'Outcome', 'SlipEstimator']
 
 
 @functools.lru_cache(maxsize=16)
@@ -382,10 +235,18 @@ class SlipEstimator:
         return self._receive(t, (math.nan, math.nan, yaw), True)
 
     def configure(self, config: EstimatorConfig) -> None:
-        """Use new noise, window and gate settings from the next measurement on."""
+        """
+        Use new noise, window and gate settings from the next measurement on.
+
+        With ``adaptive_noise`` off, ``travel_std`` applies as given from then on (what the
+        adaptation learnt is forgotten); a shorter ``noise_memory`` keeps the newest windows.
+        """
         self.config = config
         self._log.span = config.max_window + 1.0
         self._excess = deque(self._excess, maxlen=config.noise_memory)
+        if not config.adaptive_noise:
+            self._excess.clear()
+            self.noise_scale = 1.0
 
     def set_initial(self, p0) -> None:
         """Set the parameters :meth:`reset` returns to (the estimate itself is kept)."""

@@ -33,7 +33,8 @@ import math
 import numpy as np
 from scipy.interpolate import CubicSpline, RectBivariateSpline
 
-from .dynamics import averaged_icr, icr_map, StationarySolver, Vehicle
+from .dynamics import StationarySolver, Vehicle
+from .icr_maps import averaged_icr, icr_map
 from .._checks import require_numbers
 from ..drivetrain import DriveTrain
 from ..integration import arc_chord, compose, integrate_twist, wrap_angle

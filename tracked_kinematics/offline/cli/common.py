@@ -138,6 +138,58 @@ def add_bags_argument(parser) -> None:
                         help='rosbag2 directories (sqlite3, mcap) or ROS 1 .bag files')
 
 
+def bag_tool_parser(prog: str, doc: str, epilog: str) -> ArgumentParser:
+    """
+    Return the parser of a tool that reads bags, with its positional ``BAG`` arguments.
+
+    Parameters
+    ----------
+    prog : str
+        The console script's name.
+    doc : str
+        The tool module's docstring: its second paragraph is the ``--help`` description.
+    epilog : str
+        The examples, kept line by line; defaults are shown (:class:`HelpFormatter`).
+
+    """
+    parser = ArgumentParser(prog=prog, description=doc.split('\n\n')[1], epilog=epilog,
+                            formatter_class=HelpFormatter)
+    add_bags_argument(parser)
+    return parser
+
+
+def add_base_file_argument(group, starts: str) -> None:
+    """Add ``--params BASE.yaml``, the terrain file a fit starts from (``starts``: what of it)."""
+    group.add_argument('--params', default=None, metavar='BASE.yaml',
+                       help=f'terrain file to start from: {starts}; its other parameters are '
+                       'copied to the output')
+
+
+def add_report_arguments(group, report: str, plot: str) -> None:
+    """Add ``--report OUT.json`` and ``--plot OUT.png`` (what each holds), then ``--force``."""
+    group.add_argument('--report', default=None, metavar='OUT.json', help=report)
+    group.add_argument('--plot', default=None, metavar='OUT.png', help=plot)
+    add_force_argument(group)
+
+
+def add_plot_output(outputs: Outputs, path, flag: str = '--plot') -> None:
+    """
+    Add a plot to the planned ``outputs`` when ``path`` is given, its format checked at once.
+
+    matplotlib is imported only then: a run without a plot never loads it.
+
+    Raises
+    ------
+    UsageError
+        For a format matplotlib cannot write, before any work.
+
+    """
+    if path:
+        from tracked_kinematics.offline.plots import check_format
+        outputs.add(flag, path)
+        check_format(flag, path)
+
+
 def add_output_argument(parser) -> None:
     """Add ``--output``, the terrain file an identification tool writes."""
     parser.add_argument('--output', '-o', required=True, metavar='OUT.yaml',
@@ -346,6 +398,19 @@ def command_source(args, track_width: float | None) -> CommandSource:
     """Build the command description from the options of :func:`add_command_arguments`."""
     return CommandSource(args.command_source, tuple(args.setpoint_topics), args.cmd_vel_topic,
                          math.nan if track_width is None else float(track_width))
+
+
+def write_together(outputs: Outputs, work, out) -> int:
+    """
+    Run ``work(outputs)``, write its outputs together at the end, and say where; return 0.
+
+    An error in ``work`` leaves nothing (:class:`~tracked_kinematics.offline.outputs.Outputs`
+    removes what it staged) and propagates to :func:`run_main`.
+    """
+    with outputs:
+        work(outputs)
+    print(f'wrote {", ".join(str(p) for p in outputs.targets)}', file=out)
+    return 0
 
 
 def run_main(prog: str, run, args) -> int:

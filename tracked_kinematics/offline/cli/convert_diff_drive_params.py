@@ -6,7 +6,7 @@ writes the parameter file that odometry_node and cmd_vel_translator load with
 ``--ros-args --params-file``: the vehicle (track width, sprocket radius, the ICRs from
 ``wheel_separation_multiplier``, the scales from the radius multipliers) for every node, and
 the joints, frames, TF, timeout and limits for the node that declares them. The mapping is
-:mod:`tracked_kinematics.params.ddc`; docs/tools/convert_diff_drive_params.md lists it.
+:mod:`tracked_kinematics.offline.ddc`; docs/tools/convert_diff_drive_params.md lists it.
 
 Prints what it mapped (``DDC key = value -> our key = value``) and what it could not map and
 why; warnings (the converted robot differs from the DDC one) go to stderr. Exit status 0
@@ -23,8 +23,8 @@ import os
 import sys
 
 from tracked_kinematics.offline.cli.common import run_main
+from tracked_kinematics.offline.ddc import convert_file, report_lines
 from tracked_kinematics.offline.outputs import OutputError, Outputs
-from tracked_kinematics.params.ddc import convert_file, report_lines
 
 PROG = 'convert_diff_drive_params'
 

@@ -24,9 +24,10 @@ import time
 
 import numpy as np
 from tracked_kinematics.core.kinematics import IcrParams
-from tracked_kinematics.core.sim.dynamics import averaged_icr, icr_map, IcrMap, StationarySolver
+from tracked_kinematics.core.sim.dynamics import StationarySolver
+from tracked_kinematics.core.sim.icr_maps import averaged_icr, icr_map, IcrMap
 from tracked_kinematics.offline.cli.common import (
-    add_force_argument, ArgumentParser, bounded, run_main)
+    add_force_argument, add_plot_output, ArgumentParser, bounded, run_main)
 from tracked_kinematics.offline.outputs import Outputs
 from tracked_kinematics.offline.vehicle_file import (
     add_vehicle_arguments, fixed, load_vehicle, overrides_from_args, vehicle_path, VehicleFile)
@@ -122,10 +123,7 @@ def _outputs(args) -> Outputs:
     outputs = Outputs(force=args.force)
     outputs.add('--csv', args.csv)
     outputs.add('--output', args.output)
-    if args.plot:
-        from tracked_kinematics.offline.plots import check_format
-        outputs.add('--plot', args.plot)
-        check_format('--plot', args.plot)
+    add_plot_output(outputs, args.plot)
     outputs.refuse_inputs('VEHICLE', [vehicle_path(args.vehicle)])
     return outputs
 

@@ -31,10 +31,10 @@ from tracked_kinematics.core.errors import InvalidParameters
 from tracked_kinematics.core.identify import fit_drivetrain
 from tracked_kinematics.offline.bags import read_drive_bag
 from tracked_kinematics.offline.cli.common import (
-    add_bags_argument, add_command_arguments, add_encoder_arguments, add_force_argument,
-    add_output_argument, add_sprocket_radius_argument, ArgumentParser, bounded, command_source,
-    encoder_source, HelpFormatter, positive, read_base_file, report_json, require_vehicle,
-    run_main)
+    add_base_file_argument, add_command_arguments, add_encoder_arguments, add_output_argument,
+    add_plot_output, add_report_arguments, add_sprocket_radius_argument, bag_tool_parser,
+    bounded, command_source, encoder_source, positive, read_base_file, report_json,
+    require_vehicle, run_main, write_together)
 from tracked_kinematics.offline.errors import UsageError
 from tracked_kinematics.offline.outputs import Outputs
 from tracked_kinematics.offline.terrain_file import terrain_text, terrain_values
@@ -57,10 +57,7 @@ EPILOG = """examples:
 
 def build_parser() -> argparse.ArgumentParser:
     """Return the command line of identify_drivetrain."""
-    parser = ArgumentParser(
-        prog=PROG, description=__doc__.split('\n\n')[1], epilog=EPILOG,
-        formatter_class=HelpFormatter)
-    add_bags_argument(parser)
+    parser = bag_tool_parser(PROG, __doc__, EPILOG)
     add_output_argument(parser)
     cmd = parser.add_argument_group('commands')
     add_command_arguments(cmd, kinds=('auto', 'setpoints', 'cmd_vel'))
@@ -71,10 +68,8 @@ def build_parser() -> argparse.ArgumentParser:
     add_encoder_arguments(enc)
     add_sprocket_radius_argument(enc)
     fit = parser.add_argument_group('fit')
-    fit.add_argument('--params', default=None, metavar='BASE.yaml',
-                     help='terrain file to start from: sprocket radius, starting point, fixed '
-                     'motor constants of --loop pid_dc_motor; its other parameters are copied '
-                     'to the output')
+    add_base_file_argument(fit, 'sprocket radius, starting point, fixed motor constants of '
+                           '--loop pid_dc_motor')
     fit.add_argument('--loop', choices=LOOP_KINDS, default='first_order',
                      help='speed loop to fit: first-order lag, PID gains around the fixed DC '
                      'motor of eq. (8), or none')
@@ -85,12 +80,9 @@ def build_parser() -> argparse.ArgumentParser:
                      help='largest command delay searched')
     fit.add_argument('--max-gap', type=bounded(0.0, 60.0, 's'), default=0.5, metavar='SECONDS',
                      help='longer gaps in either stream cut the data into segments')
-    out = parser.add_argument_group('output')
-    out.add_argument('--report', default=None, metavar='OUT.json',
-                     help='JSON report: values, standard errors, RMS, delay profile')
-    out.add_argument('--plot', default=None, metavar='OUT.png',
-                     help='commanded, measured and simulated speeds, and the delay profile')
-    add_force_argument(out)
+    add_report_arguments(parser.add_argument_group('output'),
+                         report='JSON report: values, standard errors, RMS, delay profile',
+                         plot='commanded, measured and simulated speeds, and the delay profile')
     return parser
 
 
@@ -164,10 +156,7 @@ def _outputs(args) -> Outputs:
     outputs = Outputs(force=args.force)
     outputs.add('--output', args.output)
     outputs.add('--report', args.report)
-    if args.plot:
-        from tracked_kinematics.offline.plots import check_format
-        outputs.add('--plot', args.plot)
-        check_format('--plot', args.plot)
+    add_plot_output(outputs, args.plot)
     outputs.refuse_inputs('BAG', args.bags)
     outputs.refuse_inputs('--params', [args.params], allow=('--output',))
     return outputs
@@ -190,10 +179,7 @@ def _check_grid(args, recordings) -> None:
 
 
 def _run(args, out) -> int:
-    with _outputs(args) as outputs:
-        _identify(args, out, outputs)
-    print(f'wrote {", ".join(str(p) for p in outputs.targets)}', file=out)
-    return 0
+    return write_together(_outputs(args), lambda outputs: _identify(args, out, outputs), out)
 
 
 def _identify(args, out, outputs) -> None:

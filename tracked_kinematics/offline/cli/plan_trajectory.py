@@ -31,7 +31,8 @@ from tracked_kinematics.core.kinematics import IcrParams
 from tracked_kinematics.core.plan import CANONICAL, canonical, Plan, Planner
 from tracked_kinematics.core.sim.simulation import TwistTable
 from tracked_kinematics.offline.cli.common import (
-    add_force_argument, ArgumentParser, bounded, run_main, warn, warn_unknown_terrain_keys)
+    add_force_argument, add_plot_output, ArgumentParser, bounded, run_main, warn,
+    warn_unknown_terrain_keys)
 from tracked_kinematics.offline.errors import UsageError
 from tracked_kinematics.offline.outputs import Outputs
 from tracked_kinematics.offline.planning import (
@@ -163,10 +164,7 @@ def _outputs(args) -> Outputs:
         return outputs
     outputs.add('--csv', args.csv)
     outputs.add('--bag', args.bag, directory=True)
-    if args.plot:
-        from tracked_kinematics.offline.plots import check_format
-        outputs.add('--plot', args.plot)
-        check_format('--plot', args.plot)
+    add_plot_output(outputs, args.plot)
     outputs.refuse_inputs('--params', [args.params])
     outputs.refuse_inputs('--vehicle', [vehicle_path(args.vehicle)])
     return outputs
@@ -198,7 +196,8 @@ def _run(args, out) -> int:
     with _outputs(args) as outputs:
         vehicle, icr, values = _load(args)
         robot = vehicle.robot
-        limits = limits_from(values, robot, args.max_track_speed, args.max_track_accel)
+        limits = limits_from(values, robot, args.max_track_speed, args.max_track_accel,
+                             source=str(args.params or ''))
         speed = args.speed or 0.5 * min(limits.max_track_speed, robot.drivetrain.max_speed)
         if args.compare:
             return _compare(robot, vehicle.name, limits, speed, args.dt, out)

@@ -11,10 +11,11 @@ the mean joint position of each side, with the effective geometry it builds in
     linear     = (d_left + d_right) / 2
     angular    = (d_right - d_left) / separation
 
-That is the tread-ICR model of INTERFACE.md with symmetric ICRs at ``+-separation / 2``
-(``icr.x = 0``), ``sprocket_radius = wheel_radius`` and ``scale.* = *_wheel_radius_multiplier``:
-``w = (V_r - V_l) / (y_left - y_right)`` and ``v_x = (V_r + V_l) / 2`` give the same numbers,
-and the steering efficiency is ``chi = wheel_separation / separation = 1 / multiplier``.
+That is the tread-ICR model of docs/model.md (section Kinematics) with symmetric ICRs at
+``+-separation / 2`` (``icr.x = 0``), ``sprocket_radius = wheel_radius`` and ``scale.* =
+*_wheel_radius_multiplier``: ``w = (V_r - V_l) / (y_left - y_right)`` and ``v_x = (V_r +
+V_l) / 2`` give the same numbers, and the steering efficiency is ``chi = wheel_separation /
+separation = 1 / multiplier``.
 
 A multiplier below 1 (a robot that turns faster than its wheel separation says) would put
 the ICRs inside the tracks, ``chi > 1``, which no tread model allows and every node refuses.
@@ -23,34 +24,26 @@ with ideal ICRs: the odometry and the commands stay DDC's, exactly, and a warnin
 ``track_width`` is no longer the measured one. Refusing would leave the user with nothing;
 clamping to ``chi = 1`` would silently change the odometry.
 
-:func:`convert_file` reads a ros2_control controllers file (the ``<name>: ros__parameters:``
-sections of ros2_control, wildcard and nested namespaces such as ROSbot's ``/**:`` block,
-and the plain forms without ``ros__parameters``), finds the DDC section and returns a
-:class:`Conversion`: the values, which node section each belongs in, and a line for every
-DDC key saying what became of it.
+:func:`convert` maps one DDC section; :func:`convert_file` reads a ros2_control controllers
+file, finds its DDC section (:mod:`.controllers`) and converts it into a
+:class:`~.conversion.Conversion`: the values, which node section each belongs in, and a line
+for every DDC key saying what became of it.
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass, field
 import math
 import os
 from typing import Any
 
-from tracked_kinematics.core.errors import TrackedKinematicsError
-import yaml
+from tracked_kinematics.offline.errors import DdcError
+from tracked_kinematics.params import (check_values, COMMAND_LIMIT_PARAMS, ENCODER_INPUT_PARAMS,
+                                       frame_id, icr_from_values, TERRAIN_PARAMS)
 
-from .files import flatten, nest
-from .spec import check_values, frame_id
-from .tables import COMMAND_LIMIT_PARAMS, ENCODER_INPUT_PARAMS, TERRAIN_PARAMS
-from .values import icr_from_values
-
-DDC_TYPE = 'diff_drive_controller/DiffDriveController'
-AXES = ('linear.x', 'angular.z')
-
-# Keys that mark a mapping as a DDC section when no controller_manager names its type.
-_MARKERS = ('wheel_separation', 'left_wheel_names', 'right_wheel_names')
+from .controllers import find_controller, load_controllers
+from .conversion import AXES, Conversion
+from .values import clean, fmt, read_bool, read_joints, read_number, read_positive, read_text
 
 _AXIS_KEYS = tuple(f'{axis}.{name}' for axis in AXES for name in (
     'has_velocity_limits', 'has_acceleration_limits', 'has_jerk_limits', 'max_velocity',
@@ -98,397 +91,6 @@ _HANDLED = frozenset((
     'base_frame_id', 'tf_frame_prefix_enable', 'tf_frame_prefix', 'enable_odom_tf',
     'publish_rate', 'cmd_vel_timeout', 'use_stamped_vel', 'open_loop', 'position_feedback',
 )) | frozenset(_AXIS_KEYS)
-
-# Terrain keys go to every node (``/**``); the others only to the nodes that declare them, so
-# that no node warns about a parameter it does not know.
-TERRAIN_KEYS = ('track_width', 'sprocket_radius', 'icr.y_left', 'icr.y_right', 'icr.x',
-                'scale.left', 'scale.right')
-NODE_KEYS = {
-    'odometry_node': ('left_joints', 'right_joints', 'odom_frame', 'base_frame', 'publish_tf',
-                      'publish_rate'),
-    'icr_estimator': ('left_joints', 'right_joints'),
-    'cmd_vel_translator': ('cmd_timeout', 'use_stamped') + tuple(
-        f'{axis}.max_{kind}' for axis in AXES for kind in ('velocity', 'acceleration')),
-}
-
-# Significant digits of the values written: 0.4 * 1.5 / 2 is written 0.3, not
-# 0.30000000000000004 (a relative change of 1e-16, far below any odometry tolerance).
-_DIGITS = 15
-
-
-class _NoAliasDumper(yaml.SafeDumper):
-    """Safe dumper that writes a shared list twice: rcl's YAML parser refuses aliases."""
-
-    def ignore_aliases(self, data) -> bool:
-        return True
-
-
-class DdcError(TrackedKinematicsError):
-    """A controllers file that cannot be converted; the message is one line for the user."""
-
-
-class _NoAliasLoader(yaml.SafeLoader):
-    """
-    Safe loader that refuses anchors and aliases, as rcl's parameter file parser does.
-
-    Without this a recursive alias (``a: &x {b: *x}``) would send every walk of the tree
-    into endless recursion, and a chain of aliases could make it exponentially large.
-    """
-
-    def compose_node(self, parent, index):
-        if self.check_event(yaml.AliasEvent):
-            event = self.peek_event()
-            raise DdcError(f'line {event.start_mark.line + 1}: YAML alias *{event.anchor}: '
-                           'ROS 2 parameter files cannot use anchors and aliases (rcl refuses '
-                           'them)')
-        return super().compose_node(parent, index)
-
-
-@dataclass
-class Conversion:
-    """
-    The result of converting one DDC section.
-
-    Attributes
-    ----------
-    controller : str
-        Name of the DDC section (``diff_drive_base_controller``).
-    found_by : str
-        How the section was found, for the report.
-    values : dict
-        Our parameter names (dotted) to values.
-    mapped : list of (str, str)
-        ``(DDC side, our side)`` texts, one per mapping.
-    not_mapped : list of (str, str)
-        ``(DDC key = value, reason)`` for every key of the section that has no counterpart.
-    warnings : list of str
-        Things the user must know: the converted robot differs from the DDC one, or the DDC
-        file itself is suspicious.
-    narrowed : bool
-        ``wheel_separation_multiplier < 1``: ``track_width`` is DDC's effective separation.
-
-    """
-
-    controller: str
-    found_by: str = ''
-    values: dict[str, Any] = field(default_factory=dict)
-    mapped: list[tuple[str, str]] = field(default_factory=list)
-    not_mapped: list[tuple[str, str]] = field(default_factory=list)
-    warnings: list[str] = field(default_factory=list)
-    narrowed: bool = False
-
-    def sections(self) -> dict[str, dict[str, Any]]:
-        """Parameter file sections: ``/**`` for the terrain, ``/**/<node>`` for the rest."""
-        out = {'/**': {k: self.values[k] for k in TERRAIN_KEYS if k in self.values}}
-        for node, keys in NODE_KEYS.items():
-            values = {k: self.values[k] for k in keys if k in self.values}
-            if values:
-                out[f'/**/{node}'] = values
-        return out
-
-    def yaml_text(self, source: str = '') -> str:
-        """Return the parameter file: a comment saying where it came from, then the sections."""
-        y_left, y_right = self.values['icr.y_left'], self.values['icr.y_right']
-        chi = self.values['track_width'] / (y_left - y_right)
-        header = [
-            'Converted by convert_diff_drive_params from the diff_drive_controller section',
-            f'{self.controller!r}' + (f' of {source}' if source else '') + '.',
-            f"DDC's kinematics as a tread model: chi = {chi:.4f}, e = 0"
-            + (' (track_width is the effective separation, see the warning)'
-               if self.narrowed else '') + '.',
-            'Load it into odometry_node and cmd_vel_translator with --ros-args --params-file:',
-            '/** is the vehicle for every node, /**/<node> what only that node declares.',
-        ]
-        doc = {key: {'ros__parameters': nest(values)} for key, values in self.sections().items()}
-        text = yaml.dump(doc, Dumper=_NoAliasDumper, sort_keys=False, default_flow_style=False)
-        return ''.join(f'# {line}\n' for line in header) + text
-
-
-# --- reading the file ------------------------------------------------------------------------
-
-
-def load_controllers(path: str | os.PathLike) -> Any:
-    """
-    Read a controllers YAML file.
-
-    Raises
-    ------
-    DdcError
-        When it does not exist, is not a regular file, cannot be read, is not YAML or is
-        not a mapping; one line naming the file.
-
-    """
-    path = os.fspath(path)
-    if not os.path.exists(path):
-        raise DdcError(f'{path}: no such file')
-    if not os.path.isfile(path):
-        raise DdcError(f'{path}: not a regular file')
-    try:
-        with open(path, encoding='utf-8') as stream:
-            doc = yaml.load(stream, Loader=_NoAliasLoader)  # noqa: S506 -- a SafeLoader
-    except DdcError as err:
-        raise DdcError(f'{path}: {err}') from None
-    except RecursionError:
-        raise DdcError(f'{path}: nested too deeply to be a parameter file') from None
-    except OSError as err:
-        raise DdcError(f'{path}: cannot be read: {err.strerror}') from None
-    except UnicodeDecodeError:
-        raise DdcError(f'{path}: not a text (UTF-8) file') from None
-    except yaml.YAMLError as err:
-        raise DdcError(f'{path}: not valid YAML: {" ".join(str(err).split())}') from None
-    if not isinstance(doc, Mapping):
-        raise DdcError(f'{path}: not a YAML mapping of controllers (got '
-                       f'{"an empty file" if doc is None else type(doc).__name__})')
-    return doc
-
-
-def _normal_name(path: list) -> tuple[str, bool]:
-    """
-    Section key path -> ``(node name, applies in any namespace)``.
-
-    ``['/**', 'ddc'] -> ('ddc', True)``, ``['/r1/ddc'] -> ('r1/ddc', False)``,
-    ``['ddc'] -> ('ddc', False)`` (rcl reads a name without a namespace as the root's).
-    """
-    name = '/'.join(str(part).strip('/') for part in path if str(part).strip('/'))
-    wildcard = '*' in name
-    while name.startswith('**/') or name.startswith('*/'):
-        name = name.split('/', 1)[1]
-    return name or '/**', wildcard
-
-
-def _leaf(name: str) -> str:
-    return name.rstrip('/').split('/')[-1]
-
-
-def _has_markers(params: Mapping) -> bool:
-    return any(key in params for key in _MARKERS)
-
-
-def _raw_sections(doc: Mapping) -> list[tuple[str, bool, Mapping]]:
-    """``(node name, any namespace, parameters)`` of every section, in file order."""
-    found: list[tuple[str, bool, Mapping]] = []
-
-    def walk(node: Mapping, path: list) -> None:
-        for key, value in node.items():
-            if key == 'ros__parameters':
-                found.append((*_normal_name(path), value if isinstance(value, Mapping) else {}))
-            elif isinstance(value, Mapping):
-                walk(value, path + [key])
-
-    walk(doc, [])
-    if found:
-        return found
-
-    # No ros__parameters anywhere: plain forms, sections found by their DDC keys.
-    def walk_plain(node: Mapping, path: list) -> None:
-        if _has_markers(node):
-            name, wildcard = _normal_name(path) if path else ('(top level)', False)
-            found.append((name, wildcard, node))
-            return
-        for key, value in node.items():
-            if isinstance(value, Mapping):
-                walk_plain(value, path + [key])
-
-    walk_plain(doc, [])
-    return found
-
-
-def _declared_types(doc: Mapping) -> dict[str, str]:
-    """Map controller names (leaf) to types, from every ``<name>: {type: ...}`` in the file."""
-    types: dict[str, str] = {}
-
-    def walk(node: Mapping, parent) -> None:
-        for key, value in node.items():
-            if not isinstance(value, Mapping):
-                continue
-            kind = value.get('type')
-            if isinstance(kind, str):
-                owner = parent if key == 'ros__parameters' else key
-                if owner is not None:
-                    types[_leaf(str(owner))] = kind
-            walk(value, key)
-
-    walk(doc, None)
-    return types
-
-
-@dataclass
-class Section:
-    """
-    The DDC section of a controllers file.
-
-    Attributes
-    ----------
-    name : str
-        Node name, with its namespace if the file gives one (``a200/platform_controller``).
-    params : dict
-        Parameters, flattened to dotted names; sections of the same node are merged in file
-        order, as rcl merges them.
-    found_by : str
-        How it was found, for the report.
-    any_namespace : bool
-        The file gives it for any namespace (``/**/name`` or under ``/**:``).
-
-    """
-
-    name: str
-    params: dict[str, Any]
-    found_by: str
-    any_namespace: bool = False
-
-    @property
-    def namespace(self) -> str | None:
-        """Return the node's namespace without slashes ('' = root), None when any applies."""
-        return None if self.any_namespace else self.name.rpartition('/')[0]
-
-
-def find_controller(doc: Mapping, controller: str | None = None, source: str = '') -> Section:
-    """
-    Find the DDC section of a controllers file.
-
-    By ``controller`` when given; otherwise the controllers whose type is declared as
-    diff_drive_controller/DiffDriveController (by the controller_manager or by their own
-    ``type``), and the sections of undeclared type that have DDC keys (``wheel_separation``,
-    ``left_wheel_names``, ``right_wheel_names``).
-
-    Raises
-    ------
-    DdcError
-        No section, several without ``controller``, or ``controller`` not found or of
-        another type.
-
-    """
-    where = f'{source}: ' if source else ''
-    groups: dict[str, dict[str, Any]] = {}
-    wildcard: dict[str, bool] = {}
-    for name, any_ns, params in _raw_sections(doc):
-        groups.setdefault(name, {}).update(flatten(params))
-        wildcard[name] = wildcard.get(name, False) or any_ns
-    types = _declared_types(doc)
-
-    def type_of(name: str) -> str | None:
-        own = groups[name].get('type')
-        return own if isinstance(own, str) else types.get(_leaf(name))
-
-    def section(name: str, found_by: str) -> Section:
-        return Section(name, groups[name], found_by, wildcard[name])
-
-    if controller is not None:
-        wanted = _normal_name([controller])[0]
-        matches = [n for n in groups if n == wanted] or [
-            n for n in groups if _leaf(n) == _leaf(wanted)]
-        if not matches:
-            listed = ', '.join(groups) or 'none'
-            raise DdcError(f'{where}no section for controller {controller!r} (sections: '
-                           f'{listed})')
-        if len(matches) > 1:
-            raise DdcError(f'{where}--controller {controller!r} matches several sections '
-                           f'({", ".join(matches)}); give the namespace too')
-        name = matches[0]
-        kind = type_of(name)
-        if kind is not None and kind != DDC_TYPE:
-            raise DdcError(f'{where}controller {name!r} is a {kind}, not a {DDC_TYPE}')
-        return section(name, 'named by --controller')
-
-    declared = [n for n in groups if type_of(n) == DDC_TYPE]
-    by_keys = [n for n in groups if type_of(n) is None and _has_markers(groups[n])]
-    candidates = declared + by_keys
-    if not candidates:
-        orphans = sorted(k for k, v in types.items() if v == DDC_TYPE)
-        if orphans:
-            raise DdcError(
-                f'{where}{", ".join(map(repr, orphans))} is declared as {DDC_TYPE} but the '
-                f'file has no section with its parameters')
-        raise DdcError(
-            f'{where}no diff_drive_controller section (no controller of type {DDC_TYPE} and no '
-            f'section with {", ".join(_MARKERS)})')
-    if len(candidates) > 1:
-        raise DdcError(f'{where}{len(candidates)} diff_drive_controller sections '
-                       f'({", ".join(candidates)}): choose one with --controller NAME')
-    name = candidates[0]
-    if name in declared:
-        return section(name, f'its type is {DDC_TYPE}')
-    return section(name, 'found by its diff_drive_controller keys')
-
-
-# --- values ----------------------------------------------------------------------------------
-
-
-def _clean(value: float) -> float:
-    return float(f'{value:.{_DIGITS}g}')
-
-
-def fmt(value) -> str:
-    """Format a parameter value as the report shows it (YAML spelling)."""
-    if isinstance(value, bool):
-        return 'true' if value else 'false'
-    if isinstance(value, float):
-        if math.isnan(value):
-            return '.nan'
-        if math.isinf(value):
-            return '.inf' if value > 0 else '-.inf'
-        return repr(_clean(value))
-    if isinstance(value, (list, tuple)):
-        return '[' + ', '.join(fmt(v) for v in value) + ']'
-    return str(value)
-
-
-def _number(key: str, value) -> float:
-    """Read a DDC number: int, float, or a string rcl reads as a double (``nan``, ``1e3``)."""
-    if isinstance(value, bool):
-        raise DdcError(f'{key} must be a number, got {fmt(value)}')
-    if isinstance(value, (int, float)):
-        return float(value)
-    if isinstance(value, str):
-        text = value.strip().lower()
-        text = {'.nan': 'nan', '.inf': 'inf', '+.inf': 'inf', '-.inf': '-inf'}.get(text, text)
-        try:
-            return float(text)
-        except ValueError:
-            pass
-        if '$(' in value:
-            raise DdcError(f'{key} is a launch substitution ({value}); give the number itself')
-    raise DdcError(f'{key} must be a number, got {value!r}')
-
-
-def _positive(p: Mapping, key: str, default: float | None = None, unit: str = '') -> float:
-    if key not in p:
-        if default is None:
-            raise DdcError(f'{key} is missing (diff_drive_controller refuses to start without '
-                           'it too)')
-        return default
-    value = _number(key, p[key])
-    if not (math.isfinite(value) and value > 0.0):
-        raise DdcError(f'{key} must be a finite number > 0{unit}, got {fmt(p[key])}')
-    return value
-
-
-def _bool(key: str, value) -> bool:
-    if isinstance(value, bool):
-        return value
-    if isinstance(value, str) and value.strip().lower() in ('true', 'false'):
-        return value.strip().lower() == 'true'
-    raise DdcError(f'{key} must be true or false, got {value!r}')
-
-
-def _text(key: str, value) -> str:
-    if not isinstance(value, str):
-        raise DdcError(f'{key} must be a string, got {value!r}')
-    return value
-
-
-def _joints(key: str, value) -> list[str]:
-    names = [value] if isinstance(value, str) else value
-    if not isinstance(names, list) or not all(isinstance(n, str) for n in names):
-        raise DdcError(f'{key} must be a list of joint names, got {value!r}')
-    if not names:
-        raise DdcError(f'{key} is empty (diff_drive_controller refuses that too)')
-    if any(not n.strip() for n in names):
-        raise DdcError(f'{key} contains an empty joint name: {value!r}')
-    return list(names)
-
-
-# --- the conversion --------------------------------------------------------------------------
 
 
 def convert(params: Mapping[str, Any], controller: str = '', found_by: str = '',
@@ -563,18 +165,18 @@ def convert_file(path: str | os.PathLike, controller: str | None = None) -> Conv
 
 
 def _geometry(p: dict, conv: Conversion) -> None:
-    separation = _positive(p, 'wheel_separation', unit=' m')
-    radius = _positive(p, 'wheel_radius', unit=' m')
-    multiplier = _positive(p, 'wheel_separation_multiplier', 1.0)
-    both = _positive(p, 'wheel_radius_multiplier', 1.0)  # ROS 1: one for both sides
-    left = _positive(p, 'left_wheel_radius_multiplier', both)
-    right = _positive(p, 'right_wheel_radius_multiplier', both)
+    separation = read_positive(p, 'wheel_separation', unit=' m')
+    radius = read_positive(p, 'wheel_radius', unit=' m')
+    multiplier = read_positive(p, 'wheel_separation_multiplier', 1.0)
+    both = read_positive(p, 'wheel_radius_multiplier', 1.0)  # ROS 1: one for both sides
+    left = read_positive(p, 'left_wheel_radius_multiplier', both)
+    right = read_positive(p, 'right_wheel_radius_multiplier', both)
     effective = separation * multiplier
-    half = _clean(0.5 * effective)
-    width = _clean(separation if multiplier >= 1.0 else effective)
-    conv.values.update({'track_width': width, 'sprocket_radius': _clean(radius),
+    half = clean(0.5 * effective)
+    width = clean(separation if multiplier >= 1.0 else effective)
+    conv.values.update({'track_width': width, 'sprocket_radius': clean(radius),
                         'icr.y_left': half, 'icr.y_right': -half, 'icr.x': 0.0,
-                        'scale.left': _clean(left), 'scale.right': _clean(right)})
+                        'scale.left': clean(left), 'scale.right': clean(right)})
     m_text = fmt(p['wheel_separation_multiplier']) if 'wheel_separation_multiplier' in p \
         else '1 (default)'
     if multiplier >= 1.0:
@@ -587,7 +189,7 @@ def _geometry(p: dict, conv: Conversion) -> None:
         conv.warnings.append(
             f'wheel_separation_multiplier {m_text} < 1: DDC turns the robot 1/{m_text} = '
             f'{1.0 / multiplier:.3g} times faster than wheel_separation {fmt(separation)} m '
-            f'says, as if its tracks were {fmt(_clean(effective))} m apart. A tread ICR model '
+            f'says, as if its tracks were {fmt(clean(effective))} m apart. A tread ICR model '
             f'cannot put the ICRs inside the tracks (chi would be {1.0 / multiplier:.3g} > 1, '
             f'which every node refuses), so track_width = {fmt(width)} m is written with '
             "ideal ICRs: the odometry and the commands are exactly DDC's, but track_width is "
@@ -605,7 +207,7 @@ def _geometry(p: dict, conv: Conversion) -> None:
         source = key if key in p or 'wheel_radius_multiplier' not in p \
             else 'wheel_radius_multiplier (ROS 1)'
         conv.mapped.append((f'{source} = {fmt(value)}' + ('' if given else ' (default)'),
-                            f'scale.{side} = {fmt(_clean(value))}'))
+                            f'scale.{side} = {fmt(clean(value))}'))
 
 
 def _joints_of(p: dict, conv: Conversion) -> None:
@@ -618,7 +220,7 @@ def _joints_of(p: dict, conv: Conversion) -> None:
                 f"(odometry_node's default is [{side}_sprocket_joint]); set it to the joints "
                 'of that side')
             continue
-        names = _joints(key, p[key])
+        names = read_joints(key, p[key])
         found[side] = names
         conv.values[f'{side}_joints'] = names
         conv.mapped.append((f'{key} = {fmt(p[key])}', f'{side}_joints = {fmt(names)}'))
@@ -642,11 +244,11 @@ def _frames(p: dict, conv: Conversion, namespace: str | None) -> None:
     DDC's prefix (``on_configure``): none when ``tf_frame_prefix_enable`` is false, else
     ``tf_frame_prefix`` when set, else the controller's namespace.
     """
-    odom = _text('odom_frame_id', p['odom_frame_id']) if 'odom_frame_id' in p else None
-    base = _text('base_frame_id', p['base_frame_id']) if 'base_frame_id' in p else None
-    enable = _bool('tf_frame_prefix_enable', p['tf_frame_prefix_enable']) \
+    odom = read_text('odom_frame_id', p['odom_frame_id']) if 'odom_frame_id' in p else None
+    base = read_text('base_frame_id', p['base_frame_id']) if 'base_frame_id' in p else None
+    enable = read_bool('tf_frame_prefix_enable', p['tf_frame_prefix_enable']) \
         if 'tf_frame_prefix_enable' in p else True
-    explicit = _text('tf_frame_prefix', p['tf_frame_prefix']).strip('/') \
+    explicit = read_text('tf_frame_prefix', p['tf_frame_prefix']).strip('/') \
         if 'tf_frame_prefix' in p else ''
     prefix, why = '', 'no frame prefix'
     if enable and explicit:
@@ -680,13 +282,13 @@ def _frames(p: dict, conv: Conversion, namespace: str | None) -> None:
 
 def _node_settings(p: dict, conv: Conversion) -> None:
     if 'enable_odom_tf' in p:
-        value = _bool('enable_odom_tf', p['enable_odom_tf'])
+        value = read_bool('enable_odom_tf', p['enable_odom_tf'])
         conv.values['publish_tf'] = value
         conv.mapped.append((f'enable_odom_tf = {fmt(value)}', f'publish_tf = {fmt(value)}'))
     if 'publish_rate' in p:
-        rate = _number('publish_rate', p['publish_rate'])
+        rate = read_number('publish_rate', p['publish_rate'])
         if math.isfinite(rate) and rate > 0.0:
-            conv.values['publish_rate'] = _clean(rate)
+            conv.values['publish_rate'] = clean(rate)
             conv.mapped.append((f'publish_rate = {fmt(rate)}', f'publish_rate = {fmt(rate)}'))
         else:
             conv.not_mapped.append((f'publish_rate = {fmt(p["publish_rate"])}',
@@ -697,7 +299,7 @@ def _node_settings(p: dict, conv: Conversion) -> None:
                                 'odometry_node publishes on every joint_states message unless '
                                 'publish_rate is set'))
     if 'cmd_vel_timeout' in p:
-        timeout = _number('cmd_vel_timeout', p['cmd_vel_timeout'])
+        timeout = read_number('cmd_vel_timeout', p['cmd_vel_timeout'])
         given = f'cmd_vel_timeout = {fmt(p["cmd_vel_timeout"])}'
         if math.isnan(timeout) or timeout < 0.0:
             conv.not_mapped.append((given, 'not a timeout >= 0; cmd_vel_translator keeps its '
@@ -709,7 +311,7 @@ def _node_settings(p: dict, conv: Conversion) -> None:
             conv.values['cmd_timeout'] = 0.0
             conv.mapped.append((given, 'cmd_timeout = 0 (disabled: commands never go stale)'))
         else:
-            conv.values['cmd_timeout'] = _clean(timeout)
+            conv.values['cmd_timeout'] = clean(timeout)
             conv.mapped.append((given, f'cmd_timeout = {fmt(timeout)}'))
             if timeout > 60.0:
                 conv.warnings.append(
@@ -717,7 +319,7 @@ def _node_settings(p: dict, conv: Conversion) -> None:
                     f'it in milliseconds; if you meant {fmt(timeout / 1000.0)} s, edit '
                     'cmd_timeout in the output')
     if 'use_stamped_vel' in p:
-        value = _bool('use_stamped_vel', p['use_stamped_vel'])
+        value = read_bool('use_stamped_vel', p['use_stamped_vel'])
         conv.values['use_stamped'] = value
         conv.mapped.append((f'use_stamped_vel = {fmt(value)}',
                             f'use_stamped = {fmt(value)} (delete it to let cmd_vel_translator '
@@ -728,7 +330,7 @@ def _node_settings(p: dict, conv: Conversion) -> None:
             'cmd_vel_translator follows the message type of the publishers on cmd_vel; '
             'use_stamped: true forces TwistStamped'))
     if p.get('open_loop') is not None:
-        value = _bool('open_loop', p['open_loop'])
+        value = read_bool('open_loop', p['open_loop'])
         conv.not_mapped.append((f'open_loop = {fmt(value)}', (
             'odometry_node always integrates the encoders (= open_loop false)' if not value
             else 'DDC integrated its commands; odometry_node integrates the encoders')))
@@ -737,7 +339,7 @@ def _node_settings(p: dict, conv: Conversion) -> None:
                                  'commands; odometry_node uses the joint states, so its '
                                  'odometry will differ (it follows what the tracks did)')
     if p.get('position_feedback') is not None:
-        value = _bool('position_feedback', p['position_feedback'])
+        value = read_bool('position_feedback', p['position_feedback'])
         conv.not_mapped.append((f'position_feedback = {fmt(value)}', (
             'odometry_node uses joint positions when joint_states has them for every joint '
             '(= position_feedback true), velocities otherwise' if value else
@@ -746,7 +348,7 @@ def _node_settings(p: dict, conv: Conversion) -> None:
 
 
 def _axis_values(p: dict, axis: str, names) -> dict[str, float]:
-    return {name: _number(f'{axis}.{name}', p[f'{axis}.{name}'])
+    return {name: read_number(f'{axis}.{name}', p[f'{axis}.{name}'])
             for name in names if f'{axis}.{name}' in p}
 
 
@@ -783,7 +385,7 @@ def _limits(p: dict, conv: Conversion, axis: str, kind: str) -> None:
     ours = f'{axis}.max_{kind}'
     unit = _UNITS[axis, kind]
     given = ', '.join(f'{k} = {fmt(p[k])}' for k in present)
-    enabled = _bool(has_key, p[has_key]) if has_key in p else None
+    enabled = read_bool(has_key, p[has_key]) if has_key in p else None
     if enabled is False:
         conv.values[ours] = 0.0
         conv.mapped.append((given, f'{ours} = 0 (no limit: {switch} is false)'))
@@ -815,7 +417,7 @@ def _limits(p: dict, conv: Conversion, axis: str, kind: str) -> None:
         conv.mapped.append((given, f'{ours} = 0 (no limit)'))
         return
     limit, name = min(magnitudes)
-    conv.values[ours] = _clean(limit)
+    conv.values[ours] = clean(limit)
     conv.mapped.append((given, f'{ours} = {fmt(limit)}'))
     if any(m > limit * (1.0 + 1e-12) for m, _ in magnitudes):
         bounds_text = ', '.join(f'{axis}.{n} = {fmt(values[n])}' for _, n in magnitudes)
@@ -835,7 +437,7 @@ def _jerk(p: dict, conv: Conversion, axis: str) -> None:
         return
     given = ', '.join(f'{k} = {fmt(p[k])}' for k in keys)
     has_key = f'{axis}.has_jerk_limits'
-    enabled = _bool(has_key, p[has_key]) if has_key in p else None
+    enabled = read_bool(has_key, p[has_key]) if has_key in p else None
     values = _axis_values(p, axis, ('max_jerk', 'min_jerk'))
     active = enabled is not False and any(math.isfinite(v) and v != 0.0 for v in values.values())
     if active:
@@ -856,22 +458,3 @@ def _the_rest(p: dict, conv: Conversion) -> None:
             reason = ('not a ROS 2 diff_drive_controller parameter (a ROS 1, vendor or '
                       'misspelt key); DDC ignores it too')
         conv.not_mapped.append((f'{key} = {fmt(value)}', reason))
-
-
-def report_lines(conv: Conversion, width: int = 46) -> list[str]:
-    """
-    Return the human-readable report of a conversion: what was mapped, what not and why.
-
-    One line per mapping, ``DDC side -> our side``, aligned at ``width``; a DDC side longer
-    than that puts our side on the next line.
-    """
-    lines = [f'diff_drive_controller section {conv.controller!r} ({conv.found_by})', '',
-             'mapped (diff_drive_controller -> tracked_kinematics):']
-    for ddc, ours in conv.mapped:
-        if len(ddc) < width:
-            lines.append(f'  {ddc.ljust(width)}-> {ours}')
-        else:
-            lines += [f'  {ddc}', f'  {"":{width}}-> {ours}']
-    lines += ['', 'not mapped:']
-    lines += [f'  {ddc}: {reason}' for ddc, reason in conv.not_mapped] or ['  (nothing)']
-    return lines

@@ -1,0 +1,115 @@
+"""
+The result of converting a DDC section: our values, the parameter file and the report.
+
+:class:`Conversion` holds the values with a line for every DDC key saying what became of it;
+:meth:`Conversion.yaml_text` renders the parameter file (the vehicle for every node, the rest
+for the node that declares it), :func:`report_lines` the report.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+from tracked_kinematics.params import nest
+import yaml
+
+AXES = ('linear.x', 'angular.z')
+
+# Terrain keys go to every node (``/**``); the others only to the nodes that declare them, so
+# that no node warns about a parameter it does not know.
+TERRAIN_KEYS = ('track_width', 'sprocket_radius', 'icr.y_left', 'icr.y_right', 'icr.x',
+                'scale.left', 'scale.right')
+NODE_KEYS = {
+    'odometry_node': ('left_joints', 'right_joints', 'odom_frame', 'base_frame', 'publish_tf',
+                      'publish_rate'),
+    'icr_estimator': ('left_joints', 'right_joints'),
+    'cmd_vel_translator': ('cmd_timeout', 'use_stamped') + tuple(
+        f'{axis}.max_{kind}' for axis in AXES for kind in ('velocity', 'acceleration')),
+}
+
+
+class _NoAliasDumper(yaml.SafeDumper):
+    """Safe dumper that writes a shared list twice: rcl's YAML parser refuses aliases."""
+
+    def ignore_aliases(self, data) -> bool:
+        return True
+
+
+@dataclass
+class Conversion:
+    """
+    The result of converting one DDC section.
+
+    Attributes
+    ----------
+    controller : str
+        Name of the DDC section (``diff_drive_base_controller``).
+    found_by : str
+        How the section was found, for the report.
+    values : dict
+        Our parameter names (dotted) to values.
+    mapped : list of (str, str)
+        ``(DDC side, our side)`` texts, one per mapping.
+    not_mapped : list of (str, str)
+        ``(DDC key = value, reason)`` for every key of the section that has no counterpart.
+    warnings : list of str
+        Things the user must know: the converted robot differs from the DDC one, or the DDC
+        file itself is suspicious.
+    narrowed : bool
+        ``wheel_separation_multiplier < 1``: ``track_width`` is DDC's effective separation.
+
+    """
+
+    controller: str
+    found_by: str = ''
+    values: dict[str, Any] = field(default_factory=dict)
+    mapped: list[tuple[str, str]] = field(default_factory=list)
+    not_mapped: list[tuple[str, str]] = field(default_factory=list)
+    warnings: list[str] = field(default_factory=list)
+    narrowed: bool = False
+
+    def sections(self) -> dict[str, dict[str, Any]]:
+        """Parameter file sections: ``/**`` for the terrain, ``/**/<node>`` for the rest."""
+        out = {'/**': {k: self.values[k] for k in TERRAIN_KEYS if k in self.values}}
+        for node, keys in NODE_KEYS.items():
+            values = {k: self.values[k] for k in keys if k in self.values}
+            if values:
+                out[f'/**/{node}'] = values
+        return out
+
+    def yaml_text(self, source: str = '') -> str:
+        """Return the parameter file: a comment saying where it came from, then the sections."""
+        y_left, y_right = self.values['icr.y_left'], self.values['icr.y_right']
+        chi = self.values['track_width'] / (y_left - y_right)
+        header = [
+            'Converted by convert_diff_drive_params from the diff_drive_controller section',
+            f'{self.controller!r}' + (f' of {source}' if source else '') + '.',
+            f"DDC's kinematics as a tread model: chi = {chi:.4f}, e = 0"
+            + (' (track_width is the effective separation, see the warning)'
+               if self.narrowed else '') + '.',
+            'Load it into odometry_node and cmd_vel_translator with --ros-args --params-file:',
+            '/** is the vehicle for every node, /**/<node> what only that node declares.',
+        ]
+        doc = {key: {'ros__parameters': nest(values)} for key, values in self.sections().items()}
+        text = yaml.dump(doc, Dumper=_NoAliasDumper, sort_keys=False, default_flow_style=False)
+        return ''.join(f'# {line}\n' for line in header) + text
+
+
+def report_lines(conv: Conversion, width: int = 46) -> list[str]:
+    """
+    Return the human-readable report of a conversion: what was mapped, what not and why.
+
+    One line per mapping, ``DDC side -> our side``, aligned at ``width``; a DDC side longer
+    than that puts our side on the next line.
+    """
+    lines = [f'diff_drive_controller section {conv.controller!r} ({conv.found_by})', '',
+             'mapped (diff_drive_controller -> tracked_kinematics):']
+    for ddc, ours in conv.mapped:
+        if len(ddc) < width:
+            lines.append(f'  {ddc.ljust(width)}-> {ours}')
+        else:
+            lines += [f'  {ddc}', f'  {"":{width}}-> {ours}']
+    lines += ['', 'not mapped:']
+    lines += [f'  {ddc}: {reason}' for ddc, reason in conv.not_mapped] or ['  (nothing)']
+    return lines
