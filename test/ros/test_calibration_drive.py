@@ -9,7 +9,6 @@ import subprocess
 from helpers.fake_robot import AURIGA, B, FakeRobot, RADIUS
 from helpers.ros_helpers import ConsoleScript, spin_until
 import pytest
-import yaml
 from rclpy.parameter import Parameter
 from std_msgs.msg import String
 from std_srvs.srv import Trigger
@@ -18,6 +17,7 @@ from tracked_kinematics.params import read_params_file
 from tracked_kinematics.ros.calibration_drive import CalibrationDriveNode
 from tracked_kinematics.ros.odometry_node import OdometryNode
 from tracked_kinematics.ros.parameters import ParameterError
+import yaml
 
 pytestmark = pytest.mark.ros
 
