@@ -179,6 +179,9 @@ def _still_bag(path, seconds=20.0):
 @pytest.mark.parametrize('extra, status, pattern', [
     (['--ground-truth-topic', '/vicon'], 2, 'no topic /vicon for the ground truth'),
     (['--sprocket-radius', '-1'], 2, 'must be in [0.005, 5] m, got -1'),
+    (['--min-speed', '-0.1'], 2, 'argument --min-speed: must be a finite number >= 0, got -0.1'),
+    (['--min-speed', 'nan'], 2, 'argument --min-speed: must be a finite number >= 0, got nan'),
+    (['--min-speed', 'inf'], 2, 'argument --min-speed: must be a finite number >= 0, got inf'),
     (['--prediction-dt', '3'], 2, '--prediction-dt (3 s) must be shorter than --horizon (2 s)'),
     (['--window', '5', '5'], 2, '--window lists a value twice: 5 5'),
     (['--plot', 'x.nope'], 2, "--plot: format 'nope' is not supported"),
@@ -189,11 +192,11 @@ def _still_bag(path, seconds=20.0):
 def test_bad_options_are_one_line(sim, tmp_path, capsys, extra, status, pattern):
     argv = [sim['bag'], '--ground-truth-topic', GT, '--params', sim['truth'],
             '--report', tmp_path / 'r.json'] + extra
-    if status == 2 and extra[0] in ('--sprocket-radius', '--ground-truth-delay'):
+    if status == 2 and extra[0] in ('--sprocket-radius', '--ground-truth-delay', '--min-speed'):
         with pytest.raises(SystemExit) as exit_info:
             cli.main([str(a) for a in argv])
         assert exit_info.value.code == 2
-        assert pattern in capsys.readouterr().err
+        assert_one_line(capsys.readouterr().err, pattern)
     else:
         got, _, err = run(argv, capsys)
         assert got == status
@@ -262,8 +265,21 @@ def test_a_still_bag_has_no_delay_to_find_and_nothing_to_predict(sim, tmp_path, 
     report = json.loads((tmp_path / 'r.json').read_text())
     assert report['recordings'][0]['ground_truth_delay_source'] == 'not determined'
     assert report['recordings'][0]['ground_truth_delay_s'] == 0.0
+    # No window moves: none is scored by default; with --all-windows, all, without error.
     window = report['models']['ideal']['odometry']['windows']['5']
+    assert window['n'] == 0 and window['n_total'] > 0
+    assert window['mean_position_error_m'] is None and window['drift_pct'] is None
+    assert ('windows in which the tracks move (mean track speed >= 0.1 m/s; --all-windows for '
+            f'all): 0 of {window["n_total"]} of 5 s, 0 of ') in out
+    status, out, err = run([still, '--ground-truth-topic', GT, '--params', sim['truth'],
+                            '--report', tmp_path / 'r.json', '--force', '--all-windows'], capsys)
+    assert status == 0, err
+    report = json.loads((tmp_path / 'r.json').read_text())
+    assert report['windows_selection'] == {'moving_only': False, 'min_speed_mps': None}
+    window = report['models']['ideal']['odometry']['windows']['5']
+    assert window['n'] == window['n_total'] > 0
     assert window['mean_position_error_m'] == 0.0 and window['drift_pct'] is None
+    assert f'windows, idle ones too: {window["n"]} of 5 s, ' in out
 
 
 def test_bags_whose_streams_do_not_meet_have_nothing_to_score(sim, tmp_path, capsys):
@@ -384,3 +400,21 @@ def test_a_file_with_only_the_track_width_is_ideal_drive_of_that_width(sim, tmp_
     assert report['models']['wide']['icr']['y_right'] == -0.25
     assert report['settings']['track_width'] == 0.5
     assert report['models']['ideal']['icr']['y_left'] == 0.25
+
+
+def test_windows_are_the_moving_ones_by_default(sim, scored, tmp_path, capsys):
+    report, _ = scored
+    assert report['windows_selection'] == {'moving_only': True, 'min_speed_mps': 0.1}
+    for key in ('5', '10'):
+        window = report['models']['ideal']['odometry']['windows'][key]
+        assert 0 < window['n'] <= window['n_total']
+    # A threshold no window reaches keeps none (and says so); 0 keeps them all.
+    argv = [sim['bag'], '--ground-truth-topic', GT, '--params', sim['truth'], '--report',
+            tmp_path / 'r.json', '--force']
+    for speed, kept in (('100', lambda n, total: n == 0), ('0', lambda n, total: n == total)):
+        status, _, err = run(argv + ['--min-speed', speed], capsys)
+        assert status == 0, err
+        doc = json.loads((tmp_path / 'r.json').read_text())
+        assert doc['windows_selection']['min_speed_mps'] == float(speed)
+        window = doc['models']['ideal']['odometry']['windows']['5']
+        assert kept(window['n'], window['n_total']) and window['n_total'] > 0

@@ -35,15 +35,20 @@ def check_format(path) -> str:
     return fmt
 
 
-def error_curves(evaluation, names, lengths):
-    """Mean final position (m) and heading (rad) errors of each model at each window length."""
+def error_curves(evaluation, names, lengths, min_speed=None):
+    """
+    Mean final position (m) and heading (rad) errors of each model at each window length.
+
+    Over the windows whose mean track speed is at least ``min_speed`` (m/s; None: all), as
+    the report's (:func:`tracked_kinematics.core.evaluate.moving_windows`).
+    """
     curves = {}
     for name in names:
         position, heading = [], []
         for length in lengths:
             p_all, h_all = [], []
             for piece, path in zip(evaluation.pieces, evaluation.paths[name]):
-                i, j = ev.window_pairs(piece.t, length)
+                i, j, _ = ev.moving_windows(piece, length, min_speed)
                 p, h = ev.relative_errors(path, piece.truth, i, j)
                 p_all.append(p)
                 h_all.append(h)
@@ -56,7 +61,7 @@ def error_curves(evaluation, names, lengths):
 
 
 def plot_evaluation(path, evaluation, names, windows=(5.0, 10.0), fmt: str = 'png',
-                    paths: int = 3, dpi: int = 110) -> None:
+                    paths: int = 3, dpi: int = 110, min_speed=None) -> None:
     """
     Draw the mean final errors against window length and the longest pieces' paths.
 
@@ -77,13 +82,15 @@ def plot_evaluation(path, evaluation, names, windows=(5.0, 10.0), fmt: str = 'pn
         How many pieces to draw (the longest ones).
     dpi : int
         Resolution.
+    min_speed : float or None
+        The curves' windows: those with at least this mean track speed, m/s; None: all.
 
     """
     longest = max((p.duration for p in evaluation.pieces), default=0.0)
     top = max(min(longest, 3.0 * max(windows)), 1.0)
     lengths = np.unique(np.concatenate([np.linspace(top / 15, top, 15),
                                         [w for w in windows if w <= longest]]))
-    curves = error_curves(evaluation, names, lengths)
+    curves = error_curves(evaluation, names, lengths, min_speed)
     order = sorted(range(len(evaluation.pieces)), key=lambda k: -evaluation.pieces[k].duration)
     shown = order[:paths]
     columns = max(2, len(shown))

@@ -12,13 +12,14 @@ from the commands), :mod:`.online` (the icr_estimator's EKF replayed) and :mod:`
 from .metrics import (evo_path_pairs, horizon_members, relative_errors, rpe, summary,
                       window_pairs)
 from .online import OnlineRun, replay
-from .pieces import Cut, cut, icr_increments, odometry, Piece
+from .pieces import (Cut, cut, icr_increments, mean_track_speeds, moving_windows, odometry,
+                     Piece)
 from .prediction import command_horizons, Commands, encoder_horizons, HorizonErrors
 from .scoring import Candidate, Data, evaluate, Evaluation, rpe_key, Settings, window_key
 
 __all__ = [
     'Candidate', 'Commands', 'Cut', 'Data', 'Evaluation', 'HorizonErrors', 'OnlineRun', 'Piece',
     'Settings', 'command_horizons', 'cut', 'encoder_horizons', 'evaluate', 'evo_path_pairs',
-    'horizon_members', 'icr_increments', 'odometry', 'relative_errors', 'replay', 'rpe',
-    'rpe_key', 'summary', 'window_key', 'window_pairs',
+    'horizon_members', 'icr_increments', 'mean_track_speeds', 'moving_windows', 'odometry',
+    'relative_errors', 'replay', 'rpe', 'rpe_key', 'summary', 'window_key', 'window_pairs',
 ]

@@ -27,6 +27,7 @@ import numpy as np
 from ..identify import gap_threshold, Recording
 from ..identify.segments import ground_truth_jumps
 from ..integration import integrate
+from .metrics import window_pairs
 
 
 @dataclass(frozen=True)
@@ -150,6 +151,63 @@ def cut(recording: Recording, index: int = 0, jumps: bool = True,
                             np.searchsorted(grid, ts)))
     return Cut(pieces, int(np.count_nonzero(gap)), int(np.count_nonzero(jumped)),
                float(sum(p.duration for p in pieces)))
+
+
+def mean_track_speeds(piece: Piece, i, j) -> np.ndarray:
+    """
+    Mean track speed over windows of a piece: the nominal track travel, m/s.
+
+    The mean over the window from sample ``i`` to sample ``j`` of ``(|V_l| + |V_r|) / 2``:
+    half the summed absolute travel of both tracks over the grid steps of the window, divided
+    by its duration (a turn on the spot moves; a standstill does not).
+
+    Parameters
+    ----------
+    piece : Piece
+        The piece.
+    i, j : ndarray of int
+        First and last ground-truth sample of each window (``j > i``).
+
+    Returns
+    -------
+    ndarray
+        m/s, one per window.
+
+    """
+    i, j = np.asarray(i, dtype=np.intp), np.asarray(j, dtype=np.intp)
+    d_left, d_right, _ = piece.steps
+    moved = np.concatenate([[0.0], np.cumsum(0.5 * (np.abs(d_left) + np.abs(d_right)))])
+    return (moved[piece.at[j]] - moved[piece.at[i]]) / (piece.t[j] - piece.t[i])
+
+
+def moving_windows(piece: Piece, length: float, min_speed: float | None):
+    """
+    Windows of ``length`` s of a piece (:func:`.metrics.window_pairs`) in which it moves.
+
+    Parameters
+    ----------
+    piece : Piece
+        The piece.
+    length : float
+        Window length, s.
+    min_speed : float or None
+        Keep the windows whose :func:`mean_track_speeds` is at least this, m/s; None: every
+        window.
+
+    Returns
+    -------
+    i, j : ndarray of int
+        The windows kept.
+    total : int
+        Windows of that length before the selection.
+
+    """
+    i, j = window_pairs(piece.t, length)
+    total = len(i)
+    if min_speed is not None and total:
+        keep = mean_track_speeds(piece, i, j) >= min_speed
+        i, j = i[keep], j[keep]
+    return i, j, total
 
 
 def icr_increments(d_left, d_right, y_left, y_right, x, scale_left=1.0, scale_right=1.0):

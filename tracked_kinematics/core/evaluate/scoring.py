@@ -6,7 +6,9 @@ over them, and scores it (:mod:`.metrics`, :mod:`.prediction`):
 
 - ``odometry.windows.<seconds>``: final position and heading errors of the odometry started
   at every ground-truth sample, after windows of that length (mean, p90), and the drift in
-  percent of the distance the ground truth travelled over those windows;
+  percent of the distance the ground truth travelled over those windows; with
+  ``Settings.min_speed``, only over the windows in which the vehicle moves (``n`` of
+  ``n_total``);
 - ``rpe_<D>m``: evo's relative pose error per ``D`` m travelled (translation part, RMSE; the
   mean and every statistic under ``rpe``, and the same with the pairs chosen along the
   ground truth, the same pairs for every model);
@@ -24,8 +26,8 @@ import math
 
 import numpy as np
 
-from .metrics import relative_errors, rpe, summary, window_pairs
-from .pieces import cut, odometry, Piece
+from .metrics import relative_errors, rpe, summary
+from .pieces import cut, moving_windows, odometry, Piece
 from .prediction import command_horizons, Commands, encoder_horizons, HorizonErrors
 from ..drivetrain import DriveTrain
 from ..identify import Recording
@@ -53,6 +55,10 @@ class Settings:
         Cut the data at ground-truth jumps (identify_icr's), as at gaps.
     track_width : float or None
         m, for the jumps' heading glitches (the ideal drive's turn).
+    min_speed : float or None
+        m/s: score only the windows in which the vehicle moves, whose mean track speed
+        (:func:`.pieces.mean_track_speeds`) is at least this; None: every window, idle ones
+        too. evaluate_model's default is 0.1.
 
     """
 
@@ -63,6 +69,7 @@ class Settings:
     max_command_age: float = 0.5
     jumps: bool = True
     track_width: float | None = None
+    min_speed: float | None = None
 
 
 @dataclass(frozen=True)
@@ -140,9 +147,9 @@ def _horizon_summary(errors: HorizonErrors) -> dict:
             'mean_final_rotation_rad': _mean(errors.final_rotation)}
 
 
-def _window_summary(position, heading, distance) -> dict:
+def _window_summary(position, heading, distance, total) -> dict:
     travelled = float(np.sum(distance))
-    return {'n': int(len(position)),
+    return {'n': int(len(position)), 'n_total': int(total),
             'mean_position_error_m': _mean(position), 'p90_position_error_m': _p90(position),
             'mean_heading_error_rad': _mean(heading), 'p90_heading_error_rad': _p90(heading),
             'mean_distance_m': _mean(distance),
@@ -172,7 +179,7 @@ class _Scores:
 
 
 def _score(candidate: Candidate, pieces, data, settings: Settings) -> _Scores:
-    scores = _Scores({w: ([], [], []) for w in settings.windows},
+    scores = _Scores({w: ([], [], [], []) for w in settings.windows},
                      {d: ([], [], [], []) for d in settings.rpe_deltas}, [], [], [])
     for piece in pieces:
         params_at = candidate.params_at(piece.recording)
@@ -184,8 +191,9 @@ def _score(candidate: Candidate, pieces, data, settings: Settings) -> _Scores:
         scores.paths.append(path)
         walked = np.concatenate([[0.0], np.cumsum(np.hypot(np.diff(piece.truth[:, 0]),
                                                            np.diff(piece.truth[:, 1])))])
-        for length, (position, heading, distance) in scores.windows.items():
-            i, j = window_pairs(piece.t, length)
+        for length, (position, heading, distance, total) in scores.windows.items():
+            i, j, n = moving_windows(piece, length, settings.min_speed)
+            total.append(n)
             p, h = relative_errors(path, piece.truth, i, j)
             position.append(p)
             heading.append(h)
@@ -206,7 +214,7 @@ def _score(candidate: Candidate, pieces, data, settings: Settings) -> _Scores:
 
 def _report(candidate: Candidate, scores: _Scores, settings: Settings, commands) -> dict:
     windows = {window_key(w): _window_summary(*(np.concatenate(parts) if parts else np.zeros(0)
-                                                for parts in values))
+                                                for parts in values[:3]), sum(values[3]))
                for w, values in scores.windows.items()}
     longest = window_key(max(settings.windows)) if settings.windows else None
     entry = {

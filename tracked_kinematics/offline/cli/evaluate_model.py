@@ -8,6 +8,10 @@ windows, drift, evo's relative pose error per 1 m and 10 m), predictions over a 
 the measured travel and from the commands through the file's drive train, and with
 ``--online`` the same for the icr_estimator's EKF replayed over the bags from each file.
 
+The windows are those in which the vehicle moves (mean track speed at least
+``--min-speed``, 0.1 m/s), so that a figure does not depend on how long the robot stood
+still; ``--all-windows`` scores the idle ones too.
+
 With ``--imu-topic`` instead of ``--ground-truth-topic`` the reference is the gyro: heading
 only (its bias and delay behind the encoders estimated as identify_icr does); the position
 figures are null in the report and ``-`` in the table, and there is no prediction from the
@@ -41,7 +45,7 @@ from tracked_kinematics.offline.cli.common import (
     add_bags_argument, add_command_arguments, add_encoder_arguments,
     add_ground_truth_arguments, add_ground_truth_topic_argument, add_sprocket_radius_argument,
     ArgumentParser, command_source, encoder_source, ground_truth_source, HelpFormatter,
-    positive, require_vehicle, run_main)
+    non_negative, positive, require_vehicle, run_main)
 from tracked_kinematics.offline.errors import UsageError
 from tracked_kinematics.offline.outputs import Outputs
 from tracked_kinematics.params import (
@@ -93,6 +97,12 @@ def build_parser() -> argparse.ArgumentParser:
     score = parser.add_argument_group('scores')
     score.add_argument('--window', type=positive, nargs='+', default=[5.0, 10.0],
                        metavar='SECONDS', help='odometry windows')
+    score.add_argument('--min-speed', type=non_negative, default=0.1, metavar='M/S',
+                       help='score the windows in which the vehicle moves: mean track speed '
+                       '((|left| + |right|) / 2 of the nominal track speeds, averaged over the '
+                       'window) at least this')
+    score.add_argument('--all-windows', action='store_true',
+                       help='score every window, idle ones too (--min-speed is ignored)')
     score.add_argument('--horizon', type=positive, default=2.0, metavar='SECONDS',
                        help='prediction horizon')
     score.add_argument('--prediction-dt', type=positive, default=0.05, metavar='SECONDS',
@@ -362,8 +372,17 @@ def _print_table(report, out) -> None:
             row += f'{_fmt(pred.get("mean_rmse_translation_m")):>14}'
             row += f'{_fmt(pred.get("mean_rmse_rotation_rad"), 180 / math.pi, 2):>7}'
         print(row.rstrip(), file=out)
-    counts = [(w, report['models']['ideal']['odometry']['windows'][w]['n']) for w in windows]
-    print('windows: ' + ', '.join(f'{n} of {w} s' for w, n in counts)
+    ideal = report['models']['ideal']['odometry']['windows']
+    selection = report['windows_selection']
+    if selection['moving_only']:
+        counts = (f'windows in which the tracks move (mean track speed >= '
+                  f'{selection["min_speed_mps"]:g} m/s; --all-windows for all): '
+                  + ', '.join(f'{ideal[w]["n"]} of {ideal[w]["n_total"]} of {w} s'
+                              for w in windows))
+    else:
+        counts = 'windows, idle ones too: ' + ', '.join(f'{ideal[w]["n"]} of {w} s'
+                                                        for w in windows)
+    print(counts
           + f'; {report["models"]["ideal"]["odometry"]["horizon"]["n"]} horizons from the '
           'encoders' + (f', {(report["models"]["ideal"]["prediction"] or {}).get("n", 0)} from '
                         'the commands' if sources else ''), file=out)
@@ -423,6 +442,8 @@ def _report(args, models, records, account, evaluation, candidates, runs, track_
         'tool': PROG, 'date': datetime.now(timezone.utc).isoformat(timespec='seconds'),
         'bags': [r['bag'] for r in records], 'settings': settings, 'recordings': records,
         'ground_truth_delay': account,
+        'windows_selection': {'moving_only': not args.all_windows,
+                              'min_speed_mps': None if args.all_windows else args.min_speed},
         'data': {'pieces': sum(len(c.pieces) for c in cuts), 'gaps': sum(c.gaps for c in cuts),
                  'jumps': sum(c.jumps for c in cuts),
                  'seconds': float(sum(c.seconds for c in cuts))},
@@ -480,7 +501,8 @@ def _run(args, out) -> int:
                                                runs[m.name]))
         settings = ev.Settings(tuple(args.window), args.horizon, args.prediction_dt,
                                tuple(args.rpe_distance), args.max_command_age,
-                               not args.keep_jumps, track_width)
+                               not args.keep_jumps, track_width,
+                               None if args.all_windows else args.min_speed)
         evaluation = ev.evaluate(data, candidates, settings)
         if not evaluation.pieces:
             raise ExcitationError('no stretch of the bags has both encoders and ground truth '
@@ -499,7 +521,8 @@ def _run(args, out) -> int:
         if args.plot:
             with outputs.path('--plot') as tmp:
                 plot_evaluation(tmp, evaluation, [c.name for c in candidates],
-                                tuple(args.window), fmt=fmt)
+                                tuple(args.window), fmt=fmt,
+                                min_speed=settings.min_speed)
     written = [p for p in (args.report, args.plot, args.tum) if p]
     if written:
         print(f'wrote {", ".join(written)}', file=out)
