@@ -24,10 +24,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .metrics import window_pairs
 from ..identify import gap_threshold, Recording
 from ..identify.segments import ground_truth_jumps
 from ..integration import integrate
-from .metrics import window_pairs
 
 
 @dataclass(frozen=True)
