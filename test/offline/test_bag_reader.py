@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from tracked_kinematics.core.models import ConstantIcr
 from tracked_kinematics.offline.bags import (
-    BagError, EncoderSource, GroundTruthSource, read_bag, reader)
+    BagError, columns, EncoderSource, GroundTruthSource, joint_states, read_bag)
 
 GT = GroundTruthSource('/mocap/pose')
 
@@ -50,7 +50,7 @@ def test_fast_path_equals_deserialising_every_message(tmp_path, rec, storage, mo
     path = bag_path(tmp_path, storage)
     write_bag(path, rec, storage)
     fast = read_bag(path, EncoderSource(), GT)
-    monkeypatch.setattr(reader._Layout, 'of', classmethod(lambda cls, raw, ros2: None))
+    monkeypatch.setattr(joint_states._Layout, 'of', classmethod(lambda cls, raw, ros2: None))
     slow = read_bag(path, EncoderSource(), GT)
     for name in ('enc_t', 'left', 'right', 'gt_t', 'gt_x', 'gt_y', 'gt_yaw'):
         np.testing.assert_array_equal(getattr(fast, name), getattr(slow, name))
@@ -177,4 +177,4 @@ def test_quaternion_yaw():
         def __init__(self, yaw):
             self.x, self.y, self.z, self.w = 0.0, 0.0, math.sin(yaw / 2), math.cos(yaw / 2)
     for yaw in (-3.0, -0.5, 0.0, 1.2, 3.1):
-        assert reader._yaw(Q(yaw)) == pytest.approx(yaw)
+        assert columns._yaw(Q(yaw)) == pytest.approx(yaw)

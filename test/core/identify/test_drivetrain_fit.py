@@ -11,7 +11,7 @@ import pytest
 from tracked_kinematics.core.drivetrain import DriveTrain, FirstOrderLag, PidMotor
 from tracked_kinematics.core.identify import (
     DriveData, ExcitationError, fit_drivetrain, FitError, resample)
-from tracked_kinematics.offline.bags.reader import EncoderSource, read_drive_bag
+from tracked_kinematics.offline.bags import EncoderSource, read_drive_bag
 from tracked_kinematics.offline.bags.writer import BagWriter
 from tracked_kinematics.offline.cli import identify_drivetrain as cli
 from tracked_kinematics.offline.cli.simulate_bag import simulate_bag

@@ -22,8 +22,11 @@ from tracked_kinematics.core.geodesy import geodetic_to_enu, GeoOrigin
 from tracked_kinematics.core.identify import ReferenceRecording
 from tracked_kinematics.offline.errors import BagError
 
-from .reader import _Columns, _connections, _GroundTruth, _guarded, _read, _sort_unique, _stamp
+from .columns import _Columns, _sort_unique, _stamp
+from .ground_truth import _GroundTruth
+from .opening import _connections, _guarded
 from .sources import GroundTruthSource
+from .streaming import _read
 
 IMU_TYPES = ('sensor_msgs/msg/Imu',)
 GNSS_TYPES = ('sensor_msgs/msg/NavSatFix', 'nav_msgs/msg/Odometry')
@@ -129,16 +132,12 @@ def read_reference_bag(path, encoders, imu_topic: str | None = None,
 
     Parameters
     ----------
-    path : path-like
-        rosbag2 directory or ROS 1 ``.bag`` file.
-    encoders : EncoderSource
-        Where the track encoders are.
+    path, encoders, progress
+        As :func:`.reader.read_bag`.
     imu_topic, gnss_topic : str, optional
         sensor_msgs/Imu; sensor_msgs/NavSatFix or nav_msgs/Odometry.
     ground_truth : GroundTruthSource, optional
         A pose reference as well.
-    progress : bool
-        Show a progress bar on stderr.
 
     Raises
     ------
