@@ -1,0 +1,288 @@
+"""
+The whole calibration without ground truth: :func:`fit_recordings`, step by step.
+
+:func:`fit_recordings` checks the data (:mod:`.recordings`), removes the delays
+(:mod:`.delays`), fits the heading (:mod:`.headings`, :mod:`.heading_fit`), then the
+distance (:mod:`.positions`), and builds the ICR model and its report here;
+:func:`fit_from_reference` is the same for one recording of plain arrays (nodes).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .delays import _delay_report, _delays
+from .heading_fit import _fit_heading, _Heading
+from .headings import _heading_data, _HeadingData
+from .positions import _Distance, _fit_distance
+from .recordings import (_clean_gyro, _quantities, check_gyro, check_saturation, QUANTITIES,
+                         ReferenceFit, ReferenceRecording)
+from ...errors import FitError, SensorDataError
+from ...kinematics import IcrParams
+
+
+def _checked_recordings(recordings, track_width: float, hold, gnss_antenna,
+                        segment_length: float, straight_distance):
+    """
+    Check the arguments and the sensor data; drop the few non-finite gyro readings.
+
+    Returns
+    -------
+    recs : list of ReferenceRecording
+        The recordings, their gyros cleaned (:func:`.recordings._clean_gyro`).
+    hold : tuple of str
+    gnss_antenna : tuple of float
+
+    Raises
+    ------
+    ValueError
+        For an invalid argument, or a recording without a heading reference.
+    SensorDataError
+        For a gyro that reads nothing or is saturated (:func:`check_gyro`,
+        :func:`check_saturation`), an orientation without yaw.
+
+    """
+    recs = list(recordings)
+    if not recs:
+        raise ValueError('no recordings')
+    hold = tuple(hold)
+    if any(q not in QUANTITIES for q in hold):
+        raise ValueError(f'hold must name some of {", ".join(QUANTITIES)}, got {hold!r}')
+    if not (math.isfinite(track_width) and track_width > 0):
+        raise ValueError(f'track_width must be > 0, got {track_width!r}')
+    gnss_antenna = tuple(float(a) for a in gnss_antenna)
+    if len(gnss_antenna) != 2 or not all(math.isfinite(a) for a in gnss_antenna):
+        raise ValueError(f'gnss_antenna must be two finite numbers (m), got {gnss_antenna!r}')
+    if not segment_length > 0:
+        raise ValueError(f'segment_length must be > 0, got {segment_length!r}')
+    if not all(r.gyro_t is not None or r.pose is not None for r in recs):
+        raise ValueError('every recording needs a heading reference: a gyro or a pose')
+    for r in recs:
+        if r.gyro_t is None:
+            continue
+        if r.gyro_rate is not None:
+            what = f'{r.name or "recording"}: the gyro'
+            check_gyro(r.gyro_rate, what)
+            check_saturation(r.gyro_t, r.gyro_rate, r.enc_t, r.left, r.right, track_width,
+                             what)
+        elif not np.any(np.isfinite(r.gyro_yaw)):
+            raise SensorDataError(f'{r.name or "recording"}: the orientation has no yaw')
+    recs = [_clean_gyro(r) if r.gyro_t is not None else r for r in recs]
+    if straight_distance is not None and not (math.isfinite(straight_distance)
+                                              and straight_distance > 0):
+        raise ValueError(f'straight_distance must be > 0 m, got {straight_distance!r}')
+    return recs, hold, gnss_antenna
+
+
+def _model(track_width: float, heading: _Heading, distance: _Distance, determined,
+           base: IcrParams) -> IcrParams:
+    """
+    Return the ICR model of the fitted quantities (the base's where held).
+
+    The spread ``W = s / u`` when chi is determined (else the base's), the treads at
+    ``c +- W / 2`` and the scales ``s_l, s_r = 2 s / (1 + rho), 2 s rho / (1 + rho)``
+    (module notes).
+
+    Raises
+    ------
+    FitError
+        For an invalid model.
+
+    """
+    s, u, rho, c = distance.s, heading.u, heading.rho, distance.c
+    width = s / u if 'chi' in determined else _quantities(base)[2]
+    s_left, s_right = 2.0 * s / (1.0 + rho), 2.0 * s * rho / (1.0 + rho)
+    try:
+        return IcrParams(track_width, c + 0.5 * width, c - 0.5 * width, distance.x, s_left,
+                         s_right)
+    except ValueError as err:
+        raise FitError(f'the calibration gives an invalid ICR model: {err}') from None
+
+
+def _reference_name(recs, straight_distance) -> str:
+    """Return the references used, ``imu``, ``pose``, ``gnss``, ``straight`` joined by ``+``."""
+    names = ['imu'] if any(r.gyro_t is not None for r in recs) else []
+    names += ['pose'] if any(r.pose is not None for r in recs) else []
+    names += ['gnss'] if any(r.positions is not None for r in recs) else []
+    names += ['straight'] if straight_distance is not None else []
+    return '+'.join(names)
+
+
+def _report(icr: IcrParams, reference: str, determined, held, heading: _Heading,
+            distance: _Distance, headings: _HeadingData, delays, segment_length: float,
+            n_rec: int) -> dict:
+    """
+    Return the report of a calibration: the model, what is determined, errors, statistics.
+
+    JSON-ready; the standard errors of what is held are None. ``delays``: the gyro's and
+    the pose's (:func:`.delays._delays`).
+    """
+    imu, pose_delay = delays
+    std_rho = heading.std_rho if 'scale_ratio' in determined else None
+    gyro = any(g is not None for g in headings.gyro)
+    pose = any(p is not None for p in headings.pose)
+    return {
+        'reference': reference, 'determined': determined, 'held': held,
+        'icr': {'track_width': icr.track_width, 'y_left': icr.y_left, 'y_right': icr.y_right,
+                'x': icr.x, 'scale_left': icr.scale_left, 'scale_right': icr.scale_right,
+                'chi': icr.chi, 'eccentricity': icr.eccentricity + 0.0},
+        'distance_scale': distance.s, 'scale_ratio': heading.rho, 'turn_gain': heading.u,
+        'icr_offset': distance.c,
+        'standard_errors': {'turn_gain': heading.std_u, 'scale_ratio': std_rho,
+                            'distance_scale': distance.std_s,
+                            'icr.x': distance.std_x if 'icr.x' in determined else None,
+                            'icr_offset': distance.std_c if 'icr_offset' in determined
+                            else None},
+        'segment_length': segment_length,
+        'heading': heading.stats, 'positions': distance.stats,
+        'gyro': None if not gyro else {
+            'bias_rad_s': [b for b in heading.biases if b is not None],
+            'noise_rad_per_sqrt_s': heading.stats['imu']['residual_std_rad']
+            / math.sqrt(segment_length),
+        },
+        'imu_delay': _delay_report(imu) if gyro else None,
+        'pose_delay': _delay_report(pose_delay) if pose else None,
+        'straight': distance.straight,
+        'data': {'recordings': n_rec, 'moving_segments': int(np.count_nonzero(headings.moving)),
+                 'turned_rad': headings.turned, 'driven_m': headings.driven},
+    }
+
+
+def fit_recordings(recordings, track_width: float, *, base: IcrParams | None = None,
+                   imu_delay='auto', pose_delay='auto', segment_length: float = 1.0,
+                   straight_distance: float | None = None,
+                   position_window: float | None = None, hold=(),
+                   gnss_antenna=(0.0, 0.0)) -> ReferenceFit:
+    """
+    Calibrate from gyro, pose and/or positions over several recordings (module notes).
+
+    1. Check the arguments and the sensor data (:func:`check_gyro`,
+       :func:`check_saturation`: a gyro that reads nothing or is stuck at its range is
+       refused) and drop the few non-finite gyro readings.
+    2. Estimate (or take) the delays of the gyro and of the pose stamps behind the
+       encoders (:func:`.delays._delays`: :func:`..delay.estimate_delay` on the integrated
+       gyro, as on the pose) and remove them.
+    3. Cut the encoders and each heading reference into segments of ``segment_length`` s
+       (:func:`.headings._heading_data`); refuse fewer than
+       :data:`.headings.MIN_MOVING_SEGMENTS` moving ones and a "straight" that turns.
+    4. Fit the turn gain ``u``, the veer ``v`` and one gyro bias per recording to the
+       heading increments (:func:`.heading_fit._fit_heading`, Martinez et al. 2005 eqs. (9)
+       and (16) with the scales of eqs. (20)-(21)), robustly; hold the scale ratio, or chi,
+       where they are not determined.
+    5. Find the distance scale (:func:`.positions._fit_distance`): from a straight drive of
+       measured length, or from the positions by dead reckoning on the gyro heading (eqs.
+       (7)-(8)), with ``icr.x`` and the ICR offset where they are determined; else hold it.
+    6. Build the ICR model: ``W = s / u``, the scales from ``s`` and ``rho``
+       (:func:`_model`), and the report (:func:`_report`).
+
+    Parameters
+    ----------
+    recordings : sequence of ReferenceRecording
+        On one vehicle and terrain; each needs a gyro or a pose (a heading reference).
+    track_width : float
+        m.
+    base : IcrParams, optional
+        Values of what is held (default: ideal drive of ``track_width``).
+    imu_delay, pose_delay : float or 'auto'
+        s of gyro / pose stamps behind the encoders to remove, or 'auto' to estimate.
+    segment_length : float
+        Heading segments, s.
+    straight_distance : float, optional
+        The recordings are one straight drive of this many metres.
+    position_window : float, optional
+        s; default :data:`.positions.POSITION_WINDOW` per source.
+    hold : sequence of str
+        Quantities of :data:`QUANTITIES` to hold at ``base`` even where the data determine
+        them (``('scale_ratio',)``: the plain gyro fit of symmetric scales).
+    gnss_antenna : pair of float
+        Position of the GNSS antenna in base_link, m. It matters: an antenna ``a`` ahead of
+        base_link moves with the heading exactly as ICRs ``a`` behind it would
+        (``icr.x = -a``), so an unknown lever arm would be fitted as ``icr.x``.
+
+    Returns
+    -------
+    ReferenceFit
+
+    Raises
+    ------
+    SensorDataError, ExcitationError, FitError
+        See the module notes.
+
+    """
+    # 1. The data, checked.
+    recs, hold, gnss_antenna = _checked_recordings(recordings, track_width, hold, gnss_antenna,
+                                                   segment_length, straight_distance)
+    base = base or IcrParams.ideal(track_width)
+    straight = straight_distance is not None
+    # 2. The delays.
+    imu, pose = _delays(recs, imu_delay, pose_delay)
+    # 3. The heading segments.
+    headings = _heading_data(recs, imu.delay, pose.delay, segment_length, straight)
+    # 4. The heading: u, v and the biases.
+    heading = _fit_heading(headings, len(recs), hold, base, straight)
+    # 5. The distance: positions, a straight drive, or held.
+    distance = _fit_distance(recs, headings, heading, base, hold, straight_distance,
+                             pose.delay, position_window, gnss_antenna)
+    # 6. The model and its report.
+    determined = heading.determined + distance.determined
+    held = heading.held + [q for q in ('distance_scale', 'icr.x', 'icr_offset')
+                           if q not in determined]
+    icr = _model(track_width, heading, distance, determined, base)
+    order = {q: i for i, q in enumerate(QUANTITIES)}
+    determined.sort(key=order.get)
+    held.sort(key=order.get)
+    reference = _reference_name(recs, straight_distance)
+    report = _report(icr, reference, determined, held, heading, distance, headings,
+                     (imu, pose), segment_length, len(recs))
+    return ReferenceFit(icr, reference, determined, held, distance.s, heading.rho, heading.u,
+                        imu, pose, [b for b in heading.biases if b is not None], report)
+
+
+def fit_from_reference(enc_t, left, right, *, track_width: float, gyro_t=None, gyro_rate=None,
+                       gyro_yaw=None, pose=None, positions=None,
+                       straight_distance: float | None = None, base: IcrParams | None = None,
+                       imu_delay='auto', pose_delay='auto', segment_length: float = 1.0,
+                       position_window: float | None = None, hold=(),
+                       gnss_antenna=(0.0, 0.0)) -> ReferenceFit:
+    """
+    Calibrate one recording from plain arrays: the entry point of nodes (module notes).
+
+    Parameters
+    ----------
+    enc_t, left, right : array_like, shape (N,)
+        Encoder times (s, increasing) and cumulative nominal track travel (m).
+    track_width : float
+        m.
+    gyro_t, gyro_rate : array_like, optional
+        Gyro stamps (s, same clock) and yaw rates (rad/s, counter-clockwise positive).
+    gyro_yaw : array_like, optional
+        Yaw angles (rad) of an orientation estimate, instead of ``gyro_rate``.
+    pose : tuple of array_like, optional
+        ``(t, x, y, yaw)`` of a pose reference (s, m, m, rad).
+    positions : tuple of array_like, optional
+        ``(t, x, y)`` positions in a local plane (GNSS), s, m, m.
+    straight_distance : float, optional
+        The recording is one straight drive of this many metres.
+    base : IcrParams, optional
+        Held values (default: ideal drive).
+    imu_delay, pose_delay : float or 'auto'
+        Delays of the gyro / pose stamps behind the encoders, s, or estimated.
+    segment_length : float
+        Heading segments, s.
+    position_window, hold, gnss_antenna
+        As :func:`fit_recordings`.
+
+    Returns
+    -------
+    ReferenceFit
+        ``.icr`` and ``.report`` (JSON-ready dict) among others.
+
+    """
+    rec = ReferenceRecording(enc_t, left, right, gyro_t, gyro_rate, gyro_yaw, pose, positions)
+    return fit_recordings([rec], track_width, base=base, imu_delay=imu_delay,
+                          pose_delay=pose_delay, segment_length=segment_length,
+                          straight_distance=straight_distance,
+                          position_window=position_window, hold=hold,
+                          gnss_antenna=gnss_antenna)
