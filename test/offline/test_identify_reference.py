@@ -40,6 +40,13 @@ def run(argv, capsys):
     return status, out, err.strip()
 
 
+def identified(argv, out, capsys):
+    """Run identify_icr writing ``out``, which must succeed; return its values and stdout."""
+    status, text, err = run([*argv, '--output', out], capsys)
+    assert status == 0, err
+    return read_params_file(out), text
+
+
 def test_the_simulated_bag_carries_imu_and_gnss_as_robots_do(field):
     truth = read_params_file(field.truth)
     assert truth['simulation.imu.bias'] == BIAS
@@ -72,11 +79,9 @@ def test_the_simulated_bag_carries_imu_and_gnss_as_robots_do(field):
 
 def test_imu_only_fits_heading_and_holds_the_rest(field, tmp_path, capsys):
     out, report = tmp_path / 'imu.yaml', tmp_path / 'imu.json'
-    status, text, err = run([field.bag, '--imu-topic', '/imu/data', '--output', out,
-                             '--report', report, *VEHICLE], capsys)
-    assert status == 0, err
+    values, text = identified([field.bag, '--imu-topic', '/imu/data', '--report', report,
+                               *VEHICLE], out, capsys)
     assert 'held (--params or ideal drive): distance_scale' in text
-    values = read_params_file(out)
     assert values['identification.reference'] == 'imu'
     assert values['identification.determined'] == ['chi', 'scale_ratio']
     assert values['identification.held'] == ['distance_scale', 'icr.x', 'icr_offset']
@@ -91,20 +96,14 @@ def test_imu_only_fits_heading_and_holds_the_rest(field, tmp_path, capsys):
 
 
 def test_gnss_fits_the_distance_scale(field, tmp_path, capsys):
-    out = tmp_path / 'gnss.yaml'
-    status, text, err = run([field.bag, '--imu-topic', '/imu/data', '--gnss-topic',
-                             '/gnss/fix', '--output', out, *VEHICLE], capsys)
-    assert status == 0, err
-    values = read_params_file(out)
+    values, _ = identified([field.bag, '--imu-topic', '/imu/data', '--gnss-topic', '/gnss/fix',
+                            *VEHICLE], tmp_path / 'gnss.yaml', capsys)
     assert values['identification.reference'] == 'imu+gnss'
     assert 'distance_scale' in values['identification.determined']
     # Against the fit to the true pose (the best constant-ICR scales of this run; the
     # averaged stationary model differs, the ICRs of this vehicle move in fast turns).
-    posed = tmp_path / 'pose.yaml'
-    status, _, err = run([field.bag, '--ground-truth-topic', '/ground_truth/pose', '--output',
-                          posed, '--holdout', '0', *VEHICLE], capsys)
-    assert status == 0, err
-    pose = read_params_file(posed)
+    pose, _ = identified([field.bag, '--ground-truth-topic', '/ground_truth/pose', '--holdout',
+                          '0', *VEHICLE], tmp_path / 'pose.yaml', capsys)
     scale = 0.5 * (values['scale.left'] + values['scale.right'])
     assert scale == pytest.approx(0.5 * (pose['scale.left'] + pose['scale.right']), abs=0.02)
     # Without GNSS the scale is held at 1.
@@ -112,9 +111,8 @@ def test_gnss_fits_the_distance_scale(field, tmp_path, capsys):
 
 
 def field_imu_only(field, tmp_path, capsys):
-    out = tmp_path / 'imu_only.yaml'
-    assert run([field.bag, '--imu-topic', '/imu/data', '--output', out, *VEHICLE], capsys)[0] == 0
-    values = read_params_file(out)
+    values, _ = identified([field.bag, '--imu-topic', '/imu/data', *VEHICLE],
+                           tmp_path / 'imu_only.yaml', capsys)
     return values['scale.left'] + values['scale.right']
 
 
@@ -226,12 +224,9 @@ def test_a_measured_straight_fixes_the_distance_scale(field, table, tmp_path, ca
     sim.write_run(bag, straight, gyro=gyro)
     x, y = straight.pose[-1, :2] - straight.pose[0, :2]
     measured = float(np.hypot(x, y))
-    out = tmp_path / 'straight.yaml'
-    status, text, err = run([bag, '--imu-topic', '/imu/data', '--straight-distance',
-                             f'{measured:.4f}', '--params', field.truth, '--output', out,
-                             '--sprocket-radius', '0.1'], capsys)
-    assert status == 0, err
-    values = read_params_file(out)
+    values, text = identified([bag, '--imu-topic', '/imu/data', '--straight-distance',
+                               f'{measured:.4f}', '--params', field.truth, '--sprocket-radius',
+                               '0.1'], tmp_path / 'straight.yaml', capsys)
     assert values['identification.reference'] == 'imu+straight'
     assert 'distance_scale' in values['identification.determined']
     assert 'chi' in values['identification.held']
@@ -245,11 +240,8 @@ def test_gnss_as_odometry_of_navsat_transform(table, tmp_path, capsys):
     bag = sim.simulate_bag(tmp_path / 'navsat', overrides=FLAT, duration=120.0, seed=6,
                            table=table, ground_truth='odometry', gt_position_noise=0.02,
                            imu=GyroModel(bias=0.004, noise_std=0.003))
-    out = tmp_path / 'navsat.yaml'
-    status, _, err = run([bag.bag, '--imu-topic', '/imu/data', '--gnss-topic',
-                          '/ground_truth/odom', '--output', out, *VEHICLE], capsys)
-    assert status == 0, err
-    values = read_params_file(out)
+    values, _ = identified([bag.bag, '--imu-topic', '/imu/data', '--gnss-topic',
+                            '/ground_truth/odom', *VEHICLE], tmp_path / 'navsat.yaml', capsys)
     assert values['identification.reference'] == 'imu+gnss'
     true = bag.truth_icr
     assert 0.5 * (values['scale.left'] + values['scale.right']) == pytest.approx(
