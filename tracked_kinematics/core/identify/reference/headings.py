@@ -28,7 +28,7 @@ _MIN_TRAVEL = 0.01
 
 
 def _gyro_heading(rec: ReferenceRecording, delay: float):
-    """Stamps (delay removed) and continuous heading of the gyro, rad, and the gap limit."""
+    """Return the gyro's stamps (``delay`` removed) and its continuous heading, rad."""
     t = rec.gyro_t - delay
     if rec.gyro_rate is not None:
         w = rec.gyro_rate

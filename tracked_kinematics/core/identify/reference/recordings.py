@@ -95,7 +95,7 @@ class ReferenceRecording:
 @dataclass
 class ReferenceFit:
     """
-    Result of :func:`fit_from_reference` / :func:`fit_recordings`.
+    Result of :func:`.calibration.fit_from_reference` / :func:`.calibration.fit_recordings`.
 
     Attributes
     ----------
