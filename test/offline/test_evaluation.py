@@ -33,12 +33,12 @@ SETTINGS = ev.Settings(windows=(2.0, 5.0), track_width=B, min_speed=0.1)
 
 @pytest.fixture(scope='module')
 def drive():
-    """A minute of the Auriga-alpha on hard floor, exact pose at 10 Hz."""
+    """Drive the Auriga-alpha on hard floor for a minute, exact pose at 10 Hz."""
     return simulate(ConstantIcr(B), np.array(AURIGA), duration=60.0, seed=3)
 
 
 def setpoints(rec):
-    """The nominal track speeds the drive held, as commands ``(t, values, kind)``."""
+    """Return the nominal track speeds the drive held, as commands ``(t, values, kind)``."""
     dt = np.diff(rec.enc_t)
     values = np.column_stack([np.diff(rec.left) / dt, np.diff(rec.right) / dt])
     return rec.enc_t[:-1], values, 'setpoints'

@@ -229,7 +229,10 @@ def gyro_references(bags, found, track_width: float) -> References:
 @dataclass(frozen=True)
 class EvaluationReport:
     """
-    Result of :func:`evaluate_models`.
+    What :func:`evaluate_models` returns: the report, its table, and what was scored.
+
+    The command line prints :meth:`table`, writes :meth:`json` and draws the plot and the
+    TUM files from :attr:`evaluation`.
 
     Attributes
     ----------
