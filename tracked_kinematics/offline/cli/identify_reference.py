@@ -6,7 +6,7 @@ is given: reads the encoders and the references of each bag
 (:func:`tracked_kinematics.offline.bags.references.read_reference_bag`), calibrates with
 :func:`tracked_kinematics.core.identify.fit_recordings`, and writes the terrain file with
 ``identification.reference``, ``identification.determined`` and ``identification.held``
-(shared/INTERFACE.md), ``identification.imu_delay`` and the report.
+(docs/tools/identify_icr.md), ``identification.imu_delay`` and the report.
 """
 
 from __future__ import annotations
