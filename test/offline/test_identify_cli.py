@@ -480,8 +480,8 @@ def test_recording_in_short_pieces(tmp_path, capsys):
     assert doc['time']['pieces'] == 60
     assert doc['holdout']['windows'] == 0 and doc['holdout']['cross_validated'] is True
     icr = doc['holdout']['models']['icr_scales']
-    assert icr['windows'] == {'n': 0, 'position_mean': None, 'position_p90': None,
-                              'heading_mean': None, 'heading_p90': None}
+    assert icr['windows'] == {'n': 0, 'n_total': 0, 'position_mean': None,
+                              'position_p90': None, 'heading_mean': None, 'heading_p90': None}
     assert icr['improvement_pct']['windows'] is None
     assert icr['improvement_pct']['segments']['position'] > 90
 
