@@ -62,14 +62,13 @@ def icr_from_references(recordings, bags, track_width: float, sprocket_radius: f
         The recordings are one straight drive of this many metres.
     gnss_antenna : pair of float
         Position of the GNSS antenna in base_link, m.
-    date : str, optional
-        ISO 8601 time to record; default now.
-    tool : str
-        The tool's name, in the report and the table.
+    date, tool
+        As :func:`.poses.icr_from_poses`.
 
     Returns
     -------
     IcrReport
+        Its ``identification`` is None (nothing to plot).
 
     Raises
     ------
