@@ -548,7 +548,8 @@ def test_holdout_windows_where_the_tracks_move_unless_all_windows(tmp_path, caps
     every = docs['all']['holdout']['models']['ideal']['windows']
     assert every['n'] == every['n_total'] == moving['n_total'] > moving['n'] > 0
     assert re.search(rf'{moving["n"]} of {moving["n_total"]} windows of 10 s, those in which '
-                     r'the tracks move \(mean track speed >= 0\.1 m/s; --all-windows', said['moving'])
+                     r'the tracks move \(mean track speed >= 0\.1 m/s; --all-windows',
+                     said['moving'])
     assert f'{every["n"]} windows of 10 s, idle ones too' in said['all']
     assert docs['moving']['windows_selection'] == {'moving_only': True, 'min_speed_mps': 0.1}
     assert docs['all']['windows_selection'] == {'moving_only': False, 'min_speed_mps': None}

@@ -56,7 +56,7 @@ class IcrReport:
 
     @property
     def text(self) -> str:
-        """The table as printed: the lines joined, without a final newline."""
+        """Return the table as printed: the lines joined, without a final newline."""
         return '\n'.join(self.lines)
 
 
