@@ -213,7 +213,7 @@ def identify(recordings, model: str = 'icr_scales', track_width: float = 0.42, *
        uncertain is refused unless ``accept_uncertain``).
     4. Fit the tuned diff_drive_controller (:class:`.ddc.TunedDiffDrive`) on the same data.
     5. Hold out time blocks (:class:`HoldOut`: cross-validated when one fold would give
-       fewer than :data:`.evaluation.MIN_WINDOWS` windows and
+       fewer than :data:`.evaluation.MIN_WINDOWS` scored windows and
        :data:`.evaluation.MIN_SEGMENTS` segments), fit every model of ``compare``
        on the rest with the heading weight of step 3 (one round of robust least squares
        each) and measure each on the held-out segments and on the held-out windows of
@@ -268,8 +268,13 @@ def identify(recordings, model: str = 'icr_scales', track_width: float = 0.42, *
     ------
     ExcitationError, FitError
         See :func:`check_excitation`, :func:`.fitting.check_identified` and :func:`fit`.
+    ValueError
+        For a ``ground_truth_delay`` or ``min_speed`` that is neither a number nor its word.
 
     """
+    if min_speed is not None and not (np.isfinite(min_speed) and min_speed >= 0):
+        raise ValueError(f'min_speed must be a finite number >= 0 (m/s) or None, got '
+                         f'{min_speed!r}')
     seconds = {}
     started = time.perf_counter()
     recordings = list(recordings)

@@ -30,10 +30,10 @@ from tracked_kinematics.core.kinematics import IcrParams
 from tracked_kinematics.offline.bags import read_bags
 from tracked_kinematics.offline.bags.references import read_reference_bag
 from tracked_kinematics.offline.cli.common import (
-    add_ground_truth_arguments, add_output_argument, add_report_arguments, add_vehicle_groups,
-    add_window_selection_arguments, bounded, encoder_source, ground_truth_source,
-    identification_parser, min_speed, names, read_base_file, report_json, require_vehicle,
-    run_main, TRACK_WIDTH, warn, write_together)
+    add_base_file_argument, add_ground_truth_arguments, add_output_argument,
+    add_report_arguments, add_vehicle_groups, add_window_selection_arguments, bounded,
+    encoder_source, ground_truth_source, identification_parser, min_speed, names,
+    read_base_file, report_json, require_vehicle, run_main, TRACK_WIDTH, warn, write_together)
 from tracked_kinematics.offline.errors import UsageError
 from tracked_kinematics.offline.identification import (
     icr_from_poses, icr_from_references, TOOL as PROG)
@@ -77,9 +77,7 @@ def build_parser() -> argparse.ArgumentParser:
     add_output_argument(parser)
     veh = add_vehicle_groups(parser, TRACK_WIDTH, 'm; default from --params (required without '
                              'it: there is no default vehicle)')
-    veh.add_argument('--params', default=None, metavar='BASE.yaml',
-                     help='terrain file to start from: vehicle values, starting point, fixed '
-                     'scales of --model icr; its other parameters are copied to the output')
+    add_base_file_argument(veh, 'vehicle values, starting point, fixed scales of --model icr')
     add_ground_truth_arguments(parser.add_argument_group('ground truth'))
     ref = parser.add_argument_group(
         'no ground truth (docs/tools/identify_icr.md#no-ground-truth-use-the-imu)')
