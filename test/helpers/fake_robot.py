@@ -13,7 +13,8 @@ from tracked_kinematics.core.plan.calibration import predict_step
 
 RADIUS = 0.1
 B = 0.42
-# Martinez et al. (2005), Auriga-alpha on hard floor (INTERFACE.md).
+# Martinez et al. (2005), Auriga-alpha on hard floor (docs/model.md, "Converting the papers'
+# numbers").
 AURIGA = IcrParams(B, 0.353, -0.425, 0.032, 1.0072, 1.0275)
 
 

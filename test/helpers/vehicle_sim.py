@@ -9,6 +9,7 @@ motion is integrated on the union of both time grids, along arcs).
 import numpy as np
 
 from tracked_kinematics.core.identify import Recording
+from tracked_kinematics.core.models import ConstantIcr
 
 # Auriga-alpha on hard floor, Martinez sec. 5.3 and 6, in ROS axes (docs/model.md).
 B = 0.42
@@ -84,6 +85,30 @@ def simulate(model, p, duration=120.0, enc_rate=100.0, gt_rate=10.0, seed=0, gt_
     at = np.searchsorted(grid, gt_t)
     return Recording(t, left, right, gt_t, x[at], y[at], np.angle(np.exp(1j * yaw[at])),
                      name=name)
+
+
+def from_track_speeds(v_left, v_right, icr, rate, gt_rate):
+    """
+    Record track speeds through a constant-ICR vehicle: encoders at ``rate``, exact truth.
+
+    ``v_left[k]``, ``v_right[k]`` (m/s) are held from sample ``k`` (at ``k / rate`` s) to the
+    next; the truth starts at the origin and is taken every ``rate / gt_rate`` samples.
+
+    Returns
+    -------
+    Recording
+        Cumulative travel at the encoder times and the truth of ``ConstantIcr`` with ``icr``.
+
+    """
+    t = np.arange(len(v_left)) / rate
+    left = np.concatenate([[0.0], np.cumsum(v_left[:-1] / rate)])
+    right = np.concatenate([[0.0], np.cumsum(v_right[:-1] / rate)])
+    model = ConstantIcr(icr.track_width)
+    x, y, yaw = model.integrate(model.from_icr(icr), np.diff(left), np.diff(right), 1.0 / rate)
+    pose = np.column_stack([np.r_[0.0, x], np.r_[0.0, y], np.r_[0.0, yaw]])
+    every = int(rate / gt_rate)
+    gt = pose[::every]
+    return Recording(t, left, right, t[::every], gt[:, 0], gt[:, 1], gt[:, 2])
 
 
 T0_NS = 1_700_000_000_000_000_000

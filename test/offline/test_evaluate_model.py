@@ -389,7 +389,7 @@ def test_tum_export_holds_every_piece_for_evo(sim, tmp_path, capsys):
 
 
 def test_a_file_with_only_the_track_width_is_ideal_drive_of_that_width(sim, tmp_path, capsys):
-    # INTERFACE.md: the tread ICRs default to +-track_width/2 unless set.
+    # docs/model.md: the tread ICRs default to +-track_width/2 unless set.
     wide = tmp_path / 'wide.yaml'
     wide.write_text('track_width: 0.5\nsprocket_radius: 0.1\n')
     status, _, err = run([sim['bag'], '--ground-truth-topic', GT, '--params', wide,

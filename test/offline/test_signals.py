@@ -12,7 +12,6 @@ import os
 import signal
 import subprocess
 import sys
-import tempfile
 import time
 
 import pytest
@@ -28,17 +27,22 @@ def kill_self(signum=signal.SIGTERM):
     os.kill(os.getpid(), signum)
 
 
+def signal_after(monkeypatch, owner, name, signum=signal.SIGTERM):
+    """Make ``owner.name`` send ``signum`` to this process just after the real one returns."""
+    real = getattr(owner, name)
+
+    def then_signal(*args, **kwargs):
+        result = real(*args, **kwargs)
+        kill_self(signum)
+        return result
+    monkeypatch.setattr(owner, name, then_signal)
+
+
 def test_a_signal_right_after_the_bag_directory_is_made_removes_it(
         tmp_path, capsys, monkeypatch):
     # The cause of test_a_signal_while_writing_the_bag_leaves_nothing failing under load: the
     # exception landed in mkdtemp after its mkdir, before Outputs recorded the directory.
-    real = tempfile.mkdtemp
-
-    def mkdtemp_then_signal(*args, **kwargs):
-        made = real(*args, **kwargs)
-        kill_self()
-        return made
-    monkeypatch.setattr(outputs_module.tempfile, 'mkdtemp', mkdtemp_then_signal)
+    signal_after(monkeypatch, outputs_module.tempfile, 'mkdtemp')
 
     def run(args, out):
         with Outputs() as outputs:
@@ -53,13 +57,7 @@ def test_a_signal_right_after_the_bag_directory_is_made_removes_it(
 
 def test_a_signal_right_after_a_temporary_file_is_made_removes_it(
         tmp_path, capsys, monkeypatch):
-    real = tempfile.mkstemp
-
-    def mkstemp_then_signal(*args, **kwargs):
-        made = real(*args, **kwargs)
-        kill_self(signal.SIGINT)
-        return made
-    monkeypatch.setattr(outputs_module.tempfile, 'mkstemp', mkstemp_then_signal)
+    signal_after(monkeypatch, outputs_module.tempfile, 'mkstemp', signal.SIGINT)
 
     def run(args, out):
         with Outputs() as outputs:
@@ -74,12 +72,7 @@ def test_a_signal_right_after_a_temporary_file_is_made_removes_it(
 def test_a_signal_between_two_renames_lets_the_commit_finish(tmp_path, capsys, monkeypatch):
     # Before: the first output was renamed, the signal landed before it was recorded as
     # done, and the run ended with one output of two at its target.
-    real = os.replace
-
-    def replace_then_signal(src, dst):
-        real(src, dst)
-        kill_self()
-    monkeypatch.setattr(outputs_module.os, 'replace', replace_then_signal)
+    signal_after(monkeypatch, outputs_module.os, 'replace')
     (tmp_path / 'a.yaml').write_text('old\n')
 
     def run(args, out):
@@ -186,13 +179,7 @@ def test_outside_a_run_a_held_section_holds_ctrl_c(tmp_path, monkeypatch):
     assert steps == ['completed']
     assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
     # And Outputs used from a script: Ctrl-C while staging leaves nothing.
-    real = tempfile.mkstemp
-
-    def mkstemp_then_ctrl_c(*args, **kwargs):
-        made = real(*args, **kwargs)
-        kill_self(signal.SIGINT)
-        return made
-    monkeypatch.setattr(outputs_module.tempfile, 'mkstemp', mkstemp_then_ctrl_c)
+    signal_after(monkeypatch, outputs_module.tempfile, 'mkstemp', signal.SIGINT)
     with pytest.raises(KeyboardInterrupt):
         with Outputs() as outputs:
             outputs.add('--output', tmp_path / 'o.yaml')
@@ -274,13 +261,7 @@ def test_a_signal_just_after_a_demo_bag_is_in_place_removes_it(tmp_path, capsys,
     # Found by test_stop_at_any_instant: the held-out bag was renamed into place, the signal
     # came before the demo had listed its files, and fail() left it (and the directory).
     from tracked_kinematics.offline.cli import tracked_kinematics_demo as demo
-    real = demo.heldout_path
-
-    def heldout_path_then_signal(*args, **kwargs):
-        result = real(*args, **kwargs)
-        kill_self(signal.SIGINT)
-        return result
-    monkeypatch.setattr(demo, 'heldout_path', heldout_path_then_signal)
+    signal_after(monkeypatch, demo, 'heldout_path', signal.SIGINT)
     args = demo.build_parser().parse_args([
         '--output', str(tmp_path / 'demo'), '--paths', '1', '--duration', '15',
         '--path-duration', '1', '--vehicle', 'packbot', '--storage', 'sqlite3'])

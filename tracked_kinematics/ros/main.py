@@ -35,6 +35,7 @@ from rclpy.executors import ExternalShutdownException
 from rclpy.signals import SignalHandlerOptions
 from tracked_kinematics import params, ros
 from tracked_kinematics.params import ParamSpec
+from tracked_kinematics.params.tables import TERRAIN_FILE_NOTES, TERRAIN_FILE_RECORDS
 from tracked_kinematics.ros.parameters import ParameterError
 import yaml
 
@@ -122,10 +123,17 @@ def unknown_parameters(given: Iterable[str], specs: Iterable[ParamSpec]) -> list
     """
     One message per name in ``given`` that no spec declares, with the closest known name.
 
-    ``use_sim_time`` and other parameters every rclpy node declares are known.
+    ``use_sim_time`` and other parameters every rclpy node declares are known. The records
+    and notes this package's tools write into a terrain file (``identification.*``,
+    ``terrain``, ...) are not parameters and not typos: they are passed over, so that a
+    file from identify_icr loads without a warning per line of its provenance.
     """
+    specs = list(specs)
+    declared = {spec.name for spec in specs}
     return params.unknown_parameters(
-        given, [*specs, 'use_sim_time', 'start_type_description_service'])
+        [name for name in given if name in declared or not (
+            name.startswith(TERRAIN_FILE_RECORDS) or name in TERRAIN_FILE_NOTES)],
+        [*specs, 'use_sim_time', 'start_type_description_service'])
 
 
 def _usage(name: str, summary: str, specs: Sequence[ParamSpec]) -> str:

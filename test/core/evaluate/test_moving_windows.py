@@ -1,12 +1,12 @@
 """The windows in which the vehicle moves: mean track speed, and figures that ignore a stop."""
 
+from helpers.vehicle_sim import from_track_speeds
 import numpy as np
 import pytest
 from tracked_kinematics.core.evaluate import (
     Candidate, cut, Data, evaluate, mean_track_speeds, moving_windows, Settings, window_pairs)
 from tracked_kinematics.core.identify import Recording
 from tracked_kinematics.core.kinematics import IcrParams
-from tracked_kinematics.core.models import ConstantIcr
 
 ICR = IcrParams(0.5, 0.4, -0.45, 0.03, 1.02, 0.98)
 RATE, GT_RATE = 50.0, 10.0
@@ -18,15 +18,7 @@ def _drive_then_stop(idle, seconds=30.0):
     t = np.arange(n + int(idle * RATE) + 1) / RATE
     left = np.where(t < seconds, 0.6 + 0.3 * np.sin(t / 1.7), 0.0)
     right = np.where(t < seconds, 0.6 + 0.3 * np.sin(t / 2.3 + 1.0), 0.0)
-    cum_left = np.concatenate([[0.0], np.cumsum(left[:-1] / RATE)])
-    cum_right = np.concatenate([[0.0], np.cumsum(right[:-1] / RATE)])
-    model = ConstantIcr(ICR.track_width)
-    x, y, yaw = model.integrate(model.from_icr(ICR), np.diff(cum_left), np.diff(cum_right),
-                                1.0 / RATE)
-    pose = np.column_stack([np.r_[0.0, x], np.r_[0.0, y], np.r_[0.0, yaw]])
-    every = int(RATE / GT_RATE)
-    gt = pose[::every]
-    return Recording(t, cum_left, cum_right, t[::every], gt[:, 0], gt[:, 1], gt[:, 2])
+    return from_track_speeds(left, right, ICR, RATE, GT_RATE)
 
 
 def _windows(recording, min_speed):

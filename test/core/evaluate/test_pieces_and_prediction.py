@@ -2,6 +2,7 @@
 
 import math
 
+from helpers.vehicle_sim import from_track_speeds
 import numpy as np
 import pytest
 from tracked_kinematics.core.drivetrain import DriveTrain, FirstOrderLag
@@ -24,15 +25,7 @@ def _drive(seconds=30.0, rate=50.0, gt_rate=10.0, seed=0):
     t = np.arange(int(seconds * rate) + 1) / rate
     left = 0.6 + 0.3 * np.sin(t / 1.7 + rng.uniform(0, 6))
     right = 0.6 + 0.3 * np.sin(t / 2.3 + rng.uniform(0, 6))
-    cum_left = np.concatenate([[0.0], np.cumsum(left[:-1] / rate)])
-    cum_right = np.concatenate([[0.0], np.cumsum(right[:-1] / rate)])
-    model = ConstantIcr(ICR.track_width)
-    x, y, yaw = model.integrate(model.from_icr(ICR), np.diff(cum_left), np.diff(cum_right),
-                                1.0 / rate)
-    pose = np.column_stack([np.r_[0.0, x], np.r_[0.0, y], np.r_[0.0, yaw]])
-    every = int(rate / gt_rate)
-    gt = pose[::every]
-    rec = Recording(t, cum_left, cum_right, t[::every], gt[:, 0], gt[:, 1], gt[:, 2])
+    rec = from_track_speeds(left, right, ICR, rate, gt_rate)
     return rec, Commands(t, np.column_stack([left, right]))
 
 

@@ -54,7 +54,7 @@ turns; without enough of both (standard error of the ratio above
 With positions (GNSS or a pose), the body step over each short interval is
 ``(s m + c dpsi, -x dpsi)`` with ``m = (D_l + rho D_r) / (1 + rho)``, ``rho`` the scale
 ratio of the heading fit, ``c`` the ICR offset ``(y_left + y_right) / 2`` and ``x = icr.x``
-(the forward kinematics of shared/INTERFACE.md), rotated by the gyro heading. Positions are
+(the forward kinematics of docs/model.md), rotated by the gyro heading. Positions are
 compared in windows of ``position_window`` s, each centred on its mean (the dead reckoning
 drifts; a window does not care where it starts), after a rotation ``theta_R + delta_R t``
 per recording and source (the gyro's frame is not the reference's, and a residual bias

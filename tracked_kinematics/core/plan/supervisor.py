@@ -41,14 +41,10 @@ from dataclasses import dataclass, field, replace
 import math
 
 from .calibration import fence_exit, Step
+from .._checks import require_numbers
 from ..integration import wrap_angle
 
 STATES = ('idle', 'running', 'paused', 'returning', 'finished', 'stopped')
-
-
-def _positive(name, value):
-    if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0.0):
-        raise ValueError(f'{name} must be a finite number > 0, got {value!r}')
 
 
 @dataclass(frozen=True, slots=True)
@@ -93,10 +89,10 @@ class SupervisorConfig:
     heading_tolerance: float = 0.2
 
     def __post_init__(self):
-        for name in ('geofence_radius', 'max_speed', 'max_yaw_rate', 'deadman_timeout',
-                     'encoder_timeout', 'reference_timeout', 'return_timeout',
-                     'heading_tolerance'):
-            _positive(name, getattr(self, name))
+        require_numbers(self, positive=('geofence_radius', 'max_speed', 'max_yaw_rate',
+                                        'deadman_timeout', 'encoder_timeout',
+                                        'reference_timeout', 'return_timeout',
+                                        'heading_tolerance'))
         if not (0.0 < self.inner_fraction < self.plan_fraction <= self.guard_fraction <= 1.0):
             raise ValueError(
                 'need 0 < inner_fraction < plan_fraction <= guard_fraction <= 1, got '

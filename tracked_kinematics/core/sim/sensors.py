@@ -321,10 +321,14 @@ def gnss_samples(times_true, x, y, theta, model: GnssModel, rng: np.random.Gener
 # Incremental use (a live simulator) -------------------------------------------------------
 
 class _Stream:
-    """Truth history and the index of the next reading; subclasses say what is due."""
+    """
+    Truth history and the index of the next reading; subclasses say what is due.
 
-    def __init__(self, rate, rng):
-        self._rate = rate
+    ``model`` is a sensor model with a ``rate`` (Hz) and a ``latency`` (s).
+    """
+
+    def __init__(self, model, rng):
+        self.model = model
         self._rng = rng
         self._t = np.empty(0)
         self._first = None
@@ -346,12 +350,19 @@ class _Stream:
         if self._first is None or self._t.size < 2:
             return np.empty(0)
         last = min(ready_until, float(self._t[-1]))
-        stamps = _stamps(self._first, last, self._rate, self._next)
+        stamps = _stamps(self._first, last, self.model.rate, self._next)
         self._next += stamps.size
         return stamps
 
-    def _trim(self, keep_from):
-        """Drop truth older than ``keep_from`` but keep one sample before it."""
+    def _trim(self):
+        """
+        Index of the oldest truth sample to keep.
+
+        The next reading needs the truth from ``latency`` plus a period before its stamp;
+        older truth is dropped but for one sample before that time.
+        """
+        m = self.model
+        keep_from = self._first + self._next / m.rate - m.latency - 1.0 / m.rate
         k = int(np.searchsorted(self._t, keep_from)) - 1
         return max(k, 0)
 
@@ -375,8 +386,7 @@ class GyroStream(_Stream):
     """
 
     def __init__(self, model: GyroModel, rng: np.random.Generator):
-        super().__init__(model.rate, rng)
-        self.model = model
+        super().__init__(model, rng)
         self._heading = np.empty(0)
         self._last_rate = 0.0
         self._bias = model.bias
@@ -409,7 +419,7 @@ class GyroStream(_Stream):
         stamps = self._due(float(self._t[-1]) + m.latency - 0.5 / m.rate)
         z, self._bias = _gyro_readings(stamps, self._t, self._heading, m, self._bias,
                                        self._rng)
-        keep = self._trim(self._first + self._next / m.rate - m.latency - 1.0 / m.rate)
+        keep = self._trim()
         self._t, self._heading = self._t[keep:], self._heading[keep:]
         return stamps, z
 
@@ -428,8 +438,7 @@ class GnssStream(_Stream):
     """
 
     def __init__(self, model: GnssModel, rng: np.random.Generator):
-        super().__init__(model.rate, rng)
-        self.model = model
+        super().__init__(model, rng)
         self._pose = np.empty((0, 3))
         self._state = None
 
@@ -455,6 +464,6 @@ class GnssStream(_Stream):
                                                  self._rng, self._state)
         if stamps.size:
             self._state = state
-        keep = self._trim(self._first + self._next / m.rate - m.latency - 1.0 / m.rate)
+        keep = self._trim()
         self._t, self._pose = self._t[keep:], self._pose[keep:]
         return stamps, east, north, status

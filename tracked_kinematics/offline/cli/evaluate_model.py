@@ -28,17 +28,11 @@ computed).
 from __future__ import annotations
 
 import argparse
-from datetime import datetime, timezone
-import json
-import math
 from pathlib import Path
 import sys
 
 import numpy as np
 from tracked_kinematics.core import evaluate as ev
-from tracked_kinematics.core import identify as ident
-from tracked_kinematics.core.errors import ExcitationError, InvalidParameters
-from tracked_kinematics.core.kinematics import IcrParams
 from tracked_kinematics.offline.bags import read_evaluation_bag
 from tracked_kinematics.offline.bags.references import read_reference_bag
 from tracked_kinematics.offline.cli.common import (
@@ -46,10 +40,10 @@ from tracked_kinematics.offline.cli.common import (
     add_window_selection_arguments, command_source, encoder_source, ground_truth_source,
     identification_parser, positive, require_vehicle, run_main)
 from tracked_kinematics.offline.errors import UsageError
+from tracked_kinematics.offline.evaluation import (
+    evaluate_models, gyro_references, pose_references, read_terrain_models, References)
 from tracked_kinematics.offline.outputs import Outputs
-from tracked_kinematics.params import (
-    drivetrain_from_values, icr_from_values, positive as check_positive, read_params_file,
-    values_from_drivetrain)
+from tracked_kinematics.params import positive as check_positive
 
 PROG = 'evaluate_model'
 
@@ -110,38 +104,6 @@ def build_parser() -> argparse.ArgumentParser:
 # Inputs ----------------------------------------------------------------------------------
 
 
-class _Model:
-    """One terrain file: its values, ICR model and drive train."""
-
-    def __init__(self, path: str):
-        self.path = path
-        self.values = read_params_file(path)
-        # INTERFACE.md: the tread ICRs default to +-track_width/2 (ideal drive for the file's
-        # width) unless set.
-        width = self.values.get('track_width')
-        if isinstance(width, (int, float)) and not isinstance(width, bool):
-            self.values.setdefault('icr.y_left', 0.5 * width)
-            self.values.setdefault('icr.y_right', -0.5 * width)
-        try:
-            self.icr = icr_from_values(self.values)
-            self.drivetrain = drivetrain_from_values(self.values)
-        except InvalidParameters as err:
-            raise InvalidParameters(f'{path}: {err}') from None
-        self.drivetrain_in_file = any(k.startswith('drivetrain.') for k in self.values)
-        self.name = Path(path).stem
-
-
-def _unique_names(models) -> None:
-    """Name each file by its stem; a stem taken (``ideal``, twice the same) gets a suffix."""
-    taken = {'ideal'}
-    for model in models:
-        name, n = model.name, 2
-        while name in taken or f'online_{name}' in taken:
-            name, n = f'{model.name}_{n}', n + 1
-        model.name = name
-        taken |= {name, f'online_{name}'}
-
-
 def _vehicle(args, models):
     """Return the track width of the ideal drive and the sprocket radius."""
     first = models[0].values
@@ -180,263 +142,22 @@ def _check_options(args) -> None:
             raise UsageError(f'{flag} lists a value twice: {" ".join(f"{v:g}" for v in values)}')
 
 
-def _delays(args, recordings):
-    """
-    Return the ground-truth delay of each recording and a one-line account, as identify_icr.
-
-    ``auto``: one delay for all bags (:func:`~tracked_kinematics.core.identify.
-    estimate_delays`), or each bag's own when every bag determines its own; when the data do
-    not time the ground truth, none is removed and the account says why.
-    """
-    if args.ground_truth_delay != 'auto':
-        given = ident.fixed_delay(args.ground_truth_delay)
-        return [given] * len(recordings), f'{given.delay:g} s (given)'
-    pooled, each = ident.estimate_delays(recordings)
-    if not pooled.determined:
-        return [pooled] * len(recordings), (f'{pooled.describe()}; none removed: give it '
-                                            'with --ground-truth-delay')
-    if each:
-        return each, 'per bag: ' + '; '.join(e.describe() for e in each)
-    return [pooled] * len(recordings), pooled.describe()
-
-
-def _read_imu(args, track_width, radius):
-    """Read every bag with the gyro as a heading-only reference (bias and delay removed)."""
+def _read(args, track_width, radius) -> References:
+    """Read every bag; return the recordings to score on (their reference's delay taken off)."""
     encoders = encoder_source(args, radius)
-    found = [read_reference_bag(bag, encoders, args.imu_topic, progress=sys.stderr.isatty())
-             for bag in args.bags]
-    try:
-        gyro = ident.fit_recordings(found, track_width)
-    except ExcitationError as err:
-        raise ExcitationError(f'the gyro cannot be timed and de-biased: {err}') from None
-    delay = gyro.imu_delay
-    data, records = [], []
-    for bag, rec, bias in zip(args.bags, found, gyro.biases):
-        reference = ident.heading_reference(rec, delay.delay, bias)
-        data.append(ev.Data(reference, None))
-        records.append({
-            'bag': str(Path(bag).resolve()), 'name': Path(bag).name,
-            'duration_s': reference.duration, 'encoder_samples': len(rec.enc_t),
-            'ground_truth_samples': 0, 'gyro_samples': len(rec.gyro_t),
-            'gyro_bias_rad_s': float(bias), 'imu_delay_s': float(delay.delay),
-            'ground_truth_delay_s': None, 'ground_truth_delay_std_s': None,
-            'ground_truth_delay_source': None, 'commands': None, 'command_samples': 0})
-    account = f'none (gyro reference); the gyro: {delay.describe()}'
-    return data, records, account
-
-
-def _heading_only(report) -> dict:
-    """Null every position figure of a report scored against a gyro (they were not measured)."""
-    for entry in report['models'].values():
-        odo = entry['odometry']
-        for win in odo['windows'].values():
-            for key in ('mean_position_error_m', 'p90_position_error_m', 'mean_distance_m',
-                        'drift_pct'):
-                win[key] = None
-        odo['drift_pct'] = None
-        for key in list(odo['horizon']):
-            if 'translation' in key:
-                odo['horizon'][key] = None
-        for key in list(entry):
-            if key.startswith('rpe_'):
-                entry[key] = None
-        entry['rpe'] = None
-        entry['prediction'] = None
-    for piece in report['pieces']:
-        piece['path_length_m'] = None
-    report['reference'] = 'imu'
-    report['scored'] = 'heading only: the gyro measures no position'
-    return report
-
-
-def _read(args, track_width, radius):
-    """Read every bag; return recordings (delay taken off), their commands, records, delay."""
+    progress = sys.stderr.isatty()
     if args.imu_topic:
-        return _read_imu(args, track_width, radius)
-    encoders = encoder_source(args, radius)
+        found = [read_reference_bag(bag, encoders, args.imu_topic, progress=progress)
+                 for bag in args.bags]
+        return gyro_references(args.bags, found, track_width)
     ground_truth = ground_truth_source(args)
     commands = command_source(args, track_width)
-    progress = sys.stderr.isatty()
     found = [read_evaluation_bag(bag, encoders, ground_truth, commands, progress)
              for bag in args.bags]
-    recordings = [recording for recording, _ in found]
-    delays, account = _delays(args, recordings)
-    data, records = [], []
-    for bag, (recording, cmds), delay in zip(args.bags, found, delays):
-        if cmds is not None:
-            cmds = ev.Commands(*cmds)
-        data.append(ev.Data(ident.correct_ground_truth([recording], delay.delay)[0], cmds))
-        records.append({
-            'bag': str(Path(bag).resolve()), 'name': Path(bag).name,
-            'duration_s': recording.duration, 'encoder_samples': len(recording.enc_t),
-            'ground_truth_samples': len(recording.gt_t),
-            'ground_truth_delay_s': float(delay.delay),
-            'ground_truth_delay_std_s': None if delay.uncertainty == 'given'
-            else float(delay.std),
-            'ground_truth_delay_source': 'given' if delay.uncertainty == 'given'
-            else ('auto' if delay.determined else 'not determined'),
-            'commands': None if cmds is None else cmds.source,
-            'command_samples': 0 if cmds is None else len(cmds.t)})
-    return data, records, account
+    return pose_references(args.bags, found, args.ground_truth_delay)
 
 
 # Outputs ---------------------------------------------------------------------------------
-
-
-def _icr_summary(icr: IcrParams) -> dict:
-    return {'track_width': icr.track_width, 'y_left': icr.y_left, 'y_right': icr.y_right,
-            'x': icr.x, 'scale_left': icr.scale_left, 'scale_right': icr.scale_right,
-            'chi': icr.chi, 'eccentricity': icr.eccentricity}
-
-
-def _finite(value):
-    """JSON without NaN or inf: non-finite floats become null, numpy values plain ones."""
-    if isinstance(value, dict):
-        return {k: _finite(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_finite(v) for v in value]
-    if isinstance(value, (np.floating, float)):
-        value = float(value)
-        return value if math.isfinite(value) else None
-    if isinstance(value, np.integer):
-        return int(value)
-    return value
-
-
-def _fmt(value, scale=1.0, digits=3) -> str:
-    return '-' if value is None else f'{scale * value:.{digits}f}'
-
-
-def _print_table(report, out) -> None:
-    recs = report['recordings']
-    cut = report['data']
-    jumps = ('kept' if report['settings']['keep_jumps']
-             else f'{cut["jumps"]} ground-truth jumps left out')
-    print(f'{PROG}: {len(recs)} bag(s), {sum(r["duration_s"] for r in recs):.0f} s; scored '
-          f'{cut["seconds"]:.0f} s in {cut["pieces"]} gap-free pieces ({cut["gaps"]} gaps, '
-          f'{jumps})', file=out)
-    print(f'ground-truth delay behind the encoders: {report["ground_truth_delay"]}', file=out)
-    if report.get('reference') == 'imu':
-        print('reference: the gyro, heading only: position figures are not scored (null in '
-              'the report, - below)', file=out)
-    sources = sorted({r['commands'] for r in recs if r['commands']})
-    if not sources:
-        print('no commands in the bags: no prediction from commands', file=out)
-    settings = report['settings']
-    windows = [ev.window_key(w) for w in settings['windows_s']]
-    deltas = [ev.rpe_key(d) for d in settings['rpe_distances_m']]
-    horizon = f'{settings["horizon_s"]:g} s'
-    head = f'{"model":<26}'
-    for w in windows:
-        head += f'{w + " s: pos m":>13}{"hdg deg":>9}'
-    head += f'{"drift %":>9}'
-    for d in deltas:
-        head += f'{"RPE " + d.replace("m", " m"):>10}'
-    head += f'{horizon + " enc: m":>14}{"deg":>7}'
-    if sources:
-        head += f'{horizon + " cmd: m":>14}{"deg":>7}'
-    print('\nerrors: window means (p90 and more in the report); RPE: RMSE of the translation '
-          f'part; {horizon} predictions: mean RMSE over the horizon', file=out)
-    print(head, file=out)
-    for name, m in report['models'].items():
-        odo = m['odometry']
-        row = f'{name:<26}'
-        for w in windows:
-            win = odo['windows'][w]
-            row += f'{_fmt(win["mean_position_error_m"]):>13}'
-            row += f'{_fmt(win["mean_heading_error_rad"], 180 / math.pi, 2):>9}'
-        row += f'{_fmt(odo["drift_pct"], digits=1):>9}'
-        for d in deltas:
-            row += f'{_fmt(m[f"rpe_{d}"]):>10}'
-        hor = odo['horizon']
-        row += f'{_fmt(hor["mean_rmse_translation_m"]):>14}'
-        row += f'{_fmt(hor["mean_rmse_rotation_rad"], 180 / math.pi, 2):>7}'
-        if sources:
-            pred = m['prediction'] or {}
-            row += f'{_fmt(pred.get("mean_rmse_translation_m")):>14}'
-            row += f'{_fmt(pred.get("mean_rmse_rotation_rad"), 180 / math.pi, 2):>7}'
-        print(row.rstrip(), file=out)
-    ideal = report['models']['ideal']['odometry']['windows']
-    selection = report['windows_selection']
-    if selection['moving_only']:
-        counts = (f'windows in which the tracks move (mean track speed >= '
-                  f'{selection["min_speed_mps"]:g} m/s; --all-windows for all): '
-                  + ', '.join(f'{ideal[w]["n"]} of {ideal[w]["n_total"]} of {w} s'
-                              for w in windows))
-    else:
-        counts = 'windows, idle ones too: ' + ', '.join(f'{ideal[w]["n"]} of {w} s'
-                                                        for w in windows)
-    print(counts
-          + f'; {report["models"]["ideal"]["odometry"]["horizon"]["n"]} horizons from the '
-          'encoders' + (f', {(report["models"]["ideal"]["prediction"] or {}).get("n", 0)} from '
-                        'the commands' if sources else ''), file=out)
-    for name, m in report['models'].items():
-        online = m.get('online')
-        if online:
-            outcomes = online['outcomes']
-            print(f'{name}: {outcomes.get("updated", 0)} updates, {outcomes.get("outlier", 0)} '
-                  f'poses refused as jumps, {outcomes.get("anchored", 0)} re-anchors; model '
-                  f'error {math.sqrt(online["noise_scale"]):.1f} x travel_std; its own '
-                  f'estimate in use {100 * online["trusted_fraction"]:.0f} % of the time '
-                  "(else the file's values)", file=out)
-
-
-def _report(args, models, records, account, evaluation, candidates, runs, track_width,
-            radius):
-    settings = {'windows_s': [float(w) for w in args.window], 'horizon_s': args.horizon,
-                'prediction_dt_s': args.prediction_dt,
-                'rpe_distances_m': [float(d) for d in args.rpe_distance],
-                'max_command_age_s': args.max_command_age,
-                'keep_jumps': args.keep_jumps,
-                'track_width': track_width, 'sprocket_radius': radius,
-                'command_source': args.command_source}
-    for record, c in zip(records, evaluation.cuts):
-        record.update({'pieces': len(c.pieces), 'seconds_in_pieces': c.seconds,
-                       'gaps': c.gaps, 'jumps': c.jumps})
-    entries = {}
-    by_name = {m.name: m for m in models}
-    for candidate in candidates:
-        entry = {}
-        if candidate.name == 'ideal':
-            entry.update({'kind': 'ideal', 'file': None, 'icr': _icr_summary(candidate.icr),
-                          'drivetrain': None})
-        else:
-            online = candidate.runs is not None
-            model = by_name[candidate.name[len('online_'):] if online else candidate.name]
-            entry.update({'kind': 'online' if online else 'file',
-                          'file': str(Path(model.path).resolve()),
-                          'icr': _icr_summary(model.icr),
-                          'drivetrain': {**values_from_drivetrain(model.drivetrain),
-                                         'from_file': model.drivetrain_in_file}})
-            if online:
-                rs = runs[model.name]
-                outcomes = {}
-                for r in rs:
-                    for k, v in r.outcomes.items():
-                        outcomes[k] = outcomes.get(k, 0) + v
-                entry['online'] = {
-                    'model': 'icr', 'start': model.name, 'outcomes': outcomes,
-                    'noise_scale': float(max(r.noise_scale for r in rs)),
-                    'trusted_fraction': float(np.mean([r.trusted for r in rs])),
-                    'final_icr': [r.icr[-1].tolist() for r in rs]}
-        entry.update(evaluation.models[candidate.name])
-        entries[candidate.name] = entry
-    cuts = evaluation.cuts
-    return {
-        'tool': PROG, 'date': datetime.now(timezone.utc).isoformat(timespec='seconds'),
-        'bags': [r['bag'] for r in records], 'settings': settings, 'recordings': records,
-        'ground_truth_delay': account,
-        'windows_selection': {'moving_only': not args.all_windows,
-                              'min_speed_mps': None if args.all_windows else args.min_speed},
-        'data': {'pieces': sum(len(c.pieces) for c in cuts), 'gaps': sum(c.gaps for c in cuts),
-                 'jumps': sum(c.jumps for c in cuts),
-                 'seconds': float(sum(c.seconds for c in cuts))},
-        'pieces': [{'piece': k, 'bag': records[p.recording]['bag'], 't_start_s': float(p.t[0]),
-                    't_end_s': float(p.t[-1]), 'samples': len(p.t),
-                    'path_length_m': p.path_length}
-                   for k, p in enumerate(evaluation.pieces)],
-        'order': [c.name for c in candidates], 'models': entries,
-    }
 
 
 def _write_tum(directory: Path, evaluation, names) -> None:
@@ -470,43 +191,25 @@ def _run(args, out) -> int:
         outputs.add('--report', args.report)
         outputs.add('--plot', args.plot)
         outputs.add('--tum', args.tum, directory=True)
-        models = [_Model(path) for path in args.params]
-        _unique_names(models)
+        models = read_terrain_models(args.params)
         track_width, radius = _vehicle(args, models)
-        data, records, account = _read(args, track_width, radius)
-        candidates = [ev.Candidate('ideal', IcrParams.ideal(track_width), None)]
-        candidates += [ev.Candidate(m.name, m.icr, m.drivetrain) for m in models]
-        runs = {}
-        if args.online:
-            for m in models:
-                runs[m.name] = tuple(ev.replay(d.recording, m.icr, r['ground_truth_delay_s'])
-                                     for d, r in zip(data, records))
-                candidates.append(ev.Candidate(f'online_{m.name}', m.icr, m.drivetrain,
-                                               runs[m.name]))
+        references = _read(args, track_width, radius)
         settings = ev.Settings(tuple(args.window), args.horizon, args.prediction_dt,
                                tuple(args.rpe_distance), args.max_command_age,
                                not args.keep_jumps, track_width,
                                None if args.all_windows else args.min_speed)
-        evaluation = ev.evaluate(data, candidates, settings)
-        if not evaluation.pieces:
-            raise ExcitationError('no stretch of the bags has both encoders and ground truth '
-                                  'without a gap: nothing to score')
-        report = _finite(_report(args, models, records, account, evaluation, candidates, runs,
-                                 track_width, radius))
-        if args.imu_topic:
-            report = _heading_only(report)
-        _print_table(report, out)
+        report = evaluate_models(references, models, settings, sprocket_radius=radius,
+                                 command_source=args.command_source, online=args.online)
+        print(report.table(), file=out)
         if args.report:
-            outputs.write_text('--report', json.dumps(report, indent=2, allow_nan=False)
-                               + '\n')
+            outputs.write_text('--report', report.json())
         if args.tum:
             with outputs.path('--tum') as tmp:
-                _write_tum(tmp, evaluation, [c.name for c in candidates])
+                _write_tum(tmp, report.evaluation, report.names)
         if args.plot:
             with outputs.path('--plot') as tmp:
-                plot_evaluation(tmp, evaluation, [c.name for c in candidates],
-                                tuple(args.window), fmt=fmt,
-                                min_speed=settings.min_speed)
+                plot_evaluation(tmp, report.evaluation, report.names, settings.windows,
+                                fmt=fmt, min_speed=settings.min_speed)
     written = [p for p in (args.report, args.plot, args.tum) if p]
     if written:
         print(f'wrote {", ".join(written)}', file=out)

@@ -4,8 +4,8 @@ identify_icr without a ground-truth pose: the gyro as the reference, GNSS or a s
 :func:`icr_from_references` calibrates with :func:`tracked_kinematics.core.identify.
 fit_recordings` on recordings read by :func:`tracked_kinematics.offline.bags.references.
 read_reference_bag` and returns the :class:`.report.IcrReport`, with ``identification.
-reference``, ``identification.determined`` and ``identification.held`` (docs/parameters.md)
-and ``identification.imu_delay`` in the terrain values.
+reference``, ``identification.determined`` and ``identification.held`` (docs/tools/identify_icr.md,
+"What it writes") and ``identification.imu_delay`` in the terrain values.
 """
 
 from __future__ import annotations

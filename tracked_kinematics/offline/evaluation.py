@@ -1,0 +1,516 @@
+"""
+evaluate_model's report as a library: terrain models scored on recordings.
+
+As evo's ``main_ape.ape`` returns a result that its command line prints and saves, this
+module puts evaluate_model's report together and the command line
+(:mod:`tracked_kinematics.offline.cli.evaluate_model`) only parses, reads the bags, prints,
+writes and plots:
+
+- :func:`read_terrain_models`: the terrain files to score, each named by its file stem;
+- :func:`pose_references` / :func:`gyro_references`: what the bag readers returned, made
+  the recordings to score on: the ground-truth delay taken off (identify_icr's estimate, or
+  the one given), or the gyro timed and de-biased as a heading-only reference;
+- :func:`evaluate_models`: the ideal drive and each file (and, with ``online``, the
+  icr_estimator's EKF replayed from each file) scored on them by
+  :func:`tracked_kinematics.core.evaluate.evaluate`; an :class:`EvaluationReport` holds
+  the JSON content (every key: docs/tools/evaluate_model.md), the table evaluate_model
+  prints, and the pieces and paths for the plot and the TUM files.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from datetime import datetime, timezone
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+from tracked_kinematics.core import evaluate as ev
+from tracked_kinematics.core import identify as ident
+from tracked_kinematics.core.errors import ExcitationError, InvalidParameters
+from tracked_kinematics.core.kinematics import IcrParams
+from tracked_kinematics.params import (
+    drivetrain_from_values, icr_from_values, read_params_file, values_from_drivetrain)
+
+TOOL = 'evaluate_model'
+
+
+# Inputs ----------------------------------------------------------------------------------
+
+
+class TerrainModel:
+    """
+    One terrain file: its values, ICR model and drive train.
+
+    Attributes
+    ----------
+    path : str
+        The file.
+    values : dict
+        Its parameters, the tread ICRs defaulted to ``+-track_width / 2`` (docs/model.md,
+        "The terrain parameter file").
+    icr : IcrParams
+    drivetrain : DriveTrain
+        The file's drive train (the default one when it has no ``drivetrain.*`` key).
+    drivetrain_in_file : bool
+        Whether the file has ``drivetrain.*`` keys.
+    name : str
+        Its key in the report: the file stem (:func:`read_terrain_models` makes it unique).
+
+    Raises
+    ------
+    InvalidParameters
+        For invalid values, the message prefixed with the path.
+    OSError
+        For a file that cannot be read.
+
+    """
+
+    def __init__(self, path):
+        self.path = str(path)
+        self.values = read_params_file(path)
+        # docs/model.md: the tread ICRs default to +-track_width/2 (ideal drive for the
+        # file's width) unless set.
+        width = self.values.get('track_width')
+        if isinstance(width, (int, float)) and not isinstance(width, bool):
+            self.values.setdefault('icr.y_left', 0.5 * width)
+            self.values.setdefault('icr.y_right', -0.5 * width)
+        try:
+            self.icr = icr_from_values(self.values)
+            self.drivetrain = drivetrain_from_values(self.values)
+        except InvalidParameters as err:
+            raise InvalidParameters(f'{path}: {err}') from None
+        self.drivetrain_in_file = any(k.startswith('drivetrain.') for k in self.values)
+        self.name = Path(path).stem
+
+
+def read_terrain_models(paths) -> list[TerrainModel]:
+    """
+    Read terrain files; name each by its stem, a stem taken (``ideal``, twice) with a suffix.
+
+    ``a.yaml`` and ``other/a.yaml`` become ``a`` and ``a_2``; a file ``ideal.yaml`` becomes
+    ``ideal_2`` (``ideal`` is the baseline's key), and no name is another's ``online_`` one.
+    """
+    models = [TerrainModel(path) for path in paths]
+    taken = {'ideal'}
+    for model in models:
+        name, n = model.name, 2
+        while name in taken or f'online_{name}' in taken:
+            name, n = f'{model.name}_{n}', n + 1
+        model.name = name
+        taken |= {name, f'online_{name}'}
+    return models
+
+
+@dataclass(frozen=True)
+class References:
+    """
+    The recordings to score on, and how their reference was prepared.
+
+    Attributes
+    ----------
+    data : tuple of Data
+        Each recording (its reference's delay taken off) and its commands.
+    records : tuple of dict
+        The report's ``recordings`` entry of each (before the pieces are counted).
+    account : str
+        The report's ``ground_truth_delay``: a line on how the delay was found.
+    reference : str
+        ``'pose'`` (a ground-truth pose) or ``'imu'`` (the gyro: heading only).
+
+    """
+
+    data: tuple
+    records: tuple
+    account: str
+    reference: str = 'pose'
+
+
+def _delays(recordings, delay):
+    """
+    Return the ground-truth delay of each recording and a one-line account, as identify_icr.
+
+    ``auto``: one delay for all bags (:func:`~tracked_kinematics.core.identify.
+    estimate_delays`), or each bag's own when every bag determines its own; when the data do
+    not time the ground truth, none is removed and the account says why.
+    """
+    if delay != 'auto':
+        given = ident.fixed_delay(delay)
+        return [given] * len(recordings), f'{given.delay:g} s (given)'
+    pooled, each = ident.estimate_delays(recordings)
+    if not pooled.determined:
+        return [pooled] * len(recordings), (f'{pooled.describe()}; none removed: give it '
+                                            'with --ground-truth-delay')
+    if each:
+        return each, 'per bag: ' + '; '.join(e.describe() for e in each)
+    return [pooled] * len(recordings), pooled.describe()
+
+
+def pose_references(bags, found, delay='auto') -> References:
+    """
+    Take the ground-truth delay off recordings read with a pose as the reference.
+
+    Parameters
+    ----------
+    bags : sequence of path-like
+        The bags, for the records.
+    found : sequence of (Recording, tuple or None)
+        What :func:`tracked_kinematics.offline.bags.read_evaluation_bag` returned for each:
+        the recording and its commands (``Commands``' fields), or None.
+    delay : 'auto' or float
+        The ground-truth delay behind the encoders, s; ``'auto'`` estimates it
+        (:func:`_delays`).
+
+    """
+    recordings = [recording for recording, _ in found]
+    delays, account = _delays(recordings, delay)
+    data, records = [], []
+    for bag, (recording, cmds), delay in zip(bags, found, delays):
+        if cmds is not None:
+            cmds = ev.Commands(*cmds)
+        data.append(ev.Data(ident.correct_ground_truth([recording], delay.delay)[0], cmds))
+        records.append({
+            'bag': str(Path(bag).resolve()), 'name': Path(bag).name,
+            'duration_s': recording.duration, 'encoder_samples': len(recording.enc_t),
+            'ground_truth_samples': len(recording.gt_t),
+            'ground_truth_delay_s': float(delay.delay),
+            'ground_truth_delay_std_s': None if delay.uncertainty == 'given'
+            else float(delay.std),
+            'ground_truth_delay_source': 'given' if delay.uncertainty == 'given'
+            else ('auto' if delay.determined else 'not determined'),
+            'commands': None if cmds is None else cmds.source,
+            'command_samples': 0 if cmds is None else len(cmds.t)})
+    return References(tuple(data), tuple(records), account)
+
+
+def gyro_references(bags, found, track_width: float) -> References:
+    """
+    Make the gyro of each recording a heading-only reference: its bias and delay removed.
+
+    Parameters
+    ----------
+    bags : sequence of path-like
+        The bags, for the records.
+    found : sequence of ReferenceRecording
+        What :func:`tracked_kinematics.offline.bags.references.read_reference_bag` returned.
+    track_width : float
+        m, of the ideal drive the gyro fit starts from.
+
+    Raises
+    ------
+    ExcitationError
+        When the drives cannot time and de-bias the gyro.
+
+    """
+    try:
+        gyro = ident.fit_recordings(found, track_width)
+    except ExcitationError as err:
+        raise ExcitationError(f'the gyro cannot be timed and de-biased: {err}') from None
+    delay = gyro.imu_delay
+    data, records = [], []
+    for bag, rec, bias in zip(bags, found, gyro.biases):
+        reference = ident.heading_reference(rec, delay.delay, bias)
+        data.append(ev.Data(reference, None))
+        records.append({
+            'bag': str(Path(bag).resolve()), 'name': Path(bag).name,
+            'duration_s': reference.duration, 'encoder_samples': len(rec.enc_t),
+            'ground_truth_samples': 0, 'gyro_samples': len(rec.gyro_t),
+            'gyro_bias_rad_s': float(bias), 'imu_delay_s': float(delay.delay),
+            'ground_truth_delay_s': None, 'ground_truth_delay_std_s': None,
+            'ground_truth_delay_source': None, 'commands': None, 'command_samples': 0})
+    account = f'none (gyro reference); the gyro: {delay.describe()}'
+    return References(tuple(data), tuple(records), account, 'imu')
+
+
+# The report ------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class EvaluationReport:
+    """
+    What :func:`evaluate_models` returns: the report, its table, and what was scored.
+
+    The command line prints :meth:`table`, writes :meth:`json` and draws the plot and the
+    TUM files from :attr:`evaluation`.
+
+    Attributes
+    ----------
+    content : dict
+        The JSON report: plain numbers, non-finite ones as None (docs/tools/evaluate_model.md).
+    evaluation : Evaluation
+        The pieces scored and each model's odometry over them (for the plot, the TUM files).
+
+    """
+
+    content: dict
+    evaluation: ev.Evaluation
+
+    @property
+    def names(self) -> list:
+        """Return the models in report order: ``ideal``, the files, the online estimators."""
+        return list(self.content['order'])
+
+    def json(self) -> str:
+        """Return the report as JSON text (no NaN), ending in a newline."""
+        return json.dumps(self.content, indent=2, allow_nan=False) + '\n'
+
+    def table(self) -> str:
+        """Return the summary evaluate_model prints (:func:`table_text`)."""
+        return table_text(self.content)
+
+
+def evaluate_models(references: References, models, settings: ev.Settings, *,
+                    sprocket_radius: float, command_source: str = 'auto',
+                    online: bool = False) -> EvaluationReport:
+    """
+    Score the ideal drive and each terrain model on the recordings; return the report.
+
+    Parameters
+    ----------
+    references : References
+        The recordings (:func:`pose_references`, :func:`gyro_references`).
+    models : sequence of TerrainModel
+        The terrain files (:func:`read_terrain_models`), after the ideal drive of
+        ``settings.track_width`` in the report.
+    settings : Settings
+        What to score; ``settings.track_width`` is also the ideal drive's.
+    sprocket_radius : float
+        m, the radius the encoders were read with (recorded in the report's settings).
+    command_source : str
+        How the commands were read (recorded in the report's settings).
+    online : bool
+        Also replay the icr_estimator's EKF over each recording from each file (``online_``
+        entries); needs a pose reference.
+
+    Raises
+    ------
+    ExcitationError
+        When no stretch of the recordings has both encoders and a reference without a gap.
+    ValueError
+        For ``online`` with a gyro reference.
+
+    """
+    if online and references.reference != 'pose':
+        raise ValueError('the online estimator needs a pose reference, not the gyro')
+    track_width = settings.track_width
+    candidates = [ev.Candidate('ideal', IcrParams.ideal(track_width), None)]
+    candidates += [ev.Candidate(m.name, m.icr, m.drivetrain) for m in models]
+    runs = {}
+    if online:
+        for m in models:
+            runs[m.name] = tuple(ev.replay(d.recording, m.icr, r['ground_truth_delay_s'])
+                                 for d, r in zip(references.data, references.records))
+            candidates.append(ev.Candidate(f'online_{m.name}', m.icr, m.drivetrain,
+                                           runs[m.name]))
+    evaluation = ev.evaluate(references.data, candidates, settings)
+    if not evaluation.pieces:
+        raise ExcitationError('no stretch of the bags has both encoders and ground truth '
+                              'without a gap: nothing to score')
+    content = _finite(_content(references, models, evaluation, candidates, runs, settings,
+                               sprocket_radius, command_source))
+    if references.reference == 'imu':
+        content = _heading_only(content)
+    return EvaluationReport(content, evaluation)
+
+
+def _icr_summary(icr: IcrParams) -> dict:
+    return {'track_width': icr.track_width, 'y_left': icr.y_left, 'y_right': icr.y_right,
+            'x': icr.x, 'scale_left': icr.scale_left, 'scale_right': icr.scale_right,
+            'chi': icr.chi, 'eccentricity': icr.eccentricity}
+
+
+def _finite(value):
+    """JSON without NaN or inf: non-finite floats become null, numpy values plain ones."""
+    if isinstance(value, dict):
+        return {k: _finite(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_finite(v) for v in value]
+    if isinstance(value, (np.floating, float)):
+        value = float(value)
+        return value if math.isfinite(value) else None
+    if isinstance(value, np.integer):
+        return int(value)
+    return value
+
+
+def _model_entry(candidate, by_name, runs) -> dict:
+    """Return a candidate's report entry before its scores: kind, file, ICRs, drivetrain."""
+    if candidate.name == 'ideal':
+        return {'kind': 'ideal', 'file': None, 'icr': _icr_summary(candidate.icr),
+                'drivetrain': None}
+    online = candidate.runs is not None
+    model = by_name[candidate.name[len('online_'):] if online else candidate.name]
+    entry = {'kind': 'online' if online else 'file', 'file': str(Path(model.path).resolve()),
+             'icr': _icr_summary(model.icr),
+             'drivetrain': {**values_from_drivetrain(model.drivetrain),
+                            'from_file': model.drivetrain_in_file}}
+    if online:
+        rs = runs[model.name]
+        outcomes = {}
+        for r in rs:
+            for k, v in r.outcomes.items():
+                outcomes[k] = outcomes.get(k, 0) + v
+        entry['online'] = {
+            'model': 'icr', 'start': model.name, 'outcomes': outcomes,
+            'noise_scale': float(max(r.noise_scale for r in rs)),
+            'trusted_fraction': float(np.mean([r.trusted for r in rs])),
+            'final_icr': [r.icr[-1].tolist() for r in rs]}
+    return entry
+
+
+def _content(references, models, evaluation, candidates, runs, settings, radius,
+             command_source) -> dict:
+    cuts = evaluation.cuts
+    records = [{**record, 'pieces': len(c.pieces), 'seconds_in_pieces': c.seconds,
+                'gaps': c.gaps, 'jumps': c.jumps}
+               for record, c in zip(references.records, cuts)]
+    by_name = {m.name: m for m in models}
+    entries = {c.name: {**_model_entry(c, by_name, runs), **evaluation.models[c.name]}
+               for c in candidates}
+    moving = settings.min_speed is not None
+    return {
+        'tool': TOOL, 'date': datetime.now(timezone.utc).isoformat(timespec='seconds'),
+        'bags': [r['bag'] for r in records],
+        'settings': {'windows_s': [float(w) for w in settings.windows],
+                     'horizon_s': settings.horizon, 'prediction_dt_s': settings.dt,
+                     'rpe_distances_m': [float(d) for d in settings.rpe_deltas],
+                     'max_command_age_s': settings.max_command_age,
+                     'keep_jumps': not settings.jumps,
+                     'track_width': settings.track_width, 'sprocket_radius': radius,
+                     'command_source': command_source},
+        'recordings': records,
+        'ground_truth_delay': references.account,
+        'windows_selection': {'moving_only': moving,
+                              'min_speed_mps': settings.min_speed if moving else None},
+        'data': {'pieces': sum(len(c.pieces) for c in cuts), 'gaps': sum(c.gaps for c in cuts),
+                 'jumps': sum(c.jumps for c in cuts),
+                 'seconds': float(sum(c.seconds for c in cuts))},
+        'pieces': [{'piece': k, 'bag': records[p.recording]['bag'], 't_start_s': float(p.t[0]),
+                    't_end_s': float(p.t[-1]), 'samples': len(p.t),
+                    'path_length_m': p.path_length}
+                   for k, p in enumerate(evaluation.pieces)],
+        'order': [c.name for c in candidates], 'models': entries,
+    }
+
+
+def _heading_only(report) -> dict:
+    """Null every position figure of a report scored against a gyro (they were not measured)."""
+    for entry in report['models'].values():
+        odo = entry['odometry']
+        for win in odo['windows'].values():
+            for key in ('mean_position_error_m', 'p90_position_error_m', 'mean_distance_m',
+                        'drift_pct'):
+                win[key] = None
+        odo['drift_pct'] = None
+        for key in list(odo['horizon']):
+            if 'translation' in key:
+                odo['horizon'][key] = None
+        for key in list(entry):
+            if key.startswith('rpe_'):
+                entry[key] = None
+        entry['rpe'] = None
+        entry['prediction'] = None
+    for piece in report['pieces']:
+        piece['path_length_m'] = None
+    report['reference'] = 'imu'
+    report['scored'] = 'heading only: the gyro measures no position'
+    return report
+
+
+# The table -------------------------------------------------------------------------------
+
+
+def _fmt(value, scale=1.0, digits=3) -> str:
+    return '-' if value is None else f'{scale * value:.{digits}f}'
+
+
+def _table_rows(report, windows, deltas, sources) -> list:
+    """Return the table's header line and one line per model."""
+    horizon = f'{report["settings"]["horizon_s"]:g} s'
+    head = f'{"model":<26}'
+    for w in windows:
+        head += f'{w + " s: pos m":>13}{"hdg deg":>9}'
+    head += f'{"drift %":>9}'
+    for d in deltas:
+        head += f'{"RPE " + d.replace("m", " m"):>10}'
+    head += f'{horizon + " enc: m":>14}{"deg":>7}'
+    if sources:
+        head += f'{horizon + " cmd: m":>14}{"deg":>7}'
+    rows = [head]
+    for name, m in report['models'].items():
+        odo = m['odometry']
+        row = f'{name:<26}'
+        for w in windows:
+            win = odo['windows'][w]
+            row += f'{_fmt(win["mean_position_error_m"]):>13}'
+            row += f'{_fmt(win["mean_heading_error_rad"], 180 / math.pi, 2):>9}'
+        row += f'{_fmt(odo["drift_pct"], digits=1):>9}'
+        for d in deltas:
+            row += f'{_fmt(m[f"rpe_{d}"]):>10}'
+        hor = odo['horizon']
+        row += f'{_fmt(hor["mean_rmse_translation_m"]):>14}'
+        row += f'{_fmt(hor["mean_rmse_rotation_rad"], 180 / math.pi, 2):>7}'
+        if sources:
+            pred = m['prediction'] or {}
+            row += f'{_fmt(pred.get("mean_rmse_translation_m")):>14}'
+            row += f'{_fmt(pred.get("mean_rmse_rotation_rad"), 180 / math.pi, 2):>7}'
+        rows.append(row.rstrip())
+    return rows
+
+
+def table_text(report: dict) -> str:
+    """
+    Return the summary of a report that evaluate_model prints (no final newline).
+
+    The data scored, the delay, the window means, drift, RPE and predictions of each model
+    (one line each, ``-`` for a figure not measured), how many windows and horizons were
+    scored, and what each online estimator did.
+    """
+    recs = report['recordings']
+    cut = report['data']
+    settings = report['settings']
+    jumps = ('kept' if settings['keep_jumps']
+             else f'{cut["jumps"]} ground-truth jumps left out')
+    lines = [f'{TOOL}: {len(recs)} bag(s), {sum(r["duration_s"] for r in recs):.0f} s; scored '
+             f'{cut["seconds"]:.0f} s in {cut["pieces"]} gap-free pieces ({cut["gaps"]} gaps, '
+             f'{jumps})',
+             f'ground-truth delay behind the encoders: {report["ground_truth_delay"]}']
+    if report.get('reference') == 'imu':
+        lines.append('reference: the gyro, heading only: position figures are not scored '
+                     '(null in the report, - below)')
+    sources = sorted({r['commands'] for r in recs if r['commands']})
+    if not sources:
+        lines.append('no commands in the bags: no prediction from commands')
+    windows = [ev.window_key(w) for w in settings['windows_s']]
+    deltas = [ev.rpe_key(d) for d in settings['rpe_distances_m']]
+    lines.append(f'\nerrors: window means (p90 and more in the report); RPE: RMSE of the '
+                 f'translation part; {settings["horizon_s"]:g} s predictions: mean RMSE over '
+                 'the horizon')
+    lines += _table_rows(report, windows, deltas, sources)
+    ideal = report['models']['ideal']
+    counts = ideal['odometry']['windows']
+    selection = report['windows_selection']
+    if selection['moving_only']:
+        line = (f'windows in which the tracks move (mean track speed >= '
+                f'{selection["min_speed_mps"]:g} m/s; --all-windows for all): '
+                + ', '.join(f'{counts[w]["n"]} of {counts[w]["n_total"]} of {w} s'
+                            for w in windows))
+    else:
+        line = 'windows, idle ones too: ' + ', '.join(f'{counts[w]["n"]} of {w} s'
+                                                      for w in windows)
+    line += f'; {ideal["odometry"]["horizon"]["n"]} horizons from the encoders'
+    if sources:
+        line += f', {(ideal["prediction"] or {}).get("n", 0)} from the commands'
+    lines.append(line)
+    for name, m in report['models'].items():
+        online = m.get('online')
+        if online:
+            outcomes = online['outcomes']
+            lines.append(
+                f'{name}: {outcomes.get("updated", 0)} updates, {outcomes.get("outlier", 0)} '
+                f'poses refused as jumps, {outcomes.get("anchored", 0)} re-anchors; model '
+                f'error {math.sqrt(online["noise_scale"]):.1f} x travel_std; its own '
+                f'estimate in use {100 * online["trusted_fraction"]:.0f} % of the time '
+                "(else the file's values)")
+    return '\n'.join(lines)
