@@ -54,9 +54,12 @@ def drive(duration, rate=100.0, seed=0, legs=('straight', 'arc', 'spin'), speed=
 
 
 def simulate(model, p, duration=120.0, enc_rate=100.0, gt_rate=10.0, seed=0, gt_phase=0.0,
-             legs=('straight', 'arc', 'spin'), name='sim'):
+             legs=('straight', 'arc', 'spin'), name='sim', stand=None):
     """
     Drive ``model`` with parameters ``p`` and record it.
+
+    ``stand=(period, length)``: the vehicle stands still for the first ``length`` s of every
+    ``period`` s.
 
     Returns
     -------
@@ -66,6 +69,9 @@ def simulate(model, p, duration=120.0, enc_rate=100.0, gt_rate=10.0, seed=0, gt_
 
     """
     t, v_left, v_right = drive(duration, enc_rate, seed, legs)
+    if stand is not None:
+        still = t % stand[0] < stand[1]
+        v_left, v_right = np.where(still, 0.0, v_left), np.where(still, 0.0, v_right)
     left = np.concatenate([[0.0], np.cumsum(v_left[:-1] * np.diff(t))])
     right = np.concatenate([[0.0], np.cumsum(v_right[:-1] * np.diff(t))])
     gt_t = np.arange(gt_phase, t[-1], 1.0 / gt_rate)

@@ -166,3 +166,13 @@ def test_a_second_signal_does_not_interrupt_the_clean_up(tmp_path, capsys, monke
     assert capsys.readouterr().err == 'tool: error: terminated by SIGTERM\n'
     assert list(tmp_path.iterdir()) == []
     assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+
+
+def test_window_selection_options_default_to_the_moving_windows_of_the_core():
+    from tracked_kinematics.core.identify.procedure import MIN_SPEED
+    from tracked_kinematics.offline.cli import common
+    parser = common.ArgumentParser(prog='tool')
+    common.add_window_selection_arguments(parser)
+    assert common.min_speed(parser.parse_args([])) == MIN_SPEED == common.MIN_SPEED
+    assert common.min_speed(parser.parse_args(['--min-speed', '0.3'])) == 0.3
+    assert common.min_speed(parser.parse_args(['--all-windows', '--min-speed', '0.3'])) is None

@@ -480,8 +480,8 @@ def test_recording_in_short_pieces(tmp_path, capsys):
     assert doc['time']['pieces'] == 60
     assert doc['holdout']['windows'] == 0 and doc['holdout']['cross_validated'] is True
     icr = doc['holdout']['models']['icr_scales']
-    assert icr['windows'] == {'n': 0, 'position_mean': None, 'position_p90': None,
-                              'heading_mean': None, 'heading_p90': None}
+    assert icr['windows'] == {'n': 0, 'n_total': 0, 'position_mean': None,
+                              'position_p90': None, 'heading_mean': None, 'heading_p90': None}
     assert icr['improvement_pct']['windows'] is None
     assert icr['improvement_pct']['segments']['position'] > 90
 
@@ -528,3 +528,34 @@ def test_tuned_ddc_snippet_and_baseline_columns(bag, tmp_path, capsys):
     models = doc['holdout']['models']
     assert models['icr_scales']['improvement_vs_tuned_ddc_pct']['windows']['position'] > 50
     assert 'improvement_vs_tuned_ddc_pct' not in models['tuned_ddc']
+
+
+def test_holdout_windows_where_the_tracks_move_unless_all_windows(tmp_path, capsys):
+    # Stands still 25 s of every 40 s: most 10-s hold-out windows are idle.
+    rec = simulate(ConstantIcr(B), np.array(AURIGA), duration=240.0, enc_rate=50.0, seed=5,
+                   stand=(40.0, 25.0))
+    path = tmp_path / 'standing'
+    write_bag(path, rec, 'mcap')
+    docs, values, said = {}, {}, {}
+    for name, extra in (('moving', []), ('all', ['--all-windows'])):
+        out, report = tmp_path / f'{name}.yaml', tmp_path / f'{name}.json'
+        status, stdout, err = run([path, *ARGS, '--output', out, '--report', report,
+                                   '--ground-truth-delay', '0', *extra], capsys)
+        assert status == 0, err
+        docs[name], values[name] = strict_json(report), read_params_file(out)
+        said[name] = next(line for line in stdout.splitlines() if line.startswith('hold-out:'))
+    moving = docs['moving']['holdout']['models']['ideal']['windows']
+    every = docs['all']['holdout']['models']['ideal']['windows']
+    assert every['n'] == every['n_total'] == moving['n_total'] > moving['n'] > 0
+    assert re.search(rf'{moving["n"]} of {moving["n_total"]} windows of 10 s, those in which '
+                     r'the tracks move \(mean track speed >= 0\.1 m/s; --all-windows',
+                     said['moving'])
+    assert f'{every["n"]} windows of 10 s, idle ones too' in said['all']
+    assert docs['moving']['windows_selection'] == {'moving_only': True, 'min_speed_mps': 0.1}
+    assert docs['all']['windows_selection'] == {'moving_only': False, 'min_speed_mps': None}
+    assert every['position_mean'] < 0.6 * moving['position_mean']
+    assert values['moving']['identification.holdout_windows'] == 'moving'
+    assert values['moving']['identification.holdout_min_speed'] == 0.1
+    assert values['all']['identification.holdout_windows'] == 'all'
+    # The fit does not depend on the selection.
+    assert values['all']['icr.y_left'] == values['moving']['icr.y_left']

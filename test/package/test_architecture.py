@@ -35,6 +35,8 @@ FORBIDDEN = {
     'offline': ('rclpy', f'{PKG}.ros', 'tf2_ros', APPS),
     # Reading and writing bags is a library the command lines use, never the reverse.
     'offline/bags': (f'{PKG}.offline.cli',),
+    # So is identify_icr's library: recordings in, the report out (its CLI prints and writes).
+    'offline/identification': (f'{PKG}.offline.cli',),
     # So is the diff_drive_controller converter: controllers files in, parameter files out.
     'offline/ddc': (f'{PKG}.offline.cli', f'{PKG}.offline.bags', 'rosbags'),
     'ros': ('rosbags', f'{PKG}.offline', APPS),

@@ -23,10 +23,15 @@ from .excitation import check_excitation, Excitation
 from .fitting import check_identified, fit, FitResult
 from .problem import DEFAULT_HEADING_WEIGHT
 from .search_space import build_model, COMPARE_MODELS
-from .segments import build_segments, covered_spans, ground_truth_jumps, over_jumps
+from .segments import build_segments, covered_spans, ground_truth_jumps, over_jumps, Segments
 from ..errors import ExcitationError, FitError, IdentificationError
 from ..kinematics import IcrParams
 from ..models import ConstantIcr
+
+
+MIN_SPEED = 0.1
+"""m/s of mean track speed from which a held-out window counts as moving (as evaluate_model's
+``--min-speed``)."""
 
 
 @dataclass
@@ -133,6 +138,10 @@ class Identification:
     jump_segments : int
         Segments over a jump, left out of the fit and of the evaluation (windows over a
         jump are left out too).
+    min_speed : float or None
+        Mean track speed from which a held-out window was scored, m/s (None: every window).
+    windows_total : int
+        Held-out windows over all folds before that selection (those over a jump left out).
 
     """
 
@@ -154,6 +163,8 @@ class Identification:
     recordings: list = field(default_factory=list, repr=False)
     jumps: int = 0
     jump_segments: int = 0
+    min_speed: float | None = None
+    windows_total: int = 0
 
     def evaluation(self, name: str) -> ModelEvaluation | None:
         """Return the evaluation of one model, or None."""
@@ -182,7 +193,8 @@ def identify(recordings, model: str = 'icr_scales', track_width: float = 0.42, *
              min_travel: float = 0.01, holdout: float = 0.2, holdout_block: float = 30.0,
              window: float = 10.0, compare=COMPARE_MODELS, max_nfev: int | None = None,
              ground_truth_delay: float | str | None = 0.0,
-             accept_uncertain: bool = False) -> Identification:
+             accept_uncertain: bool = False,
+             min_speed: float | None = MIN_SPEED) -> Identification:
     """
     Identify a terrain model from recordings: time, check, fit, hold out, compare.
 
@@ -201,11 +213,12 @@ def identify(recordings, model: str = 'icr_scales', track_width: float = 0.42, *
        uncertain is refused unless ``accept_uncertain``).
     4. Fit the tuned diff_drive_controller (:class:`.ddc.TunedDiffDrive`) on the same data.
     5. Hold out time blocks (:class:`HoldOut`: cross-validated when one fold would give
-       fewer than :data:`.evaluation.MIN_WINDOWS` windows and
+       fewer than :data:`.evaluation.MIN_WINDOWS` scored windows and
        :data:`.evaluation.MIN_SEGMENTS` segments), fit every model of ``compare``
        on the rest with the heading weight of step 3 (one round of robust least squares
-       each) and measure each on the held-out segments and on held-out windows of
-       ``window`` s.
+       each) and measure each on the held-out segments and on the held-out windows of
+       ``window`` s in which the vehicle moves (:func:`moving`; ``min_speed=None``: every
+       window), none over a ground-truth jump.
 
     Parameters
     ----------
@@ -246,13 +259,22 @@ def identify(recordings, model: str = 'icr_scales', track_width: float = 0.42, *
     accept_uncertain : bool
         Accept a fit whose parameters are determined but uncertain (listed in
         ``uncertain``) instead of refusing it.
+    min_speed : float or None
+        Score the held-out windows whose mean track speed is at least this, m/s
+        (:data:`MIN_SPEED`: those in which the vehicle moves, so that a figure does not
+        depend on how long it stood still); None scores idle windows too.
 
     Raises
     ------
     ExcitationError, FitError
         See :func:`check_excitation`, :func:`.fitting.check_identified` and :func:`fit`.
+    ValueError
+        For a ``ground_truth_delay`` or ``min_speed`` that is neither a number nor its word.
 
     """
+    if min_speed is not None and not (np.isfinite(min_speed) and min_speed >= 0):
+        raise ValueError(f'min_speed must be a finite number >= 0 (m/s) or None, got '
+                         f'{min_speed!r}')
     seconds = {}
     started = time.perf_counter()
     recordings = list(recordings)
@@ -326,11 +348,18 @@ def identify(recordings, model: str = 'icr_scales', track_width: float = 0.42, *
     data_time = _data_time(recordings, segments)
     held = None
     evaluations = []
+    windows_total = 0
+
+    def scored(windows):
+        """Return the windows scored and how many there were apart from jumps (idle too)."""
+        windows = windows.select(~over_jumps(windows, recordings, track_width))
+        return windows.select(moving(windows, min_speed)), len(windows)
+
     if holdout > 0:
         # Blocks long enough for windows, unless no window fits in any piece.
         fits = window if data_time.longest_piece >= window else 0.0
         held = HoldOut.choose(segments, holdout, holdout_block, fits)
-        if held is not None and len(held.windows(recordings, window)) < MIN_WINDOWS \
+        if held is not None and len(scored(held.windows(recordings, window))[0]) < MIN_WINDOWS \
                 and np.count_nonzero(held.inside(segments, 0)) < MIN_SEGMENTS:
             # Too little held out for a comparison: hold every block out once, in turn.
             held = HoldOut.choose(segments, holdout, holdout_block, fits,
@@ -339,9 +368,8 @@ def identify(recordings, model: str = 'icr_scales', track_width: float = 0.42, *
         folds = []
         for f in range(len(held.folds)):
             test = segments.select(held.inside(segments, f))
-            windows = held.windows(recordings, window, f)
-            windows = windows.select((windows.travel >= min_travel)
-                                     & ~over_jumps(windows, recordings, track_width))
+            windows, total = scored(held.windows(recordings, window, f))
+            windows_total += total
             folds.append((segments.select(held.outside(segments, f)), test, windows))
         for name in compare:
             evaluations.append(_evaluate(name, track_width, scales, folds, start_of, options))
@@ -351,7 +379,34 @@ def identify(recordings, model: str = 'icr_scales', track_width: float = 0.42, *
                           uncertain=uncertain, time=data_time,
                           recordings=recordings,
                           jumps=sum(len(ground_truth_jumps(r, track_width)) for r in recordings),
-                          jump_segments=int(np.count_nonzero(jumped)))
+                          jump_segments=int(np.count_nonzero(jumped)),
+                          min_speed=min_speed, windows_total=windows_total)
+
+
+def moving(windows: Segments, min_speed: float | None) -> np.ndarray:
+    """
+    Return which windows the vehicle moves in: mean track speed at least ``min_speed``.
+
+    The mean track speed of a window is ``(|V_l| + |V_r|) / 2`` of the nominal track speeds
+    averaged over it: half the summed absolute travel of both tracks divided by its duration
+    (a turn on the spot moves; a standstill does not), as evaluate_model selects its windows
+    (:func:`tracked_kinematics.core.evaluate.pieces.mean_track_speeds`).
+
+    Parameters
+    ----------
+    windows : Segments
+        The windows.
+    min_speed : float or None
+        m/s; None: every window.
+
+    Returns
+    -------
+    ndarray of bool
+
+    """
+    if min_speed is None:
+        return np.ones(len(windows), dtype=bool)
+    return windows.travel >= min_speed * (windows.t1 - windows.t0)
 
 
 def _why_no_segments(recordings, segment_length) -> str:

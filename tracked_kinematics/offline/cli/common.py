@@ -31,6 +31,10 @@ EXIT_INPUT, EXIT_EXCITATION, EXIT_FIT = 2, 3, 4
 """Exit statuses of the identification tools: bad input, too little excitation, failed fit."""
 EXIT_INTERRUPTED = 130
 """Exit status after Ctrl-C (SIGINT); after SIGTERM or SIGHUP it is 128 + the signal."""
+MIN_SPEED = 0.1
+"""Default ``--min-speed``, m/s: the windows scored are those whose mean track speed is at least
+this (identify_icr's hold-out, as ``tracked_kinematics.core.identify.procedure.MIN_SPEED``,
+and evaluate_model's windows)."""
 
 
 class ArgumentParser(argparse.ArgumentParser):
@@ -156,6 +160,54 @@ def bag_tool_parser(prog: str, doc: str, epilog: str) -> ArgumentParser:
                             formatter_class=HelpFormatter)
     add_bags_argument(parser)
     return parser
+
+
+def identification_parser(prog: str, doc: str, epilog: str, ground_truth: str) -> ArgumentParser:
+    """
+    Return the parser of a tool that compares encoders with a reference: bags, the pose topic.
+
+    :func:`bag_tool_parser` with an optional ``--ground-truth-topic`` (``ground_truth``: what
+    its help adds, the alternative to it: ``' (or --imu-topic)'``).
+    """
+    parser = bag_tool_parser(prog, doc, epilog)
+    add_ground_truth_topic_argument(parser, required=False, extra=ground_truth)
+    return parser
+
+
+def add_vehicle_groups(parser, track_width, track_width_help: str):
+    """
+    Add the ``encoders`` group and the ``vehicle`` group; return the vehicle group.
+
+    The encoders: :func:`add_encoder_arguments`; the vehicle: ``--sprocket-radius``
+    (:func:`add_sprocket_radius_argument`) and ``--track-width L`` of argument type
+    ``track_width``, with its help ``track_width_help`` (each tool says where its default
+    comes from).
+    """
+    add_encoder_arguments(parser.add_argument_group('encoders'))
+    veh = parser.add_argument_group('vehicle')
+    add_sprocket_radius_argument(veh)
+    veh.add_argument('--track-width', type=track_width, default=None, metavar='L',
+                     help=track_width_help)
+    return veh
+
+
+def add_window_selection_arguments(group) -> None:
+    """
+    Add ``--min-speed`` and ``--all-windows``: the windows scored are those the vehicle moves in.
+
+    Read them with :func:`min_speed`.
+    """
+    group.add_argument('--min-speed', type=non_negative, default=MIN_SPEED, metavar='M/S',
+                       help='score the windows in which the vehicle moves: mean track speed '
+                       '((|left| + |right|) / 2 of the nominal track speeds, averaged over the '
+                       'window) at least this')
+    group.add_argument('--all-windows', action='store_true',
+                       help='score every window, idle ones too (--min-speed is ignored)')
+
+
+def min_speed(args) -> float | None:
+    """Return the mean track speed from which a window is scored, m/s; None: every window."""
+    return None if args.all_windows else args.min_speed
 
 
 def add_base_file_argument(group, starts: str) -> None:

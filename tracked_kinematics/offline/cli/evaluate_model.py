@@ -36,10 +36,9 @@ from tracked_kinematics.core import evaluate as ev
 from tracked_kinematics.offline.bags import read_evaluation_bag
 from tracked_kinematics.offline.bags.references import read_reference_bag
 from tracked_kinematics.offline.cli.common import (
-    add_bags_argument, add_command_arguments, add_encoder_arguments,
-    add_ground_truth_arguments, add_ground_truth_topic_argument, add_sprocket_radius_argument,
-    ArgumentParser, command_source, encoder_source, ground_truth_source, HelpFormatter,
-    non_negative, positive, require_vehicle, run_main)
+    add_command_arguments, add_ground_truth_arguments, add_vehicle_groups,
+    add_window_selection_arguments, command_source, encoder_source, ground_truth_source,
+    identification_parser, positive, require_vehicle, run_main)
 from tracked_kinematics.offline.errors import UsageError
 from tracked_kinematics.offline.evaluation import (
     evaluate_models, gyro_references, pose_references, read_terrain_models, References)
@@ -61,24 +60,14 @@ EPILOG = """examples:
 
 def build_parser() -> argparse.ArgumentParser:
     """Return the command line of evaluate_model."""
-    parser = ArgumentParser(
-        prog=PROG, description=__doc__.split('\n\n')[1], epilog=EPILOG,
-        formatter_class=HelpFormatter)
-    add_bags_argument(parser)
-    add_ground_truth_topic_argument(parser, required=False,
-                                    extra=' (or --imu-topic)')
+    parser = identification_parser(PROG, __doc__, EPILOG, ' (or --imu-topic)')
     parser.add_argument('--imu-topic', default=None, metavar='TOPIC',
                         help='instead of a ground-truth pose, a gyro (sensor_msgs/Imu): scores '
                         'heading only; the position figures are null')
     parser.add_argument('--params', nargs='+', required=True, metavar='A.yaml',
                         help='terrain files to score (each named by its file stem)')
-    enc = parser.add_argument_group('encoders')
-    add_encoder_arguments(enc)
-    veh = parser.add_argument_group('vehicle')
-    add_sprocket_radius_argument(veh)
-    veh.add_argument('--track-width', type=positive, default=None, metavar='L',
-                     help='m, of the ideal drive and of the cmd_vel inverse; default the '
-                     "first file's")
+    add_vehicle_groups(parser, positive, 'm, of the ideal drive and of the cmd_vel inverse; '
+                       "default the first file's")
     gt = parser.add_argument_group('ground truth')
     add_ground_truth_arguments(gt)
     gt.add_argument('--keep-jumps', action='store_true',
@@ -91,12 +80,7 @@ def build_parser() -> argparse.ArgumentParser:
     score = parser.add_argument_group('scores')
     score.add_argument('--window', type=positive, nargs='+', default=[5.0, 10.0],
                        metavar='SECONDS', help='odometry windows')
-    score.add_argument('--min-speed', type=non_negative, default=0.1, metavar='M/S',
-                       help='score the windows in which the vehicle moves: mean track speed '
-                       '((|left| + |right|) / 2 of the nominal track speeds, averaged over the '
-                       'window) at least this')
-    score.add_argument('--all-windows', action='store_true',
-                       help='score every window, idle ones too (--min-speed is ignored)')
+    add_window_selection_arguments(score)
     score.add_argument('--horizon', type=positive, default=2.0, metavar='SECONDS',
                        help='prediction horizon')
     score.add_argument('--prediction-dt', type=positive, default=0.05, metavar='SECONDS',
