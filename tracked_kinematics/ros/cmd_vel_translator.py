@@ -218,7 +218,7 @@ class CmdVelTranslator(LoopNode):
         self._switch = self.create_guard_condition(self._apply_wanted_type)
 
         self._last_publish = time.monotonic()
-        # Its wake event: a stop, or a new rate (reschedule at once).
+        # The publishing thread; its wake event is a stop or a new rate (reschedule at once).
         self._start_loop(self._publish_loop, 'setpoint_publisher', 'publishing setpoints',
                          'publishing setpoints', WARN_PERIOD)
 
