@@ -2,9 +2,9 @@
 
 import math
 
+from helpers.manoeuvres import MANOEUVRES, track_speeds
 import numpy as np
 import pytest
-
 from tracked_kinematics.core.covariance import (body_jacobian, full_matrix, MAX_VARIANCE,
                                                 TrackNoise, TWIST_TIME)
 from tracked_kinematics.core.integration import integrate
@@ -17,20 +17,12 @@ AURIGA = IcrParams(0.42, 0.353, -0.425, 0.032, 1.0072, 1.0275)
 def manoeuvre(name, rate=100.0):
     """Nominal track travel per step of a scripted manoeuvre, and the step duration."""
     dt = 1.0 / rate
-    t = np.arange(0.0, 6.0, dt)
-    if name == 'straight':
-        v_left = v_right = np.full(t.size, 0.5)
-    elif name == 'spin':
-        v_left, v_right = np.full(t.size, -0.4), np.full(t.size, 0.4)
-    elif name == 'turn':
-        v_left, v_right = np.full(t.size, 0.2), np.full(t.size, 0.6)
-    else:  # S-curve: the turn rate follows a sine over the run.
-        v_left = 0.4 - 0.25 * np.sin(2 * np.pi * t / 6.0)
-        v_right = 0.4 + 0.25 * np.sin(2 * np.pi * t / 6.0)
+    # 6 s; the S-curve's turn rate follows a sine over the run.
+    v_left, v_right = track_speeds(name, np.arange(0.0, 6.0, dt), 6.0, 0.25)
     return v_left * dt, v_right * dt, dt
 
 
-@pytest.mark.parametrize('name', ['straight', 'spin', 'turn', 's_curve'])
+@pytest.mark.parametrize('name', MANOEUVRES)
 def test_steps_match_vectorised_core(name):
     d_left, d_right, dt = manoeuvre(name)
     odo = Odometry(AURIGA)

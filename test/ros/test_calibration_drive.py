@@ -282,26 +282,43 @@ def test_refuses_bad_parameters(ros_context, overrides, text):
                                                   for k, v in values.items()])
 
 
+def console_drive(folder, output, tmp_path, *args):
+    """
+    Start calibration_drive's console script in NS; it drives once the deadman is held.
+
+    The vehicle comes in a params file it writes into ``folder``; the fit is to go to
+    ``output``; ``args`` are more ``-p`` arguments.
+    """
+    params = folder / 'robot.yaml'
+    params.write_text(f'/**:\n  ros__parameters:\n    track_width: {B}\n'
+                      f'    sprocket_radius: {RADIUS}\n')
+    return ConsoleScript('calibration_drive', '--ros-args', '--params-file', params,
+                         '-r', f'__ns:={NS}', '-p', f'output:={output}', '-p', 'auto_start:=true',
+                         '-p', 'encoder_timeout:=2.0', '-p', 'reference_timeout:=2.0', *args,
+                         tmp_path=tmp_path)
+
+
+def held_step(robot, executor, done):
+    """Return a condition: step the robot with its deadman held, spin once, then ``done()``."""
+    def step():
+        if robot.tick(DT):
+            robot.deadman(True)
+        executor.spin_once(timeout_sec=0.005)
+        return done()
+    return step
+
+
 @pytest.mark.parametrize('sig', [signal.SIGINT, signal.SIGTERM])
 def test_console_script_publishes_zero_when_signalled(ros_context, executor, tmp_path, sig):
     robot = FakeRobot(ros_context, executor, namespace=NS)
-    params = tmp_path / 'robot.yaml'
-    params.write_text(f'/**:\n  ros__parameters:\n    track_width: {B}\n'
-                      f'    sprocket_radius: {RADIUS}\n')
-    try:
-        with ConsoleScript('calibration_drive', '--ros-args', '--params-file', params,
-                           '-r', f'__ns:={NS}',
-                           '-p', f'output:={tmp_path / "never.yaml"}', '-p', 'auto_start:=true',
-                           '-p', 'encoder_timeout:=2.0', '-p', 'reference_timeout:=2.0',
-                           tmp_path=tmp_path) as script:
-            assert spin_until(executor, lambda: robot.cmds, 30.0), script.output
 
-            def moving():
-                if robot.tick(DT):
-                    robot.deadman(True)
-                executor.spin_once(timeout_sec=0.005)
-                c = robot.cmds[-1]
-                return c.linear.x != 0.0 or c.angular.z != 0.0
+    def commanded_motion():
+        c = robot.cmds[-1]
+        return c.linear.x != 0.0 or c.angular.z != 0.0
+    moving = held_step(robot, executor, commanded_motion)
+    try:
+        with console_drive(tmp_path, tmp_path / 'never.yaml', tmp_path) as script:
+            assert spin_until(executor, lambda: robot.cmds, 30.0), script.output
             assert spin_until(executor, moving, 20.0), script.output
             script.process.send_signal(sig)
             # The robot keeps its deadman held and its sensors alive: only the signal stops it.
@@ -325,22 +342,11 @@ def test_a_signal_while_fitting_leaves_nothing_behind(ros_context, executor, tmp
                                    lambda m: status.append(json.loads(m.data)), 10)
     work = tmp_path / 'work'
     work.mkdir()
-    params = work / 'robot.yaml'
-    params.write_text(f'/**:\n  ros__parameters:\n    track_width: {B}\n'
-                      f'    sprocket_radius: {RADIUS}\n')
+    fitting = held_step(robot, executor,
+                        lambda: bool(status) and status[-1]['phase'] == 'fitting')
     try:
-        with ConsoleScript('calibration_drive', '--ros-args', '--params-file', params,
-                           '-r', f'__ns:={NS}',
-                           '-p', f'output:={work / "fit.yaml"}', '-p', 'auto_start:=true',
-                           '-p', 'duration:=15.0', '-p', 'encoder_timeout:=2.0',
-                           '-p', 'reference_timeout:=2.0', tmp_path=tmp_path) as script:
+        with console_drive(work, work / 'fit.yaml', tmp_path, '-p', 'duration:=15.0') as script:
             assert spin_until(executor, lambda: robot.cmds, 30.0), script.output
-
-            def fitting():
-                if robot.tick(DT):
-                    robot.deadman(True)
-                executor.spin_once(timeout_sec=0.005)
-                return bool(status) and status[-1]['phase'] == 'fitting'
             assert spin_until(executor, fitting, 120.0), script.output
             script.process.send_signal(signal.SIGINT)
             assert script.wait(30.0) == 0, script.output

@@ -330,23 +330,36 @@ def test_runtime_parameters_validated_and_applied(graph, executor):
     assert (node.get_clock().now().nanoseconds - start) * 1e-9 < 40 / 200.0 * 3.0
 
 
+def drive_console_script(ros_context, executor, tmp_path, node_params, v_x, w):
+    """
+    Run the console script on the Auriga terrain file and a second params file.
+
+    Drive it until its setpoints are those of the command (v_x, w) through the terrain's
+    model, stop it (exit status 0) and return its output.
+    """
+    probe = Probe(ros_context)
+    executor.add_node(probe.node)
+    try:
+        with ConsoleScript('cmd_vel_translator', '--ros-args', '--params-file', AURIGA_FILE,
+                           '--params-file', node_params, tmp_path=tmp_path) as script:
+            assert spin_until(executor, lambda: probe.pub.get_subscription_count() > 0
+                              and probe.latest() is not None, 15.0), script.output
+            target = track_setpoints(v_x, w, AURIGA)
+            assert drive(executor, probe, v_x, w, reaches(target)), script.output
+            assert script.stop() == 0
+    finally:
+        probe.destroy()
+    return script.output
+
+
 def test_console_script_with_terrain_params_file(ros_context, executor, tmp_path):
     # One terrain file configures both nodes; node parameters come in a second file.
     extra = tmp_path / 'translator.yaml'
     extra.write_text('cmd_vel_translator:\n  ros__parameters:\n    rate: 100.0\n'
                      f'    max_track_speed: 2.0\n    joint_velocity_topic: {JOINTS}\n')
-    probe = Probe(ros_context)
-    executor.add_node(probe.node)
-    with ConsoleScript('cmd_vel_translator', '--ros-args', '--params-file', AURIGA_FILE,
-                       '--params-file', extra, tmp_path=tmp_path) as script:
-        assert spin_until(executor, lambda: probe.pub.get_subscription_count() > 0
-                          and probe.latest() is not None, 15.0), script.output
-        target = track_setpoints(0.4, -0.5, AURIGA)
-        assert drive(executor, probe, 0.4, -0.5, reaches(target)), script.output
-        assert script.stop() == 0
-    assert 'chi = 0.540' in script.output and 'max_track_speed 2' in script.output
-    assert 'Traceback' not in script.output
-    probe.destroy()
+    output = drive_console_script(ros_context, executor, tmp_path, extra, 0.4, -0.5)
+    assert 'chi = 0.540' in output and 'max_track_speed 2' in output
+    assert 'Traceback' not in output
 
 
 @pytest.mark.parametrize('args, reason', [
@@ -703,17 +716,8 @@ def test_ddc_nan_limits_are_no_limits(tmp_path, ros_context, executor):
                       '    linear.x.max_deceleration: .NAN\n    angular.z.max_velocity: .NAN\n'
                       '    angular.z.max_acceleration: .NAN\n'
                       f'    joint_velocity_topic: {JOINTS}\n')
-    probe = Probe(ros_context)
-    executor.add_node(probe.node)
-    with ConsoleScript('cmd_vel_translator', '--ros-args', '--params-file', AURIGA_FILE,
-                       '--params-file', params, tmp_path=tmp_path) as script:
-        assert spin_until(executor, lambda: probe.pub.get_subscription_count() > 0
-                          and probe.latest() is not None, 15.0), script.output
-        target = track_setpoints(2.0, 1.5, AURIGA)
-        assert drive(executor, probe, 2.0, 1.5, reaches(target)), script.output
-        assert script.stop() == 0
-    assert 'limits: none' in script.output
-    probe.destroy()
+    assert 'limits: none' in drive_console_script(ros_context, executor, tmp_path, params,
+                                                  2.0, 1.5)
 
 
 def test_nan_limits_in_process_match_the_core(graph, executor):

@@ -255,6 +255,25 @@ def test_a_signal_is_an_orderly_stop(monkeypatch, signals):
     assert signal.getsignal(signal.SIGINT) is before  # the test process's handler is back
 
 
+class _GivingUp(Node):
+    """A node whose own work fails for good: it sets ``failure``, shuts its context down."""
+
+    def __init__(self):
+        super().__init__('giving_up')
+        self.failure = None
+        self.create_timer(0.01, self._give_up)
+
+    def _give_up(self):
+        self.failure = RuntimeError('broken for good')
+        self.context.try_shutdown()
+
+
+def test_a_node_that_gave_up_exits_1():
+    # As cmd_vel_translator and tracked_simulator do when their loop keeps failing.
+    assert run(_GivingUp, 'giving_up', ['giving_up']) == 1
+    assert not rclpy.ok()
+
+
 def test_a_callback_that_raises_is_a_traceback_after_an_orderly_stop():
     # A bug is not swallowed: the error reaches the caller once the node is down.
     log = []

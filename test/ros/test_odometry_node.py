@@ -5,6 +5,7 @@ import sys
 import types
 
 from helpers.encoder_stream import Driver, joint_state, stamp, Stderr
+from helpers.manoeuvres import MANOEUVRES, track_speeds
 from helpers.ros_helpers import ConsoleScript, spin_until
 from nav_msgs.msg import Odometry as OdometryMsg
 import numpy as np
@@ -35,16 +36,8 @@ RATE = 50.0
 def manoeuvre(name, seconds=1.6):
     """Sprocket angles (rad) of a scripted manoeuvre at RATE Hz, starting at t = 10 s."""
     t = 10.0 + np.arange(int(seconds * RATE) + 1) / RATE
-    tau = t - t[0]
-    if name == 'straight':
-        v_left = v_right = np.full(t.size, 0.5)
-    elif name == 'spin':
-        v_left, v_right = np.full(t.size, -0.4), np.full(t.size, 0.4)
-    elif name == 'turn':
-        v_left, v_right = np.full(t.size, 0.2), np.full(t.size, 0.6)
-    else:  # S-curve: the turn rate follows a full sine period.
-        v_left = 0.4 - 0.3 * np.sin(2 * np.pi * tau / seconds)
-        v_right = 0.4 + 0.3 * np.sin(2 * np.pi * tau / seconds)
+    # The S-curve's turn rate follows a full sine period.
+    v_left, v_right = track_speeds(name, t - t[0], seconds, 0.3)
     # Track speed (m/s) -> sprocket angle: integrate the speed, divide by the radius.
     angle_left = 3.0 + np.concatenate([[0.0], np.cumsum(v_left[1:]) / RATE]) / RADIUS
     angle_right = -1.0 + np.concatenate([[0.0], np.cumsum(v_right[1:]) / RATE]) / RADIUS
@@ -129,7 +122,7 @@ def assert_matches_core(msgs, t, angle_left, angle_right, tol=1e-6):
     return got_twist
 
 
-@pytest.mark.parametrize('name', ['straight', 'spin', 'turn', 's_curve'])
+@pytest.mark.parametrize('name', MANOEUVRES)
 def test_manoeuvre_matches_core(graph, name):
     g = graph()
     t, angle_left, angle_right = manoeuvre(name)

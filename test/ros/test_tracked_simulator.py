@@ -9,6 +9,7 @@ from helpers.ros_helpers import ConsoleScript, spin_until
 from nav_msgs.msg import Odometry
 import numpy as np
 import pytest
+import rclpy
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
@@ -336,6 +337,29 @@ def test_invalid_parameters_are_refused_at_start(ros_context, params, reason):
     overrides = [Parameter(name, value=value) for name, value in params.items()]
     with pytest.raises(ParameterError, match=reason):
         TrackedSimulator(context=ros_context, parameter_overrides=overrides)
+
+
+def test_stepping_that_keeps_failing_stops_the_node(capfd, namespace):
+    # A step that raises is logged and retried; a second of them stops the node (exit 1).
+    context = rclpy.Context()
+    rclpy.init(context=context)
+    try:
+        node = TrackedSimulator(context=context, namespace=namespace)
+
+        def broken(count):
+            raise RuntimeError('injected step fault')
+
+        node._steps = broken
+        deadline = time.monotonic() + TIMEOUT
+        while context.ok() and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert not context.ok() and isinstance(node.failure, RuntimeError)
+        err = capfd.readouterr().err
+        assert "simulation step failed: RuntimeError('injected step fault')" in err
+        assert 'the simulation has failed for 1 s' in err and 'stopping the node' in err
+        node.destroy_node()
+    finally:
+        rclpy.try_shutdown(context=context)
 
 
 def test_closed_loop_with_cmd_vel_translator(graph, executor, ros_context, namespace):

@@ -37,7 +37,6 @@ from nav_msgs.msg import Odometry
 from rcl_interfaces.msg import Parameter as ParameterMsg, ParameterType
 from rcl_interfaces.srv import SetParametersAtomically
 from rclpy.duration import Duration
-from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import Imu, Joy
 from std_msgs.msg import Bool, String
@@ -51,7 +50,7 @@ from tracked_kinematics.params import (
     positive, ros_name, TERRAIN_PARAMS)
 from tracked_kinematics.ros.encoder_input import check_encoder_values, EncoderInput, WARN_PERIOD
 from tracked_kinematics.ros.input_topic import CHECK_PERIOD, InputTopic, steady_timer
-from tracked_kinematics.ros.parameters import ParameterTable
+from tracked_kinematics.ros.parameters import TableNode
 
 NODE_NAME = 'calibration_drive'
 REFERENCES = ('pose', 'imu')
@@ -155,9 +154,11 @@ def _seconds(stamp) -> int:
     return stamp_ns(stamp.sec, stamp.nanosec)
 
 
-class CalibrationDriveNode(Node):
+class CalibrationDriveNode(TableNode):
     """
     The calibration drive.
+
+    A :class:`~tracked_kinematics.ros.parameters.TableNode` of :data:`PARAMS`.
 
     Parameters
     ----------
@@ -176,22 +177,17 @@ class CalibrationDriveNode(Node):
 
     def __init__(self, finisher: Callable | None = None,
                  on_exit: Callable[[int], None] | None = None, **kwargs):
-        super().__init__(NODE_NAME, **kwargs)
-        try:
-            self._start(finisher, on_exit)
-        except BaseException:
-            # Refused parameters or outputs: no half-built node left for the garbage
-            # collector to destroy later, after its context is gone (as cmd_vel_translator).
-            self._zero_sent = True
-            Node.destroy_node(self)
-            raise
+        # Kept for _start, which the base class calls once the parameters are checked.
+        self._finisher, self._on_exit = finisher, on_exit
+        super().__init__(NODE_NAME, PARAMS, validate, **kwargs)
 
-    def _start(self, finisher, on_exit) -> None:
-        self.params = ParameterTable(self, PARAMS, validate=validate, on_change=self._apply)
+    def _abandon(self) -> None:
+        # Refused parameters or outputs: the half-built node sends no zero command.
+        self._zero_sent = True
+
+    def _start(self, values: Mapping[str, Any]) -> None:
         self.encoder = None
-        values = self.params.values
-        self._finish = finisher(values) if finisher is not None else None
-        self._on_exit = on_exit
+        self._finish = self._finisher(values) if self._finisher is not None else None
         self.exit_status: int | None = None
         icr = icr_from_values(values)
         self.steps = protocol(values['duration'], values['max_speed'], values['max_yaw_rate'],

@@ -64,8 +64,8 @@ from tracked_kinematics.core.kinematics import IcrParams
 from tracked_kinematics.params import (COMMAND_LIMIT_PARAMS, described_as, icr_from_values,
                                        LIMIT_FIELDS, limits_from_values, non_negative, one_of,
                                        ParamSpec, positive, ros_name, TERRAIN_PARAMS)
+from tracked_kinematics.ros.loop_thread import LoopNode
 from tracked_kinematics.ros.main import run
-from tracked_kinematics.ros.parameters import TableNode
 
 NODE_NAME = 'cmd_vel_translator'
 
@@ -75,7 +75,6 @@ _TYPE_NAMES = {Twist: 'geometry_msgs/msg/Twist', TwistStamped: 'geometry_msgs/ms
 _TYPES_BY_NAME = {name: cls for cls, name in _TYPE_NAMES.items()}
 
 GRAPH_POLL_PERIOD = 0.5  # s between looks at the cmd_vel publishers
-FAILURE_LIMIT = 1.0  # s of failing publishes after which the node stops
 WARN_PERIOD = 1.0  # s, throttle of the warnings on recurring bad input
 GRAPH_WARN_PERIOD = 10.0  # s, throttle of the warnings on the graph
 FUTURE_STAMP = 1.0  # s a TwistStamped may be ahead of the node's clock without a warning
@@ -164,11 +163,11 @@ def _describe_timeout(timeout: float) -> str:
     return f'cmd_timeout {timeout:g} s' if math.isfinite(timeout) else 'no cmd_timeout'
 
 
-class CmdVelTranslator(TableNode):
+class CmdVelTranslator(LoopNode):
     """
     Subscribe to twist commands, publish limited track speed setpoints at a fixed rate.
 
-    A :class:`~tracked_kinematics.ros.parameters.TableNode` of :data:`TRANSLATOR_PARAMS`:
+    A :class:`~tracked_kinematics.ros.loop_thread.LoopNode` of :data:`TRANSLATOR_PARAMS`:
     ``**kwargs`` go to :class:`rclpy.node.Node`; ``ParameterError`` when the parameters given
     at start are invalid.
 
@@ -182,11 +181,6 @@ class CmdVelTranslator(TableNode):
     def __init__(self, **kwargs):
         super().__init__(NODE_NAME, TRANSLATOR_PARAMS, model_from_values, **kwargs)
 
-    def _abandon(self) -> None:
-        if hasattr(self, '_publisher_thread'):
-            self._request_stop()
-            self._publisher_thread.join(5.0)
-
     def _start(self, values: Mapping[str, Any]) -> None:
         icr, limits = model_from_values(values)
         self._limiter = CommandLimiter(icr, limits, _timeout(values['cmd_timeout']))
@@ -197,7 +191,6 @@ class CmdVelTranslator(TableNode):
         self._was_stale = True
         self._lateral_noted = False
         self._zero_stamp_noted = False
-        self.failure: Exception | None = None
 
         self._left_msg, self._right_msg = Float64(), Float64()  # reused: fewer allocations
         self._joint_msg = Float64MultiArray()
@@ -224,13 +217,10 @@ class CmdVelTranslator(TableNode):
                 self._resubscribe(wanted)
         self._switch = self.create_guard_condition(self._apply_wanted_type)
 
-        self._stop = threading.Event()
-        self._wake = threading.Event()  # stop, or a new rate: reschedule at once
         self._last_publish = time.monotonic()
-        self.context.on_shutdown(self._request_stop)
-        self._publisher_thread = threading.Thread(target=self._publish_loop,
-                                                  name='setpoint_publisher', daemon=True)
-        self._publisher_thread.start()
+        # The publishing thread; its wake event is a stop or a new rate (reschedule at once).
+        self._start_loop(self._publish_loop, 'setpoint_publisher', 'publishing setpoints',
+                         'publishing setpoints', WARN_PERIOD)
 
         how = (f'forced by {"use_stamped" if values["use_stamped"] else "cmd_vel_type"}'
                if self._forced else 'following its publishers')
@@ -395,25 +385,21 @@ class CmdVelTranslator(TableNode):
 
     # Publishing ---------------------------------------------------------------------------
 
-    def _request_stop(self) -> None:
-        self._stop.set()
-        self._wake.set()
-
     def _publish_loop(self) -> None:
         """Publish every period of the steady clock until the node or its context stops."""
+        worker = self._loop_thread
         due = next_poll = time.monotonic()
-        failing_since = None
         while True:
             try:
                 delay = min(due, next_poll) - time.monotonic()
                 if delay > 0.0:
-                    if self._wake.wait(min(delay, GRAPH_POLL_PERIOD)):
-                        self._wake.clear()
-                        if self._stop.is_set():
+                    if worker.wake.wait(min(delay, GRAPH_POLL_PERIOD)):
+                        worker.wake.clear()
+                        if worker.stop.is_set():
                             break
                         due = self._last_publish + self._period  # a new rate: at once
                     continue
-                if self._stop.is_set() or not self.context.ok():
+                if worker.stop.is_set() or not self.context.ok():
                     break
                 now = time.monotonic()
                 if now >= next_poll:
@@ -425,35 +411,19 @@ class CmdVelTranslator(TableNode):
                     if due < now - self._period:  # fell behind (stalled): no burst
                         due = now
                     self._publish()
-                    failing_since = None
+                    worker.succeeded()
             except Exception as err:  # noqa: BLE001 -- keep the stream alive, say why
-                if self._stop.is_set() or not self.context.ok():
+                if worker.failed(err):
                     break
-                now = time.monotonic()
-                failing_since = now if failing_since is None else failing_since
-                if now - failing_since >= FAILURE_LIMIT:
-                    self._give_up(err)
-                    return
-                self.get_logger().error(f'publishing setpoints failed: {err!r}',
-                                        throttle_duration_sec=WARN_PERIOD)
-                due = now + self._period
-        self._wake_executor()
+                due = time.monotonic() + self._period
+        if worker.failure is None:  # one that gave up shut the context down itself
+            self._wake_executor()
 
     def _wake_executor(self) -> None:
         """Wake the executor so that a spin loop sees a context a signal shut down."""
         try:
             self._switch.trigger()
         except Exception:  # noqa: BLE001 -- already destroyed: nothing to wake
-            pass
-
-    def _give_up(self, err: Exception) -> None:
-        self.failure = err
-        self.get_logger().fatal(
-            f'publishing setpoints has failed for {FAILURE_LIMIT:g} s (last error: {err!r}): '
-            'stopping the node')
-        try:
-            self.context.try_shutdown()
-        except Exception:  # noqa: BLE001 -- shutting down anyway
             pass
 
     def _publish(self) -> None:
@@ -520,21 +490,13 @@ class CmdVelTranslator(TableNode):
             period = 1.0 / values['rate']
             rescheduled, self._period = period != self._period, period
         if rescheduled:
-            self._wake.set()
+            self._loop_thread.wake.set()
         self.get_logger().info(
             f'parameters changed: chi = {icr.chi:.3f}, e = {icr.eccentricity:.3f}, '
             f'{values["rate"]:g} Hz, {_describe_timeout(timeout)}, limits: '
             f'{_describe_limits(limits)}')
         if had_timeout and not math.isfinite(timeout):
             self._warn_no_timeout()
-
-    def destroy_node(self):
-        """Stop the publishing thread, then destroy the node."""
-        self._request_stop()
-        if self._publisher_thread.is_alive() and \
-                self._publisher_thread is not threading.current_thread():
-            self._publisher_thread.join(5.0)
-        super().destroy_node()
 
 
 def main(args=None):
@@ -544,13 +506,4 @@ def main(args=None):
     Exit status 0 after a signal (at any moment, see :mod:`tracked_kinematics.ros`), 2 when
     it cannot start, 1 when it had to give up publishing.
     """
-    built = []
-
-    def factory():
-        built.append(CmdVelTranslator())
-        return built[-1]
-
-    status = run(factory, NODE_NAME, args, TRANSLATOR_PARAMS, __doc__)
-    if status == 0 and built and built[0].failure is not None:
-        status = 1
-    raise SystemExit(status)
+    raise SystemExit(run(CmdVelTranslator, NODE_NAME, args, TRANSLATOR_PARAMS, __doc__))

@@ -38,7 +38,6 @@ from rcl_interfaces.msg import Parameter as ParameterMsg, ParameterType
 from rcl_interfaces.srv import SetParametersAtomically
 from sensor_msgs.msg import Imu
 from std_msgs.msg import Float64MultiArray, MultiArrayDimension
-from std_srvs.srv import Trigger
 from tracked_kinematics.core.estimate.ekf import EstimatorConfig, SlipEstimator
 from tracked_kinematics.core.integration import (quaternion_from_yaw, seconds_to_stamp, stamp_ns,
                                                  yaw_from_quaternion)
@@ -55,6 +54,7 @@ from tracked_kinematics.ros.encoder_input import (
 from tracked_kinematics.ros.input_topic import CHECK_PERIOD, InputTopic, steady_timer
 from tracked_kinematics.ros.main import run
 from tracked_kinematics.ros.parameters import TableNode
+from tracked_kinematics.ros.services import reset_service
 
 NODE_NAME = 'icr_estimator'
 
@@ -260,7 +260,7 @@ class IcrEstimatorNode(TableNode):
         self._icr_pub = self.create_publisher(Float64MultiArray, 'icr_estimate', 10)
         self._path_pub = self.create_publisher(Path, 'predicted_path', 10)
         self._timer = self.create_timer(1.0 / values['publish_rate'], self._on_timer)
-        self.create_service(Trigger, '~/reset', self._on_reset)
+        reset_service(self, self._reset, 'ICR estimate reset to the initial parameters')
         model = self.estimator.model
         self.get_logger().info(
             f'estimating {model.name} ({", ".join(model.param_names)}) from '
@@ -392,13 +392,9 @@ class IcrEstimatorNode(TableNode):
             return
         self._command = command
 
-    def _on_reset(self, request, response):
+    def _reset(self) -> None:
         self.estimator.reset()
         self._pushed = None
-        response.success = True
-        response.message = 'ICR estimate reset to the initial parameters'
-        self.get_logger().info(response.message)
-        return response
 
     # --- outputs ------------------------------------------------------------------------
 

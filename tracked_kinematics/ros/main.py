@@ -12,6 +12,9 @@ What a user sees at the edges of a node's life is decided here, once for the thr
 - Parameters a params file or ``-p`` sets that the node does not declare (a typo such as
   ``track_widht``) are named in a warning with the closest known name; ROS would ignore
   them silently.
+- A node that gave up on its own (a :class:`~tracked_kinematics.ros.loop_thread.LoopThread`
+  whose passes kept failing sets the node's ``failure`` and shuts the context down) exits
+  with status 1.
 - SIGINT and SIGTERM at any moment end the node cleanly with exit status 0. They are a
   request (:class:`StopRequest`), never an exception raised inside rclpy: the node spins in
   a thread of its own while the main thread waits for a signal, then stops the executor,
@@ -40,6 +43,7 @@ from tracked_kinematics.ros.parameters import ParameterError
 import yaml
 
 EXIT_STARTUP = 2
+EXIT_FAILURE = 1
 STOP_POLL_PERIOD = 0.05  # s: how soon the main thread sees a signal's stop request
 JOIN_TIMEOUT = 5.0  # s: how long a running callback may delay the shutdown
 
@@ -173,7 +177,7 @@ def run(node_factory: Callable[[], 'rclpy.node.Node'], name: str, args=None,
     -------
     int
         0 after a normal or signalled shutdown, :data:`EXIT_STARTUP` when the node could not
-        start.
+        start, :data:`EXIT_FAILURE` when it gave up (its ``failure`` attribute is set).
 
     """
     argv = list(sys.argv if args is None else args)
@@ -183,9 +187,18 @@ def run(node_factory: Callable[[], 'rclpy.node.Node'], name: str, args=None,
     if '--help' in plain or '-h' in plain:
         print(_usage(name, summary, specs))
         return 0
+    built = []
+
+    def build():
+        built.append(node_factory())
+        return built[-1]
+
     stop = StopRequest()
     with stop.installed():
-        return _run(node_factory, name, user_args, argv, specs, stop)
+        status = _run(build, name, user_args, argv, specs, stop)
+    if status == 0 and built and getattr(built[0], 'failure', None) is not None:
+        return EXIT_FAILURE
+    return status
 
 
 class StopRequest:

@@ -23,9 +23,7 @@ from typing import Any
 
 from geometry_msgs.msg import TransformStamped
 from nav_msgs.msg import Odometry as OdometryMsg
-from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
-from std_srvs.srv import Trigger
 from tracked_kinematics.core.covariance import TrackNoise
 from tracked_kinematics.core.integration import quaternion_from_yaw
 from tracked_kinematics.core.odometry import Odometry
@@ -37,7 +35,8 @@ from tracked_kinematics.ros.encoder_input import (
 from tracked_kinematics.ros.input_topic import CHECK_PERIOD, steady_timer
 from tracked_kinematics.ros.main import run
 from tracked_kinematics.ros.odometry_message import OdometrySerializer
-from tracked_kinematics.ros.parameters import destroyed_on_failure, ParameterTable
+from tracked_kinematics.ros.parameters import TableNode
+from tracked_kinematics.ros.services import reset_service
 
 NODE_NAME = 'odometry_node'
 
@@ -90,9 +89,11 @@ def validate(values: Mapping[str, Any]) -> None:
                          f'{values["odom_frame"]!r}')
 
 
-class OdometryNode(Node):
+class OdometryNode(TableNode):
     """
     Odometry of a tracked vehicle from its track encoders.
+
+    Its parameters are :data:`PARAMS` (a :class:`~tracked_kinematics.ros.parameters.TableNode`).
 
     Parameters
     ----------
@@ -107,13 +108,9 @@ class OdometryNode(Node):
     """
 
     def __init__(self, **kwargs):
-        super().__init__(NODE_NAME, **kwargs)
-        with destroyed_on_failure(self):
-            self._start()
+        super().__init__(NODE_NAME, PARAMS, validate, **kwargs)
 
-    def _start(self) -> None:
-        self.params = ParameterTable(self, PARAMS, validate=validate, on_change=self._apply)
-        values = self.params.values
+    def _start(self, values: Mapping[str, Any]) -> None:
         self.odometry = Odometry(icr_from_values(values), _noise(values))
         self._publisher = self.create_publisher(
             OdometryMsg, 'odom', QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE))
@@ -125,7 +122,7 @@ class OdometryNode(Node):
         self.encoder = None
         self._apply(values)
         self.encoder = EncoderInput(self, values, self._on_step, check_timer=False)
-        self.create_service(Trigger, '~/reset', self._on_reset)
+        reset_service(self, self._reset, 'odometry reset: pose (0, 0, 0), covariance zero')
         # One timer for the input's checks and the output's: every timer of the node costs
         # each turn of the executor (each message) a little.
         self._check_timer = steady_timer(self, CHECK_PERIOD, self._check)
@@ -244,13 +241,9 @@ class OdometryNode(Node):
             self._broadcaster.sendTransform(transform)
         return True
 
-    def _on_reset(self, request, response):
+    def _reset(self) -> None:
         self.odometry.reset()
         self._last_publish_ns = None
-        response.success = True
-        response.message = 'odometry reset: pose (0, 0, 0), covariance zero'
-        self.get_logger().info(response.message)
-        return response
 
 
 def _long_lived_node() -> OdometryNode:

@@ -54,7 +54,6 @@ from typing import Any
 from geometry_msgs.msg import PoseStamped
 from nav_msgs.msg import Odometry
 import numpy as np
-from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import Imu, JointState
@@ -71,15 +70,14 @@ from tracked_kinematics.core.sim.terrains import Terrain, TERRAINS
 from tracked_kinematics.params import (described_as, finite, frame_id, non_negative, one_of,
                                        ParamSpec, positive)
 from tracked_kinematics.params.vehicles import load_vehicle, VehicleFile
+from tracked_kinematics.ros.loop_thread import LoopNode
 from tracked_kinematics.ros.main import run
-from tracked_kinematics.ros.parameters import ParameterTable
 
 NODE_NAME = 'tracked_simulator'
 
 MAX_LAG = 0.25  # s of wall time behind schedule after which the backlog is dropped
 WARN_PERIOD = 1.0  # s, throttle of the warnings on recurring bad input
 LAG_WARN_PERIOD = 10.0  # s, throttle of the "cannot keep up" warning
-FAILURE_LIMIT = 1.0  # s of failing steps after which the node stops
 
 
 @described_as("a shipped terrain name, or the vehicle file's own friction.terrain")
@@ -237,9 +235,11 @@ def _stamp(msg_stamp, t: float) -> None:
     msg_stamp.sec, msg_stamp.nanosec = seconds_to_stamp(t)
 
 
-class TrackedSimulator(Node):
+class TrackedSimulator(LoopNode):
     """
     Step the simulated vehicle at a fixed rate in simulated time; publish its sensors.
+
+    A :class:`~tracked_kinematics.ros.loop_thread.LoopNode` of :data:`SIMULATOR_PARAMS`.
 
     Parameters
     ----------
@@ -259,15 +259,7 @@ class TrackedSimulator(Node):
     """
 
     def __init__(self, **kwargs):
-        super().__init__(NODE_NAME, **kwargs)
-        try:
-            self._start()
-        except BaseException:
-            if hasattr(self, '_thread'):
-                self._request_stop()
-                self._thread.join(5.0)
-            Node.destroy_node(self)
-            raise
+        super().__init__(NODE_NAME, SIMULATOR_PARAMS, self._validate, **kwargs)
 
     # Start ----------------------------------------------------------------------------------
 
@@ -281,11 +273,8 @@ class TrackedSimulator(Node):
             self._terrains = Terrains(spec)
         self._terrains.check(values['terrain'])
 
-    def _start(self) -> None:
-        self._terrains = None
-        self._params = ParameterTable(self, SIMULATOR_PARAMS, validate=self._validate,
-                                      on_change=self._on_change)
-        values = self._params.values
+    def _start(self, values: Mapping[str, Any]) -> None:
+        # The vehicle and its terrains were loaded by the check of the parameters.
         spec = self._terrains.spec
         robot = spec.robot
         self._lock = threading.Lock()
@@ -296,7 +285,6 @@ class TrackedSimulator(Node):
         timeout = values['setpoint_timeout'] or math.inf
         self._holds = (SetpointHold(timeout, TRACK_SPEED_ENVELOPE),
                        SetpointHold(timeout, TRACK_SPEED_ENVELOPE))
-        self.failure: Exception | None = None
 
         # Random sources: one stream per sensor, so that switching one on or off leaves the
         # others' noise as it was.
@@ -361,11 +349,8 @@ class TrackedSimulator(Node):
 
         self._rtf = values['real_time_factor']
         self._clock_period = 1.0 / values['clock_rate']
-        self._stop = threading.Event()
-        self._wake = threading.Event()
-        self.context.on_shutdown(self._request_stop)
-        self._thread = threading.Thread(target=self._loop, name='simulation', daemon=True)
-        self._thread.start()
+        self._start_loop(self._loop, 'simulation', 'simulation step', 'the simulation',
+                         WARN_PERIOD)
 
         vehicle = robot.vehicle
         self.get_logger().info(
@@ -397,15 +382,11 @@ class TrackedSimulator(Node):
 
     # Stepping -------------------------------------------------------------------------------
 
-    def _request_stop(self) -> None:
-        self._stop.set()
-        self._wake.set()
-
     def _loop(self) -> None:
         """Take the steps that are due, then sleep until the next one; until stopped."""
+        worker = self._loop_thread
         wall0, sim0 = time.monotonic(), 0.0
-        failing_since = None
-        while not self._stop.is_set():
+        while not worker.stop.is_set():
             try:
                 with self._lock:
                     rtf = self._rtf
@@ -425,22 +406,15 @@ class TrackedSimulator(Node):
                     wall0, sim0 = now, self._sim.t + due * self._dt
                 if due > 0:
                     self._steps(due)
-                failing_since = None
+                worker.succeeded()
                 next_wall = wall0 + (self._sim.t + self._dt - sim0) / rtf
                 wait = max(self._clock_period, next_wall - time.monotonic())
-                if self._wake.wait(wait):
-                    self._wake.clear()
+                if worker.wake.wait(wait):
+                    worker.wake.clear()
             except Exception as err:  # noqa: BLE001 -- keep the simulation alive, say why
-                if self._stop.is_set() or not self.context.ok():
+                if worker.failed(err):
                     break
-                now = time.monotonic()
-                failing_since = now if failing_since is None else failing_since
-                if now - failing_since >= FAILURE_LIMIT:
-                    self._give_up(err)
-                    return
-                self.get_logger().error(f'simulation step failed: {err!r}',
-                                        throttle_duration_sec=WARN_PERIOD)
-                self._wake.wait(0.01)
+                worker.wake.wait(0.01)
 
     _rescheduled = False
 
@@ -510,19 +484,9 @@ class TrackedSimulator(Node):
             float(pose[2]))
         self._pose_pub.publish(msg)
 
-    def _give_up(self, err: Exception) -> None:
-        self.failure = err
-        self.get_logger().fatal(
-            f'the simulation has failed for {FAILURE_LIMIT:g} s (last error: {err!r}): '
-            'stopping the node')
-        try:
-            self.context.try_shutdown()
-        except Exception:  # noqa: BLE001 -- shutting down anyway
-            pass
-
     # Parameters and shutdown ------------------------------------------------------------------
 
-    def _on_change(self, values: Mapping[str, Any]) -> None:
+    def _apply(self, values: Mapping[str, Any]) -> None:
         timeout = values['setpoint_timeout'] or math.inf
         with self._lock:
             for hold in self._holds:
@@ -530,7 +494,7 @@ class TrackedSimulator(Node):
             if values['real_time_factor'] != self._rtf:
                 self._rtf = values['real_time_factor']
                 self._rescheduled = True
-                self._wake.set()
+                self._loop_thread.wake.set()
         terrain = values['terrain']
         if terrain != self._wanted_terrain:
             # The new dynamics take a fraction of a second to tabulate: in a thread, so that
@@ -546,7 +510,7 @@ class TrackedSimulator(Node):
         try:
             table = self._terrains.table(terrain)
             with self._lock:
-                if terrain != self._wanted_terrain or self._stop.is_set():
+                if terrain != self._wanted_terrain or self._loop_thread.stop.is_set():
                     return  # superseded by a later change, or shutting down
                 self._terrain = terrain
                 self._sim.set_table(table)
@@ -557,13 +521,13 @@ class TrackedSimulator(Node):
                 f't = {t:.3f} s')
             self._terrain_pub.publish(String(data=terrain))
         except Exception as err:  # noqa: BLE001 -- the old terrain stays; say why
-            if not self._stop.is_set():
+            if not self._loop_thread.stop.is_set():
                 self.get_logger().error(f'cannot switch to terrain {terrain}: {err!r}')
 
     def destroy_node(self):
-        """Stop the stepping thread, then destroy the node."""
-        self._request_stop()
-        for thread in [self._thread, *self._builders]:
+        """Stop the stepping and terrain threads, then destroy the node."""
+        self._stop_loop()
+        for thread in self._builders:
             if thread.is_alive() and thread is not threading.current_thread():
                 thread.join(5.0)
         super().destroy_node()
@@ -576,13 +540,4 @@ def main(args=None):
     Exit status 0 after a signal, 2 when it cannot start (invalid parameters, unknown vehicle
     or terrain), 1 when the simulation had to give up.
     """
-    built = []
-
-    def factory():
-        built.append(TrackedSimulator())
-        return built[-1]
-
-    status = run(factory, NODE_NAME, args, SIMULATOR_PARAMS, __doc__)
-    if status == 0 and built and built[0].failure is not None:
-        status = 1
-    raise SystemExit(status)
+    raise SystemExit(run(TrackedSimulator, NODE_NAME, args, SIMULATOR_PARAMS, __doc__))
