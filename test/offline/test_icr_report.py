@@ -93,6 +93,19 @@ def test_a_higher_min_speed_keeps_fewer_windows(standing, moving_only):
     assert fast.values['identification.holdout_min_speed'] == 0.5
 
 
+def test_no_window_that_fast_is_said_as_such(standing):
+    # Windows there are; none of them moves at 20 m/s: the line says that, not "too short".
+    none = icr_from_poses([standing], ['b'], B, 0.1, ground_truth_delay=0.0, min_speed=20.0,
+                          date=DATE)
+    kept = none.report['holdout']['models']['ideal']['windows']
+    assert kept['n'] == 0 and kept['n_total'] > 0
+    said = next(line for line in none.lines if 'hold-out:' in line)
+    assert (f'none of {kept["n_total"]} held-out windows of 10 s in which the tracks move '
+            '(mean track speed >= 20 m/s; a lower --min-speed or --all-windows scores some)'
+            ) in said
+    strict(none.report)
+
+
 def test_models_without_constant_icrs_say_where_the_icrs_come_from(standing):
     found = icr_from_poses([standing], ['b'], B, 0.1, model='general_slip',
                            ground_truth_delay=0.0, holdout=0.0)

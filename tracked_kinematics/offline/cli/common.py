@@ -197,7 +197,7 @@ def add_window_selection_arguments(group) -> None:
 
     Read them with :func:`min_speed`.
     """
-    group.add_argument('--min-speed', type=non_negative, default=MIN_SPEED, metavar='M/S',
+    group.add_argument('--min-speed', type=MIN_SPEED_RANGE, default=MIN_SPEED, metavar='M/S',
                        help='score the windows in which the vehicle moves: mean track speed '
                        '((|left| + |right|) / 2 of the nominal track speeds, averaged over the '
                        'window) at least this')
@@ -257,6 +257,7 @@ def add_force_argument(parser) -> None:
 
 SPROCKET_RADIUS = bounded(0.005, 5.0, 'm')
 TRACK_WIDTH = bounded(0.05, 20.0, 'm')
+MIN_SPEED_RANGE = bounded(0.0, 20.0, 'm/s')
 TICKS_PER_REVOLUTION = bounded(1.0, 1e9)
 
 

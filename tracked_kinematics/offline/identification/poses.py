@@ -354,6 +354,10 @@ def _table(result, recordings, radius, tool, lines) -> None:
 
 def _windows_words(result, n_win) -> str:
     """Say how many held-out windows are scored, and which."""
+    if not n_win and result.min_speed is not None and result.windows_total:
+        return (f'none of {result.windows_total} held-out windows of {result.window:g} s in '
+                f'which the tracks move (mean track speed >= {result.min_speed:g} m/s; a lower '
+                '--min-speed or --all-windows scores some)')
     if not n_win:
         return (f'no held-out windows of {result.window:g} s (the longest piece with both '
                 f'streams is {result.time.longest_piece:.1f} s; a shorter --window gives some)')
