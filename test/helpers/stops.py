@@ -30,6 +30,8 @@ NODES = {
     'cmd_vel_translator': (('-p', 'rate:=1000.0'), 'ICR model'),
     'icr_estimator': ((), 'estimating'),
     'tracked_simulator': (('-p', 'real_time_factor:=10.0'), 'simulating'),
+    # Its fit would go to {workdir}/fit.yaml; with no deadman held it never moves or fits.
+    'calibration_drive': (('-p', 'output:={workdir}/fit.yaml'), 'calibration drive:'),
 }
 
 
@@ -132,6 +134,7 @@ def stop_once(name: str, rng: random.Random, workdir: Path, env: dict[str, str] 
     """
     extra, up_words = NODES[name]
     workdir.mkdir(parents=True, exist_ok=True)
+    extra = [arg.format(workdir=workdir) for arg in extra]
     out_path = workdir / f'{name}.log'
     with open(out_path, 'w') as out:
         process = subprocess.Popen(

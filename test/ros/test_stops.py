@@ -29,3 +29,5 @@ def test_stops_at_random_instants_are_clean(tmp_path, feeder, name):
         assert stop.clean, (when, stop.signals, stop.delay, stop.status, stop.output)
         if when == 'running':
             assert stop.up, stop.output
+        # A stopped calibration drive never drove: it writes no fit (nor any temporary file).
+        assert sorted(p.name for p in (tmp_path / str(k)).iterdir()) == [f'{name}.log']
