@@ -249,6 +249,13 @@ TERRAIN_FILE_RECORDS = ('identification.', 'drivetrain_fit.', 'run_fit.', 'simul
 TERRAIN_FILE_NOTES = ('terrain', 'source', 'chi', 'eccentricity', 'vehicle',
                       'ground_truth_delay')
 """Other keys the tools write into a terrain file."""
+
+
+def is_terrain_file_record(name: str) -> bool:
+    """Return whether ``name`` is a record or note the tools write, not a parameter."""
+    return name.startswith(TERRAIN_FILE_RECORDS) or name in TERRAIN_FILE_NOTES
+
+
 _TERRAIN_GROUPS = ('icr.', 'scale.', 'drivetrain.', 'linear.', 'angular.')
 
 
@@ -265,7 +272,7 @@ def unknown_terrain_parameters(values) -> list[str]:
     known = [spec.name for spec in (*TERRAIN_PARAMS, *DRIVETRAIN_PARAMS,
                                     *ENCODER_INPUT_PARAMS, *COMMAND_LIMIT_PARAMS)]
     known += list(TERRAIN_FILE_NOTES)
-    names = [name for name in values if not name.startswith(TERRAIN_FILE_RECORDS)]
+    names = [name for name in values if not is_terrain_file_record(name)]
     grouped = [name for name in names if name.startswith(_TERRAIN_GROUPS)]
     other = [name for name in names if not name.startswith(_TERRAIN_GROUPS)]
     ignored = ' is not used'

@@ -38,7 +38,7 @@ from rclpy.executors import ExternalShutdownException
 from rclpy.signals import SignalHandlerOptions
 from tracked_kinematics import params, ros
 from tracked_kinematics.params import ParamSpec
-from tracked_kinematics.params.tables import TERRAIN_FILE_NOTES, TERRAIN_FILE_RECORDS
+from tracked_kinematics.params.tables import is_terrain_file_record
 from tracked_kinematics.ros.parameters import ParameterError
 import yaml
 
@@ -132,11 +132,8 @@ def unknown_parameters(given: Iterable[str], specs: Iterable[ParamSpec]) -> list
     ``terrain``, ...) are not parameters and not typos: they are passed over, so that a
     file from identify_icr loads without a warning per line of its provenance.
     """
-    specs = list(specs)
-    declared = {spec.name for spec in specs}
     return params.unknown_parameters(
-        [name for name in given if name in declared or not (
-            name.startswith(TERRAIN_FILE_RECORDS) or name in TERRAIN_FILE_NOTES)],
+        [name for name in given if not is_terrain_file_record(name)],
         [*specs, 'use_sim_time', 'start_type_description_service'])
 
 

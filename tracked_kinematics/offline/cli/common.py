@@ -16,6 +16,7 @@ import sys
 import numpy as np
 from tracked_kinematics.core.errors import (
     ExcitationError, IdentificationError, TrackedKinematicsError)
+from tracked_kinematics.core.identify.procedure import MIN_SPEED
 from tracked_kinematics.offline import signals
 from tracked_kinematics.offline.bags import (
     CMD_VEL_TOPIC, COMMAND_KINDS, CommandSource, EncoderSource, GroundTruthSource,
@@ -31,10 +32,6 @@ EXIT_INPUT, EXIT_EXCITATION, EXIT_FIT = 2, 3, 4
 """Exit statuses of the identification tools: bad input, too little excitation, failed fit."""
 EXIT_INTERRUPTED = 130
 """Exit status after Ctrl-C (SIGINT); after SIGTERM or SIGHUP it is 128 + the signal."""
-MIN_SPEED = 0.1
-"""Default ``--min-speed``, m/s: the windows scored are those whose mean track speed is at least
-this (identify_icr's hold-out, as ``tracked_kinematics.core.identify.procedure.MIN_SPEED``,
-and evaluate_model's windows)."""
 
 
 class ArgumentParser(argparse.ArgumentParser):
