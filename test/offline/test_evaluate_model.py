@@ -179,6 +179,8 @@ def _still_bag(path, seconds=20.0):
 @pytest.mark.parametrize('extra, status, pattern', [
     (['--ground-truth-topic', '/vicon'], 2, 'no topic /vicon for the ground truth'),
     (['--sprocket-radius', '-1'], 2, 'must be in [0.005, 5] m, got -1'),
+    (['--track-width', '1e308'], 2, 'argument --track-width: must be in [0.05, 20] m, '
+     'got 1e308'),
     (['--min-speed', '-0.1'], 2, 'argument --min-speed: must be in [0, 20] m/s, got -0.1'),
     (['--min-speed', 'nan'], 2, 'argument --min-speed: must be a finite number in [0, 20] m/s, '
      'got nan'),
@@ -195,7 +197,8 @@ def _still_bag(path, seconds=20.0):
 def test_bad_options_are_one_line(sim, tmp_path, capsys, extra, status, pattern):
     argv = [sim['bag'], '--ground-truth-topic', GT, '--params', sim['truth'],
             '--report', tmp_path / 'r.json'] + extra
-    if status == 2 and extra[0] in ('--sprocket-radius', '--ground-truth-delay', '--min-speed'):
+    if status == 2 and extra[0] in ('--sprocket-radius', '--track-width',
+                                    '--ground-truth-delay', '--min-speed'):
         with pytest.raises(SystemExit) as exit_info:
             cli.main([str(a) for a in argv])
         assert exit_info.value.code == 2

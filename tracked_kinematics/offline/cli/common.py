@@ -171,19 +171,18 @@ def identification_parser(prog: str, doc: str, epilog: str, ground_truth: str) -
     return parser
 
 
-def add_vehicle_groups(parser, track_width, track_width_help: str):
+def add_vehicle_groups(parser, track_width_help: str):
     """
     Add the ``encoders`` group and the ``vehicle`` group; return the vehicle group.
 
     The encoders: :func:`add_encoder_arguments`; the vehicle: ``--sprocket-radius``
-    (:func:`add_sprocket_radius_argument`) and ``--track-width L`` of argument type
-    ``track_width``, with its help ``track_width_help`` (each tool says where its default
-    comes from).
+    (:func:`add_sprocket_radius_argument`) and ``--track-width L`` (:data:`TRACK_WIDTH`),
+    with its help ``track_width_help`` (each tool says where its default comes from).
     """
     add_encoder_arguments(parser.add_argument_group('encoders'))
     veh = parser.add_argument_group('vehicle')
     add_sprocket_radius_argument(veh)
-    veh.add_argument('--track-width', type=track_width, default=None, metavar='L',
+    veh.add_argument('--track-width', type=TRACK_WIDTH, default=None, metavar='L',
                      help=track_width_help)
     return veh
 

@@ -66,7 +66,7 @@ def build_parser() -> argparse.ArgumentParser:
                         'heading only; the position figures are null')
     parser.add_argument('--params', nargs='+', required=True, metavar='A.yaml',
                         help='terrain files to score (each named by its file stem)')
-    add_vehicle_groups(parser, positive, 'm, of the ideal drive and of the cmd_vel inverse; '
+    add_vehicle_groups(parser, 'm, of the ideal drive and of the cmd_vel inverse; '
                        "default the first file's")
     gt = parser.add_argument_group('ground truth')
     add_ground_truth_arguments(gt)

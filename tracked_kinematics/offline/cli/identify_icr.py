@@ -33,7 +33,7 @@ from tracked_kinematics.offline.cli.common import (
     add_base_file_argument, add_ground_truth_arguments, add_output_argument,
     add_report_arguments, add_vehicle_groups, add_window_selection_arguments, bounded,
     encoder_source, ground_truth_source, identification_parser, min_speed, names,
-    read_base_file, report_json, require_vehicle, run_main, TRACK_WIDTH, warn, write_together)
+    read_base_file, report_json, require_vehicle, run_main, warn, write_together)
 from tracked_kinematics.offline.errors import UsageError
 from tracked_kinematics.offline.identification import (
     icr_from_poses, icr_from_references, TOOL as PROG)
@@ -75,7 +75,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser = identification_parser(PROG, __doc__, EPILOG,
                                    ' (required unless --imu-topic is given)')
     add_output_argument(parser)
-    veh = add_vehicle_groups(parser, TRACK_WIDTH, 'm; default from --params (required without '
+    veh = add_vehicle_groups(parser, 'm; default from --params (required without '
                              'it: there is no default vehicle)')
     add_base_file_argument(veh, 'vehicle values, starting point, fixed scales of --model icr')
     add_ground_truth_arguments(parser.add_argument_group('ground truth'))
