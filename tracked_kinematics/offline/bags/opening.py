@@ -59,7 +59,7 @@ def _connections(reader: AnyReader, path: Path, topic: str, allowed, what: str):
                        f'{_topic_list(reader)}')
     bad = sorted({c.msgtype for c in conns if c.msgtype not in allowed})
     if bad:
-        raise BagError(f'{path}: topic {topic} has type {", ".join(bad)}, the {what} need '
+        raise BagError(f'{path}: topic {topic} has type {", ".join(bad)}; the {what} must be '
                        f'{" or ".join(allowed)}')
     return conns
 
