@@ -365,3 +365,19 @@ def test_a_callback_that_raises_is_a_traceback_after_an_orderly_stop():
     with pytest.raises(ZeroDivisionError, match='bug'):
         run(factory, 'interrupted', ['interrupted'])
     assert log[-1] == ('destroyed, context ok', True) and not rclpy.ok()
+
+
+@pytest.mark.ros
+def test_a_node_without_traffic_stops_at_once(tmp_path):
+    # Issue 31: tracked_simulator without setpoints took 5 s to stop on Ctrl-C ("a callback
+    # is still running 5 s after the stop request"): its executor, woken, waited again.
+    with ConsoleScript('tracked_simulator', tmp_path=tmp_path) as script:
+        deadline = time.monotonic() + 60
+        while 'simulating' not in script.output and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert 'simulating' in script.output, script.output
+        start = time.monotonic()
+        assert script.stop() == 0
+        elapsed = time.monotonic() - start
+    assert 'still running' not in script.output
+    assert elapsed < 4.0

@@ -409,7 +409,10 @@ def _spin_until_stopped(node, stop: StopRequest) -> None:
             pass
     finally:
         state['stopping'] = True
-        executor.wake()
+        # A shut-down executor leaves its wait at once; a woken one waits again for work
+        # (rclpy rebuilds the wait set), which never comes to a node with no traffic (the
+        # simulator without setpoints held the stop 5 s that way).
+        executor.shutdown(timeout_sec=0)
         thread.join(JOIN_TIMEOUT)
         if thread.is_alive():  # a callback that does not return: the shutdown will end it
             node.get_logger().warning(
