@@ -173,7 +173,7 @@ def test_a_misspelt_key_that_is_mapped_stops_the_conversion(capsys, tmp_path, ke
     output = tmp_path / 'out.yaml'
     assert main([str(source), '--output', str(output)]) == 2
     err = capsys.readouterr().err
-    assert f"{key!r} (did you mean {meant!r}?)" in err
+    assert f'{key!r} (did you mean {meant!r}?)' in err
     assert not output.exists()
 
 

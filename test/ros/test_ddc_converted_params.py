@@ -15,8 +15,8 @@ from tracked_kinematics.offline.ddc import NODE_KEYS, TERRAIN_KEYS
 from tracked_kinematics.params import flatten, read_params_file
 from tracked_kinematics.ros import (calibration_drive, cmd_vel_translator, icr_estimator,
                                     odometry_node, tracked_simulator)
-from tracked_kinematics.ros.parameters import package_parameters
 from tracked_kinematics.ros.main import params_file_keys, unknown_parameters
+from tracked_kinematics.ros.parameters import package_parameters
 import yaml
 
 pytestmark = pytest.mark.ros

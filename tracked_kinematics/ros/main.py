@@ -114,7 +114,7 @@ def params_file_sections(path: str) -> list[tuple[str, list[str]]]:
 
 
 def params_file_keys(path: str, name: str) -> list[str]:
-    """Check a ``--params-file`` (:func:`params_file_sections`); return what it sets for ``name``."""
+    """Check a ``--params-file`` (:func:`params_file_sections`); return its names for ``name``."""
     return [key for node, keys in params_file_sections(path) if node in ('**', '*', name)
             for key in keys]
 
@@ -195,7 +195,7 @@ def _settings_notices(name: str, specs: Sequence[ParamSpec], settings) -> list[s
                 if node == name:
                     notices.append(
                         f'-p {item[1]} has no effect: the section {node!r} of {path} sets it, '
-                        "and rcl gives a section naming the node precedence over -p; change "
+                        'and rcl gives a section naming the node precedence over -p; change '
                         'it in the file, or move it under /**')
                 elif node in mine and j > i:
                     notices.append(f'-p {item[1]} has no effect: {path}, given after it, sets '
