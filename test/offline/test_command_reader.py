@@ -59,8 +59,8 @@ def test_a_bag_without_commands_has_none_unless_asked(bags):
 def test_cmd_vel_needs_the_track_width(bags):
     with pytest.raises(BagError, match=r'needs the track width \(--track-width or --params\)'):
         read_evaluation_bag(bags['twist'], ENC, GT, CommandSource('cmd_vel'))
-    with pytest.raises(BagError, match='topic /joint_states has type sensor_msgs/msg/JointState, '
-                                       'the commands need geometry_msgs/msg/Twist or '
+    with pytest.raises(BagError, match='topic /joint_states has type sensor_msgs/msg/JointState; '
+                                       'the commands must be geometry_msgs/msg/Twist or '
                                        'geometry_msgs/msg/TwistStamped'):
         read_evaluation_bag(bags['twist'], ENC, GT,
                             CommandSource('cmd_vel', cmd_vel_topic='/joint_states',

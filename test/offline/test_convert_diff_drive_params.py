@@ -143,19 +143,47 @@ def test_converted_file_reproduces_ddc_odometry(capsys, tmp_path, name):
     assert path_length > 10.0
 
 
-def test_terrain_section_holds_only_the_vehicle_and_no_yaml_aliases(capsys, tmp_path):
+def test_every_node_reads_the_vehicle_joints_and_frames_and_no_yaml_aliases(capsys, tmp_path):
+    # Issue 31 items 1 and 5: the joints reach calibration_drive, and no section naming a
+    # node holds what -p should override, except icr_estimator's other publish_rate.
     output, _, _ = convert_fixture(capsys, tmp_path, 'husky_style_controllers.yaml')
     text = output.read_text()
     doc = yaml.safe_load(text)
     # rcl's YAML parser refuses anchors and aliases: the joint lists are written twice.
     assert '&' not in text and '*id' not in text
-    assert set(doc) == {'/**', '/**/odometry_node', '/**/icr_estimator', '/**/cmd_vel_translator'}
-    assert set(flatten(doc['/**']['ros__parameters'])) == {
-        'track_width', 'sprocket_radius', 'icr.y_left', 'icr.y_right', 'icr.x', 'scale.left',
-        'scale.right'}
-    assert 'cmd_timeout' not in read_params_file(output, 'odometry_node')
-    assert 'left_joints' not in read_params_file(output, 'cmd_vel_translator')
+    assert set(doc) == {'/**', '/**/odometry_node'}
+    assert set(flatten(doc['/**/odometry_node']['ros__parameters'])) == {'publish_rate'}
+    shared = flatten(doc['/**']['ros__parameters'])
+    assert {'track_width', 'sprocket_radius', 'icr.y_left', 'scale.left', 'left_joints',
+            'right_joints', 'odom_frame', 'base_frame', 'publish_tf', 'cmd_timeout'} <= set(shared)
+    for node in ('calibration_drive', 'icr_estimator', 'cmd_vel_translator'):
+        assert read_params_file(output, node)['left_joints'] == shared['left_joints']
+    assert 'publish_rate' not in read_params_file(output, 'icr_estimator')
     assert text.startswith('# Converted by convert_diff_drive_params')
+
+
+@pytest.mark.parametrize('key, meant', [
+    ('wheel_seperation_multiplier', 'wheel_separation_multiplier'),
+    ('left_wheel_radius_multiplyer', 'left_wheel_radius_multiplier'),
+    ('linear.x.max_velocty', 'linear.x.max_velocity'),
+])
+def test_a_misspelt_key_that_is_mapped_stops_the_conversion(capsys, tmp_path, key, meant):
+    # Issue 31 item 7: wheel_seperation_multiplier 1.4 became chi = 1 with exit 0.
+    source = write(tmp_path, 'base_controller:\n' + BASIC + f'    {key}: 1.4\n')
+    output = tmp_path / 'out.yaml'
+    assert main([str(source), '--output', str(output)]) == 2
+    err = capsys.readouterr().err
+    assert f'{key!r} (did you mean {meant!r}?)' in err
+    assert not output.exists()
+
+
+def test_a_misspelt_key_without_counterpart_is_a_hint(capsys, tmp_path):
+    source = write(tmp_path, 'base_controller:\n' + BASIC + '    pose_covariance_diagonl: [1]\n'
+                   '    wheel_separation_multiplyer: 1.0\n    wheel_separation_multiplier: 1.2\n')
+    assert main([str(source), '--output', str(tmp_path / 'out.yaml')]) == 0
+    out = capsys.readouterr().out
+    assert "did you mean 'pose_covariance_diagonal'?" in out
+    assert "did you mean 'wheel_separation_multiplier'?" in out
 
 
 # --- finding the section ---------------------------------------------------------------------

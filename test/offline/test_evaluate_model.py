@@ -424,3 +424,29 @@ def test_windows_are_the_moving_ones_by_default(sim, scored, tmp_path, capsys):
         assert doc['windows_selection']['min_speed_mps'] == float(speed)
         window = doc['models']['ideal']['odometry']['windows']['5']
         assert kept(window['n'], window['n_total']) and window['n_total'] > 0
+
+
+def test_a_bag_after_params_is_a_bag(sim, tmp_path, capsys):
+    # Issue 31 item 9: --params a.yaml BAG took the bag for a terrain file.
+    status, out, err = run(['--ground-truth-topic', GT, '--params', sim['truth'], sim['bag']],
+                           capsys)
+    assert status == 0, err
+    assert 'calib.truth' in out
+    assert cli.bags_out_of_params(['--params', 'a.yaml', 'b.yml', 'run.mcap', '--force']) == [
+        'run.mcap', '--params', 'a.yaml', 'b.yml', '--force']
+
+
+def test_a_missing_params_file_and_an_empty_directory_say_what_they_are(sim, tmp_path, capsys):
+    # Issue 31 item 9: a bare "[Errno 2]", and "Expected metadata file ... (truncated or
+    # corrupt?)" for an empty directory.
+    gone = tmp_path / 'gone.yaml'
+    status, _, err = run([sim['bag'], '--ground-truth-topic', GT, '--params', gone], capsys)
+    assert status == 2
+    assert_one_line(err, f'--params {gone}: No such file or directory')
+    empty = tmp_path / 'empty'
+    empty.mkdir()
+    status, _, err = run([empty, '--ground-truth-topic', GT, '--params', sim['truth']], capsys)
+    assert status == 2
+    assert_one_line(err, f'{empty} is not a bag: a rosbag2 bag is a directory with a '
+                         'metadata.yaml')
+    assert 'corrupt' not in err

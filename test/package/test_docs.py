@@ -215,3 +215,108 @@ def test_command_checker_flags_a_wrong_flag(tmp_path):
     assert problems[2] is None
     page.write_text('Usage:\n\n    icr_map [VEHICLE] [--n 21]\n        [--made-up-flag X]\n')
     assert synopses(page) == [('icr_map', ['--made-up-flag', '--n'])]
+
+
+def _node_specs():
+    from tracked_kinematics.ros.param_docs import NODES
+    return {node: {spec.name: spec for spec in specs} for node, specs, _ in NODES}
+
+
+def _stated_default_problem(spec, cell):
+    """Say how a page's default cell differs from the spec's, or return None."""
+    import yaml
+    text = cell.replace('**', '').replace('`', '').strip()
+    if spec.unit and text.endswith(' ' + spec.unit):
+        text = text[:-len(spec.unit) - 1]
+    if spec.required:
+        return None if text == 'required' else f'stated {cell!r}, the table: required'
+    if spec.derived is not None:
+        return None if text == spec.derived.text else \
+            f'stated {cell!r}, the table: {spec.derived.text}'
+    try:
+        value = float(text)
+    except ValueError:
+        try:
+            value = yaml.safe_load(text)
+        except yaml.YAMLError:
+            value = text
+    if isinstance(spec.default, list) and isinstance(value, list):
+        value = [str(v) for v in value]
+    if value == spec.default or (value in (None, '') and spec.default == ''):
+        return None
+    return f'stated {cell!r}, the table: {spec.default!r}'
+
+
+RANGE = re.compile(r'\[\s*([^,\]\s]+)\s*,\s*([^\]\s]+)\s*\]')
+
+
+def _stated_range_problem(spec, text):
+    match = RANGE.search(text)
+    if not match:
+        return None
+    stated = [float(v) for v in match.groups()]
+    have = [-float('inf') if spec.low is None else float(spec.low),
+            float('inf') if spec.high is None else float(spec.high)]
+    return None if stated == have else \
+        f'stated range {match.group(0)}, the table: [{spec.low:g}, {spec.high:g}]'
+
+
+def stated_parameter_problems(path, specs):
+    """Defaults and ranges a node page states in its tables that its parameter table has not."""
+    problems = []
+    columns = None
+    for line in path.read_text().splitlines():
+        if not line.startswith('|'):
+            columns = None
+            continue
+        cells = [cell.strip() for cell in line.strip().strip('|').split('|')]
+        if columns is None:
+            columns = [cell.lower() for cell in cells]
+            continue
+        if set(line) <= set('|-: ') or 'default' not in columns:
+            continue
+        name = re.fullmatch(r'`([A-Za-z_.]+)`', cells[0])
+        if not name or name.group(1) not in specs or len(cells) != len(columns):
+            continue
+        spec = specs[name.group(1)]
+        problem = _stated_default_problem(spec, cells[columns.index('default')])
+        if problem is None and 'range' in columns:
+            problem = _stated_range_problem(spec, cells[columns.index('range')])
+        if problem:
+            problems.append(f'{path.name}: {spec.name}: {problem}')
+    prose = path.read_text()
+    for match in re.finditer(r'`([a-z_.]+)`\s+(\[[^\]\n]+\])', prose):
+        spec = specs.get(match.group(1))
+        if spec is not None and spec.has_range:
+            problem = _stated_range_problem(spec, match.group(2))
+            if problem:
+                problems.append(f'{path.name}: {spec.name}: {problem}')
+    return problems
+
+
+@pytest.mark.parametrize('node', sorted(NODE_TABLES))
+def test_node_pages_state_the_tables_defaults_and_ranges(node):
+    # Issue 31: docs/parameters.md showed 0.42 / 0.1 for the required track_width and
+    # sprocket_radius; the pages gave sprocket_radius three different ranges.
+    assert stated_parameter_problems(DOCS / 'nodes' / f'{node}.md', _node_specs()[node]) == []
+
+
+def test_generated_reference_states_no_default_for_a_required_parameter():
+    text = (DOCS / 'parameters.md').read_text()
+    for name in ('track_width', 'sprocket_radius'):
+        row = next(line for line in text.splitlines() if line.startswith(f'| `{name}` |'))
+        assert row.split('|')[3].strip() == '**required**', row
+    row = next(line for line in text.splitlines() if line.startswith('| `icr.y_left` |'))
+    assert row.split('|')[3].strip() == '+track_width / 2', row
+
+
+def test_the_docs_check_flags_a_wrong_default_and_range(tmp_path):
+    from tracked_kinematics.params import TERRAIN_PARAMS
+    page = tmp_path / 'probe.md'
+    page.write_text('| parameter | default | range |\n|---|---|---|\n'
+                    '| `track_width` | `0.42` | [0.01, 20] |\n'
+                    '| `icr.x` | `0` | [-1, 1] |\n| `scale.left` | `1` | [0.1, 10] |\n\n'
+                    'The radius `sprocket_radius` [1e-05, 10] m.\n')
+    problems = stated_parameter_problems(page, {s.name: s for s in TERRAIN_PARAMS})
+    assert [p.split(':')[1].strip() for p in problems] == ['track_width', 'icr.x',
+                                                           'sprocket_radius']

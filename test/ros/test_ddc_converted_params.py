@@ -11,9 +11,12 @@ import numpy as np
 import pytest
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from tracked_kinematics.offline.cli.convert_diff_drive_params import main
-from tracked_kinematics.params import flatten
-from tracked_kinematics.ros import cmd_vel_translator, icr_estimator, odometry_node
+from tracked_kinematics.offline.ddc import NODE_KEYS, TERRAIN_KEYS
+from tracked_kinematics.params import flatten, read_params_file
+from tracked_kinematics.ros import (calibration_drive, cmd_vel_translator, icr_estimator,
+                                    odometry_node, tracked_simulator)
 from tracked_kinematics.ros.main import params_file_keys, unknown_parameters
+from tracked_kinematics.ros.parameters import package_parameters
 import yaml
 
 pytestmark = pytest.mark.ros
@@ -61,16 +64,38 @@ def test_each_node_gets_the_vehicle_and_its_own_section(context):
         odometry.destroy_node()
 
 
-@pytest.mark.parametrize('module', [odometry_node, icr_estimator])
-def test_no_node_is_given_a_parameter_it_does_not_declare(converted, module):
-    assert unknown_parameters(params_file_keys(str(converted), module.NODE_NAME),
-                              module.PARAMS) == []
+@pytest.mark.parametrize('module', [odometry_node, icr_estimator, cmd_vel_translator,
+                                    calibration_drive, tracked_simulator])
+def test_no_node_is_given_a_parameter_no_node_declares(converted, module):
+    # One file for every node of the package: a key another node declares is not unknown.
+    specs = getattr(module, 'PARAMS', None) or getattr(module, 'TRANSLATOR_PARAMS', None) \
+        or module.SIMULATOR_PARAMS
+    keys = params_file_keys(str(converted), module.NODE_NAME)
+    assert unknown_parameters(keys, specs) == []
 
 
-def test_translator_is_given_only_its_parameters(converted):
-    keys = params_file_keys(str(converted), cmd_vel_translator.NODE_NAME)
-    assert 'cmd_timeout' in keys and 'left_joints' not in keys
-    assert unknown_parameters(keys, cmd_vel_translator.TRANSLATOR_PARAMS) == []
+def test_calibration_drive_reads_the_joints_of_the_converted_file(converted):
+    # Issue 31 item 1: calibration_drive fell back to left_sprocket_joint.
+    assert read_params_file(converted, calibration_drive.NODE_NAME)['left_joints'] == LEFT
+    assert read_params_file(converted, calibration_drive.NODE_NAME)['right_joints'] == RIGHT
+
+
+def test_a_node_section_holds_only_what_another_node_reads_otherwise():
+    # The converter writes under /** every key that means the same to every node that
+    # declares it; a key under /**/<node> is one another node declares with another default.
+    tables = package_parameters()
+    node_keys = {key for keys in NODE_KEYS.values() for key in keys}
+    ddc_keys = [*TERRAIN_KEYS, 'left_joints', 'right_joints', 'odom_frame', 'base_frame',
+                'publish_tf', 'publish_rate', 'cmd_timeout', 'use_stamped',
+                *(f'{axis}.max_{kind}' for axis in ('linear.x', 'angular.z')
+                  for kind in ('velocity', 'acceleration'))]
+    for key in ddc_keys:
+        defaults = {repr(spec.default) for specs in tables.values() for spec in specs
+                    if spec.name == key}
+        assert defaults, key
+        assert (len(defaults) > 1) == (key in node_keys), (key, defaults)
+    for node, keys in NODE_KEYS.items():
+        assert set(keys) <= {spec.name for spec in tables[node]}
 
 
 def test_odometry_on_topics_equals_ddc(context):

@@ -10,7 +10,9 @@ import rclpy
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from tracked_kinematics.params import ParamSpec, positive
-from tracked_kinematics.ros.main import params_file_keys, run, StartupError, unknown_parameters
+from tracked_kinematics.ros.main import (_settings_notices, normalised_arguments,
+                                         params_file_keys, params_file_sections, run,
+                                         StartupError, unknown_parameters)
 from tracked_kinematics.ros.parameters import ParameterError, ParameterTable
 
 SPECS = (ParamSpec('rate', 50.0, 'Publish rate', 'Hz', positive, low=0.1, high=1000.0),
@@ -124,40 +126,39 @@ def test_node_help_does_not_start_ros(tmp_path, name):
     assert script.output.startswith(f'usage: ros2 run tracked_kinematics {name}')
 
 
-def odometry_node_with_typo(tmp_path, vehicle):
-    """Start odometry_node with a params file of ``vehicle`` lines and ``track_widht``."""
+def odometry_node_with_typo(tmp_path, vehicle, typo='track_widht'):
+    """Start odometry_node with a params file of ``vehicle`` lines and ``typo``."""
     params = tmp_path / 'p.yaml'
     params.write_text('/**:\n  ros__parameters:\n' + ''.join(f'    {line}\n' for line in vehicle)
-                      + '    track_widht: 0.5\n')
+                      + f'    {typo}: 0.5\n')
     return ConsoleScript('odometry_node', '--ros-args', '--params-file', params,
                          tmp_path=tmp_path)
 
 
 @pytest.mark.ros
-def test_typo_in_params_file_is_named(tmp_path):
+def test_typo_in_params_file_refuses_the_start(tmp_path):
+    # Issue 31: a misspelt key of the node's own is fatal, even beside the right one.
     with odometry_node_with_typo(tmp_path, ['track_width: 0.42', 'sprocket_radius: 0.1']) \
             as script:
-        deadline = time.monotonic() + 30
-        while 'track_widht' not in script.output and time.monotonic() < deadline:
-            time.sleep(0.05)
-        assert script.stop() == 0
-    assert "unknown parameter 'track_widht' ignored (did you mean 'track_width'?)" \
-        in script.output
+        assert script.wait(30) == 2
+    fatal = [line for line in script.output.splitlines() if 'FATAL' in line]
+    assert len(fatal) == 1, script.output
+    assert "unknown 'track_widht' (did you mean 'track_width'?)" in fatal[0]
 
 
 @pytest.mark.ros
 def test_terrain_file_provenance_loads_without_warnings(tmp_path):
-    # A terrain file as identify_icr writes it: its records are no typos; the typo still is.
+    # A terrain file as identify_icr writes it: its records are not unknown; a stranger is.
     records = ['terrain: hard_floor', 'identification:', '  model: icr_scales',
                '  bags: [/data/run1]', '  parameters: {y_left: 0.37}',
                'drivetrain_fit: {cost: 0.1}']
     with odometry_node_with_typo(tmp_path, ['track_width: 0.42', 'sprocket_radius: 0.1',
-                                            *records]) as script:
+                                            *records], typo='zzz_stranger') as script:
         deadline = time.monotonic() + 30
-        while 'track_widht' not in script.output and time.monotonic() < deadline:
+        while 'zzz_stranger' not in script.output and time.monotonic() < deadline:
             time.sleep(0.05)
         assert script.stop() == 0
-    assert "unknown parameter 'track_widht'" in script.output
+    assert "unknown parameter 'zzz_stranger'" in script.output
     assert 'identification' not in script.output and 'drivetrain_fit' not in script.output
     assert "'terrain'" not in script.output
 
@@ -182,13 +183,91 @@ def test_a_refused_start_names_the_typo_behind_it(ros_context):
     assert 'odom_frame' not in message
 
 
-def test_a_start_that_is_not_refused_leaves_typos_to_the_warning(ros_context):
+def test_a_typo_refuses_the_start_beside_the_right_name(ros_context):
+    # Issue 31: 'rat' beside 'rate' would leave rate at its default as silently as a
+    # missing one; an unknown name that is no typo is left to the warning.
     node = Node('typo_test', context=ros_context, parameter_overrides=[
-        Parameter('track_width', value=0.5), Parameter('rat', value=5.0)])
+        Parameter('track_width', value=0.5), Parameter('rat', value=5.0),
+        Parameter('zzz', value=1)])
     try:
-        assert ParameterTable(node, REQUIRED)['rate'] == 50.0
+        with pytest.raises(ParameterError) as refused:
+            ParameterTable(node, REQUIRED)
     finally:
         node.destroy_node()
+    assert str(refused.value) == "invalid parameters: unknown 'rat' (did you mean 'rate'?)"
+
+
+def test_a_misspelt_key_in_an_owned_namespace_refuses_the_start(ros_context):
+    # Issue 31 item 6: icr.y_lft started a lopsided model with a warning only.
+    from tracked_kinematics.params import TERRAIN_PARAMS
+    node = Node('typo_test', context=ros_context, parameter_overrides=[
+        Parameter('track_width', value=0.5), Parameter('sprocket_radius', value=0.1),
+        Parameter('icr.y_lft', value=0.3), Parameter('scale.xyzzyplugh', value=1.0)])
+    try:
+        with pytest.raises(ParameterError) as refused:
+            ParameterTable(node, TERRAIN_PARAMS)
+    finally:
+        node.destroy_node()
+    assert str(refused.value) == (
+        "invalid parameters: unknown 'icr.y_lft' (did you mean 'icr.y_left'?); "
+        "unknown 'scale.xyzzyplugh' (scale.* holds scale.left, scale.right)")
+
+
+def test_other_nodes_parameters_and_records_are_no_typos(ros_context):
+    # One terrain file serves every node: odometry_node's publish_tf or the simulator's
+    # left_joint (close to left_joints) is no typo for another node.
+    from tracked_kinematics.params import ENCODER_INPUT_PARAMS, TERRAIN_PARAMS
+    node = Node('typo_test', context=ros_context, parameter_overrides=[
+        Parameter('track_width', value=0.5), Parameter('sprocket_radius', value=0.1),
+        Parameter('left_joint', value='a'), Parameter('publish_tf', value=False),
+        Parameter('identification.model', value='icr')])
+    try:
+        assert ParameterTable(node, TERRAIN_PARAMS + ENCODER_INPUT_PARAMS)['track_width'] == 0.5
+    finally:
+        node.destroy_node()
+    assert unknown_parameters(['left_joint', 'publish_tf', 'push_to', 'zzz'], SPECS) == [
+        "unknown parameter 'zzz' ignored"]
+
+
+def test_an_empty_value_is_the_empty_string(ros_context):
+    # Issue 31 item 2: the shell leaves deadman_topic:= of the documented deadman_topic:=''.
+    assert normalised_arguments(['n', 'x:=', '--ros-args', '-p', 'a:=', '-r', 'b:=',
+                                 '--param', 'c:=', '-p', 'd:=1', '--', '-p', 'e:=']) == [
+        'n', 'x:=', '--ros-args', '-p', "a:=''", '-r', 'b:=', '--param', "c:=''", '-p', 'd:=1',
+        '--', '-p', 'e:=']
+    seen = []
+
+    def factory():
+        node = Node('probe')
+        node.declare_parameter('topic', 'deadman')
+        seen.append(node.get_parameter('topic').value)
+        raise RuntimeError('built')
+    assert run(factory, 'probe', ['probe', '--ros-args', '-p', 'topic:=']) == 2
+    assert seen == ['']
+
+
+def test_settings_a_node_will_not_use_are_said(tmp_path):
+    from tracked_kinematics.ros.odometry_node import PARAMS as ODOMETRY
+    path = tmp_path / 'p.yaml'
+    path.write_text('/**:\n  ros__parameters:\n    track_width: 0.4\n'
+                    'odometry_node:\n  ros__parameters:\n    publish_tf: true\n'
+                    '    left_joints: [l]\n    odom_frame: o\n')
+    sections = params_file_sections(str(path))
+    # Issue 31 item 5: -p publish_tf:=false is overridden by the odometry_node section.
+    notices = _settings_notices('odometry_node', ODOMETRY, [
+        ('p', 'track_width'), ('file', str(path), sections), ('p', 'publish_tf')])
+    assert len(notices) == 2, notices
+    assert notices[0].startswith(f'-p track_width has no effect: {path}, given after it')
+    assert notices[1].startswith("-p publish_tf has no effect: the section 'odometry_node' of")
+    # Issue 31 item 1: the joints of an odometry_node section do not reach calibration_drive.
+    from tracked_kinematics.ros.calibration_drive import PARAMS as CALIBRATION
+    notices = _settings_notices('calibration_drive', CALIBRATION,
+                                [('file', str(path), sections)])
+    assert notices == [f'{path} sets left_joints only for odometry_node; calibration_drive '
+                       'uses its default unless given: put what every node shares under /** '
+                       '(convert_diff_drive_params writes it so)']
+    assert _settings_notices('calibration_drive', CALIBRATION, [
+        ('file', str(path), sections), ('p', 'left_joints')]) == []
 
 
 @pytest.mark.ros
@@ -286,3 +365,19 @@ def test_a_callback_that_raises_is_a_traceback_after_an_orderly_stop():
     with pytest.raises(ZeroDivisionError, match='bug'):
         run(factory, 'interrupted', ['interrupted'])
     assert log[-1] == ('destroyed, context ok', True) and not rclpy.ok()
+
+
+@pytest.mark.ros
+def test_a_node_without_traffic_stops_at_once(tmp_path):
+    # Issue 31: tracked_simulator without setpoints took 5 s to stop on Ctrl-C ("a callback
+    # is still running 5 s after the stop request"): its executor, woken, waited again.
+    with ConsoleScript('tracked_simulator', tmp_path=tmp_path) as script:
+        deadline = time.monotonic() + 60
+        while 'simulating' not in script.output and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert 'simulating' in script.output, script.output
+        start = time.monotonic()
+        assert script.stop() == 0
+        elapsed = time.monotonic() - start
+    assert 'still running' not in script.output
+    assert elapsed < 4.0

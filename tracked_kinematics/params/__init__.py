@@ -10,7 +10,7 @@ ring; it imports only ``core/``. docs/parameters.md is generated from the tables
 from .files import flatten, nest, params_text, read_params_file, write_params_file
 from .spec import (check_values, Derived, described_as, each, finite, frame_id, in_range,
                    missing_message, node_name, non_negative, one_of, ParamSpec, positive,
-                   resolve, ros_name, unknown_parameters, zero_or_at_least)
+                   resolve, ros_name, typos, unknown_parameters, zero_or_at_least)
 from .tables import (COMMAND_LIMIT_PARAMS, DRIVETRAIN_DEFAULTS, DRIVETRAIN_PARAMS,
                      ENCODER_INPUT_DEFAULTS, ENCODER_INPUT_PARAMS, INPUT_MODES,
                      JOINT_STATES_TOPIC, LIMIT_FIELDS, limit_value, SIDE_TOPICS,
@@ -25,7 +25,7 @@ __all__ = [
     'TICKS_TYPES', 'check_values', 'described_as', 'drivetrain_from_values', 'each', 'finite',
     'flatten', 'frame_id', 'icr_from_values', 'in_range', 'limit_value', 'limits_from_values',
     'missing_message', 'nest', 'node_name', 'non_negative', 'one_of', 'params_text',
-    'positive', 'read_params_file', 'resolve', 'ros_name', 'unknown_parameters',
+    'positive', 'read_params_file', 'resolve', 'ros_name', 'typos', 'unknown_parameters',
     'unknown_terrain_parameters', 'values_from_drivetrain', 'values_from_icr',
     'write_params_file', 'zero_or_at_least',
 ]

@@ -388,3 +388,47 @@ def unknown_parameters(given: Iterable[str], known: Iterable[ParamSpec | str], *
         hint = f' (did you mean {close[0]!r}?)' if close else ''
         messages.append(f'{what} {name!r}{ignored}{hint}')
     return messages
+
+
+def typos(given: Iterable[str], own: Iterable[ParamSpec | str],
+          others: Iterable[str] = ()) -> list[str]:
+    """
+    One message per name in ``given`` that is a misspelling of a name in ``own``.
+
+    A name is a misspelling when neither ``own`` nor ``others`` holds it and it lies in a
+    namespace of ``own`` (``icr.y_lft`` beside ``icr.y_left``) or is close to one of its names
+    (``track_widht``). A node refuses to start on one: a misspelt key leaves its parameter at
+    the default (a lopsided ICR model, a wrong frame) as silently as a missing one.
+
+    Parameters
+    ----------
+    given : iterable of str
+        Names set (dotted); repeated names are reported once.
+    own : iterable of ParamSpec or str
+        The names the node declares.
+    others : iterable of str
+        Names that are not misspellings although ``own`` does not hold them (other nodes'
+        parameters, records of a terrain file).
+
+    Returns
+    -------
+    list of str
+        ``unknown 'icr.y_lft' (did you mean 'icr.y_left'?)``.
+
+    """
+    names = [k if isinstance(k, str) else k.name for k in own]
+    known = set(names) | set(others)
+    spaces = {name[:i + 1] for name in names for i, c in enumerate(name) if c == '.'}
+    messages = []
+    for name in dict.fromkeys(given):
+        if name in known:
+            continue
+        space = max((s for s in spaces if name.startswith(s)), key=len, default='')
+        candidates = [n for n in names if n.startswith(space)] if space else names
+        close = difflib.get_close_matches(name, candidates, n=1, cutoff=0.6 if space else 0.8)
+        if not close and not space:
+            continue
+        hint = (f' (did you mean {close[0]!r}?)' if close
+                else f' ({space}* holds {", ".join(sorted(candidates))})')
+        messages.append(f'unknown {name!r}{hint}')
+    return messages

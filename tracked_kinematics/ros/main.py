@@ -9,9 +9,14 @@ What a user sees at the edges of a node's life is decided here, once for the thr
   that is missing, a directory, not YAML, not a mapping or without ``ros__parameters``;
   arguments rcl refuses; invalid parameter values (:class:`ParameterError`); a topic or
   service name rclpy refuses; any other error while the node is built.
-- Parameters a params file or ``-p`` sets that the node does not declare (a typo such as
-  ``track_widht``) are named in a warning with the closest known name; ROS would ignore
-  them silently.
+- ``-p NAME:=`` (what the shell leaves of ``-p NAME:=''``) is the empty string, as
+  documented; rcl alone would refuse the argument.
+- A misspelling of a parameter the node declares (``track_widht``, ``icr.y_lft``) refuses
+  the start (:class:`~tracked_kinematics.ros.parameters.ParameterTable`). Other names a
+  params file or ``-p`` sets that no node of this package declares are named in a warning;
+  ROS would ignore them silently. A shared parameter (the vehicle, the joints) that a
+  params file sets only in another node's section, and a ``-p`` that a section naming this
+  node overrides (rcl gives such a section precedence), are warnings too.
 - A node that gave up on its own (a :class:`~tracked_kinematics.ros.loop_thread.LoopThread`
   whose passes kept failing sets the node's ``failure`` and shuts the context down) exits
   with status 1.
@@ -39,7 +44,8 @@ from rclpy.signals import SignalHandlerOptions
 from tracked_kinematics import params, ros
 from tracked_kinematics.params import ParamSpec
 from tracked_kinematics.params.tables import is_terrain_file_record
-from tracked_kinematics.ros.parameters import ParameterError
+from tracked_kinematics.ros.parameters import (NODE_PARAMETERS, package_parameter_names,
+                                               package_parameters, ParameterError)
 import yaml
 
 EXIT_STARTUP = 2
@@ -65,17 +71,15 @@ def _ros_args(argv: Sequence[str]) -> list[str]:
     return out
 
 
-def _option_values(ros_args: Sequence[str], *flags: str) -> list[str]:
-    values = []
-    for i, arg in enumerate(ros_args):
-        if arg in flags and i + 1 < len(ros_args):
-            values.append(ros_args[i + 1])
-    return values
-
-
-def params_file_keys(path: str, name: str) -> list[str]:
+def params_file_sections(path: str) -> list[tuple[str, list[str]]]:
     """
-    Check a ``--params-file`` the way rcl will read it; return the names it sets for ``name``.
+    Check a ``--params-file`` the way rcl will read it; return its sections and their names.
+
+    Returns
+    -------
+    list of (str, list of str)
+        The node of each ``ros__parameters`` section (the last part of its key: ``**``,
+        ``*`` or a node name) and the names it sets, in file order.
 
     Raises
     ------
@@ -99,17 +103,20 @@ def params_file_keys(path: str, name: str) -> list[str]:
     if not isinstance(doc, dict):
         raise StartupError(f'params file {path!r} is not a mapping of node names to '
                            '"ros__parameters:" sections')
-    sections = {key: section for key, section in doc.items()
-                if isinstance(section, dict) and 'ros__parameters' in section}
+    sections = [(str(key).lstrip('/').split('/')[-1],
+                 list(_flat_names(section['ros__parameters'] or {})))
+                for key, section in doc.items()
+                if isinstance(section, dict) and 'ros__parameters' in section]
     if not sections:
         raise StartupError(f'params file {path!r} has no "ros__parameters:" section (write '
                            f'"/**:\\n  ros__parameters:\\n    name: value")')
-    keys = []
-    for key, section in sections.items():
-        node = str(key).lstrip('/').split('/')[-1]
-        if node in ('**', '*', name):
-            keys.extend(_flat_names(section['ros__parameters'] or {}))
-    return keys
+    return sections
+
+
+def params_file_keys(path: str, name: str) -> list[str]:
+    """Check a ``--params-file`` (:func:`params_file_sections`); return its names for ``name``."""
+    return [key for node, keys in params_file_sections(path) if node in ('**', '*', name)
+            for key in keys]
 
 
 def _flat_names(tree, prefix: str = '') -> Iterable[str]:
@@ -125,16 +132,96 @@ def _flat_names(tree, prefix: str = '') -> Iterable[str]:
 
 def unknown_parameters(given: Iterable[str], specs: Iterable[ParamSpec]) -> list[str]:
     """
-    One message per name in ``given`` that no spec declares, with the closest known name.
+    One message per name in ``given`` that no node of this package declares.
 
-    ``use_sim_time`` and other parameters every rclpy node declares are known. The records
+    ``use_sim_time`` and other parameters every rclpy node declares are known, and so are the
+    parameters of the package's other nodes (one terrain file serves them all). The records
     and notes this package's tools write into a terrain file (``identification.*``,
     ``terrain``, ...) are not parameters and not typos: they are passed over, so that a
     file from identify_icr loads without a warning per line of its provenance.
     """
+    specs = list(specs)
+    own = {spec.name for spec in specs}
+    others = package_parameter_names() - own
     return params.unknown_parameters(
-        [name for name in given if not is_terrain_file_record(name)],
-        [*specs, 'use_sim_time', 'start_type_description_service'])
+        [name for name in given if not is_terrain_file_record(name) and name not in others],
+        [*specs, *NODE_PARAMETERS])
+
+
+def normalised_arguments(argv: Sequence[str]) -> list[str]:
+    """
+    Return ``argv`` with ``-p NAME:=`` inside ``--ros-args`` as ``-p NAME:=''``.
+
+    The shell turns the documented ``-p deadman_topic:=''`` into ``deadman_topic:=``, which
+    rcl refuses; the YAML empty string is what the user wrote.
+    """
+    out, inside, after_p = [], False, False
+    for arg in argv:
+        if arg == '--ros-args':
+            inside = True
+        elif arg == '--' and inside:
+            inside = False
+        elif inside and after_p and arg.endswith(':=') and arg.count(':=') == 1 \
+                and len(arg) > 2:
+            arg += "''"
+        after_p = inside and arg in ('-p', '--param')
+        out.append(arg)
+    return out
+
+
+def _settings_notices(name: str, specs: Sequence[ParamSpec], settings) -> list[str]:
+    """
+    Warnings about values a user set that this node will not use.
+
+    ``settings`` lists, in command-line order, ``('file', path, sections)`` for each
+    ``--params-file`` and ``('p', NAME)`` for each ``-p``. Said: a ``-p`` that a section
+    naming this node overrides (rcl's precedence) or that a later file sets again, and a
+    shared parameter (one spec in both nodes: the vehicle, the joints) that a file sets only
+    in the section of another node of this package.
+    """
+    own = {spec.name: spec for spec in specs}
+    mine = ('**', '*', name)
+    notices = []
+    for i, item in enumerate(settings):
+        if item[0] != 'p' or item[1] not in own:
+            continue
+        for j, (kind, *rest) in enumerate(settings):
+            if kind != 'file':
+                continue
+            path, sections = rest
+            for node, keys in sections:
+                if item[1] not in keys:
+                    continue
+                if node == name:
+                    notices.append(
+                        f'-p {item[1]} has no effect: the section {node!r} of {path} sets it, '
+                        'and rcl gives a section naming the node precedence over -p; change '
+                        'it in the file, or move it under /**')
+                elif node in mine and j > i:
+                    notices.append(f'-p {item[1]} has no effect: {path}, given after it, sets '
+                                   'it too (the last one wins)')
+    given = {key for kind, *rest in settings if kind == 'file'
+             for node, keys in rest[1] if node in mine for key in keys}
+    given |= {item[1] for item in settings if item[0] == 'p'}
+    nodes = package_parameters()
+    for kind, *rest in settings:
+        if kind != 'file':
+            continue
+        path, sections = rest
+        for node, keys in sections:
+            if node in mine or node not in nodes:
+                continue
+            theirs = {spec.name: spec for spec in nodes[node]}
+            shared = [key for key in keys if key not in given and key in own
+                      and theirs.get(key) == own[key]]
+            if shared:
+                notices.append(
+                    f'{path} sets {", ".join(shared)} only for {node}; {name} uses '
+                    f'{"its default" if len(shared) == 1 else "their defaults"} unless given: '
+                    'put what every node shares under /** (convert_diff_drive_params writes '
+                    'it so)')
+                given.update(shared)
+    return notices
 
 
 def _usage(name: str, summary: str, specs: Sequence[ParamSpec]) -> str:
@@ -177,7 +264,7 @@ def run(node_factory: Callable[[], 'rclpy.node.Node'], name: str, args=None,
         start, :data:`EXIT_FAILURE` when it gave up (its ``failure`` attribute is set).
 
     """
-    argv = list(sys.argv if args is None else args)
+    argv = normalised_arguments(sys.argv if args is None else args)
     user_args = argv[1:]
     plain = user_args[:user_args.index('--ros-args')] if '--ros-args' in user_args \
         else user_args
@@ -229,17 +316,22 @@ class StopRequest:
 def _run(node_factory, name, user_args, argv, specs, stop: StopRequest) -> int:
     logger = rclpy.logging.get_logger(name)
     ros_args = _ros_args(user_args)
+    settings = []
     try:
-        given = []
-        for path in _option_values(ros_args, '--params-file'):
-            given += params_file_keys(path, name)
-        for value in _option_values(ros_args, '-p', '--param'):
-            if ':=' not in value or not value.split(':=', 1)[0]:
-                raise StartupError(f'-p needs NAME:=VALUE, got {value!r}')
-            given.append(value.split(':=', 1)[0])
+        for i, arg in enumerate(ros_args[:-1]):
+            value = ros_args[i + 1]
+            if arg == '--params-file':
+                settings.append(('file', value, params_file_sections(value)))
+            elif arg in ('-p', '--param'):
+                if ':=' not in value or not value.split(':=', 1)[0]:
+                    raise StartupError(f'-p needs NAME:=VALUE, got {value!r}')
+                settings.append(('p', value.split(':=', 1)[0]))
     except StartupError as err:
         logger.fatal(str(err))
         return EXIT_STARTUP
+    given = [key for kind, *rest in settings if kind == 'file'
+             for node, keys in rest[1] if node in ('**', '*', name) for key in keys]
+    given += [item[1] for item in settings if item[0] == 'p']
     if stop.requested:
         return 0
     try:
@@ -247,6 +339,8 @@ def _run(node_factory, name, user_args, argv, specs, stop: StopRequest) -> int:
     except Exception as err:  # noqa: BLE001 -- rcl refuses arguments with RCLError
         logger.fatal(f'cannot start: {" ".join(str(err).split())}')
         return EXIT_STARTUP
+    for notice in _settings_notices(name, specs, settings):
+        logger.warning(notice)
     node = None
     try:
         try:
@@ -315,7 +409,10 @@ def _spin_until_stopped(node, stop: StopRequest) -> None:
             pass
     finally:
         state['stopping'] = True
-        executor.wake()
+        # A shut-down executor leaves its wait at once; a woken one waits again for work
+        # (rclpy rebuilds the wait set), which never comes to a node with no traffic (the
+        # simulator without setpoints held the stop 5 s that way).
+        executor.shutdown(timeout_sec=0)
         thread.join(JOIN_TIMEOUT)
         if thread.is_alive():  # a callback that does not return: the shutdown will end it
             node.get_logger().warning(

@@ -131,7 +131,9 @@ def table(specs: Iterable[ParamSpec]) -> list[str]:
     lines = ['| name | type | default | unit | range / check | description |',
              '|---|---|---|---|---|---|']
     for spec in specs:
-        cells = (f'`{spec.name}`', _type(spec), _default(spec.default), spec.unit,
+        default = ('**required**' if spec.required else spec.derived.text
+                   if spec.derived is not None else _default(spec.default))
+        cells = (f'`{spec.name}`', _type(spec), default, spec.unit,
                  _check(spec), spec.description)
         lines.append('| ' + ' | '.join(_cell(cell) for cell in cells) + ' |')
     return lines

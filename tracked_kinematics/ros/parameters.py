@@ -25,10 +25,24 @@ from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescr
                                 SetParametersResult)
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from tracked_kinematics.params import missing_message, ParamSpec, unknown_parameters
+from tracked_kinematics.params import missing_message, ParamSpec, typos
+from tracked_kinematics.params.tables import is_terrain_file_record
 
 # Parameters every rclpy node declares itself.
 NODE_PARAMETERS = ('use_sim_time', 'start_type_description_service')
+
+
+def package_parameters() -> dict[str, tuple[ParamSpec, ...]]:
+    """Return the parameters every node of this package declares, by node name."""
+    # The node modules import this one: their tables are read when a node is built.
+    from tracked_kinematics.ros.param_docs import NODES
+    return {node: tuple(specs) for node, specs, _ in NODES}
+
+
+def package_parameter_names() -> frozenset[str]:
+    """Return every name a node of this package declares, and those every rclpy node does."""
+    return frozenset(spec.name for specs in package_parameters().values() for spec in specs) \
+        | frozenset(NODE_PARAMETERS)
 
 
 class ParameterError(ValueError):
@@ -155,6 +169,7 @@ class ParameterTable:
                 values[spec.name] = _coerce(spec, value)
         if missing:
             problems.insert(0, missing_message(missing))
+        problems += self._typos()
         derived: dict[str, Any] = {}
         if not problems:
             derived = self._derive(values, set(values))
@@ -169,7 +184,7 @@ class ParameterTable:
             except ValueError as err:
                 problems.append(str(err))
         if problems:
-            raise ParameterError('invalid parameters: ' + '; '.join(problems + self._typos()))
+            raise ParameterError('invalid parameters: ' + '; '.join(problems))
         if derived:
             node.set_parameters([Parameter(name, value=value) for name, value in derived.items()])
         self.values: dict[str, Any] = values
@@ -181,16 +196,17 @@ class ParameterTable:
 
     def _typos(self) -> list[str]:
         """
-        Name the given parameters the node does not declare that look like typos of its own.
+        Name the given parameters that are misspellings of the node's own: each refuses the start.
 
-        A refused start often comes from one (``track_widht`` leaves ``track_width``
-        missing): the FATAL line names it, ``unknown 'track_widht' (did you mean
-        'track_width'?)``. Other undeclared names (a ``/**`` section for several nodes) are
-        left to the warning the node logs once it runs.
+        ``icr.y_lft`` (in the node's ``icr.`` namespace) or ``track_widht`` (close to
+        ``track_width``) would leave the parameter at its default as silently as a missing
+        one. A name another node of this package declares, or a record the tools write into
+        a terrain file, is no misspelling; other unknown names are left to the warning the
+        node logs once it runs (:func:`tracked_kinematics.params.typos`).
         """
-        given = getattr(self._node, '_parameter_overrides', {})
-        return unknown_parameters(given, [*self.specs, *NODE_PARAMETERS], only_close=True,
-                                  ignored='', what='unknown')
+        given = [name for name in getattr(self._node, '_parameter_overrides', {})
+                 if not is_terrain_file_record(name)]
+        return typos(given, [*self.specs, *NODE_PARAMETERS], package_parameter_names())
 
     def _declare_problem(self, spec: ParamSpec, err: Exception) -> str:
         """Say why a value given at start was refused, in the table's words if possible."""

@@ -44,6 +44,12 @@ class _Progress:
 def _open(path: Path) -> AnyReader:
     if not path.exists():
         raise BagError(f'bag not found: {path}')
+    if path.is_dir() and not (path / 'metadata.yaml').exists():
+        inside = sorted(p.name for p in path.iterdir())[:3]
+        raise BagError(f'{path} is not a bag: a rosbag2 bag is a directory with a '
+                       'metadata.yaml (and its .mcap or .db3 files); this one holds '
+                       + (', '.join(inside) + (', ...' if len(inside) == 3 else '')
+                          if inside else 'nothing'))
     return AnyReader([path])
 
 
@@ -59,7 +65,7 @@ def _connections(reader: AnyReader, path: Path, topic: str, allowed, what: str):
                        f'{_topic_list(reader)}')
     bad = sorted({c.msgtype for c in conns if c.msgtype not in allowed})
     if bad:
-        raise BagError(f'{path}: topic {topic} has type {", ".join(bad)}, the {what} need '
+        raise BagError(f'{path}: topic {topic} has type {", ".join(bad)}; the {what} must be '
                        f'{" or ".join(allowed)}')
     return conns
 

@@ -28,6 +28,7 @@ computed).
 from __future__ import annotations
 
 import argparse
+import os
 from pathlib import Path
 import sys
 
@@ -191,7 +192,10 @@ def _run(args, out) -> int:
         outputs.add('--report', args.report)
         outputs.add('--plot', args.plot)
         outputs.add('--tum', args.tum, directory=True)
-        models = read_terrain_models(args.params)
+        try:
+            models = read_terrain_models(args.params)
+        except OSError as err:
+            raise UsageError(f'--params {err.filename}: {err.strerror}') from None
         track_width, radius = _vehicle(args, models)
         references = _read(args, track_width, radius)
         settings = ev.Settings(tuple(args.window), args.horizon, args.prediction_dt,
@@ -216,9 +220,37 @@ def _run(args, out) -> int:
     return 0
 
 
+_BAG_SUFFIXES = ('.mcap', '.db3', '.bag')
+
+
+def bags_out_of_params(argv):
+    """
+    Return ``argv`` with the bags that follow ``--params`` files moved to the front.
+
+    ``--params`` takes one or more files, so ``--params a.yaml BAG`` would read the bag as a
+    terrain file and miss the BAG argument; a directory or a ``.mcap``, ``.db3`` or ``.bag``
+    file is never a terrain file, and is taken as a bag.
+    """
+    argv = list(argv)
+    bags, out, i = [], [], 0
+    while i < len(argv):
+        out.append(argv[i])
+        if argv[i] == '--params':
+            i += 1
+            while i < len(argv) and not argv[i].startswith('-'):
+                word = argv[i]
+                is_bag = os.path.isdir(word) or word.lower().endswith(_BAG_SUFFIXES)
+                (bags if is_bag else out).append(word)
+                i += 1
+            continue
+        i += 1
+    return bags + out
+
+
 def main(argv=None) -> int:
     """Run evaluate_model; return the exit status (see the module docstring)."""
-    return run_main(PROG, _run, build_parser().parse_args(argv))
+    argv = sys.argv[1:] if argv is None else argv
+    return run_main(PROG, _run, build_parser().parse_args(bags_out_of_params(argv)))
 
 
 if __name__ == '__main__':

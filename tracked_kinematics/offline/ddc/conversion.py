@@ -16,17 +16,15 @@ import yaml
 
 AXES = ('linear.x', 'angular.z')
 
-# Terrain keys go to every node (``/**``); the others only to the nodes that declare them, so
-# that no node warns about a parameter it does not know.
+# Every key goes to every node (``/**``): the vehicle, the joints, the frames, the limits mean
+# the same to every node that declares them, so one file serves odometry_node,
+# cmd_vel_translator, icr_estimator and calibration_drive alike, and ``-p`` on the command
+# line still overrides it (rcl gives a section naming the node precedence over ``-p``).
+# Only a key that another node of the package declares with another meaning goes to its
+# node's section: icr_estimator's publish_rate is the rate of its estimates.
 TERRAIN_KEYS = ('track_width', 'sprocket_radius', 'icr.y_left', 'icr.y_right', 'icr.x',
                 'scale.left', 'scale.right')
-NODE_KEYS = {
-    'odometry_node': ('left_joints', 'right_joints', 'odom_frame', 'base_frame', 'publish_tf',
-                      'publish_rate'),
-    'icr_estimator': ('left_joints', 'right_joints'),
-    'cmd_vel_translator': ('cmd_timeout', 'use_stamped') + tuple(
-        f'{axis}.max_{kind}' for axis in AXES for kind in ('velocity', 'acceleration')),
-}
+NODE_KEYS = {'odometry_node': ('publish_rate',)}
 
 
 class _NoAliasDumper(yaml.SafeDumper):
@@ -70,8 +68,9 @@ class Conversion:
     narrowed: bool = False
 
     def sections(self) -> dict[str, dict[str, Any]]:
-        """Parameter file sections: ``/**`` for the terrain, ``/**/<node>`` for the rest."""
-        out = {'/**': {k: self.values[k] for k in TERRAIN_KEYS if k in self.values}}
+        """Parameter file sections: ``/**`` for all but :data:`NODE_KEYS`, ``/**/<node>``."""
+        own = {key for keys in NODE_KEYS.values() for key in keys}
+        out = {'/**': {k: v for k, v in self.values.items() if k not in own}}
         for node, keys in NODE_KEYS.items():
             values = {k: self.values[k] for k in keys if k in self.values}
             if values:
@@ -88,8 +87,8 @@ class Conversion:
             f"DDC's kinematics as a tread model: chi = {chi:.4f}, e = 0"
             + (' (track_width is the effective separation, see the warning)'
                if self.narrowed else '') + '.',
-            'Load it into odometry_node and cmd_vel_translator with --ros-args --params-file:',
-            '/** is the vehicle for every node, /**/<node> what only that node declares.',
+            'Load it into every node of tracked_kinematics with --ros-args --params-file:',
+            '/** is for every node; /**/<node> holds what another node reads otherwise.',
         ]
         doc = {key: {'ros__parameters': nest(values)} for key, values in self.sections().items()}
         text = yaml.dump(doc, Dumper=_NoAliasDumper, sort_keys=False, default_flow_style=False)

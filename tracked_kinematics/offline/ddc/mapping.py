@@ -33,6 +33,7 @@ for every DDC key saying what became of it.
 from __future__ import annotations
 
 from collections.abc import Mapping
+import difflib
 import math
 import os
 from typing import Any
@@ -450,6 +451,17 @@ def _jerk(p: dict, conv: Conversion, axis: str) -> None:
 
 
 def _the_rest(p: dict, conv: Conversion) -> None:
+    """
+    Say what became of the other keys; refuse a misspelling of a key that is mapped.
+
+    ``wheel_seperation_multiplier`` is ignored by DDC and would be ignored here: the robot
+    would be converted with a multiplier of 1 and the file written as if nothing were
+    wrong. A near miss of a key this tool maps, whose right spelling is absent, stops the
+    conversion with a did-you-mean; one of a key without counterpart gets the hint in its
+    line.
+    """
+    known = sorted(_HANDLED | set(_NO_COUNTERPART))
+    misspelt = []
     for key, value in p.items():
         if key in _HANDLED:
             continue
@@ -457,4 +469,14 @@ def _the_rest(p: dict, conv: Conversion) -> None:
         if reason is None:
             reason = ('not a ROS 2 diff_drive_controller parameter (a ROS 1, vendor or '
                       'misspelt key); DDC ignores it too')
+            close = difflib.get_close_matches(key, known, n=1, cutoff=0.8)
+            if close:
+                reason += f'; did you mean {close[0]!r}?'
+                if close[0] in _HANDLED and close[0] not in p:
+                    misspelt.append(f'{key!r} (did you mean {close[0]!r}?)')
         conv.not_mapped.append((f'{key} = {fmt(value)}', reason))
+    if misspelt:
+        raise DdcError(
+            f'{", ".join(misspelt)}: not a diff_drive_controller parameter, so DDC ignored '
+            'it and the conversion would too, taking the default of the parameter it '
+            'resembles; correct the spelling in the file (DDC will then apply it as well)')
