@@ -7,8 +7,8 @@ run to the end, the three nodes run in the background, and the last command (the
 ends when the drive is done. It must leave a terrain file.
 """
 
-from pathlib import Path
 import os
+from pathlib import Path
 import re
 import signal
 import subprocess
