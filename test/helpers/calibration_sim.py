@@ -43,7 +43,7 @@ class Drive:
     returns: int                # returns to the centre
     max_distance: float         # farthest true pose from the start, m
     events: list                # the supervisor's (t, state, reason)
-    poses: list                 # true (t, x, y, theta) at every tick
+    poses: list                 # true (t, x, y, theta, travel left, travel right) per tick
 
 
 def drive(steps, config: SupervisorConfig, reference='pose', track_width=0.42,
@@ -85,7 +85,7 @@ def drive(steps, config: SupervisorConfig, reference='pose', track_width=0.42,
             fence.add_travel(travel[0] - prev[0], travel[1] - prev[1])
             prev = travel
         x, y, theta = sim.state.pose
-        poses.append((sim.t, x, y, theta))
+        poses.append((sim.t, x, y, theta, *sim.state.travel))
         max_distance = max(max_distance, math.hypot(x, y))
     events = sup.events
     returns = sum(1 for _, s, _ in events if s == 'returning')

@@ -9,11 +9,11 @@ from tracked_kinematics.core.plan.calibration import (
     MIN_STEP, predict_step, protocol, REACH_FRACTION, reach_time, total_duration)
 
 
-def _path(steps, turn_gain=1.0):
-    """The ideal path of ``steps`` one after the other, turning ``turn_gain`` as fast."""
+def _path(steps, gain=1.0):
+    """Return the distance from the start along the ideal path of ``steps``, turning gain x."""
     pose, points = (0.0, 0.0, 0.0), []
     for step in steps:
-        x, y, yaw = predict_step(pose, step.v, turn_gain * step.w, step.duration)
+        x, y, yaw = predict_step(pose, step.v, gain * step.w, step.duration)
         points.append(np.hypot(x, y))
         pose = (x[-1], y[-1], yaw[-1])
     return np.concatenate(points)
