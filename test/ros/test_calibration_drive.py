@@ -12,6 +12,7 @@ import pytest
 from rclpy.parameter import Parameter
 from std_msgs.msg import String
 from std_srvs.srv import Trigger
+from tracked_kinematics.core.plan.calibration import protocol
 from tracked_kinematics.offline.calibration_files import CalibrationFiles, FITTED_KEYS
 from tracked_kinematics.params import read_params_file
 from tracked_kinematics.ros.calibration_drive import CalibrationDriveNode
@@ -241,7 +242,8 @@ def test_a_whole_drive_is_fitted_written_and_pushed(drive, ros_context, executor
     assert report['calibration_drive']['bag'] == str(bag.resolve())
     assert report['icr']['chi'] == pytest.approx(chi)
     drive_report = report['calibration_drive']
-    assert len(drive_report['steps']) == 10 and drive_report['events'][0]['state'] == 'running'
+    assert len(drive_report['steps']) == len(protocol(30.0))
+    assert drive_report['events'][0]['state'] == 'running'
     assert drive_report['events'][-1]['state'] == 'finished'
     assert drive_report['identify_icr'].startswith(f'identify_icr {bag.resolve()} ')
     # identify_icr reads the bag back to the same result.

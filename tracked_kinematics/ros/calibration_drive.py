@@ -355,7 +355,7 @@ class CalibrationDriveNode(TableNode):
         if out.state != self._last_state:
             self._last_state = out.state
             text = out.state + (f': {out.reason}' if out.reason else '')
-            if out.state in ('paused', 'stopped', 'returning'):
+            if out.state in ('paused', 'stopped'):
                 self.get_logger().warning(text)
             else:
                 self.get_logger().info(text)

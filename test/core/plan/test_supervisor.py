@@ -41,9 +41,7 @@ def test_protocol_duration_and_caps(duration):
     steps = protocol(duration, max_speed=0.8, max_yaw_rate=0.6, geofence_radius=2.0)
     assert total_duration(steps) == pytest.approx(duration, rel=0.25)
     assert all(abs(s.v) <= 0.8 + 1e-12 and abs(s.w) <= 0.6 + 1e-12 for s in steps)
-    # A straight goes out at most 60 % of the geofence radius.
-    assert all(abs(s.v) * s.duration <= 0.6 * 2.0 + 1e-9 or s.duration <= 1.5
-               for s in steps if s.kind == 'straight')
+    # How far it goes from the start: test_calibration.py.
 
 
 @pytest.mark.parametrize('kwargs', [{'duration': 10.0}, {'duration': math.nan},
@@ -255,10 +253,12 @@ def test_a_step_that_would_leave_the_geofence_is_preceded_by_a_return():
 
 def test_geofence_pushes_back_a_vehicle_that_slips():
     # An uncalibrated vehicle turns at half the commanded rate: its arcs are twice as wide as
-    # planned. The guard turns it back; it never leaves the fence.
-    bench = Bench(steps=protocol(180.0), turn_gain=0.5)
+    # planned (circles of 2.5 m that fit the plan, of 5 m driven). The guard turns it back; it
+    # never leaves the fence.
+    bench = Bench(steps=[Step(0.5, 0.4, 15.0, 'arc'), Step(0.5, -0.4, 15.0, 'arc')],
+                  turn_gain=0.5)
     bench.start()
-    bench.run(400.0)
+    bench.run(100.0)
     assert bench.outputs[-1].state == 'finished'
     assert any(o.state == 'returning' for o in bench.outputs)
     assert bench.max_distance <= 3.0

@@ -17,13 +17,22 @@ Warthog and Husky logs):
 
 :func:`protocol` lays out rounds of that excitation, one round per speed level, each a
 straight forward and back, arcs of three yaw rates (so of several radii) to the left and to
-the right, and a turn in place each way: ten steps per round, 60 s of motion per round by
-default (steps of 6 s, as the DRIVE calibration of Baril et al. 2024 uses), three rounds at
+the right, and a turn in place each way: 60 s of motion per round by default, three rounds at
 0.4, 0.7 and 1.0 of the speed cap in the default 180 s. A shorter ``duration`` drives fewer
-rounds (and shorter steps below 60 s). Straights are shortened so that a forward-and-back
-pair stays well inside the geofence. The steps are commands of the ideal body twist
-``(v, w)`` for ``cmd_vel``; the supervisor (:mod:`.supervisor`) plans each one against the
-geofence from the current pose before driving it (:func:`predict_step`, :func:`fence_exit`).
+rounds (and shorter steps below 60 s).
+
+The protocol is planned for the geofence it is given, so that the supervisor has nothing to
+correct: every straight and every arc is driven there and back (an arc ``(v, w)`` is followed
+by the same arc backwards, ``(-v, -w)``, which retraces it whatever the vehicle's slip), so
+the vehicle comes back to where it started after each pair, and a leg reaches at most
+:data:`REACH_FRACTION` of the radius from its start even when the vehicle turns only half as
+fast as commanded (:data:`SLIP_TURN`: an uncalibrated vehicle's arcs are wider than
+planned). A manoeuvre longer than that is driven as several shorter pairs; a fence so small
+that a straight at the speed cap would last less than :data:`MIN_STEP` lowers the speeds
+(``REACH_FRACTION * radius / MIN_STEP``). The steps are commands of the ideal body twist
+``(v, w)`` for ``cmd_vel``; the supervisor (:mod:`.supervisor`) still plans each one against
+the geofence from the current pose before driving it (:func:`predict_step`,
+:func:`fence_exit`). Measured figures: docs/nodes/calibration_drive.md.
 """
 
 from __future__ import annotations
@@ -37,13 +46,17 @@ import numpy as np
 _LEVELS = {1: (0.7,), 2: (0.5, 1.0), 3: (0.4, 0.7, 1.0)}
 #: Yaw rates of the arcs, as fractions of the yaw-rate cap: three radii per speed.
 ARC_YAW_FRACTIONS = (1.0, 0.6, 0.3)
-#: Motion per round, s (ten steps of 6 s).
+#: Motion per round, s.
 ROUND_SECONDS = 60.0
 #: Shortest step, s: the drive train settles in a few tenths of a second and the fit cuts
 #: the data into 1-s segments.
 MIN_STEP = 1.5
-#: A straight drives at most this fraction of the geofence radius, out and back.
-STRAIGHT_FENCE_FRACTION = 0.6
+#: A leg of a there-and-back pair goes at most this fraction of the geofence radius from
+#: where it starts.
+REACH_FRACTION = 0.5
+#: Slowest turn, as a fraction of the commanded yaw rate, that a leg's reach allows for (an
+#: effective track width up to twice the nominal one).
+SLIP_TURN = 0.5
 MIN_DURATION = 15.0
 MAX_DURATION = 3600.0
 
@@ -100,20 +113,19 @@ def protocol(duration: float = 180.0, max_speed: float = 0.5, max_yaw_rate: floa
     ----------
     duration : float
         Motion time to plan, s, in [:data:`MIN_DURATION`, :data:`MAX_DURATION`]. Rounds of
-        :data:`ROUND_SECONDS` (one per speed level; below 60 s one round of shorter steps);
-        the steps of a round share its time equally, a straight gives what the geofence cuts
-        off to the other steps of its round.
+        :data:`ROUND_SECONDS` (one per speed level; below 60 s one round of shorter steps).
     max_speed : float
-        Speed cap, m/s: the fastest straight.
+        Speed cap, m/s: the fastest straight (lower in a small geofence).
     max_yaw_rate : float
         Yaw-rate cap, rad/s: the fastest turn in place and the tightest arc.
     geofence_radius : float
-        m; a straight goes out at most :data:`STRAIGHT_FENCE_FRACTION` of it.
+        m; a leg goes at most :data:`REACH_FRACTION` of it from its start.
 
     Returns
     -------
     tuple of Step
-        In driving order. Every command is within the caps.
+        In driving order; straights and arcs in there-and-back pairs. Every command is
+        within the caps; the durations add up to ``duration``.
 
     Raises
     ------
@@ -128,31 +140,98 @@ def protocol(duration: float = 180.0, max_speed: float = 0.5, max_yaw_rate: floa
                          f'{duration!r}')
     rounds = max(1, int(round(duration / ROUND_SECONDS)))
     levels = _LEVELS.get(rounds) or tuple(_LEVELS[3][i % 3] for i in range(rounds))
-    per_round = duration / rounds
+    reach = REACH_FRACTION * geofence_radius
+    top = min(max_speed, reach / MIN_STEP)
     steps: list[Step] = []
     for level in levels:
-        steps.extend(_round(level, per_round, max_speed, max_yaw_rate, geofence_radius))
+        steps.extend(_round(level, top, duration / rounds, max_yaw_rate, reach))
     return tuple(steps)
 
 
-def _round(level, seconds, max_speed, max_yaw_rate, fence) -> list[Step]:
-    """One round at ``level`` of the caps: 2 straights, 6 arcs, 2 turns in place."""
-    v = level * max_speed
-    n_steps = 4 + 2 * len(ARC_YAW_FRACTIONS)
-    step = seconds / n_steps
-    straight = min(step, max(MIN_STEP, STRAIGHT_FENCE_FRACTION * fence / v))
-    # What the geofence cuts off the straights goes to the arcs and turns of the round.
-    other = max(MIN_STEP, (seconds - 2.0 * straight) / (n_steps - 2))
-    out = [Step(v, 0.0, straight, 'straight'), Step(-v, 0.0, straight, 'straight')]
+def _round(level, top, seconds, max_yaw_rate, reach) -> list[Step]:
+    """
+    One round at ``level`` of the speed ``top``: 2 + 6 + 2 shares of ``seconds``.
+
+    Straights (two shares), arcs to both sides for each of :data:`ARC_YAW_FRACTIONS` (two
+    shares each), a turn in place each way (one share each).
+    """
+    v = level * top
+    share = seconds / (4 + 2 * len(ARC_YAW_FRACTIONS))
+    out = _there_and_back(v, 0.0, 2.0 * share, 'straight', reach, _STRAIGHTS)
     for fraction in ARC_YAW_FRACTIONS:
-        w = fraction * max_yaw_rate
         # Tighter arcs at the faster levels too: the yaw rate stays within its cap, the
         # radius v / w varies with both the level and the fraction.
-        for sign in (1.0, -1.0):
-            out.append(Step(v, sign * w, other, 'arc'))
+        out += _there_and_back(v, fraction * max_yaw_rate, 2.0 * share, 'arc', reach, _ARCS)
     w_turn = max(0.4, level) * max_yaw_rate
-    out += [Step(0.0, w_turn, other, 'turn'), Step(0.0, -w_turn, other, 'turn')]
+    return out + [Step(0.0, w_turn, share, 'turn'), Step(0.0, -w_turn, share, 'turn')]
+
+
+#: Legs of a straight, as signs of ``v``: there, back through the start, and back to it (the
+#: drive train's lag, which leaves a pair of legs short of its start, cancels).
+_STRAIGHTS = ((1.0, 0.0), (-1.0, 0.0), (-1.0, 0.0), (1.0, 0.0))
+#: Legs of the arcs of one yaw rate, as signs of ``v`` and ``w``: to the left and back, to
+#: the right backwards and back, to the right and back, to the left backwards and back; each
+#: leg is retraced by the next, and what the lag and the vehicle's asymmetry leave over
+#: cancels between the halves (0.3 m at most over the eight, at 0.5 m/s and 1 rad/s).
+_ARCS = ((1.0, 1.0), (-1.0, -1.0), (-1.0, 1.0), (1.0, -1.0),
+         (1.0, -1.0), (-1.0, 1.0), (-1.0, -1.0), (1.0, 1.0))
+
+
+def _there_and_back(v, w, seconds, kind, reach, pattern) -> list[Step]:
+    """
+    ``seconds`` of ``(v, w)`` in the legs of ``pattern``, repeated as ``reach`` needs.
+
+    Each leg goes at most ``reach`` from the start of the pattern, even turning at
+    :data:`SLIP_TURN` of ``w``, and lasts at least :data:`MIN_STEP` where it can: a duration
+    too short for the whole pattern drives its first half; when the reach and the shortest
+    leg cannot both hold, the speed is lowered, ``v`` and ``w`` together (the path is kept).
+    Consecutive legs of the same command are one step.
+    """
+    if seconds / len(pattern) < MIN_STEP:
+        pattern = pattern[:len(pattern) // 2]
+    legs = len(pattern)
+    limit = reach_time(v, w, reach)
+    repeats = max(1, math.ceil(seconds / legs / limit - 1e-9))
+    leg = seconds / (legs * repeats)
+    if repeats > 1 and leg < MIN_STEP:
+        repeats = max(1, int(seconds / legs / MIN_STEP))
+        leg = seconds / (legs * repeats)
+        factor = min(1.0, limit / leg)
+        v, w = v * factor, w * factor
+    out: list[Step] = []
+    for sign_v, sign_w in pattern * repeats:
+        command = (sign_v * v, sign_w * w + 0.0)
+        if out and (out[-1].v, out[-1].w) == command:
+            out[-1] = Step(*command, out[-1].duration + leg, kind)
+        else:
+            out.append(Step(*command, leg, kind))
     return out
+
+
+def reach_time(v: float, w: float, reach: float) -> float:
+    """
+    How long ``(v, w)`` may be held before the vehicle may be ``reach`` from its start, s.
+
+    The vehicle may turn at any rate between :data:`SLIP_TURN` of ``w`` and ``w``: the
+    widest of those arcs (radius ``|v| / (SLIP_TURN |w|)``) gets farthest soonest.
+
+    Returns
+    -------
+    float
+        s; ``inf`` when the vehicle can never get that far (a turn in place, or an arc whose
+        widest circle has a diameter under ``reach``).
+
+    """
+    if v == 0.0:
+        return math.inf
+    if w == 0.0:
+        return reach / abs(v)
+    rate = SLIP_TURN * abs(w)
+    diameter = 2.0 * abs(v) / rate
+    if diameter <= reach:
+        return math.inf
+    # The chord of the arc after t: diameter * sin(rate * t / 2).
+    return 2.0 * math.asin(reach / diameter) / rate
 
 
 def predict_step(pose, v: float, w: float, duration: float, samples: int = 50):
