@@ -99,8 +99,8 @@ class InputTopic:
         self._node = node
         self._msg_type = msg_type
         self.count = MessageCount()
-        self._user_callback = callback
-        self._callback = self.count.counted(callback)
+        self._callback = callback
+        self._counted = self.count.counted(callback)
         self._depth = depth
         self._order_key = order_key
         self._raw = raw
@@ -213,13 +213,13 @@ class InputTopic:
         if key in self._passed:
             return False
         self._passed.add(key)
-        self._callback(msg)
+        self._counted(msg)
         return True
 
     def _on_old(self, msg) -> None:
         self._old_traffic = True
         if self._order_key is None:
-            self._callback(msg)
+            self._counted(msg)
             return
         key = self._order_key(msg)
         self._pass_on(msg, key)
@@ -246,7 +246,7 @@ class InputTopic:
     @property
     def _steady_callback(self) -> Callable:
         """Return the callback of the subscription when no switch is under way."""
-        return self._drained if self._drain else self._callback
+        return self._drained if self._drain else self._counted
 
     def _drained(self, msg) -> None:
         """Pass on ``msg``, then up to ``drain`` messages that wait in the queue after it."""
@@ -254,7 +254,7 @@ class InputTopic:
         count = self.count
         count.last_ns = monotonic_ns()
         count.count += 1
-        callback = self._user_callback
+        callback = self._callback
         callback(msg)
         handle = self._subscription.handle
         for _ in range(self._drain):
