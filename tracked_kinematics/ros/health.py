@@ -151,7 +151,7 @@ class Health:
             PERIOD, self.update, clock=Clock(clock_type=ClockType.STEADY_TIME)) \
             if timer else None
 
-    def watch(self, *inputs: Iterable, needed=True, silence: float = SILENCE) -> None:
+    def watch(self, *inputs, needed=True, silence: float = SILENCE) -> None:
         """
         Watch input topics (:class:`~tracked_kinematics.ros.input_topic.InputTopic`).
 
