@@ -11,7 +11,7 @@ import time
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from helpers.encoder_stream import joint_state, Stderr
-from helpers.ros_helpers import spin_until
+from helpers.ros_helpers import ConsoleScript, spin_until
 import pytest
 from rclpy.node import Node
 from rclpy.parameter import Parameter
@@ -23,6 +23,7 @@ from tracked_kinematics.ros.health import ERROR, Health, OK
 from tracked_kinematics.ros.icr_estimator import IcrEstimatorNode
 from tracked_kinematics.ros.odometry_node import OdometryNode
 from tracked_kinematics.ros.tracked_simulator import TrackedSimulator
+from tracked_kinematics.share import config_file
 
 pytestmark = pytest.mark.ros
 
@@ -203,3 +204,22 @@ def test_health_rules_on_a_plain_node(ros_context, executor, made, capfd):
     assert spin_until(executor, lambda: publisher.publish(Float64()) or count.count > 0, 5.0)
     assert health.report().level == OK
     assert stderr.lines('INFO', 'health_test.plain', f'{NS}/speed: receiving again')
+
+
+def test_odometry_node_remapped_to_a_silent_topic_says_so(tmp_path):
+    # The case: the console script, remapped to a topic nobody publishes, printed
+    # nothing after its start-up line.
+    script = ConsoleScript('odometry_node', '--ros-args', '--params-file',
+                           config_file('auriga_alpha_hard_floor.yaml'), '-p',
+                           'publish_tf:=false', '-r', 'joint_states:=/nobody/joint_states',
+                           tmp_path=tmp_path)
+    with script:
+        deadline = time.monotonic() + 20.0
+        while time.monotonic() < deadline and script.process.poll() is None:
+            if '/nobody/joint_states: no publisher' in script.output:
+                break
+            time.sleep(0.1)
+        output = script.output
+    warned = [line for line in output.splitlines()
+              if line.startswith('[WARN]') and '/nobody/joint_states: no publisher' in line]
+    assert warned, output
