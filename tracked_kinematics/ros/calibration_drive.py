@@ -48,6 +48,7 @@ from tracked_kinematics.core.plan.supervisor import Inputs, Supervisor, Supervis
 from tracked_kinematics.params import (
     described_as, each, ENCODER_INPUT_PARAMS, icr_from_values, node_name, one_of, ParamSpec,
     positive, ros_name, TERRAIN_PARAMS)
+from tracked_kinematics.ros.calibration_health import watch_calibration_inputs
 from tracked_kinematics.ros.encoder_input import check_encoder_values, EncoderInput, WARN_PERIOD
 from tracked_kinematics.ros.input_topic import CHECK_PERIOD, InputTopic, steady_timer
 from tracked_kinematics.ros.parameters import TableNode
@@ -235,6 +236,7 @@ class CalibrationDriveNode(TableNode):
         if values['joy_topic']:
             self._inputs.append(InputTopic(self, Joy, values['joy_topic'], self._on_joy, 10))
         self._check_timer = steady_timer(self, CHECK_PERIOD, self._check_inputs)
+        self.health = watch_calibration_inputs(self, self.encoder.inputs, self._inputs)
         self.create_service(Trigger, '~/start', self._service(self.supervisor.start))
         self.create_service(Trigger, '~/pause', self._service(self.supervisor.pause))
         self.create_service(Trigger, '~/stop', self._service(self.supervisor.stop))

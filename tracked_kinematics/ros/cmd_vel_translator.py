@@ -64,6 +64,7 @@ from tracked_kinematics.core.kinematics import IcrParams
 from tracked_kinematics.params import (COMMAND_LIMIT_PARAMS, described_as, icr_from_values,
                                        LIMIT_FIELDS, limits_from_values, non_negative, one_of,
                                        ParamSpec, positive, ros_name, TERRAIN_PARAMS)
+from tracked_kinematics.ros.health import Health
 from tracked_kinematics.ros.loop_thread import LoopNode
 from tracked_kinematics.ros.main import run
 
@@ -206,6 +207,8 @@ class CmdVelTranslator(LoopNode):
 
         # cmd_vel: a forced type, or the one its publishers use (Twist while there are none).
         self._forced = forced_type(values)
+        self.health = Health(self)  # /diagnostics; a quiet cmd_vel is normal: not needed
+        self._cmd_count = self.health.watch_topic('cmd_vel', _TYPES_BY_NAME, needed=False)
         self._sub = None
         self._sub_type = None
         self._subscribe(self._forced or Twist)
@@ -244,7 +247,8 @@ class CmdVelTranslator(LoopNode):
 
     def _subscribe(self, msg_type) -> None:
         callback = self._on_twist_stamped if msg_type is TwistStamped else self._on_twist
-        self._sub = self.create_subscription(msg_type, 'cmd_vel', callback, 10)
+        self._sub = self.create_subscription(msg_type, 'cmd_vel',
+                                             self._cmd_count.counted(callback), 10)
         self._sub_type = msg_type
 
     def _on_twist(self, msg: Twist) -> None:

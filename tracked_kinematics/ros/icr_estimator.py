@@ -51,6 +51,7 @@ from tracked_kinematics.params import (
     TERRAIN_PARAMS)
 from tracked_kinematics.ros.encoder_input import (
     check_encoder_values, EncoderInput, WARN_PERIOD)
+from tracked_kinematics.ros.health import Health
 from tracked_kinematics.ros.input_topic import CHECK_PERIOD, InputTopic, steady_timer
 from tracked_kinematics.ros.main import run
 from tracked_kinematics.ros.parameters import TableNode
@@ -256,6 +257,10 @@ class IcrEstimatorNode(TableNode):
         self._pose_sub = self._inputs[0]
         if values['prediction.source'] == 'cmd_vel':
             self._inputs.append(InputTopic(self, Twist, 'cmd_vel', self._on_cmd_vel, 10))
+        # Health on /diagnostics: the encoders and the pose are needed, cmd_vel is not.
+        self.health = Health(self, timer=False)  # updated by _check_inputs
+        self.health.watch(*self.encoder.inputs, self._pose_sub)
+        self.health.watch(*self._inputs[1:], needed=False)
         self._check_timer = steady_timer(self, CHECK_PERIOD, self._check_inputs)
         self._icr_pub = self.create_publisher(Float64MultiArray, 'icr_estimate', 10)
         self._path_pub = self.create_publisher(Path, 'predicted_path', 10)
@@ -314,6 +319,7 @@ class IcrEstimatorNode(TableNode):
     def _check_inputs(self) -> None:
         for topic in self._inputs:
             topic.check()
+        self.health.update()
 
     def _on_step(self, stamp_s: float, d_left: float, d_right: float, dt: float) -> None:
         try:

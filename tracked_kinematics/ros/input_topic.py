@@ -11,17 +11,20 @@ enough for a second of input at 1 kHz. :meth:`InputTopic.check`, called about on
 re-subscribes when the publishers change, and names publishers of another message type on the
 topic, whose messages DDS silently never delivers. A new subscription is made before the
 old one is destroyed, and for stamped messages the two are merged by stamp until the old one
-has caught up, so the switch neither loses nor repeats a sample.
+has caught up, so the switch neither loses nor repeats a sample. Every message passed on is
+counted (:class:`~tracked_kinematics.ros.health.MessageCount`) for the node's health.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
+from time import monotonic_ns
 
 from rclpy.clock import Clock, ClockType
 from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.exceptions import InvalidHandle
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from tracked_kinematics.ros.health import MessageCount
 
 # Queue of an input subscription: one second at 1 kHz (ros2_control's fastest common update
 # rate), ten at 100 Hz, so a node that falls behind for that long catches up without a loss.
@@ -85,6 +88,9 @@ class InputTopic:
         The resolved topic name.
     reliability : rclpy.qos.ReliabilityPolicy
         Reliability of the current subscription.
+    count : MessageCount
+        Messages passed on, and when the last one was (for
+        :class:`~tracked_kinematics.ros.health.Health`).
 
     """
 
@@ -92,7 +98,9 @@ class InputTopic:
                  order_key: Callable | None = None, raw: bool = False, drain: int = 0):
         self._node = node
         self._msg_type = msg_type
+        self.count = MessageCount()
         self._callback = callback
+        self._counted = self.count.counted(callback)
         self._depth = depth
         self._order_key = order_key
         self._raw = raw
@@ -205,13 +213,13 @@ class InputTopic:
         if key in self._passed:
             return False
         self._passed.add(key)
-        self._callback(msg)
+        self._counted(msg)
         return True
 
     def _on_old(self, msg) -> None:
         self._old_traffic = True
         if self._order_key is None:
-            self._callback(msg)
+            self._counted(msg)
             return
         key = self._order_key(msg)
         self._pass_on(msg, key)
@@ -238,10 +246,14 @@ class InputTopic:
     @property
     def _steady_callback(self) -> Callable:
         """Return the callback of the subscription when no switch is under way."""
-        return self._drained if self._drain else self._callback
+        return self._drained if self._drain else self._counted
 
     def _drained(self, msg) -> None:
         """Pass on ``msg``, then up to ``drain`` messages that wait in the queue after it."""
+        # Counted inline (one clock read per turn): this is odometry_node's hot path.
+        count = self.count
+        count.last_ns = monotonic_ns()
+        count.count += 1
         callback = self._callback
         callback(msg)
         handle = self._subscription.handle
@@ -253,6 +265,7 @@ class InputTopic:
                 return
             if taken is None:
                 return
+            count.count += 1
             callback(taken[0])
 
     @property

@@ -10,7 +10,8 @@ docs/nodes/odometry_node.md (topics, input modes, bad input, covariance).
 ``track_width`` and ``sprocket_radius`` must be given (there is no default vehicle); the
 tread ICRs default to the ideal drive of that width. Once a second the node checks its input
 (:meth:`EncoderInput.check`) and its output topic: another publisher of odometry there (a
-second instance) is named in a warning.
+second instance) is named in a warning; and it publishes its health on ``/diagnostics``
+(:class:`~tracked_kinematics.ros.health.Health`).
 """
 
 from __future__ import annotations
@@ -32,6 +33,7 @@ from tracked_kinematics.params import (ENCODER_INPUT_PARAMS, frame_id, icr_from_
                                        zero_or_at_least)
 from tracked_kinematics.ros.encoder_input import (
     check_encoder_values, EncoderInput, WARN_PERIOD)
+from tracked_kinematics.ros.health import Health
 from tracked_kinematics.ros.input_topic import CHECK_PERIOD, steady_timer
 from tracked_kinematics.ros.main import run
 from tracked_kinematics.ros.odometry_message import OdometrySerializer
@@ -122,6 +124,8 @@ class OdometryNode(TableNode):
         self.encoder = None
         self._apply(values)
         self.encoder = EncoderInput(self, values, self._on_step, check_timer=False)
+        self.health = Health(self, timer=False)  # updated by _check, on the timer below
+        self.health.watch(*self.encoder.inputs)
         reset_service(self, self._reset, 'odometry reset: pose (0, 0, 0), covariance zero')
         # One timer for the input's checks and the output's: every timer of the node costs
         # each turn of the executor (each message) a little.
@@ -145,6 +149,7 @@ class OdometryNode(TableNode):
     def _check(self) -> None:
         self.encoder.check()
         self._check_output()
+        self.health.update()
 
     def _check_output(self) -> None:
         """Warn when another node publishes on the odometry topic too (two instances)."""

@@ -70,6 +70,7 @@ from tracked_kinematics.core.sim.terrains import Terrain, TERRAINS
 from tracked_kinematics.params import (described_as, finite, frame_id, non_negative, one_of,
                                        ParamSpec, positive)
 from tracked_kinematics.params.vehicles import load_vehicle, VehicleFile
+from tracked_kinematics.ros.health import Health
 from tracked_kinematics.ros.loop_thread import LoopNode
 from tracked_kinematics.ros.main import run
 
@@ -342,10 +343,13 @@ class TrackedSimulator(LoopNode):
                              durability=DurabilityPolicy.TRANSIENT_LOCAL)
         self._terrain_pub = self.create_publisher(String, '~/terrain', latched)
         self._terrain_pub.publish(String(data=self._terrain))
-        self.create_subscription(Float64, 'left_track/setpoint',
-                                 lambda msg: self._on_setpoint(0, msg), 10)
-        self.create_subscription(Float64, 'right_track/setpoint',
-                                 lambda msg: self._on_setpoint(1, msg), 10)
+        # Health on /diagnostics; no setpoint is normal (the robot stands still).
+        self.health = Health(self)
+        for side, topic in enumerate(('left_track/setpoint', 'right_track/setpoint')):
+            count = self.health.watch_topic(topic, ['std_msgs/msg/Float64'], needed=False)
+            self.create_subscription(
+                Float64, topic, count.counted(lambda msg, side=side: self._on_setpoint(side, msg)),
+                10)
 
         self._rtf = values['real_time_factor']
         self._clock_period = 1.0 / values['clock_rate']
