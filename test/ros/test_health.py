@@ -165,6 +165,20 @@ def test_calibration_drive_names_a_pose_topic_nobody_publishes(ros_context, exec
     assert stderr.warnings('health_test.calibration_drive', f'{topic}: no publisher')
 
 
+def test_with_auto_start_a_silent_deadman_is_named_before_the_start(ros_context, executor,
+                                                                      made):
+    # auto_start waits for the deadman: idle, its silence is why nothing happens.
+    monitor = Monitor(ros_context, executor)
+    made.append(monitor.node)
+    start(CalibrationDriveNode, {'output': 'unused.yaml', 'auto_start': True}, ros_context,
+          executor, made)
+
+    def named():
+        status = monitor.latest.get('calibration_drive: health')
+        return status is not None and f'{NS}/deadman: no publisher' in status.message
+    assert spin_until(executor, named, 10.0), monitor.latest
+
+
 def test_health_rules_on_a_plain_node(ros_context, executor, made, capfd):
     stderr = Stderr(capfd)
     node = Node('plain', namespace=NS, context=ros_context)

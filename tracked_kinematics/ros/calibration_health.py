@@ -2,8 +2,9 @@
 calibration_drive's health on ``/diagnostics``: which inputs it needs, and when.
 
 Its encoders and its reference (pose or IMU) are needed from the start (without them the
-drive cannot start); the deadman (topic or joystick) only while the drive moves the robot
-(``running`` or ``returning``). The supervisor's state and reason are added as key/values.
+drive cannot start); the deadman (topic or joystick) while the drive moves the robot
+(``running`` or ``returning``), and with ``auto_start`` also before it starts (it waits for
+the deadman). The supervisor's state and reason are added as key/values.
 Kept apart from the node, whose module holds the drive's safety.
 """
 
@@ -32,7 +33,9 @@ def watch_calibration_inputs(node, encoder_inputs: Sequence, inputs: Sequence) -
     """
     health = Health(node)
     health.watch(*encoder_inputs, inputs[0])
-    health.watch(*inputs[1:], needed=lambda: node.supervisor.state in DRIVING)
+    auto_start = node.supervisor.config.auto_start
+    health.watch(*inputs[1:], needed=lambda: node.supervisor.state in DRIVING or (
+        auto_start and node.supervisor.state == 'idle'))
 
     def drive(report: Report) -> None:
         last = node.supervisor.last
