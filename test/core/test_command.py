@@ -441,3 +441,19 @@ def test_force_stop_keeps_the_command():
     limiter.force_stop()
     assert limiter.setpoints == (0.0, 0.0)
     assert limiter.update(0.01) == pytest.approx(track_setpoints(0.3, 0.0, AURIGA))
+
+
+def test_stale_on_either_clock_stays_stale_and_stop_ramps_on_the_given_dt():
+    """Issue 27: a rewound clock cannot revive a stale command; a fault ramps on its own dt."""
+    limiter = CommandLimiter(IcrParams.ideal(0.5), CommandLimits(max_track_accel=1.0),
+                             timeout=0.5, steady_timeout=2.0)
+    limiter.command(0.4, 0.0, t=10.0, steady=100.0)
+    limiter.update(10.0, steady=100.0)
+    assert limiter.update(10.5, steady=100.5) == pytest.approx((0.4, 0.4))
+    assert limiter.is_stale(10.1, steady=102.1)  # the steady clock alone: stale
+    assert limiter.update(11.0, max_dt=0.1, steady=101.0) == pytest.approx((0.3, 0.3))
+    assert limiter.is_stale(10.1, steady=101.0)  # latched: the rewound clock does not revive
+    limiter.command(0.4, 0.0, t=10.2, steady=101.1)  # a new command does
+    assert not limiter.is_stale(10.3, steady=101.2)
+    assert limiter.stop(0.1) == pytest.approx((0.2, 0.2))  # 0.1 s at 1 m/s^2
+    assert limiter.is_stale(10.3, steady=101.2)

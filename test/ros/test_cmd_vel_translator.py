@@ -381,7 +381,9 @@ def test_console_script_exits_2_on_invalid_parameters(tmp_path, args, reason):
 
 def test_simulated_time_paused_holds_setpoints(graph, executor):
     from rosgraph_msgs.msg import Clock
-    _, probe = graph(use_sim_time=True, cmd_timeout=0.1)
+    # (Within clock_stall_timeout of steady time: longer, a clock that stands still is a
+    # fault, test_frozen_clock_is_a_fault_ramped_on_steady_time.)
+    _, probe = graph(use_sim_time=True, cmd_timeout=0.1, clock_stall_timeout=30.0)
     clock = probe.node.create_publisher(Clock, '/clock', 10)
 
     def tick(seconds):
@@ -526,7 +528,7 @@ def test_output_guard_publishes_zero_and_says_why(graph, executor, capfd):
         node._limiter.update = real_update
         assert drive(executor, probe, 0.3, 0.0, reaches(target))
         probe.clear()
-        node._limiter.update = lambda t, max_dt=math.inf, bad=bad: bad
+        node._limiter.update = lambda t, max_dt=math.inf, steady=None, bad=bad: bad
         assert np.all(zeros_from_now_on(executor, probe) == 0.0), bad
     node._limiter.update = real_update
     assert drive(executor, probe, 0.3, 0.0, reaches(target))
@@ -539,7 +541,7 @@ def test_an_error_in_the_publisher_is_logged_and_it_keeps_publishing(graph, exec
     node, probe = graph()
     real_update = node._limiter.update
 
-    def broken(t, max_dt=math.inf):
+    def broken(t, max_dt=math.inf, steady=None):
         raise RuntimeError('injected fault')
 
     assert drive(executor, probe, 0.3, 0.0, reaches(track_setpoints(0.3, 0.0, IDEAL)))
@@ -735,3 +737,215 @@ def test_docs_page_lists_every_parameter():
     page = (ROOT / 'docs' / 'nodes' / 'cmd_vel_translator.md').read_text()
     for spec in TRANSLATOR_PARAMS:
         assert spec in TERRAIN_PARAMS or f'`{spec.name}`' in page, spec.name
+
+
+# Issue 27 item 4: a /clock that stalls, goes back or is invalid ----------------------------
+
+
+class SimClock:
+    """
+    A simulation's /clock, ``rate`` x real time, published every 5 ms from a thread.
+
+    ``commands(send, every, wall)`` calls ``send()`` every ``every`` s of simulated time
+    (of wall time with ``wall``), from the same thread, as a drive on the simulation would.
+    ``change(sim=..., rate=..., invalid=...)`` jumps, freezes (rate 0) or sends ``sec = -1``.
+    """
+
+    def __init__(self, node, start=100.0, rate=1.0):
+        from rosgraph_msgs.msg import Clock
+        self._msg = Clock()
+        self._pub = node.create_publisher(Clock, '/clock', 10)
+        self.sim, self.rate, self.invalid = start, rate, False
+        self._command = None
+        self._lock = threading.RLock()  # send() may read now()
+        self._halt = threading.Event()
+        self._thread = threading.Thread(target=self._run, daemon=True)
+        self._thread.start()
+
+    def now(self):
+        with self._lock:
+            return self.sim
+
+    def change(self, **attrs):
+        with self._lock:
+            for name, value in attrs.items():
+                setattr(self, name, value)
+
+    def commands(self, send, every, wall=False):
+        with self._lock:
+            self._command, self._next = (send, every, wall), None
+
+    def _run(self):
+        last = time.monotonic()
+        while not self._halt.wait(0.005):
+            now = time.monotonic()
+            with self._lock:
+                self.sim += self.rate * (now - last)
+                last = now
+                stamp = self._msg.clock
+                if self.invalid:
+                    stamp.sec, stamp.nanosec = -1, 0
+                else:
+                    stamp.sec, stamp.nanosec = divmod(round(self.sim * 1e9), 1_000_000_000)
+                self._pub.publish(self._msg)
+                if self._command is not None:
+                    send, every, wall = self._command
+                    at = now if wall else self.sim
+                    if self._next is None or at >= self._next:
+                        send()
+                        self._next = at + every
+
+    def stop(self):
+        self._halt.set()
+        self._thread.join(TIMEOUT)
+
+
+@pytest.fixture
+def sim_clock(graph):
+    """Give SimClocks on a probe's node, stopped before the graph is destroyed."""
+    clocks = []
+
+    def make(probe, **kwargs):
+        clocks.append(SimClock(probe.node, **kwargs))
+        return clocks[-1]
+
+    yield make
+    for clock in clocks:
+        clock.stop()
+
+
+def spin_to(executor, probe, target, timeout=TIMEOUT):
+    """Spin until the last setpoints are ``target``; return the steady time it took."""
+    start = time.monotonic()
+    assert spin_until(executor, lambda: reaches(target)(probe), timeout), probe.latest()
+    return time.monotonic() - start
+
+
+def assert_ramp_down(probe, max_step=math.inf):
+    """Assert the left setpoints fell to zero in steps, none larger than ``max_step``."""
+    steps = np.diff(probe.setpoints()[:, 0])
+    assert np.all(steps <= 0.0) and np.all(-steps <= max_step + 1e-9), steps
+    assert np.count_nonzero(steps) >= 3  # a ramp, not a step
+
+
+def test_frozen_clock_is_a_fault_ramped_on_steady_time(graph, sim_clock, executor, capfd):
+    # The clock stops while commands keep coming (issue 27: the drive went on 3.3 m): after
+    # clock_stall_timeout (= cmd_timeout) of steady time the setpoints ramp to zero at the
+    # deceleration limit, on the steady clock since the node's own clock stands still.
+    timeout, decel, rate = 0.3, 2.0, 50.0
+    _, probe = graph(use_sim_time=True, cmd_timeout=timeout, max_track_accel=decel, rate=rate)
+    clock = sim_clock(probe)
+    clock.commands(lambda: probe.send(0.4, 0.0), every=0.05, wall=True)
+    spin_to(executor, probe, (0.4, 0.4))
+    capfd.readouterr()
+    probe.clear()
+    clock.change(rate=0.0)
+    elapsed = spin_to(executor, probe, (0.0, 0.0))
+    assert elapsed < timeout + 0.4 / decel + 1.0  # 1 s for a loaded machine
+    assert_ramp_down(probe, decel * 2.0 / rate)  # steady time: two periods at most
+    assert 'the ROS clock has not advanced for' in capfd.readouterr().err
+    # The clock runs again: the next command is followed.
+    clock.change(rate=1.0)
+    spin_to(executor, probe, (0.4, 0.4))
+    assert 'the ROS clock is healthy again' in capfd.readouterr().err
+
+
+def test_rewound_clock_never_revives_a_stale_command(graph, sim_clock, executor, capfd):
+    _, probe = graph(use_sim_time=True, cmd_timeout=0.5)
+    clock = sim_clock(probe)
+    sent = []
+
+    def send():
+        probe.send(0.3, 0.0)
+        sent.append(clock.now())
+
+    assert drive(executor, probe, 0.3, 0.0, lambda p: sent.append(clock.now())
+                 or reaches((0.3, 0.3))(p))
+    spin_to(executor, probe, (0.0, 0.0))  # stale by the simulated clock
+    # Back into the command's life (as the deadman was revived in issue 27): still stale.
+    # (Before its last send: the node's clock may lag the one sent, it sees no future.)
+    clock.change(sim=sent[-1] - 0.2)
+    probe.clear()
+    assert spin_until(executor, lambda: len(probe.joints) >= 25, TIMEOUT)
+    assert np.all(probe.setpoints() == 0.0), probe.setpoints()
+    assert 'the ROS clock went back' in capfd.readouterr().err
+    # A jump back while a command is in force drops it too; a new one is followed.
+    clock.commands(send, every=0.05)
+    spin_to(executor, probe, (0.3, 0.3))
+    clock.commands(lambda: None, every=1.0)
+    clock.change(sim=clock.now() - 5.0)
+    spin_to(executor, probe, (0.0, 0.0), timeout=3.0)  # cmd_timeout would take 5.5 s
+
+
+def test_invalid_clock_stops_and_recovers(graph, sim_clock, executor, capfd):
+    node, probe = graph(use_sim_time=True, cmd_timeout=0.5, max_track_accel=4.0)
+    clock = sim_clock(probe)
+    clock.commands(lambda: probe.send(0.4, 0.0), every=0.05, wall=True)
+    spin_to(executor, probe, (0.4, 0.4))
+    clock.change(invalid=True)  # sec = -1, while the commands keep coming
+    elapsed = spin_to(executor, probe, (0.0, 0.0))
+    assert elapsed < 0.4 / 4.0 + 1.0
+    count = len(probe.joints)
+    assert spin_until(executor, lambda: len(probe.joints) > count + 10, TIMEOUT)  # alive
+    assert node.failure is None and np.all(probe.setpoints()[count:] == 0.0)
+    assert 'negative time -1 s' in capfd.readouterr().err
+    clock.change(invalid=False)
+    spin_to(executor, probe, (0.4, 0.4))
+
+
+@pytest.mark.parametrize('rate, timeout, every', [(0.05, 0.25, 0.05), (20.0, 5.0, 0.05)],
+                         ids=['slow_0.05x', 'fast_20x'])
+def test_slow_and_fast_simulations_are_followed(graph, sim_clock, executor, rate, timeout,
+                                                every):
+    # Commands at 20 Hz of simulated time: at 0.05x one a second of wall time (4 x the
+    # steady clock's cmd_timeout), at 20x one every 2.5 ms. Neither times out.
+    _, probe = graph(use_sim_time=True, cmd_timeout=timeout)
+    clock = sim_clock(probe, rate=rate)
+    clock.commands(lambda: probe.send(0.3, 0.1), every=every)
+    target = track_setpoints(0.3, 0.1, IDEAL)
+    spin_to(executor, probe, target)
+    probe.clear()
+    end = time.monotonic() + 3.0  # a window of wall time, not a wait for a condition
+    assert spin_until(executor, lambda: time.monotonic() > end, 4.0)
+    assert len(probe.joints) > 50
+    assert probe.setpoints() == pytest.approx(np.tile(target, (len(probe.joints), 1)))
+
+
+DRIVE_SCRIPT = """
+import rclpy
+from geometry_msgs.msg import Twist
+rclpy.init()
+node = rclpy.create_node('drive_to_kill')
+pub = node.create_publisher(Twist, 'cmd_vel', 10)
+msg = Twist()
+msg.linear.x = 0.4
+node.create_timer(0.05, lambda: pub.publish(msg))
+rclpy.spin(node)
+"""
+
+
+@pytest.mark.parametrize('sim', [False, True], ids=['real_time', 'sim_time'])
+def test_killed_drive_stops_the_tracks(graph, sim_clock, executor, tmp_path, sim):
+    # The drive is SIGKILLed: its commands simply stop, nothing says goodbye.
+    import signal
+    import subprocess
+    import sys
+    timeout, decel = 0.3, 2.0
+    _, probe = graph(use_sim_time=sim, cmd_timeout=timeout, max_track_accel=decel)
+    if sim:
+        sim_clock(probe)
+    log = open(tmp_path / 'drive.log', 'w')
+    drive_process = subprocess.Popen([sys.executable, '-c', DRIVE_SCRIPT], stdout=log,
+                                     stderr=log)
+    try:
+        spin_to(executor, probe, (0.4, 0.4), timeout=30.0)  # the import takes seconds
+        probe.clear()
+        drive_process.send_signal(signal.SIGKILL)
+        elapsed = spin_to(executor, probe, (0.0, 0.0))
+    finally:
+        drive_process.kill()
+        drive_process.wait(TIMEOUT)
+        log.close()
+    assert elapsed < timeout + 0.4 / decel + 0.5
+    # (On simulated time a publish ramps over the simulated time since the last one.)
+    assert_ramp_down(probe, math.inf if sim else decel * 2.0 / 50.0)

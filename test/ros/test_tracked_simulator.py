@@ -469,3 +469,60 @@ def test_console_script_refuses_invalid_parameters(tmp_path, args, reason):
     fatal = [line for line in script.output.splitlines() if 'FATAL' in line]
     assert len(fatal) == 1 and reason in fatal[0], script.output
     assert 'Traceback' not in script.output
+
+
+def test_hostile_clock_kills_no_node_of_the_loop(graph, executor, ros_context, namespace):
+    """Issue 27: /clock at sec = -1, frozen and rewound beside the simulator's own: all live."""
+    from std_msgs.msg import Float64MultiArray
+    from tracked_kinematics.ros.icr_estimator import IcrEstimatorNode
+    sim, probe = graph()
+    terrain = read_params_file(config_file('auriga_alpha_hard_floor.yaml'))
+    terrain = {k: v for k, v in terrain.items() if k not in ('terrain', 'source')}
+
+    def overrides(**extra):
+        return [Parameter(k, value=v) for k, v in {**terrain, 'use_sim_time': True,
+                                                   **extra}.items()]
+    nodes = [CmdVelTranslator(context=ros_context, namespace=namespace,
+                              parameter_overrides=overrides(cmd_timeout=0.5)),
+             OdometryNode(context=ros_context, namespace=namespace,
+                          parameter_overrides=overrides()),
+             IcrEstimatorNode(context=ros_context, namespace=namespace,
+                              parameter_overrides=overrides(pose_topic='ground_truth/odom'))]
+    odom, icr = [], []
+    probe.node.create_subscription(Odometry, 'odom', odom.append, DEPTH)
+    probe.node.create_subscription(Float64MultiArray, 'icr_estimate', icr.append, DEPTH)
+    hostile = probe.node.create_publisher(Clock, '/clock', 10)
+    for node in nodes:
+        executor.add_node(node)
+    try:
+        command = Twist()
+        command.linear.x, command.angular.z = 0.3, 0.2
+        assert spin_until(executor, lambda: probe.cmd.publish(command) or len(odom) > 5,
+                          3 * TIMEOUT)
+        frozen = probe.sim_time()
+        for seconds in (-1, int(frozen), int(frozen) - 5, -1, int(frozen)):
+            msg = Clock()
+            msg.clock.sec = seconds
+            end = time.monotonic() + 0.5
+            counts = len(odom), len(probe.joints)
+
+            def attacked():
+                hostile.publish(msg)
+                probe.cmd.publish(command)
+                return time.monotonic() > end
+            assert spin_until(executor, attacked, TIMEOUT)
+            # Everyone is alive and publishes finite values.
+            assert spin_until(executor, lambda: len(odom) > counts[0]
+                              and len(probe.joints) > counts[1], TIMEOUT)
+        assert all(node.context.ok() for node in nodes) and sim.failure is None
+        assert nodes[0].failure is None
+        for msg in odom:
+            pose = msg.pose.pose.position
+            assert all(map(math.isfinite, (pose.x, pose.y, msg.twist.twist.linear.x)))
+        for msg in probe.joints:
+            assert all(map(math.isfinite, list(msg.position) + list(msg.velocity)))
+        assert all(math.isfinite(x) for msg in icr for x in msg.data)
+    finally:
+        for node in nodes:
+            executor.remove_node(node)
+            node.destroy_node()

@@ -293,8 +293,12 @@ class CommandLimiter:
     Twist commands in, limited nominal track setpoints out, one update per publish period.
 
     The caller gives each command with its time (:meth:`command`) and asks for the
-    setpoints at every publish time (:meth:`update`). A command older than ``timeout`` is
-    replaced by a stop, reached at the deceleration limits (at once when there are none).
+    setpoints at every publish time (:meth:`update`). A command older than ``timeout`` (or,
+    when the caller gives steady times too, older than ``steady_timeout`` on the steady
+    clock) is replaced by a stop, reached at the deceleration limits (at once when there are
+    none). A stale command stays stale until a new one comes, whatever the clocks say later
+    (a clock that goes back cannot revive it); :meth:`stop` ramps to zero on a clock of the
+    caller's choice (a fault of the ROS clock).
 
     Parameters
     ----------
@@ -304,12 +308,15 @@ class CommandLimiter:
         Velocity, acceleration and deceleration limits; none by default.
     timeout : float, optional
         Age (s) beyond which a command is stale, > 0; ``inf`` disables the timeout.
+    steady_timeout : float, optional
+        Steady time (s) since its arrival beyond which a command is stale, > 0; ``inf`` (the
+        default) judges on ``timeout`` alone.
     envelope : float, optional
         Largest nominal setpoint, m/s, whatever the limits (:data:`TRACK_SPEED_ENVELOPE`).
 
     Attributes
     ----------
-    icr, limits, timeout
+    icr, limits, timeout, steady_timeout
         May be replaced between updates (runtime parameter changes); the ramp continues
         from the last setpoints, scaled at once into new velocity limits (a velocity limit
         is never exceeded, not even to ramp down to it).
@@ -322,14 +329,18 @@ class CommandLimiter:
     """
 
     def __init__(self, icr: IcrParams, limits: CommandLimits | None = None,
-                 timeout: float = 0.5, envelope: float = TRACK_SPEED_ENVELOPE):
+                 timeout: float = 0.5, envelope: float = TRACK_SPEED_ENVELOPE,
+                 steady_timeout: float = math.inf):
         self._icr = icr
         self._limits = CommandLimits() if limits is None else limits
         self.timeout = timeout
+        self.steady_timeout = steady_timeout
         self.envelope = float(envelope)
         self._setpoints = (0.0, 0.0)
         self._command = (0.0, 0.0)
         self._command_time = -math.inf
+        self._command_steady: float | None = None  # steady time of its arrival, s
+        self._live = False  # the command is in force (not judged stale nor dropped)
         self._target: tuple[float, float] | None = None  # of the command, computed once
         self._last_update: float | None = None
 
@@ -363,7 +374,7 @@ class CommandLimiter:
         """Return the last nominal setpoints ``(left, right)``, m/s."""
         return self._setpoints
 
-    def command(self, v_x: float, w: float, t: float) -> None:
+    def command(self, v_x: float, w: float, t: float, steady: float | None = None) -> None:
         """
         Take a new twist command.
 
@@ -375,6 +386,8 @@ class CommandLimiter:
         t : float
             Time of the command (its arrival, or its stamp if older), s, on the clock of
             :meth:`update`.
+        steady : float, optional
+            Steady time of its arrival, s (``time.monotonic()``); None: not judged on it.
 
         Raises
         ------
@@ -388,10 +401,25 @@ class CommandLimiter:
         if (v_x, w) != self._command:
             self._command, self._target = (v_x, w), None
         self._command_time = float(t)
+        self._command_steady = None if steady is None else float(steady)
+        self._live = True
 
-    def is_stale(self, t: float) -> bool:
-        """Tell whether no command arrived in the ``timeout`` before ``t``."""
-        return t - self._command_time > self.timeout
+    def is_stale(self, t: float, steady: float | None = None) -> bool:
+        """
+        Tell whether the command in force is stale at ``t`` (and steady time ``steady``).
+
+        Stale: judged stale before or dropped, older than ``timeout`` at ``t``, or (when
+        both steady times are known) older than ``steady_timeout`` at ``steady``.
+        """
+        if not self._live or t - self._command_time > self.timeout:
+            return True
+        arrival = self._command_steady
+        return (steady is not None and arrival is not None
+                and steady - arrival > self.steady_timeout)
+
+    def drop(self) -> None:
+        """Take the command out of force: stale until a new one comes."""
+        self._live = False
 
     def target(self, v_x: float, w: float) -> tuple[float, float]:
         """
@@ -415,7 +443,8 @@ class CommandLimiter:
         left, right = envelope_setpoints(v_x, w, icr, self.max_speed)
         return float(left), float(right)
 
-    def update(self, t: float, max_dt: float = math.inf) -> tuple[float, float]:
+    def update(self, t: float, max_dt: float = math.inf,
+               steady: float | None = None) -> tuple[float, float]:
         """
         Setpoints at time ``t``: toward the current command (or a stop) at the ramp limits.
 
@@ -426,6 +455,8 @@ class CommandLimiter:
         max_dt : float, optional
             Longest interval (s) one update may ramp over, so that a caller that stalled
             does not get a jump (the node passes two publish periods).
+        steady : float, optional
+            Steady time now, s, to judge the command on ``steady_timeout`` too.
 
         Returns
         -------
@@ -436,13 +467,26 @@ class CommandLimiter:
         t = float(t)
         dt = 0.0 if self._last_update is None else min(max(t - self._last_update, 0.0), max_dt)
         self._last_update = t
-        if self.is_stale(t):
+        if self.is_stale(t, steady):
+            self._live = False  # latched: no later clock reading revives it
             target = (0.0, 0.0)
         else:
             if self._target is None:
                 self._target = self.target(*self._command)
             target = self._target
         self._setpoints = self._ramp(target, dt)
+        return self._setpoints
+
+    def stop(self, dt: float) -> tuple[float, float]:
+        """
+        Drop the command and ramp toward zero over ``dt`` s at the deceleration limits.
+
+        For a fault of the clock of :meth:`update`: ``dt`` comes from another clock (the
+        steady one), and the next :meth:`update` ramps from there without a jump.
+        """
+        self._live = False
+        self._last_update = None
+        self._setpoints = self._ramp((0.0, 0.0), max(float(dt), 0.0))
         return self._setpoints
 
     def force_stop(self) -> None:
@@ -454,6 +498,8 @@ class CommandLimiter:
         self._setpoints = (0.0, 0.0)
         self._command = (0.0, 0.0)
         self._command_time = -math.inf
+        self._command_steady = None
+        self._live = False
         self._target = None
         self._last_update = None
 

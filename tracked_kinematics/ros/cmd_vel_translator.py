@@ -23,12 +23,17 @@ Topics
 
 Time
 ----
-Ramps and the command timeout run on the node's clock (``use_sim_time`` works: a paused
-simulation holds the setpoints). A command is in force from its arrival; a TwistStamped
-one from its header stamp when that is older (so a command older than ``cmd_timeout`` by
-its stamp is stale, as in diff_drive_controller; a zero stamp means "now", as there; a stamp
-from the future counts as its arrival, so no clock skew keeps a dead command alive).
-``cmd_timeout: 0`` disables the timeout.
+Ramps and the command timeout run on the node's clock (``use_sim_time`` works). A command
+is in force from its arrival; a TwistStamped one from its header stamp when that is older
+(a zero stamp means "now"; a stamp from the future counts as its arrival). It is stale when
+older than ``cmd_timeout`` on the node's clock OR on the steady clock since its arrival
+(``cmd_timeout`` in real time, ``cmd_timeout / SLOWEST_SIM_RATE`` under simulated time),
+and stays stale until a new command comes. Under simulated time the node's clock is watched
+(:class:`~tracked_kinematics.core.clock_watch.ClockWatch`): invalid, gone back, or standing
+still for ``clock_stall_timeout`` of steady time is a fault that drops the command and ramps
+the setpoints to zero at the deceleration limits in steady time; a new command after the
+clock is healthy again is followed. ``cmd_timeout: 0`` disables the timeout (not the clock
+faults). The rule: docs/nodes/cmd_vel_translator.md, "Timeout and stamps".
 
 Output guard
 ------------
@@ -57,13 +62,15 @@ from typing import Any
 
 from geometry_msgs.msg import Twist, TwistStamped
 from std_msgs.msg import Float64, Float64MultiArray
+from tracked_kinematics.core.clock_watch import ClockWatch
 from tracked_kinematics.core.command import (CommandLimiter, CommandLimits, exceeds_envelope,
                                              setpoint_problem, setpoint_twist,
                                              TRACK_SPEED_ENVELOPE)
 from tracked_kinematics.core.kinematics import IcrParams
-from tracked_kinematics.params import (COMMAND_LIMIT_PARAMS, described_as, icr_from_values,
-                                       LIMIT_FIELDS, limits_from_values, non_negative, one_of,
-                                       ParamSpec, positive, ros_name, TERRAIN_PARAMS)
+from tracked_kinematics.params import (COMMAND_LIMIT_PARAMS, Derived, described_as,
+                                       icr_from_values, LIMIT_FIELDS, limits_from_values,
+                                       non_negative, one_of, ParamSpec, positive, ros_name,
+                                       TERRAIN_PARAMS)
 from tracked_kinematics.ros.health import Health
 from tracked_kinematics.ros.loop_thread import LoopNode
 from tracked_kinematics.ros.main import run
@@ -79,6 +86,12 @@ GRAPH_POLL_PERIOD = 0.5  # s between looks at the cmd_vel publishers
 WARN_PERIOD = 1.0  # s, throttle of the warnings on recurring bad input
 GRAPH_WARN_PERIOD = 10.0  # s, throttle of the warnings on the graph
 FUTURE_STAMP = 1.0  # s a TwistStamped may be ahead of the node's clock without a warning
+# Slowest simulation (x real time) whose commands the steady-clock bound never times out
+# early: under simulated time a command is stale after cmd_timeout / SLOWEST_SIM_RATE of
+# steady time without a new one, whatever /clock says.
+SLOWEST_SIM_RATE = 0.02
+FAULT_WARN_PERIOD = 5.0  # s between warnings of one clock fault that lasts
+NO_TIMEOUT_STALL = 1.0  # s, clock_stall_timeout's default when cmd_timeout is 0
 
 
 @described_as('empty (off) or a valid ROS name')
@@ -93,6 +106,11 @@ TRANSLATOR_PARAMS: tuple[ParamSpec, ...] = TERRAIN_PARAMS + (
               'Age of the last command (by arrival; by header stamp for TwistStamped when '
               'older) beyond which the setpoints ramp to zero; 0 = no timeout', 's',
               non_negative, low=0.0, high=60.0),
+    ParamSpec('clock_stall_timeout', 0.5,
+              'Under use_sim_time: steady (wall) time the ROS clock may stand still before it '
+              'is a fault that ramps the setpoints to zero', 's', positive, low=0.0, high=60.0,
+              derived=Derived(f'cmd_timeout ({NO_TIMEOUT_STALL:g} s when cmd_timeout is 0)',
+                              lambda values: float(values['cmd_timeout']) or NO_TIMEOUT_STALL)),
     ParamSpec('cmd_vel_type', 'auto',
               'Message type of cmd_vel: auto (the type its publishers use; Twist while there '
               'are none), twist or twist_stamped', check=one_of(('auto', *CMD_VEL_TYPES)),
@@ -189,6 +207,10 @@ class CmdVelTranslator(LoopNode):
         self._radius = values['sprocket_radius']
         self._period = 1.0 / values['rate']
         self._t0 = self.get_clock().now().nanoseconds
+        self._watch = ClockWatch(values['clock_stall_timeout'])
+        self._fault_kind = ''  # the clock fault in force, without its numbers ('' healthy)
+        self._fault_warned = -math.inf  # steady time of its last warning
+        self._last_steady = time.monotonic()  # of the last publish
         self._was_stale = True
         self._lateral_noted = False
         self._zero_stamp_noted = False
@@ -271,13 +293,14 @@ class CmdVelTranslator(LoopNode):
             self.get_logger().warning(
                 'cmd_vel has a lateral velocity (linear.y); a tracked vehicle cannot be '
                 'commanded sideways, so linear.y is ignored (this note is shown once)')
+        steady = time.monotonic()
         now_ns = self.get_clock().now().nanoseconds
         t = (now_ns - self._t0) * 1e-9
         if stamp_ns is not None:
             t -= self._stamp_age(now_ns, stamp_ns)
         with self._lock:
             icr = self._limiter.icr
-            self._limiter.command(lin.x, ang.z, t)
+            self._limiter.command(lin.x, ang.z, t, steady)
         if exceeds_envelope(lin.x, ang.z, icr):
             self.get_logger().warning(
                 f'cmd_vel (v_x {lin.x:g} m/s, w {ang.z:g} rad/s) asks for track speeds beyond '
@@ -430,18 +453,48 @@ class CmdVelTranslator(LoopNode):
         except Exception:  # noqa: BLE001 -- already destroyed: nothing to wake
             pass
 
+    def _read_clock(self, steady: float) -> tuple[int | None, bool, str]:
+        """
+        Return the node's clock now (ns, or None), whether it is simulated, and its fault.
+
+        Never raises: a clock that cannot be read is a fault. Under simulated time the clock
+        is judged by :attr:`_watch` (invalid, gone back, standing still).
+        """
+        try:
+            clock = self.get_clock()
+            now_ns = clock.now().nanoseconds
+            sim = clock.ros_time_is_active
+        except Exception as err:  # noqa: BLE001 -- a clock we cannot read: stop, say why
+            return None, True, f'the ROS clock cannot be read ({err!r})'
+        if not sim:
+            return now_ns, False, ''
+        refused = self.clock_fault()
+        fault = self._watch.update(None if refused else now_ns * 1e-9, steady)
+        return now_ns, True, (refused or fault)
+
     def _publish(self) -> None:
-        now_ns = self.get_clock().now().nanoseconds
-        t = (now_ns - self._t0) * 1e-9
+        steady = time.monotonic()
+        dt_steady = min(max(steady - self._last_steady, 0.0), 2.0 * self._period)
+        self._last_steady = steady
+        now_ns, sim, fault = self._read_clock(steady)
+        t = None if now_ns is None else (now_ns - self._t0) * 1e-9
         # A stall of this process must not turn into a jump: ramp over at most two periods.
         # (With simulated time a stall stops the clock too, so there is nothing to guard.)
-        max_dt = math.inf if self.get_clock().ros_time_is_active else 2.0 * self._period
+        max_dt = math.inf if sim else 2.0 * self._period
         joint = self._joint_pub is not None
         out = self._out_pub is not None and self._out_wanted
         with self._lock:
             limiter = self._limiter
+            # Real time: the steady clock bounds a command's age as the node's clock does
+            # (which a jump of the system clock fools); simulated: only slower than
+            # SLOWEST_SIM_RATE, the clock faults do the rest.
+            limiter.steady_timeout = limiter.timeout / (SLOWEST_SIM_RATE if sim else 1.0)
             try:
-                left, right = limiter.update(t, max_dt=max_dt)
+                if fault:
+                    # The node's clock is not to be trusted: no command, a ramp on steady time.
+                    left, right = limiter.stop(dt_steady)
+                else:
+                    left, right = limiter.update(t, max_dt=max_dt, steady=steady)
                 problem = setpoint_problem(left, right, limiter.icr, limiter.limits,
                                            limiter.envelope)
                 if problem is None and joint:
@@ -455,11 +508,12 @@ class CmdVelTranslator(LoopNode):
                 bad, left, right = (left, right), 0.0, 0.0
                 joint_left = joint_right = 0.0
             v_x, w = setpoint_twist(left, right, limiter.icr) if out else (0.0, 0.0)
-            stale = limiter.is_stale(t)
+            stale = bool(fault) or limiter.is_stale(t, steady)
         if problem is not None:
             self.get_logger().warning(
                 f'output guard: setpoints {bad[0]!r}, {bad[1]!r} not published ({problem}); '
                 'published 0 instead', throttle_duration_sec=WARN_PERIOD)
+        self._note_fault(fault, steady)
         if stale and not self._was_stale:
             self.get_logger().debug('no cmd_vel for cmd_timeout: ramping to zero')
         self._was_stale = stale
@@ -471,9 +525,23 @@ class CmdVelTranslator(LoopNode):
             self._joint_pub.publish(self._joint_msg)
         if out:
             msg = self._out_msg
-            msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(now_ns, 1_000_000_000)
+            stamp_ns = now_ns if now_ns is not None and now_ns >= 0 else 0
+            msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(stamp_ns, 1_000_000_000)
             msg.twist.linear.x, msg.twist.angular.z = v_x, w
             self._out_pub.publish(msg)
+
+    def _note_fault(self, fault: str, steady: float) -> None:
+        """Warn at a new clock fault, then every FAULT_WARN_PERIOD; say when it is over."""
+        if fault:
+            kind = ''.join(c for c in fault if not c.isdigit())  # the numbers change
+            if kind != self._fault_kind or steady - self._fault_warned >= FAULT_WARN_PERIOD:
+                self._fault_kind, self._fault_warned = kind, steady
+                self.get_logger().warning(
+                    f'{fault}: the command is dropped and the setpoints ramp to zero; a new '
+                    'cmd_vel is followed once the clock is healthy')
+        elif self._fault_kind:
+            self._fault_kind = ''
+            self.get_logger().info('the ROS clock is healthy again: waiting for a new cmd_vel')
 
     # Parameters and shutdown ----------------------------------------------------------------
 
@@ -490,6 +558,7 @@ class CmdVelTranslator(LoopNode):
             self._limiter.icr = icr
             self._limiter.limits = limits
             self._limiter.timeout = timeout
+            self._watch.stall_timeout = values['clock_stall_timeout']
             self._radius = values['sprocket_radius']
             period = 1.0 / values['rate']
             rescheduled, self._period = period != self._period, period
