@@ -21,7 +21,7 @@ import tracked_kinematics
 
 BIN = Path(sys.executable).parent
 HEAVY = ('numpy', 'scipy', 'rclpy', 'rosbags', 'yaml', 'matplotlib')
-PROBE = r'''
+PROBE = r"""
 import json, signal, sys
 sys.argv[0] = sys.argv[1]
 import tracked_kinematics
@@ -31,7 +31,7 @@ for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
     names[sig.name] = (f'{handler.__module__}.{handler.__qualname__}' if callable(handler)
                        else signal.Handlers(handler).name)
 print(json.dumps({'handlers': names, 'modules': sorted(sys.modules)}))
-'''
+"""
 
 
 def handlers_after_the_first_import(name):

@@ -254,4 +254,3 @@ def finish() -> None:
     state.held = 0
     state.pending = None
     state.stopping = False
-
