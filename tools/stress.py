@@ -4,10 +4,11 @@ Check the suite and the nodes' stops under CPU load: ``make stress`` runs this.
 
 1. Starts ``--busy`` CPU-bound processes (default: as many as the runs, ``--runs``).
 2. Runs the whole test suite ``--runs`` times beside them, reruns off, and prints each
-   run's closing line; the offline tools are signalled at 20 instants each there (four
+   run's closing line; the offline tools are signalled at 28 instants each there (four
    times the suite's own, ``TRACKED_KINEMATICS_STOP_SCALE=4``).
 3. Stops each node's console script ``--stops`` times at random instants (SIGINT or
-   SIGTERM, some signalled twice, during the imports, the start-up or a 1 kHz input) and
+   SIGTERM, some signalled twice, in the first 1.5 s waiting for nothing, during the
+   start-up or a 1 kHz input) and
    prints, per node, how many stops were clean and how many left a traceback, hung, or
    exited non-zero.
 
@@ -43,7 +44,7 @@ def _busy(count: int) -> list[subprocess.Popen]:
 
 def _suite(run: int) -> bool:
     started = time.monotonic()
-    # Four times the suite's signal instants of every offline tool (20 per tool).
+    # Four times the suite's signal instants of every offline tool (28 per tool).
     env = {**os.environ, 'TRACKED_KINEMATICS_STOP_SCALE': '4'}
     result = subprocess.run([sys.executable, '-m', 'pytest', '-q', '-p', 'no:rerunfailures'],
                             cwd=ROOT, capture_output=True, text=True, env=env)

@@ -3,10 +3,16 @@ Stopping a node's console script at a random instant, with its input flowing.
 
 Shared by the suite (a few stops per node) and ``make stress`` (``tools/stress.py``: many,
 beside CPU-bound processes). A stop is a SIGINT or SIGTERM, sometimes a second one shortly
-after, sent at a random moment of the node's life: while it imports, while it builds itself,
-or while it takes a 1 kHz input. The outcome records the exit status, whether the node was
-up (its first log line) when signalled, a traceback in its output, and a hang (no exit in
-``hang_timeout`` s).
+after, sent at a random moment of the node's life: as soon as the process exists, while it
+imports, while it builds itself, or while it takes a 1 kHz input. The outcome records the
+exit status, whether the node was up (its first log line) when signalled, whether the
+package had taken the signals yet (read from /proc just before the signal), a traceback in
+its output, and a hang (no exit in ``hang_timeout`` s).
+
+A signal before the package's first line lands in the interpreter's own start-up, which no
+code of the package can reach (docs/testing.md): it takes Python's course, which
+:attr:`Stop.python_course` recognises. From the package's first line on, every stop must
+be an exit 0 without a traceback.
 """
 
 from __future__ import annotations
@@ -15,6 +21,7 @@ from dataclasses import dataclass
 import os
 from pathlib import Path
 import random
+import re
 import signal
 import subprocess
 import sys
@@ -22,6 +29,11 @@ import threading
 import time
 
 BIN = Path(sys.executable).parent
+PACKAGE = Path(__file__).resolve().parents[2] / 'tracked_kinematics'
+EARLY = 1.5
+"""Seconds: ``when='early'`` signals at a random instant this soon after the process starts."""
+LOST_AFTER = 10.0
+"""Seconds: a node signalled before the package ran that still runs this long after lost it."""
 VEHICLE_ARGS = ('-p', 'track_width:=0.42', '-p', 'sprocket_radius:=0.1')
 
 #: Per node: extra arguments and the words of its first log line once it is up.
@@ -35,6 +47,26 @@ NODES = {
 }
 
 
+def package_frames(output: str) -> list[str]:
+    """Return the files of the package named in a traceback of ``output``."""
+    return [path for path in re.findall(r'File "([^"]+)"', output)
+            if Path(path).resolve().is_relative_to(PACKAGE)]
+
+
+def python_course(signum: int, status: int | None, output: str) -> bool:
+    """
+    Return whether ``signum`` ended a process before the package ran, as Python ends any.
+
+    Death by the signal with no output, or (SIGINT, once the interpreter has its own
+    handler) a KeyboardInterrupt traceback with no frame of the package, exit status 1 in
+    the site import or death by SIGINT after it.
+    """
+    if status == -signum and not output.strip():
+        return True
+    return (signum == signal.SIGINT and status in (1, -signal.SIGINT)
+            and output.rstrip().endswith('KeyboardInterrupt') and not package_frames(output))
+
+
 @dataclass
 class Stop:
     """What one stop did."""
@@ -46,22 +78,21 @@ class Stop:
     status: int | None  # None: it hung (was killed)
     traceback: bool
     output: str
+    before_package: bool = False
+    """The first signal was sent before the process caught SIGTERM: the package had not run."""
+    lost: bool = False
+    """... and the node still ran :data:`LOST_AFTER` s later: Python lost it (one more sent)."""
 
     @property
-    def before_python(self) -> bool:
-        """
-        Return whether the signal's default action ended the process before it ran any code.
-
-        In the interpreter's own start-up (some tens of ms, before the package's first
-        line can install a handler) nothing can catch a signal; it has written nothing yet.
-        """
-        return (self.status is not None and self.status < 0 and not self.up
-                and not self.output.strip())
+    def python_course(self) -> bool:
+        """Return whether the first signal ended the process before the package ran."""
+        return self.before_package and python_course(
+            signal.Signals[self.signals[0]], self.status, self.output)
 
     @property
     def clean(self) -> bool:
-        """Return whether the stop was clean: exit 0 (or ended before Python ran), no trace."""
-        return (self.status == 0 or self.before_python) and not self.traceback
+        """Return whether the stop was clean: exit 0 and no traceback, or Python's course."""
+        return (self.status == 0 and not self.traceback) or self.python_course
 
 
 class Feeder:
@@ -106,7 +137,7 @@ class Feeder:
         self._context.try_shutdown()
 
 
-def _catches_sigterm(pid: int) -> bool:
+def catches_sigterm(pid: int) -> bool:
     """Return whether process ``pid`` has a handler for SIGTERM (from /proc)."""
     try:
         with open(f'/proc/{pid}/status') as status:
@@ -124,13 +155,17 @@ def stop_once(name: str, rng: random.Random, workdir: Path, env: dict[str, str] 
     """
     Start ``name``, signal it at a random instant, wait for it to exit.
 
-    ``when`` is ``'startup'`` (a random instant of the first ``startup`` s after the package
+    ``when`` is ``'at once'`` (as soon as the process exists, in the interpreter's own
+    start-up), ``'early'`` (a random instant of the first :data:`EARLY` s after the process
+    started, waiting for nothing: before or after the package's first line),
+    ``'startup'`` (a random instant of the first ``startup`` s after the package
     has begun to catch SIGTERM, which should cover the node's own start-up on this machine:
     imports, parameters), ``'running'`` (a
     random instant of the first 0.5 s after its first log line, input flowing) or None,
-    either at random: both phases are hit whatever the machine's speed. ``signals`` are
-    sent in order with random gaps of up to 0.2 s; by default one or (three times in ten)
-    two of SIGINT and SIGTERM at random.
+    any of the last three at random: every phase is hit whatever the machine's speed.
+    ``signals`` are sent in order with random gaps of up to 0.2 s; by default one or (three
+    times in ten) two of SIGINT and SIGTERM at random. A node signalled before the package
+    ran that still runs :data:`LOST_AFTER` s later gets one more SIGTERM (:attr:`Stop.lost`).
     """
     extra, up_words = NODES[name]
     workdir.mkdir(parents=True, exist_ok=True)
@@ -142,13 +177,17 @@ def stop_once(name: str, rng: random.Random, workdir: Path, env: dict[str, str] 
             stderr=subprocess.STDOUT,
             env={**os.environ, 'PYTHONUNBUFFERED': '1', **(env or {})})
         started = time.monotonic()
-        when = when or rng.choice(['startup', 'running'])
-        if when == 'startup':
+        when = when or rng.choice(['early', 'startup', 'running'])
+        if when == 'at once':
+            pass
+        elif when == 'early':
+            time.sleep(rng.uniform(0.0, EARLY))
+        elif when == 'startup':
             # From the moment the package catches SIGTERM (its first lines): before, the
             # interpreter itself is starting, and a signal there takes Python's own course
             # (death, or a KeyboardInterrupt in its site import) before any code of ours.
             deadline = started + hang_timeout
-            while (not _catches_sigterm(process.pid) and process.poll() is None
+            while (not catches_sigterm(process.pid) and process.poll() is None
                    and time.monotonic() < deadline):
                 time.sleep(0.002)
             time.sleep(rng.uniform(0.0, startup))
@@ -166,11 +205,19 @@ def stop_once(name: str, rng: random.Random, workdir: Path, env: dict[str, str] 
                 sigs.append(rng.choice([signal.SIGINT, signal.SIGTERM]))
         else:
             sigs = list(signals)
+        before_package = not catches_sigterm(process.pid)
         for k, sig in enumerate(sigs):
             if process.poll() is None:
                 process.send_signal(sig)
             if k + 1 < len(sigs):
                 time.sleep(rng.uniform(0.0, 0.2))
+        lost = False
+        if before_package:
+            try:
+                process.wait(LOST_AFTER)
+            except subprocess.TimeoutExpired:
+                lost = True
+                process.send_signal(signal.SIGTERM)
         try:
             status = process.wait(hang_timeout)
         except subprocess.TimeoutExpired:
@@ -179,7 +226,7 @@ def stop_once(name: str, rng: random.Random, workdir: Path, env: dict[str, str] 
             status = None
     output = out_path.read_text(errors='replace')
     return Stop(name, tuple(s.name for s in sigs), delay, up, status,
-                'Traceback' in output, output)
+                'Traceback' in output, output, before_package, lost)
 
 
 def summary(stops: list[Stop]) -> str:
@@ -196,6 +243,8 @@ def summary(stops: list[Stop]) -> str:
             f', hangs {sum(s.status is None for s in mine):2d}'
             f', non-zero exits {sum(s.status not in (0, None) for s in mine):2d}'
             + (f' {codes}' if codes else '')
-            + f' (once up: {sum(s.status not in (0, None) for s in up)}; ended before '
-            f'Python ran: {sum(s.before_python for s in mine)})')
+            + f' (once up: {sum(s.status not in (0, None) for s in up)}; signalled before '
+            f'the package ran: {sum(s.before_package for s in mine)}, of which ended by '
+            f'Python {sum(s.python_course for s in mine)}, lost by Python '
+            f'{sum(s.lost for s in mine)})')
     return '\n'.join(lines)

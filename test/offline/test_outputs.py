@@ -1,9 +1,13 @@
 """offline/outputs.py: output paths checked first, written atomically, all or none."""
 
+import contextlib
 import os
+import signal
 import stat
+import subprocess
 
 import pytest
+from tracked_kinematics.offline import outputs as outputs_module
 from tracked_kinematics.offline.outputs import check_output, OutputError, Outputs
 
 
@@ -278,8 +282,76 @@ def test_a_hard_link_to_another_output_is_the_same_file(tmp_path):
 
 
 def test_a_name_too_long_for_its_temporary_file_is_refused_first(tmp_path):
-    name = 'x' * 240 + '.yaml'   # a valid name, but .NAME.tmp-XXXXXXXX.yaml is not
+    # A valid name, but the start check's .NAME.tmp-check-XXXXXXXX.yaml is not.
+    name = 'x' * 240 + '.yaml'
     with pytest.raises(OutputError, match='the file name is too long for its temporary file '
-                                          r'\(at most 236 bytes here\)'):
+                                          r'\(at most 230 bytes here\)'):
         check_output('--output', tmp_path / name)
-    check_output('--output', tmp_path / ('x' * 231 + '.yaml'))
+    check_output('--output', tmp_path / ('x' * 225 + '.yaml'))
+
+
+# The start check creates a file where the output will be staged (issue 27 item 8): os.access
+# said yes to root for /proc and /sys, and the write failed only after the whole run.
+@pytest.mark.parametrize('path', ['/proc/x.yaml', '/proc/self/x.yaml', '/sys/x.yaml'])
+def test_a_directory_that_takes_no_file_is_refused_at_start(path):
+    with pytest.raises(OutputError, match=r'^--output .*: directory /\w+.* is not writable '
+                       r'\(creating a file there: '):
+        Outputs(force=True).add('--output', path)
+
+
+@pytest.mark.parametrize('directory', [False, True])
+def test_the_start_check_leaves_nothing(tmp_path, directory):
+    Outputs().add('--output', tmp_path / 'a.yaml', directory=directory)
+    assert listing(tmp_path) == []
+
+
+def test_the_start_check_leaves_nothing_when_its_write_fails(tmp_path, monkeypatch):
+    def full(fd, data):
+        raise OSError(28, 'No space left on device')
+    monkeypatch.setattr(outputs_module.os, 'write', full)
+    with pytest.raises(OutputError, match=r'is full \(creating a file there: No space left'):
+        Outputs().add('--output', tmp_path / 'a.yaml')
+    assert listing(tmp_path) == []
+
+
+def test_a_signal_during_the_start_check_leaves_nothing(tmp_path, monkeypatch):
+    # Ctrl-C right after the file was made: held until it is removed again.
+    real = outputs_module.tempfile.mkstemp
+
+    def then_interrupt(*args, **kwargs):
+        made = real(*args, **kwargs)
+        os.kill(os.getpid(), signal.SIGINT)
+        return made
+    monkeypatch.setattr(outputs_module.tempfile, 'mkstemp', then_interrupt)
+    with pytest.raises(KeyboardInterrupt):
+        Outputs().add('--output', tmp_path / 'a.yaml')
+    assert listing(tmp_path) == []
+
+
+@contextlib.contextmanager
+def tmpfs(where, options):
+    """Mount a small tmpfs at ``where`` (root only; skip where mounting is not allowed)."""
+    where.mkdir()
+    if os.geteuid() != 0 or subprocess.run(
+            ['mount', '-t', 'tmpfs', '-o', options, 'tmpfs', str(where)],
+            capture_output=True).returncode != 0:
+        pytest.skip('cannot mount a tmpfs here')
+    try:
+        yield where
+    finally:
+        subprocess.run(['umount', '-l', str(where)], check=True)
+
+
+def test_a_full_or_read_only_file_system_is_refused_at_start(tmp_path):
+    with tmpfs(tmp_path / 'full', 'size=64k') as full:
+        with open(full / 'filler', 'wb') as filler:
+            with contextlib.suppress(OSError):
+                filler.write(bytes(1 << 20))
+        with pytest.raises(OutputError, match=r'directory .*full is full \(creating a file '
+                           r'there: No space left on device\)'):
+            Outputs().add('--output', full / 'a.yaml')
+        assert listing(full) == ['filler']
+    with tmpfs(tmp_path / 'ro', 'size=64k,ro') as read_only:
+        with pytest.raises(OutputError, match=r'is not writable \(creating a file there: '
+                           r'Read-only file system\)'):
+            Outputs().add('--output', read_only / 'a.yaml')

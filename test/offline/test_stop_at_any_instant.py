@@ -18,8 +18,11 @@ fourth run gets a second signal soon after the first. Each run must end
   user's files untouched. Never a subset of them.
 
 Instants are measured from the moment the tool's process has taken SIGTERM (read from
-/proc): before that the interpreter is starting and the package has not run yet
-(docs/output-files.md, rule 5).
+/proc), except the ``early`` ones: at once, or at a random instant of the first 1.5 s after
+the process started, waiting for nothing. One that comes before the package's first line
+(read from /proc just before the signal) lands in the interpreter's own start-up and may
+take Python's course (docs/testing.md): death by the signal, or Python's
+KeyboardInterrupt traceback with no frame of the package, and nothing written.
 """
 
 from concurrent.futures import ThreadPoolExecutor
@@ -36,16 +39,21 @@ import sys
 import time
 
 from helpers.setup_info import console_scripts, ROOT
+from helpers.stops import python_course
 import pytest
 from tracked_kinematics.offline.cli.simulate_bag import simulate_bag
+from tracked_kinematics.offline.outputs import PROBE_MARK
 from tracked_kinematics.offline.signals import TOOL_EXECUTABLES
 
 BIN = Path(sys.executable).parent
 SCALE = max(1, int(os.environ.get('TRACKED_KINEMATICS_STOP_SCALE', '1')))
 """``make stress`` sets TRACKED_KINEMATICS_STOP_SCALE=4: four times the instants."""
-KINDS = (('spread',) * 3 + ('first output',) + ('commit',)) * SCALE
+KINDS = (('spread',) * 3 + ('first output',) + ('commit',) + ('early',) * 2) * SCALE
 """Per tool, per scale: 3 instants spread over its life, 1 at its first output, 1 at its
-commit (the suite's share; ``make stress`` runs 20 per tool)."""
+commit, 2 early: at once, and in its first :data:`EARLY` s (the suite's share; ``make
+stress`` runs 28 per tool)."""
+EARLY = 1.5
+"""Seconds after the process started: the span of the early instants."""
 INSTANTS = len(KINDS)
 PARALLEL = 2
 DEADLINE = 300.0
@@ -153,6 +161,8 @@ class Result:
     """The package took SIGTERM before the process ended."""
     final: dict = None
     """:func:`state` of the working directory after the run."""
+    before_package: bool = False
+    """The (first) signal was sent before the process took SIGTERM."""
 
 
 def run_tool(name, argv, work, plan=None) -> Result:
@@ -161,23 +171,38 @@ def run_tool(name, argv, work, plan=None) -> Result:
 
     ``plan``: ``(when, signum, second)``; ``when`` is seconds after the package has taken
     SIGTERM, or ``('first output', seconds)`` after the first new entry in ``work``, or
-    ``('commit', seconds)`` after its temporary files have gone again; ``second`` is None or
-    ``(seconds after, signum)``.
+    ``('commit', seconds)`` after its temporary files have gone again, or ``('early',
+    seconds)`` after the process started, waiting for nothing; ``second`` is None or
+    ``(seconds after, signum)``. The start check's file (:data:`PROBE_MARK`) is neither an
+    output nor a temporary file here: it comes and goes before any work.
     """
     before = set(os.listdir(work))
 
     def temporary():
-        return any('.tmp-' in n for _, dirs, files in os.walk(work) for n in dirs + files)
+        return any('.tmp-' in n and PROBE_MARK not in n
+                   for _, dirs, files in os.walk(work) for n in dirs + files)
+
+    def new_entries():
+        return {n for n in set(os.listdir(work)) - before if PROBE_MARK not in n}
+    before_package = False
     with open(work.parent / f'{work.name}.stderr', 'w+') as err:
         process = subprocess.Popen([str(BIN / name), *argv], cwd=work,
                                    stdout=subprocess.DEVNULL, stderr=err)
         try:
+            if plan is not None and isinstance(plan[0], tuple) and plan[0][0] == 'early':
+                time.sleep(plan[0][1])
+                before_package = not takes_sigterm(process.pid)
+                process.send_signal(plan[1])
+                if plan[2] is not None:
+                    time.sleep(plan[2][0])
+                    process.send_signal(plan[2][1])
+                plan = None
             ready = wait_for(lambda: takes_sigterm(process.pid), process)
             start = time.monotonic()
             if plan is not None and ready:
                 when, signum, second = plan
                 if isinstance(when, tuple):
-                    wrote = wait_for(lambda: set(os.listdir(work)) - before, process)
+                    wrote = wait_for(new_entries, process)
                     if when[0] == 'commit':
                         wrote = wrote and wait_for(temporary, process) and wait_for(
                             lambda: not temporary(), process)
@@ -196,19 +221,22 @@ def run_tool(name, argv, work, plan=None) -> Result:
             process.kill()
             process.wait()
         err.seek(0)
-        return Result(status, err.read(), life, ready, state(work))
+        return Result(status, err.read(), life, ready, state(work), before_package)
 
 
 def plans(rng, life):
     """Return the :data:`INSTANTS` signal plans of a tool that lives ``life`` seconds."""
     spread = KINDS.count('spread')
     out = []
-    spread_index = 0
+    spread_index = early_index = 0
     for k, kind in enumerate(KINDS):
         signum = (signal.SIGINT, signal.SIGTERM)[k % 2]
         if kind == 'spread':  # the i-th of them in the i-th slice of its life
             when = 1.1 * life * (spread_index + rng.random()) / spread
             spread_index += 1
+        elif kind == 'early':  # at once, then at random in the first EARLY s, in turn
+            when = (kind, 0.0 if early_index % 2 == 0 else rng.uniform(0.0, EARLY))
+            early_index += 1
         else:
             when = (kind, rng.uniform(0.0, 0.02))
         second = None
@@ -229,9 +257,12 @@ def describe(plan) -> str:
 
 
 def classify(name, plan, result: Result, before, complete, baseline_err):
-    """Check one signalled run; return 'finished', 'nothing left' or 'committed'."""
+    """Check one signalled run; 'finished', 'nothing left', 'committed' or 'before us'."""
     status, err, final = result.status, result.stderr, result.final
     what = f'{name}, signal {describe(plan)}: exit {status}, stderr {err!r}'
+    if result.before_package and python_course(plan[1], status, err):
+        assert final == before, what   # the interpreter's start-up: nothing written
+        return 'before us'
     assert 'Traceback' not in err and 'Exception ignored' not in err, what
     sent = {plan[1]} | ({plan[2][1]} if plan[2] else set())
     if status == 0:
@@ -293,7 +324,7 @@ def test_a_signal_at_any_instant_leaves_the_outputs_whole_or_absent(name, inputs
 
     with ThreadPoolExecutor(PARALLEL) as pool:
         results = list(pool.map(one, range(INSTANTS)))
-    counts = {'finished': 0, 'nothing left': 0, 'committed': 0}
+    counts = {'finished': 0, 'nothing left': 0, 'committed': 0, 'before us': 0}
     for k, (start, result) in enumerate(results):
         counts[classify(name, runs[k], result, start, complete, baseline_err)] += 1
     print(f'{name}: life {life:.2f} s; {json.dumps(counts)}')

@@ -270,6 +270,28 @@ def test_refuses_an_existing_output_at_start(ros_context, tmp_path):
     assert out.read_text() == 'keep me\n'
 
 
+@pytest.mark.parametrize('output', ['/proc/x.yaml', '/sys/x.yaml', '/dev/null'])
+def test_refuses_an_output_where_no_file_can_be_written_at_start(ros_context, output):
+    # As root, os.access let /proc/x.yaml through and the write failed after the whole drive.
+    with pytest.raises(Exception, match='is not writable|character device'):
+        CalibrationDriveNode(finisher=CalibrationFiles, context=ros_context,
+                             parameter_overrides=[Parameter(k, value=v) for k, v in
+                                                  {**VEHICLE, 'output': output}.items()])
+
+
+def test_the_console_script_refuses_an_output_in_proc_at_start(tmp_path):
+    script = ConsoleScript('calibration_drive', '--ros-args', '-p', f'track_width:={B}', '-p',
+                           f'sprocket_radius:={RADIUS}', '-p', 'output:=/proc/x.yaml',
+                           tmp_path=tmp_path)
+    assert script.wait(120.0) == 2
+    lines = [line for line in script.stderr_path.read_text().splitlines()
+             if 'FATAL' in line or 'Traceback' in line]
+    assert len(lines) == 1 and 'output /proc/x.yaml: directory /proc is not writable' in \
+        lines[0], lines
+    assert sorted(p.name for p in tmp_path.iterdir()) == [
+        'calibration_drive.stderr', 'calibration_drive.stdout']
+
+
 @pytest.mark.parametrize('overrides, text', [
     ({'output': ''}, 'output must name'),
     ({'deadman_topic': ''}, 'needs a deadman'),

@@ -193,8 +193,22 @@ def test_prediction_from_cmd_vel_through_the_drivetrain(ros_context, executor, c
     assert spin_until(executor, lambda: pub.get_subscription_count() > 0)
     pub.publish(command)
     assert spin_until(executor, lambda: g.node._command is not None)
-    g.wait_outputs()
-    xy = np.array([[p.pose.position.x, p.pose.position.y] for p in g.paths[-1].poses])
+    # Paths the node computed before the command may still be on their way (under load,
+    # several): the first path from after it is the first stamped at a later encoder step.
+    # One more step of the scenario, sent now, moves the node's "now" there.
+    last_pose = scenario.pose_t[scenario.pose_t <= 3.0][-1]   # where feed() stopped
+    k = int(np.searchsorted(scenario.enc_t, last_pose + 1e-9, side='right'))
+    t_next = scenario.enc_t[k] + 100.0
+    angles = [np.sum(scenario.enc_left[:k + 1]) / RADIUS,
+              np.sum(scenario.enc_right[:k + 1]) / RADIUS]
+    assert g.encoders.send(joint_state(t_next, angles, names=('left', 'right')))
+
+    def after_the_command():
+        return [p for p in g.paths
+                if p.header.stamp.sec + 1e-9 * p.header.stamp.nanosec >= t_next - 1e-6]
+    assert spin_until(executor, after_the_command)
+    xy = np.array([[p.pose.position.x, p.pose.position.y]
+                   for p in after_the_command()[0].poses])
     steps = np.linalg.norm(np.diff(xy, axis=0), axis=1)
     assert np.all(steps[:3] > 0.05)          # still moving during the 0.2 s delay
     assert np.all(steps[5:] < 1e-9)          # stopped after it (no lag, no ramp)

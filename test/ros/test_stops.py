@@ -6,9 +6,14 @@ import signal
 from helpers import stops
 import pytest
 
-# Per node: during the start-up (imports, rclpy.init, parameters), and at a random instant
-# of a 1 kHz input, signalled once or twice. ``make stress`` runs many more, under load.
-CASES = [('startup', (signal.SIGINT,)), ('startup', (signal.SIGTERM, signal.SIGTERM)),
+# Per node: as soon as the process exists and at random instants of its first 1.5 s, waiting
+# for nothing (before and after the package's first line: calibration_drive imported its
+# offline code for 1.1 s before it took signals, and died of them or printed a traceback);
+# during the start-up (imports, rclpy.init, parameters), and at a random instant of a 1 kHz
+# input, signalled once or twice. ``make stress`` runs many more, under load.
+CASES = [('at once', (signal.SIGINT,)), ('early', (signal.SIGTERM,)),
+         ('early', (signal.SIGINT, signal.SIGTERM)), ('early', (signal.SIGINT,)),
+         ('startup', (signal.SIGINT,)), ('startup', (signal.SIGTERM, signal.SIGTERM)),
          ('running', (signal.SIGTERM,)), ('running', (signal.SIGINT, signal.SIGTERM))]
 
 
@@ -26,7 +31,9 @@ def test_stops_at_random_instants_are_clean(tmp_path, feeder, name):
     for k, (when, signals) in enumerate(CASES):
         stop = stops.stop_once(name, rng, tmp_path / str(k), when=when, signals=signals)
         assert stop.status is not None, f'{name} hung after {stop.signals}'
-        assert stop.clean, (when, stop.signals, stop.delay, stop.status, stop.output)
+        # Exit 0 without a traceback; before the package's first line, Python's own course.
+        assert stop.clean, (when, stop.signals, stop.delay, stop.before_package, stop.status,
+                            stop.output)
         if when == 'running':
             assert stop.up, stop.output
         # A stopped calibration drive never drove: it writes no fit (nor any temporary file).

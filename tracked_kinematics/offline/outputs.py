@@ -16,9 +16,11 @@ Every tool that writes files (YAML, JSON, CSV, PNG, bags) goes through :class:`O
 
 The rules (docs/output-files.md):
 
-- a target is a regular file or a new path in an existing, writable directory; a symbolic
-  link (even a dangling one), a directory (unless the output is a directory, as a bag is),
-  a device, a FIFO or a socket is refused with a message naming the flag;
+- a target is a regular file or a new path in an existing directory where a file can be
+  created and written: checked by doing it (:data:`PROBE_MARK`), not by ``os.access``, which
+  says yes to root in /proc or on a full disk; a symbolic link (even a dangling one), a
+  directory (unless the output is a directory, as a bag is), a device, a FIFO or a socket
+  is refused with a message naming the flag;
 - an existing file is replaced only with ``--force``; an existing directory or bag never is;
 - two outputs of one run may not be the same file, nor an output one of the run's inputs;
 - data are written to a hidden temporary file in the target's directory
@@ -42,6 +44,7 @@ ignores them (they can be deleted at any time).
 from __future__ import annotations
 
 import contextlib
+import errno
 import os
 from pathlib import Path
 import shutil
@@ -56,6 +59,10 @@ _KINDS = {stat.S_IFDIR: 'a directory', stat.S_IFCHR: 'a character device',
           stat.S_IFLNK: 'a symbolic link'}
 TEMP_MARK = '.tmp-'
 """Part of the name of every temporary output (``.NAME.tmp-XXXXXXXX``)."""
+PROBE_MARK = TEMP_MARK + 'check-'
+"""Part of the name of the file the start check creates and removes again."""
+PROBE_BYTES = 4096
+"""What the start check writes (and fsyncs): one block, so that a full disk is refused."""
 
 
 class OutputError(TrackedKinematicsError):
@@ -109,9 +116,13 @@ def _what(mode: int) -> str:
     return _KINDS.get(stat.S_IFMT(mode), 'not a regular file')
 
 
-def check_output(flag: str, path, force: bool = False, directory: bool = False) -> Path:
+def check_output(flag: str, path, force: bool = False, directory: bool = False,
+                 probe: bool = True) -> Path:
     """
     Check one output path before any work; return it as a :class:`~pathlib.Path`.
+
+    The target's directory is tried: a temporary file is created there, one block written
+    and fsynced, and removed again (signals held), as the output's own will be.
 
     Parameters
     ----------
@@ -124,6 +135,9 @@ def check_output(flag: str, path, force: bool = False, directory: bool = False) 
     directory : bool
         The output is a bag (a rosbag2 directory or a ROS 1 file) that its writer
         creates: the path must not exist.
+    probe : bool
+        Whether to try the directory (the commit's second check does not: its staged files
+        lie there already).
 
     Raises
     ------
@@ -155,18 +169,39 @@ def check_output(flag: str, path, force: bool = False, directory: bool = False) 
     parent = path.parent if str(path.parent) else Path('.')
     if not parent.is_dir():
         raise OutputError(f'{flag} {path}: directory {parent} does not exist')
-    if not os.access(parent, os.W_OK | os.X_OK):
-        raise OutputError(f'{flag} {path}: directory {parent} is not writable')
     try:
         longest = os.pathconf(parent, 'PC_NAME_MAX')
     except (OSError, ValueError):
         longest = 255
-    temporary = len(os.fsencode(f'.{path.name}{TEMP_MARK}XXXXXXXX{path.suffix}'))
+    temporary = len(os.fsencode(f'.{path.name}{PROBE_MARK}XXXXXXXX{path.suffix}'))
     if temporary > longest:
         raise OutputError(f'{flag} {path}: the file name is too long for its temporary file '
                           f'(at most {longest - temporary + len(os.fsencode(path.name))} '
                           'bytes here)')
+    if probe:
+        _probe(flag, path, parent)
     return path
+
+
+def _probe(flag: str, path: Path, parent: Path) -> None:
+    """Create, write, fsync and remove a temporary file beside ``path``; refuse on failure."""
+    try:
+        with signals.held():  # the file is removed whatever signal comes
+            fd, name = tempfile.mkstemp(prefix=f'.{path.name}{PROBE_MARK}',
+                                        suffix=path.suffix, dir=parent)
+            try:
+                os.write(fd, bytes(PROBE_BYTES))
+                os.fsync(fd)
+            finally:
+                try:
+                    os.close(fd)  # a write error may surface only here (NFS)
+                finally:
+                    os.unlink(name)
+    except OSError as err:
+        full = err.errno in (errno.ENOSPC, errno.EDQUOT)
+        raise OutputError(f'{flag} {path}: directory {parent} '
+                          f'{"is full" if full else "is not writable"} (creating a file '
+                          f'there: {err.strerror})') from None
 
 
 def same_file(a, b) -> bool:
@@ -353,7 +388,7 @@ class Outputs:
         try:
             for flag in self._staged:
                 target, directory = self._targets[flag]
-                check_output(flag, target, self.force, directory)
+                check_output(flag, target, self.force, directory, probe=False)
             # A signal so far: nothing is renamed, everything staged is removed. From the
             # first rename on, the commit completes and the signal ends the run after it.
             signals.raise_pending()

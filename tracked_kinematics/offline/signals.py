@@ -14,8 +14,9 @@ them again. Four rules keep a signal from landing there:
 - **one stop per run**: once a run has acted on a signal, later ones are ignored, so that an
   impatient second Ctrl-C cannot interrupt the clean-up;
 - **the whole process**: when a console script of the offline tools starts, the package's
-  ``__init__`` calls :func:`install_for_tool`, before numpy, scipy and rosbags are imported
-  (the better part of a second). A signal during the imports or the parsing of the options,
+  ``__init__`` (``tracked_kinematics/__init__.py``, its first line of code) calls
+  :func:`install_for_tool`, before numpy, scipy and rosbags are imported (the better part
+  of a second). A signal during the imports or the parsing of the options,
   before :func:`~tracked_kinematics.offline.cli.common.run_main` has begun and so before
   anything can have been written, ends the process at once with the signal's exit status
   and the one line; once the run has ended, signals are ignored, so that the process exits
@@ -36,12 +37,10 @@ import signal
 import sys
 import threading
 
+from tracked_kinematics import TOOL_EXECUTABLES  # noqa: F401 -- the tools' names
+
 STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
 """The signals that end a run: 130 (SIGINT), 143 (SIGTERM), 129 (SIGHUP)."""
-TOOL_EXECUTABLES = ('simulate_bag', 'identify_icr', 'identify_drivetrain', 'evaluate_model',
-                    'icr_map', 'plan_trajectory', 'convert_diff_drive_params',
-                    'tracked_kinematics_demo')
-"""The console scripts of the offline tools (setup.py): :func:`install_for_tool` is for them."""
 
 
 class Signalled(BaseException):
@@ -178,13 +177,15 @@ def raise_pending() -> None:
         _stop(state.pending)
 
 
-def install_for_tool() -> None:
+def install_for_tool(pending: list[int] | None = None) -> None:
     """
     Take the stop signals for the process of an offline tool, at its first import.
 
     Until the run begins (:func:`start`), a signal ends the process at once with its status
     and one line: nothing has been written. At exit they are ignored, so that the
-    interpreter's shutdown cannot be killed half-way.
+    interpreter's shutdown cannot be killed half-way. ``pending``: a signal that came while
+    this module was loading (the package's ``__init__`` collects them until the handler
+    here is installed, and may append to the list until then), the first acted on at once.
     """
     if not _in_main_thread() or _state.tool:
         return
@@ -192,6 +193,8 @@ def install_for_tool() -> None:
     for signum in STOP_SIGNALS:
         signal.signal(signum, _on_signal)
     atexit.register(_ignore_signals)
+    if pending:
+        _exit_now(pending[0])
 
 
 def _ignore_signals() -> None:
@@ -251,10 +254,3 @@ def finish() -> None:
     state.held = 0
     state.pending = None
     state.stopping = False
-
-
-def tool_process(argv0: str | None = None) -> bool:
-    """Whether this process is a console script of the offline tools (by ``argv[0]``)."""
-    if argv0 is None:
-        argv0 = sys.argv[0] if sys.argv else ''
-    return os.path.basename(argv0) in TOOL_EXECUTABLES
