@@ -87,18 +87,18 @@ def release_and_check(d, release):
     """
     rows = d.node._rows['cmd']
     calls = []
-    tick = d.node._on_timer
+    tick = d.node._tick_now
 
     def spy():
         before = len(rows)
         tick()
         calls.append(rows[before:])
-    d.node._on_timer = spy
+    d.node._tick_now = spy
     try:
         release()
         assert spin_until(d.executor, lambda: calls, 5.0)
     finally:
-        del d.node._on_timer
+        del d.node._tick_now
     assert len(calls) == 1 and calls[0] and calls[0][-1][1:] == (0.0, 0.0), calls
     start = rows.index(calls[0][-1])
     spin_until(d.executor, lambda: False, 0.3)

@@ -143,7 +143,8 @@ def test_auto_start_waits_for_the_deadman():
     bench.deadman = False
     assert bench.run(1.0).state == 'idle'
     bench.deadman = True
-    assert bench.tick().state == 'running'
+    # A press counts once it comes rearm_time (0.1 s) after the last release message.
+    assert [bench.tick().state for _ in range(4)] == ['idle', 'idle', 'running', 'running']
 
 
 def test_deadman_release_zeroes_at_once_and_the_step_restarts():
@@ -157,7 +158,10 @@ def test_deadman_release_zeroes_at_once_and_the_step_restarts():
     assert out.reason == 'deadman released'
     bench.run(1.0)
     bench.deadman = True
-    out = bench.tick()
+    # A press counts once it comes rearm_time (0.1 s) after the last release message.
+    outs = [bench.tick() for _ in range(4)]
+    assert [o.moving for o in outs] == [False, False, True, True]
+    out = outs[2]
     # Resumed: the same step, from its beginning.
     assert out.state == 'running' and out.step == 0 and out.step_elapsed == 0.0
     assert out.v == pytest.approx(0.3)
