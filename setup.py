@@ -42,6 +42,7 @@ setup(
             'evaluate_model = tracked_kinematics.offline.cli.evaluate_model:main',
             'tracked_simulator = tracked_kinematics.ros.tracked_simulator:main',
             'calibration_drive = tracked_kinematics.apps.calibration_drive:main',
+            'calibration_deadman = tracked_kinematics.ros.calibration_deadman:main',
         ],
     },
 )

@@ -173,3 +173,37 @@ def test_a_table_node_whose_start_fails_is_destroyed(ros_context, overrides, fai
     assert node.calls[-1] == ('abandon',)
     with pytest.raises(Exception, match='destruction was requested'):
         node.get_name()   # destroyed: nothing left for the garbage collector
+
+
+@pytest.mark.parametrize('sim_time_at_start', [True, False])
+def test_an_invalid_clock_message_is_refused_not_raised(ros_context, executor,
+                                                        sim_time_at_start):
+    # Issue 27: a /clock with sec = -1 raised inside rclpy's TimeSource and killed the nodes.
+    from builtin_interfaces.msg import Time
+    from helpers.ros_helpers import spin_until
+    from rosgraph_msgs.msg import Clock
+    sim_time = [Parameter('use_sim_time', value=True)] if sim_time_at_start else []
+    node = _Probe(context=ros_context, parameter_overrides=VEHICLE + sim_time)
+    pub_node = Node('clock_source', context=ros_context)
+    try:
+        if not sim_time_at_start:   # the /clock subscription is made at runtime
+            assert node.set_parameters([Parameter('use_sim_time', value=True)])[0].successful
+        executor.add_node(node)
+        executor.add_node(pub_node)
+        clock = pub_node.create_publisher(Clock, '/clock', 10)
+        assert spin_until(executor, lambda: clock.get_subscription_count() > 0)
+        clock.publish(Clock(clock=Time(sec=12, nanosec=5)))
+        assert spin_until(executor, lambda: node.ros_time() == pytest.approx(12.0))
+        clock.publish(Clock(clock=Time(sec=-1, nanosec=0)))
+        assert spin_until(executor, lambda: node.clock_fault() != '')
+        assert 'negative time -1 s' in node.clock_fault()
+        assert node.ros_time() is None
+        assert node.get_clock().now().nanoseconds == 12_000_000_005   # left where it was
+        clock.publish(Clock(clock=Time(sec=13, nanosec=0)))
+        assert spin_until(executor, lambda: node.clock_fault() == '')
+        assert node.ros_time() == pytest.approx(13.0)
+    finally:
+        executor.remove_node(node)
+        executor.remove_node(pub_node)
+        node.destroy_node()
+        pub_node.destroy_node()

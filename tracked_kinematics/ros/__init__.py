@@ -14,7 +14,7 @@ import sys
 import threading
 
 NODE_EXECUTABLES = ('odometry_node', 'cmd_vel_translator', 'icr_estimator', 'tracked_simulator',
-                    'calibration_drive')
+                    'calibration_drive', 'calibration_deadman')
 
 
 def exit_quietly(signum, frame):

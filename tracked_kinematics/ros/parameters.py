@@ -305,6 +305,33 @@ def destroyed_on_failure(node: Node):
         raise
 
 
+def _guard_clock(node: 'TableNode') -> None:
+    """
+    Refuse /clock messages rclpy cannot take (a negative time) instead of raising in spin.
+
+    rclpy's TimeSource converts every /clock message with ``Time.from_msg``, which raises for
+    ``sec < 0``: inside the executor that ends the node, tracks moving. It offers no hook, so
+    its callback is wrapped (also for a /clock subscription made later, when ``use_sim_time``
+    is set at runtime). A refused message leaves the clock where it was and sets
+    :meth:`TableNode.clock_fault` until a valid one arrives.
+    """
+    source = node._time_source
+    original = source.clock_callback
+
+    def guarded(msg) -> None:
+        if msg.clock.sec < 0:
+            node._clock_invalid = (f'/clock message refused: negative time {msg.clock.sec} s '
+                                   f'{msg.clock.nanosec} ns')
+            node.get_logger().error(node._clock_invalid, throttle_duration_sec=5.0)
+            return
+        node._clock_invalid = ''
+        original(msg)
+
+    source.clock_callback = guarded
+    if source._clock_sub is not None:
+        source._clock_sub.callback = guarded
+
+
 class TableNode(Node):
     """
     A node whose parameters are one table: declared and checked, then the node is built.
@@ -336,6 +363,8 @@ class TableNode(Node):
     def __init__(self, name: str, specs: Iterable[ParamSpec],
                  validate: Callable[[Mapping[str, Any]], None] | None = None, **kwargs):
         super().__init__(name, **kwargs)
+        self._clock_invalid = ''
+        _guard_clock(self)
         with destroyed_on_failure(self):
             try:
                 self.params = ParameterTable(self, specs, validate=validate,
@@ -344,6 +373,16 @@ class TableNode(Node):
             except BaseException:
                 self._abandon()
                 raise
+
+    def clock_fault(self) -> str:
+        """Return why the latest /clock message was refused ('' when it was valid)."""
+        return self._clock_invalid
+
+    def ros_time(self) -> float | None:
+        """Return the node's ROS time in s, or None while /clock is invalid."""
+        if self._clock_invalid:
+            return None
+        return self.get_clock().now().nanoseconds * 1e-9
 
     def _start(self, values: Mapping[str, Any]) -> None:
         """Build the node from the checked start values (publishers, subscriptions, ...)."""
