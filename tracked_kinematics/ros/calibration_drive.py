@@ -44,6 +44,7 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import Imu, Joy
 from std_msgs.msg import Bool, String
 from std_srvs.srv import Trigger
+from tracked_kinematics.core.clock_watch import ClockWatch
 from tracked_kinematics.core.integration import stamp_ns, yaw_from_quaternion
 from tracked_kinematics.core.plan.calibration import (
     CalibrationRecording, FenceOdometry, MAX_DURATION, MIN_DURATION, protocol, total_duration)
@@ -81,6 +82,8 @@ LATENESS_WINDOW = 2.0
 MAX_POSE_AGE = 0.5
 #: How long the deadman link's clock offset is remembered, s (steady clock).
 OFFSET_WINDOW = 30.0
+#: Steady time the ROS clock may stand still while the sensors deliver, s.
+CLOCK_STALL = 0.5
 #: Gyro plausibility: the largest rate is this many times max_yaw_rate (at least 2 rad/s).
 GYRO_RANGE_FACTOR = 5.0
 
@@ -255,6 +258,8 @@ class CalibrationDriveNode(TableNode):
         self._period = 1.0 / values['rate']
         self._ticks = deque()          # (steady, lateness) of the recent ticks
         self._last_tick = None         # (steady, ros) of the last timer tick
+        self._clock_watch = ClockWatch(CLOCK_STALL)
+        self._clock_latest = self._clock_advanced = None   # ROS time, and steady when seen
         self._faults = {}              # name -> (text, steady time it ends or None)
         self._links = {}
         self._encoder_steady = self._reference_steady = None
@@ -482,8 +487,28 @@ class CalibrationDriveNode(TableNode):
 
     # --- the drive ----------------------------------------------------------------------
 
+    def _watch_clock(self, steady: float) -> None:
+        """Rule 6: a ROS clock that is invalid, goes back, or stalls while data flow stops."""
+        ros = self.ros_time()
+        if ros is not None and (self._clock_latest is None or ros != self._clock_latest):
+            self._clock_latest, self._clock_advanced = ros, steady
+        fault = self.clock_fault() or self._clock_watch.update(ros, steady)
+        if 'went back' in fault:
+            self._fault('clock went back', fault)    # reported once: held a while
+            fault = ''
+        elif 'not advanced' in fault:
+            # Only while the sensors deliver after the clock stopped: a paused or loaded
+            # simulation stops both (its /clock and its sensors come together).
+            flowing = [t for t in (self._encoder_steady, self._reference_steady)
+                       if t is not None and self._clock_advanced is not None
+                       and t - self._clock_advanced > 0.5 * CLOCK_STALL]
+            if not flowing:
+                fault = ''
+        self._fault('clock', fault, hold=None)
+
     def _on_timer(self) -> None:
         steady, ros = self._steady(), self._now()
+        self._watch_clock(steady)
         if self._last_tick is not None:
             # The world's time between ticks is the longer of the two clocks' (a simulation
             # faster than real time moves more per tick).

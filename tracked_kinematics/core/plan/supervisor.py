@@ -43,9 +43,9 @@ encoders and the reference last delivered, the pose in the geofence frame) and p
 8. **Late loop.** The guard of rule 2 is moved in by the distance driven in ``reaction_time``
    plus the loop's lateness (``Inputs.lateness``), and ``|v|`` is capped so that this
    distance stays within half the margin between the guard and the fence.
-9. **Return and outside.** A return whose distance to the centre has not shrunk for
-   ``return_progress_time``, or a pose beyond ``outside_fraction`` of the radius, stops the
-   drive.
+9. **Return and outside.** A return that has come no closer to the centre (nor, turning
+   in place, turned towards it) for ``return_progress_time``, or a pose beyond
+   ``outside_fraction`` of the radius, stops the drive.
 
 Sensor freshness (rule 4) with ``Inputs.steady``: stale only when old on both clocks, so that
 a simulation slower or faster than real time works; a stalled or rewound ROS clock is the
@@ -67,6 +67,9 @@ from ..integration import wrap_angle
 STATES = ('idle', 'running', 'paused', 'returning', 'finished', 'stopped')
 #: Smallest commanded or measured motion in a window that the cross-checks judge, m.
 MIN_CHECKED = 0.05
+#: Smallest encoder motion in a window against which the reference is judged, m (a slow
+#: vehicle that sticks a moment in a tight arc moved 0.09 m by its encoders and 0.01 m).
+MIN_REFERENCE = 0.15
 #: Noise of a pose step that :func:`pose_jump` allows, m.
 POSE_NOISE = 0.05
 #: A return must come this much closer to the centre to count as progress, m.
@@ -270,7 +273,7 @@ class _Drive:
     deadman: str = 'new'              # new -> held -> latched -> rearm -> held
     released_at: float | None = None  # when the deadman was last seen released
     history: list = field(default_factory=list)  # (t, travel, pose, v, w) while moving
-    best: tuple | None = None         # (t, distance) of a return's closest approach
+    best: tuple | None = None         # (t, distance, |heading error|) of a return's best
 
 
 class Supervisor:
@@ -522,16 +525,19 @@ class Supervisor:
         if cmd >= MIN_CHECKED and enc < cfg.follow_fraction * cmd:
             return (f'encoders do not follow the command: {enc:.3f} m of track travel in '
                     f'{span:.2f} s against {cmd:.3f} m commanded (frozen encoders?)')
+        # Only motion along the path is judged: a turn in place moves no vehicle out of its
+        # fence, and a skid-steer vehicle may barely turn in place on a grippy floor.
         if cfg.reference == 'pose':
-            expected, observed = enc_d + half * enc_r, ref_d + half * ref_r
+            expected, observed = enc_d, ref_d + half * ref_r
             what = (f'pose reference does not follow the encoders: it moved {ref_d:.3f} m and '
                     f'{ref_r:.2f} rad in {span:.2f} s, the encoders {enc_d:.3f} m and '
                     f'{enc_r:.2f} rad (frozen pose?)')
         else:
-            expected, observed = half * enc_r, half * ref_r
+            expected = half * enc_r if enc_d >= MIN_CHECKED else 0.0
+            observed = half * ref_r
             what = (f'gyro does not follow the encoders: it turned {ref_r:.2f} rad in '
                     f'{span:.2f} s, the encoders {enc_r:.2f} rad (stuck gyro?)')
-        if expected >= MIN_CHECKED and observed < cfg.reference_fraction * expected:
+        if expected >= MIN_REFERENCE and observed < cfg.reference_fraction * expected:
             return what
         return ''
 
@@ -634,8 +640,12 @@ class Supervisor:
             return self._output(inputs, 0.0, 0.0)
         dx, dy = d.centre[0] - pose[0], d.centre[1] - pose[1]
         distance = math.hypot(dx, dy)
-        if d.best is None or distance < d.best[1] - RETURN_PROGRESS:
-            d.best = (t, distance)
+        error = float(wrap_angle(math.atan2(dy, dx) - pose[2]))
+        # Progress: closer to the centre, or (turning in place) facing it better.
+        if d.best is None or distance < d.best[1] - RETURN_PROGRESS \
+                or abs(error) < d.best[2] - 2.0 * RETURN_PROGRESS:
+            d.best = (t, min(distance, d.best[1]) if d.best else distance,
+                      min(abs(error), d.best[2]) if d.best else abs(error))
         elif t - d.best[0] > cfg.return_progress_time:
             d.return_phase = ''
             self._stop_for(t, f'the return to the geofence centre came no closer in '
@@ -645,7 +655,6 @@ class Supervisor:
             d.return_phase, d.step_t0, d.best = '', None, None
             self._set(t, 'running', 'back near the centre')
             return self._running(inputs)
-        error = float(wrap_angle(math.atan2(dy, dx) - pose[2]))
         w = max(-cfg.max_yaw_rate, min(cfg.max_yaw_rate, 2.0 * error))
         if d.return_phase == 'turn':
             if abs(error) > cfg.heading_tolerance:
@@ -722,4 +731,3 @@ def pose_jump(previous, pose, dt: float, max_speed: float, max_yaw_rate: float,
                 f'{allowed:.3f} m and {allowed_turn:.3f} rad are plausible): a second pose '
                 'publisher or a tracker that lost the body?')
     return ''
-
