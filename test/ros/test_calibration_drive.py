@@ -394,10 +394,10 @@ def _stops_for(d, text, seconds=5.0, **step):
 @pytest.mark.parametrize('sensor, text', [('joints', 'encoders do not follow the command'),
                                           ('poses', 'pose reference does not follow')])
 def test_a_sensor_frozen_with_fresh_stamps_stops_the_drive(drive, sensor, text):
-    d = drive(auto_start=True)
+    d = drive(auto_start=True, duration=60.0)    # steps of 6 s: the checks need 1.6 s
     assert d.run(5.0, until=d.moving)
     d.run(1.5)
-    assert d.node.supervisor.state in ('running', 'returning')
+    assert d.node.supervisor.state in ('running', 'returning'), d.node.supervisor.events[-3:]
     publisher = getattr(d.robot, sensor)
     publisher.publish = _freeze(publisher)
     _stops_for(d, text)

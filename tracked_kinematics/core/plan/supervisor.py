@@ -65,8 +65,9 @@ from .._checks import require_numbers
 from ..integration import wrap_angle
 
 STATES = ('idle', 'running', 'paused', 'returning', 'finished', 'stopped')
-#: Smallest commanded or measured motion in a window that the cross-checks judge, m.
-MIN_CHECKED = 0.05
+#: Smallest commanded or measured motion in a window that the cross-checks judge, m (the
+#: simulated Auriga-alpha's tracks stood still under a return's 0.04 m/s).
+MIN_CHECKED = 0.15
 #: Smallest encoder motion in a window against which the reference is judged, m (a slow
 #: vehicle that sticks a moment in a tight arc moved 0.09 m by its encoders and 0.01 m).
 MIN_REFERENCE = 0.15
@@ -140,7 +141,7 @@ class SupervisorConfig:
     check_window: float = 1.0
     settle_time: float = 0.6
     follow_fraction: float = 0.3
-    reference_fraction: float = 0.2
+    reference_fraction: float = 0.05
     rearm_time: float = 0.1
     reaction_time: float = 0.15
     return_progress_time: float = 10.0
@@ -511,16 +512,18 @@ class Supervisor:
         start = max(i for i, row in enumerate(h) if row[0] <= t - cfg.check_window)
         rows = h[start:] + [(t, tuple(travel), tuple(inputs.pose), 0.0, 0.0)]
         half = 0.5 * cfg.track_width
-        cmd = enc = enc_d = enc_r = ref_d = ref_r = 0.0
+        cmd = enc = ref_r = 0.0
         for a, b in zip(rows, rows[1:]):
             v, w = a[3], a[4]
             cmd += 0.5 * (abs(v - w * half) + abs(v + w * half)) * (b[0] - a[0])
-            dl, dr = b[1][0] - a[1][0], b[1][1] - a[1][1]
-            enc += 0.5 * (abs(dl) + abs(dr))
-            enc_d += 0.5 * abs(dl + dr)
-            enc_r += abs(dr - dl) / cfg.track_width
-            ref_d += math.hypot(b[2][0] - a[2][0], b[2][1] - a[2][1])
-            ref_r += abs(float(wrap_angle(b[2][2] - a[2][2])))
+            enc += 0.5 * (abs(b[1][0] - a[1][0]) + abs(b[1][1] - a[1][1]))
+            ref_r += float(wrap_angle(b[2][2] - a[2][2]))
+        # Net motion over the window (sums of absolute steps would add up sensor noise).
+        first, last = rows[0], rows[-1]
+        dl, dr = last[1][0] - first[1][0], last[1][1] - first[1][1]
+        enc_d, enc_r = 0.5 * abs(dl + dr), abs(dr - dl) / cfg.track_width
+        ref_d = math.hypot(last[2][0] - first[2][0], last[2][1] - first[2][1])
+        ref_r = abs(ref_r)
         span = t - rows[0][0]
         if cmd >= MIN_CHECKED and enc < cfg.follow_fraction * cmd:
             return (f'encoders do not follow the command: {enc:.3f} m of track travel in '
