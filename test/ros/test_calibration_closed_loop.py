@@ -144,7 +144,8 @@ def test_calibration_drive_in_closed_loop(ros_context, executor, tmp_path, refer
         while watcher.status.get('step', 0) < 3 and time.monotonic() < deadline:
             assert drive.process.poll() is None, logs()
             hold()
-        assert watcher.status.get('state') == 'running', logs()
+        # Moving (a step, or a return towards the centre: the guard decides which).
+        assert watcher.status.get('state') in ('running', 'returning'), logs()
         # Release: the track setpoints are zero within 0.1 s of sim time. The bound is the
         # robot's, in its world's time; what it measures is three processes passing a
         # message on, which a loaded machine can hold up for a few hundred ms of wall time

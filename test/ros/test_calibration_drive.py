@@ -47,8 +47,10 @@ class Drive:
         self.clients = {name: self.robot.node.create_client(Trigger, f'calibration_drive/{name}')
                         for name in ('start', 'pause', 'stop')}
         assert spin_until(executor, lambda: self.robot.cmds, 10.0)
+        poses = values.get('reference', 'pose') == 'pose'
         assert spin_until(executor, lambda: self.robot.joints.get_subscription_count() > 0
-                          and self.robot.poses.get_subscription_count() > 0, 10.0)
+                          and (self.robot.poses.get_subscription_count() > 0 or not poses),
+                          10.0)
 
     def run(self, seconds, hold=True, until=None, **step):
         """Step the robot for ``seconds`` of wall time (or until ``until()``), deadman held."""
@@ -88,18 +90,18 @@ def release_and_check(d, release):
     """
     rows = d.node._rows['cmd']
     calls = []
-    tick = d.node._on_timer
+    tick = d.node._tick_now
 
     def spy():
         before = len(rows)
         tick()
         calls.append(rows[before:])
-    d.node._on_timer = spy
+    d.node._tick_now = spy
     try:
         release()
         assert spin_until(d.executor, lambda: calls, 5.0)
     finally:
-        del d.node._on_timer
+        del d.node._tick_now
     assert len(calls) == 1 and calls[0] and calls[0][-1][1:] == (0.0, 0.0), calls
     start = rows.index(calls[0][-1])
     spin_until(d.executor, lambda: False, 0.3)
@@ -385,3 +387,161 @@ def test_a_signal_while_fitting_leaves_nothing_behind(ros_context, executor, tmp
             json.loads((work / 'fit.json').read_text())
     finally:
         robot.node.destroy_node()
+
+
+# Faults that look like health (issue 27): each one through the node on real topics ----------
+
+
+def _freeze(publisher):
+    """Make ``publisher`` republish its last message's values with each new message's stamp."""
+    publish, last = publisher.publish, []
+
+    def frozen(msg):
+        if last:
+            stamp = msg.header.stamp
+            msg = last[0]
+            msg.header.stamp = stamp
+        else:
+            last.append(msg)
+        publish(msg)
+    return frozen
+
+
+def _stops_for(d, text, seconds=5.0, **step):
+    """Run until the drive is stopped; check the reason and that the command is zero."""
+    assert d.run(seconds, until=lambda: d.node.supervisor.state == 'stopped', **step), \
+        d.node.supervisor.events[-3:]
+    assert text in d.node.supervisor.last.reason, d.node.supervisor.last.reason
+    assert spin_until(d.executor, lambda: not d.moving(), 2.0)
+
+
+@pytest.mark.parametrize('sensor, text', [('joints', 'encoders do not follow the command'),
+                                          ('poses', 'pose reference does not follow')])
+def test_a_sensor_frozen_with_fresh_stamps_stops_the_drive(drive, sensor, text):
+    d = drive(auto_start=True, duration=60.0)    # steps of 6 s: the checks need 1.6 s
+    assert d.run(5.0, until=d.moving)
+    d.run(1.5)
+    assert d.node.supervisor.state in ('running', 'returning'), d.node.supervisor.events[-3:]
+    publisher = getattr(d.robot, sensor)
+    publisher.publish = _freeze(publisher)
+    _stops_for(d, text)
+
+
+def test_a_second_pose_publisher_stops_the_drive(drive):
+    from nav_msgs.msg import Odometry
+    from helpers.encoder_stream import stamp
+    d = drive(auto_start=True)
+    assert d.run(5.0, until=d.moving)
+    rogue = d.robot.node.create_publisher(Odometry, 'ground_truth/odom', 10)
+
+    def at_the_centre():
+        msg = Odometry()
+        msg.header.stamp = stamp(d.robot.now())
+        msg.pose.pose.orientation.w = 1.0
+        rogue.publish(msg)
+    d.robot.poses.publish = lambda msg, publish=d.robot.poses.publish: (
+        publish(msg), at_the_centre())
+    assert d.run(5.0, until=lambda: d.node.supervisor.state == 'stopped')
+    reason = d.node.supervisor.last.reason
+    assert 'pose jumped' in reason or '2 publishers on' in reason, reason
+
+
+class Gyro:
+    """The fake robot's yaw rate on imu/data, with a way to inject samples."""
+
+    def __init__(self, d):
+        from sensor_msgs.msg import Imu
+        self.d, self.msg_type = d, Imu
+        self.pub = d.robot.node.create_publisher(Imu, 'imu/data', 10)
+        self.yaw, self.t = None, None
+        self.inject = []
+
+    def __call__(self):
+        from helpers.encoder_stream import stamp
+        # One sample per step of the robot, at its time.
+        t, yaw = self.d.robot._last, self.d.robot.pose[2]
+        if t is None or t == self.t:
+            return False
+        if self.t is not None:
+            msg = self.msg_type()
+            msg.header.stamp = stamp(t)
+            msg.orientation_covariance[0] = -1.0
+            msg.angular_velocity.z = self.inject.pop(0) if self.inject else \
+                (yaw - self.yaw) / (t - self.t)
+            self.pub.publish(msg)
+        self.yaw, self.t = yaw, t
+        return False
+
+
+@pytest.mark.parametrize('burst', [[math.radians(2000.0)] * 9, [1e308]])
+def test_an_implausible_gyro_stops_the_drive(drive, burst):
+    d = drive(auto_start=True, reference='imu')
+    gyro = Gyro(d)
+    assert d.run(10.0, until=lambda: gyro() or d.moving())
+    assert d.run(2.0, until=lambda: gyro() or False) is False
+    gyro.inject = list(burst)
+    assert d.run(5.0, until=lambda: gyro() or d.node.supervisor.state == 'stopped')
+    assert 'implausible gyro' in d.node.supervisor.last.reason
+    assert abs(d.node._fence.yaw - d.robot.pose[2]) < 0.2   # the burst was not integrated
+    assert spin_until(d.executor, lambda: not d.moving(), 2.0)
+
+
+def test_a_deadman_delivered_late_after_a_stall_does_not_move(drive):
+    import time
+    d = drive(auto_start=True)
+    assert d.run(5.0, until=d.moving)
+    rows = d.node._rows['cmd']
+    # The drive's process stalls 2.5 s (nothing spins); the person holds for the first
+    # 0.5 s, then lets go (a Bool deadman goes silent). The 10 held messages wait in the queue.
+    for _ in range(10):
+        d.robot.deadman(True)
+        time.sleep(0.05)
+    time.sleep(2.0)
+    stalled = len(rows)
+    d.run(1.5, hold=False)
+    assert all(row[1:] == (0.0, 0.0) for row in rows[stalled:]), rows[stalled:]
+    assert 'deadman' in d.node.supervisor.last.reason
+
+
+def test_two_deadman_publishers_that_disagree_do_not_move(drive):
+    from std_msgs.msg import Bool
+    d = drive(auto_start=True)
+    assert d.run(5.0, until=d.moving)
+    other = d.robot.node.create_publisher(Bool, 'deadman', 10)
+    rows = d.node._rows['cmd']
+    d.run(0.5, until=lambda: other.publish(Bool(data=False)))
+    since = len(rows)
+    d.run(3.0, until=lambda: other.publish(Bool(data=False)))
+    assert all(row[1:] == (0.0, 0.0) for row in rows[since:])
+    assert '2 publishers on' in d.node.supervisor.last.reason
+
+
+@pytest.mark.parametrize('fault, text', [('frozen', 'has not advanced'),
+                                         ('rewound', 'went back'),
+                                         ('invalid', 'negative time')])
+def test_a_bad_clock_stops_the_drive(drive, fault, text):
+    from builtin_interfaces.msg import Time
+    from rosgraph_msgs.msg import Clock
+    import time
+    d = drive(auto_start=True, use_sim_time=True)
+    clock = d.robot.node.create_publisher(Clock, '/clock', 10)
+    start = time.monotonic()
+    bad = []
+
+    def tick_clock():
+        t = 100.0 + time.monotonic() - start
+        if bad == ['frozen']:
+            return False
+        if bad == ['rewound']:
+            t -= 0.25
+        sec = -1 if bad == ['invalid'] else int(t)
+        clock.publish(Clock(clock=Time(sec=sec, nanosec=int((t % 1.0) * 1e9))))
+        return False
+    assert d.run(10.0, until=lambda: tick_clock() or d.moving())
+    d.run(1.0, until=tick_clock)
+    assert d.moving()
+    bad.append(fault)
+    assert d.run(5.0, until=lambda: tick_clock() or d.node.supervisor.state == 'stopped'), \
+        d.node.supervisor.events[-3:]
+    assert text in d.node.supervisor.last.reason, d.node.supervisor.last.reason
+    assert spin_until(d.executor, lambda: tick_clock() or not d.moving(), 2.0)

@@ -26,31 +26,37 @@ script (:mod:`tracked_kinematics.apps.calibration_drive`) gives it the finisher 
 
 from __future__ import annotations
 
+from collections import deque
 from collections.abc import Callable, Mapping
 import json
 import math
 import threading
+import time
 from typing import Any
 
 from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped, Twist
 from nav_msgs.msg import Odometry
 from rcl_interfaces.msg import Parameter as ParameterMsg, ParameterType
 from rcl_interfaces.srv import SetParametersAtomically
+from rclpy.clock import Clock, ClockType
 from rclpy.duration import Duration
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import Imu, Joy
 from std_msgs.msg import Bool, String
 from std_srvs.srv import Trigger
+from tracked_kinematics.core.clock_watch import ClockWatch
 from tracked_kinematics.core.integration import stamp_ns, yaw_from_quaternion
 from tracked_kinematics.core.plan.calibration import (
     CalibrationRecording, FenceOdometry, MAX_DURATION, MIN_DURATION, protocol, total_duration)
-from tracked_kinematics.core.plan.supervisor import Inputs, Supervisor, SupervisorConfig
+from tracked_kinematics.core.plan.supervisor import (
+    Inputs, pose_jump, Supervisor, SupervisorConfig)
 from tracked_kinematics.params import (
     described_as, each, ENCODER_INPUT_PARAMS, icr_from_values, node_name, one_of, ParamSpec,
     positive, ros_name, TERRAIN_PARAMS)
 from tracked_kinematics.ros.calibration_health import watch_calibration_inputs
 from tracked_kinematics.ros.encoder_input import check_encoder_values, EncoderInput, WARN_PERIOD
-from tracked_kinematics.ros.input_topic import CHECK_PERIOD, InputTopic, steady_timer
+from tracked_kinematics.ros.input_topic import (CHECK_PERIOD, InputTopic, steady_timer,
+                                                type_name)
 from tracked_kinematics.ros.parameters import TableNode
 
 NODE_NAME = 'calibration_drive'
@@ -68,6 +74,20 @@ IMU_FENCE = {'plan_fraction': 0.8, 'guard_fraction': 0.87}
 INTERRUPTED = (129, 130, 143)
 #: How long the node waits for the nodes of push_to to answer, s.
 PUSH_TIMEOUT = 5.0
+#: Period of the check that every input topic has one publisher, s (steady clock).
+PUBLISHER_CHECK_PERIOD = 0.25
+#: How long a fault found in one sample (a gyro spike, a pose jump) stays in force, s.
+FAULT_HOLD = 2.0
+#: The loop's lateness is the worst of this last stretch of ticks, s (steady clock).
+LATENESS_WINDOW = 2.0
+#: The pose's age counts into the lateness up to this, s (beyond: another clock).
+MAX_POSE_AGE = 0.5
+#: How long the deadman link's clock offset is remembered, s (steady clock).
+OFFSET_WINDOW = 30.0
+#: Steady time the ROS clock may stand still while the sensors deliver, s.
+CLOCK_STALL = 0.5
+#: Gyro plausibility: the largest rate is this many times max_yaw_rate (at least 2 rad/s).
+GYRO_RANGE_FACTOR = 5.0
 
 
 @described_as("a valid ROS 2 topic name, or '' for none")
@@ -127,6 +147,10 @@ CALIBRATION_PARAMS: tuple[ParamSpec, ...] = (
               low=0.01, high=10.0, read_only=True),
     ParamSpec('rate', 20.0, 'Rate of cmd_vel (a zero Twist whenever not moving)', 'Hz',
               positive, low=1.0, high=1000.0, read_only=True),
+    ParamSpec('max_gyro_rate', 0.0,
+              'Largest plausible yaw rate of the gyro; a sample beyond it (or a jump of more '
+              'than half of it) stops the drive; 0 = 5 x max_yaw_rate, at least 2 rad/s',
+              'rad/s', low=0.0, high=100.0, read_only=True),
     ParamSpec('push_to', [],
               'Nodes whose icr.* and scale.* parameters are set to the fit (e.g. '
               'odometry_node, cmd_vel_translator)', check=each(node_name), read_only=True),
@@ -153,6 +177,33 @@ def validate(values: Mapping[str, Any]) -> None:
 
 def _seconds(stamp) -> int:
     return stamp_ns(stamp.sec, stamp.nanosec)
+
+
+class LinkAge:
+    """
+    Age of a message at its arrival, from its publication time (DDS source timestamp).
+
+    The publisher's clock may be another machine's: the age is the arrival less the source
+    stamp, less the smallest such offset of the last :data:`OFFSET_WINDOW` s (the clock skew
+    plus the fastest delivery), so that a message delivered late (after a stall of this node
+    or of the link) is old, however fresh its arrival.
+    """
+
+    def __init__(self):
+        self._offsets = deque()   # (steady s, offset s), offsets increasing: a sliding min
+
+    def age(self, source_ns: int, steady: float) -> float:
+        """Return the age of a message published at ``source_ns`` (0: unknown), s."""
+        if not source_ns:
+            return 0.0
+        offset = time.time_ns() * 1e-9 - source_ns * 1e-9
+        offsets = self._offsets
+        while offsets and offsets[-1][1] >= offset:
+            offsets.pop()
+        offsets.append((steady, offset))
+        while len(offsets) > 1 and offsets[0][0] < steady - OFFSET_WINDOW:
+            offsets.popleft()
+        return max(0.0, offset - offsets[0][1])
 
 
 class CalibrationDriveNode(TableNode):
@@ -198,12 +249,27 @@ class CalibrationDriveNode(TableNode):
             max_yaw_rate=values['max_yaw_rate'], deadman_timeout=values['deadman_timeout'],
             encoder_timeout=values['encoder_timeout'],
             reference_timeout=values['reference_timeout'], auto_start=values['auto_start'],
+            track_width=values['track_width'], reference=values['reference'],
             **(IMU_FENCE if values['reference'] == 'imu' else {})))
         self._reference = values['reference']
-        self._fence = FenceOdometry(icr.scale_left, icr.scale_right)
+        gyro_range = values['max_gyro_rate'] or max(
+            2.0, GYRO_RANGE_FACTOR * values['max_yaw_rate'])
+        self._fence = FenceOdometry(icr.scale_left, icr.scale_right, max_rate=gyro_range,
+                                    max_jump=0.5 * gyro_range)
+        self._steady_clock = Clock(clock_type=ClockType.STEADY_TIME)
+        self._period = 1.0 / values['rate']
+        self._ticks = deque()          # (steady, lateness) of the recent ticks
+        self._last_tick = None         # (steady, ros) of the last timer tick
+        self._clock_watch = ClockWatch(CLOCK_STALL)
+        self._clock_latest = self._clock_advanced = None   # ROS time, and steady when seen
+        self._faults = {}              # name -> (text, steady time it ends or None)
+        self._links = {}
+        self._encoder_steady = self._reference_steady = None
+        self._last_pose = None         # (stamp s, pose) of the last accepted pose
+        self._pose_stamp = None        # stamp of the geofence pose, ROS s
         self._radius = values['sprocket_radius']
         # Every configured deadman must be held (with both a topic and a button: both).
-        self._deadmen = {source: (False, None) for source, topic in
+        self._deadmen = {source: (False, None, None) for source, topic in
                          (('topic', values['deadman_topic']), ('joy', values['joy_topic']))
                          if topic}
         self._encoder_t = self._reference_t = None
@@ -230,19 +296,31 @@ class CalibrationDriveNode(TableNode):
                                            values['pose_topic'], self._on_pose))
         else:
             self._inputs.append(InputTopic(self, Imu, values['imu_topic'], self._on_imu))
+        # The deadman's own subscriptions take the message info (its publication time);
+        # best effort matches reliable and best-effort publishers alike.
+        deadman_qos = QoSProfile(depth=10, reliability=ReliabilityPolicy.BEST_EFFORT)
+        self._deadman_topics, deadman_types = [], []
         if values['deadman_topic']:
-            self._inputs.append(InputTopic(self, Bool, values['deadman_topic'],
-                                           self._on_deadman, 10))
+            sub = self.create_subscription(Bool, values['deadman_topic'], self._on_deadman,
+                                           deadman_qos)
+            self._deadman_topics.append(sub.topic_name)
+            deadman_types.append(type_name(Bool))
         if values['joy_topic']:
-            self._inputs.append(InputTopic(self, Joy, values['joy_topic'], self._on_joy, 10))
+            sub = self.create_subscription(Joy, values['joy_topic'], self._on_joy, deadman_qos)
+            self._deadman_topics.append(sub.topic_name)
+            deadman_types.append(type_name(Joy))
         self._check_timer = steady_timer(self, CHECK_PERIOD, self._check_inputs)
-        self.health = watch_calibration_inputs(self, self.encoder.inputs, self._inputs)
+        self.health, self._deadman_counts = watch_calibration_inputs(
+            self, self.encoder.inputs, self._inputs[0], zip(self._deadman_topics, deadman_types))
+        self._publisher_timer = steady_timer(self, PUBLISHER_CHECK_PERIOD,
+                                             self._check_publishers)
         self.create_service(Trigger, '~/start', self._service(self.supervisor.start))
         self.create_service(Trigger, '~/pause', self._service(self.supervisor.pause))
         self.create_service(Trigger, '~/stop', self._service(self.supervisor.stop))
-        self._timer = self.create_timer(1.0 / values['rate'], self._on_timer)
-        deadman = (f'{self._inputs[1].topic_name}' if values['deadman_topic'] else '') + (
-            f' {self._inputs[-1].topic_name} button {values["deadman_button"]}'
+        # On the steady clock: a /clock that stops must not stop the zero commands.
+        self._timer = steady_timer(self, self._period, self._on_timer)
+        deadman = (f'{self._deadman_topics[0]}' if values['deadman_topic'] else '') + (
+            f' {self._deadman_topics[-1]} button {values["deadman_button"]}'
             if values['joy_topic'] else '')
         source = self._inputs[0].topic_name
         self.get_logger().info(
@@ -267,12 +345,46 @@ class CalibrationDriveNode(TableNode):
     def _now(self) -> float:
         return self.get_clock().now().nanoseconds * 1e-9
 
+    def _steady(self) -> float:
+        return self._steady_clock.now().nanoseconds * 1e-9
+
     def _check_inputs(self) -> None:
         for topic in self._inputs:
             topic.check()
 
+    def _fault(self, name: str, text: str, hold: float | None = FAULT_HOLD) -> None:
+        """Set a fault (it stops the drive) for ``hold`` s, or until cleared (None)."""
+        if text:
+            if name not in self._faults:
+                self.get_logger().error(text)
+            self._faults[name] = (text, None if hold is None else self._steady() + hold)
+        else:
+            self._faults.pop(name, None)
+
+    def _fault_text(self) -> str:
+        now = self._steady()
+        for name, (text, until) in list(self._faults.items()):
+            if until is not None and now > until:
+                del self._faults[name]
+        return '; '.join(text for text, _ in self._faults.values())
+
+    def _check_publishers(self) -> None:
+        """Rule 6: one publisher per input topic; more is a fault that names the topic."""
+        topics = (*self.encoder.topics, self._inputs[0].topic_name, *self._deadman_topics)
+        crowded = []
+        for topic in topics:
+            try:
+                count = self.count_publishers(topic)
+            except Exception:  # noqa: BLE001 -- the graph is gone during shutdown
+                return
+            if count > 1:
+                crowded.append(f'{count} publishers on {topic}')
+        self._fault('publishers', '; '.join(crowded) + ': the drive takes one source per '
+                    'input' if crowded else '', hold=None)
+
     def _on_step(self, stamp_s: float, d_left: float, d_right: float, dt: float) -> None:
         self._encoder_t = self._now()
+        self._encoder_steady = self._steady()
         self._travel[0] += d_left
         self._travel[1] += d_right
         self._rows['encoder'].append((_seconds(self.encoder.stamp), *self._travel))
@@ -280,6 +392,7 @@ class CalibrationDriveNode(TableNode):
         if self._reference == 'imu':
             self._fence.add_travel(d_left, d_right)
             self._pose = self._fence.pose
+            self._pose_stamp = stamp_s
 
     def _on_pose(self, msg) -> None:
         pose = msg.pose if isinstance(msg, PoseStamped) else msg.pose.pose
@@ -290,51 +403,88 @@ class CalibrationDriveNode(TableNode):
             self.get_logger().warning('pose without a stamp or not finite: skipped',
                                       throttle_duration_sec=WARN_PERIOD)
             return
+        if self._last_pose is not None:
+            cfg = self.supervisor.config
+            self._fault('pose', pose_jump(self._last_pose[1], values,
+                                          t * 1e-9 - self._last_pose[0], cfg.max_speed,
+                                          cfg.max_yaw_rate))
+        self._last_pose = (t * 1e-9, values)
         self._reference_t = self._now()
+        self._reference_steady = self._steady()
         self._pose = values
+        self._pose_stamp = t * 1e-9
         self._rows['pose'].append((t, *values))
 
     def _on_imu(self, msg) -> None:
         t = _seconds(msg.header.stamp)
         rate = msg.angular_velocity.z
-        if t == 0 or not math.isfinite(rate):
-            self.get_logger().warning('imu sample without a stamp or not finite: skipped',
+        if t == 0:
+            self.get_logger().warning('imu sample without a stamp: skipped',
                                       throttle_duration_sec=WARN_PERIOD)
+            return
+        problem = self._fence.add_gyro(t * 1e-9, rate, self._still)
+        if problem:
+            # Refused before the dead reckoning takes it; the drive stops.
+            self._fault('gyro', f'implausible gyro on {self._inputs[0].topic_name}: {problem}')
+            self._tick_now()
             return
         q = msg.orientation
         self._reference_t = self._now()
-        self._fence.add_gyro(t * 1e-9, rate, self._still)
+        self._reference_steady = self._steady()
         self._pose = self._fence.pose
         self._rows['imu'].append((t, rate, q.x, q.y, q.z, q.w,
                                   float(msg.orientation_covariance[0])))
 
-    def _on_deadman(self, msg) -> None:
-        self._set_deadman('topic', bool(msg.data))
+    # Two parameters without defaults: rclpy then passes the message info (a callback that
+    # can be called with the message alone gets the message alone).
+    def _on_deadman(self, msg, info) -> None:
+        self._deadman_counts[0].tick()
+        self._set_deadman('topic', bool(msg.data), info)
 
-    def _on_joy(self, msg) -> None:
+    def _on_joy(self, msg, info) -> None:
+        self._deadman_counts[-1].tick()
         index = self.params['deadman_button']
-        self._set_deadman('joy', index < len(msg.buttons) and msg.buttons[index] == 1)
+        self._set_deadman('joy', index < len(msg.buttons) and msg.buttons[index] == 1, info)
 
-    def _set_deadman(self, source: str, held: bool) -> None:
+    def _set_deadman(self, source: str, held: bool, info=None) -> None:
+        """Take a deadman message; its time is its publication's, on the steady clock."""
         was = self._deadman_state()[0]
-        self._deadmen[source] = (held, self._now())
-        if was and not held:
-            self._on_timer()   # a release is acted on now, not at the next tick
+        steady = self._steady()
+        source_ns = (info or {}).get('source_timestamp', 0)
+        age = self._links.setdefault(source, LinkAge()).age(source_ns, steady)
+        self._deadmen[source] = (held, self._now(), steady - age)
+        if was != held:
+            self._tick_now()   # acted on now, not at the next tick
 
     def _deadman_state(self):
-        """Return (held, when): every configured deadman held, and the oldest message time."""
+        """Return (held, when, when_steady): every deadman held, its oldest message's times."""
         states = list(self._deadmen.values())
-        if any(when is None for _, when in states):
-            return False, None
-        return all(held for held, _ in states), min(when for _, when in states)
+        if any(when is None for _, when, _ in states):
+            return False, None, None
+        return (all(held for held, _, _ in states), min(when for _, when, _ in states),
+                min(steady for _, _, steady in states))
+
+    def _lateness(self, steady: float) -> float:
+        """How late the loop runs: the worst recent tick, plus the geofence pose's age, s."""
+        while self._ticks and self._ticks[0][0] < steady - LATENESS_WINDOW:
+            self._ticks.popleft()
+        late = max((lateness for _, lateness in self._ticks), default=0.0)
+        if self._pose_stamp is not None:
+            age = self._now() - self._pose_stamp
+            late += min(max(age, 0.0), MAX_POSE_AGE) if math.isfinite(age) else MAX_POSE_AGE
+        return late
 
     def _inputs_now(self) -> Inputs:
-        held, when = self._deadman_state()
+        held, when, when_steady = self._deadman_state()
         not_ready = '' if self._reference != 'imu' or self._fence.settled else (
             f'measuring the gyro bias: the vehicle must stand still for '
             f'{self._fence.settle:g} s first')
+        steady = self._steady()
         return Inputs(self._now(), held, when, self._encoder_t, self._reference_t, self._pose,
-                      not_ready)
+                      not_ready, steady=steady, deadman_steady=when_steady,
+                      encoder_steady=self._encoder_steady,
+                      reference_steady=self._reference_steady, travel=tuple(self._travel),
+                      lateness=self._lateness(steady), fault=self._fault_text())
 
     def _service(self, call):
         def handle(request, response):
@@ -347,7 +497,39 @@ class CalibrationDriveNode(TableNode):
 
     # --- the drive ----------------------------------------------------------------------
 
+    def _watch_clock(self, steady: float) -> None:
+        """Rule 6: a ROS clock that is invalid, goes back, or stalls while data flow stops."""
+        ros = self.ros_time()
+        if ros is not None and (self._clock_latest is None or ros != self._clock_latest):
+            self._clock_latest, self._clock_advanced = ros, steady
+        fault = self.clock_fault() or self._clock_watch.update(ros, steady)
+        if 'went back' in fault:
+            self._fault('clock went back', fault)    # reported once: held a while
+            fault = ''
+        elif 'not advanced' in fault:
+            # Only while the sensors deliver after the clock stopped: a paused or loaded
+            # simulation stops both (its /clock and its sensors come together).
+            flowing = [t for t in (self._encoder_steady, self._reference_steady)
+                       if t is not None and self._clock_advanced is not None
+                       and t - self._clock_advanced > 0.5 * CLOCK_STALL]
+            if not flowing:
+                fault = ''
+        self._fault('clock', fault, hold=None)
+
     def _on_timer(self) -> None:
+        steady, ros = self._steady(), self._now()
+        self._watch_clock(steady)
+        if self._last_tick is not None:
+            # The world's time between ticks is the longer of the two clocks' (a simulation
+            # faster than real time moves more per tick).
+            interval = max(steady - self._last_tick[0], ros - self._last_tick[1])
+            self._ticks.append((steady, max(0.0, interval - self._period)))
+        self._last_tick = (steady, ros)
+        with self._lock:
+            self._tick()
+
+    def _tick_now(self) -> None:
+        """Apply the rules now (a deadman change, a fault), outside the timer's rhythm."""
         with self._lock:
             self._tick()
 
@@ -381,7 +563,7 @@ class CalibrationDriveNode(TableNode):
         """Return the status as published on ``~/status``."""
         out = self.supervisor.last
         step = self.steps[out.step] if out.step < len(self.steps) else None
-        held, _ = self._deadman_state()
+        held = self._deadman_state()[0]
         return {
             'state': out.state, 'reason': out.reason, 'phase': self._phase,
             'step': out.step, 'steps': out.steps, 'step_kind': step.kind if step else None,

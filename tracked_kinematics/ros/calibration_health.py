@@ -10,16 +10,17 @@ Kept apart from the node, whose module holds the drive's safety.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 
 from tracked_kinematics.ros.health import Health, Report
 
 DRIVING = ('running', 'returning')
 
 
-def watch_calibration_inputs(node, encoder_inputs: Sequence, inputs: Sequence) -> Health:
+def watch_calibration_inputs(node, encoder_inputs: Sequence, reference,
+                             deadmen: Iterable[tuple[str, str]]) -> tuple[Health, list]:
     """
-    Return the calibration drive's :class:`Health`, watching its inputs.
+    Return the calibration drive's :class:`Health` and the counts of its deadman topics.
 
     Parameters
     ----------
@@ -27,15 +28,22 @@ def watch_calibration_inputs(node, encoder_inputs: Sequence, inputs: Sequence) -
         The node (its ``supervisor`` is read at every update).
     encoder_inputs : sequence of InputTopic
         The encoder topics.
-    inputs : sequence of InputTopic
-        The reference first, then the deadmen.
+    reference : InputTopic
+        The pose or IMU topic.
+    deadmen : iterable of (str, str)
+        Topic and type name of each deadman subscription (plain subscriptions: their
+        callbacks must tick the returned counts, in the same order).
 
     """
     health = Health(node)
-    health.watch(*encoder_inputs, inputs[0])
+    health.watch(*encoder_inputs, reference)
     auto_start = node.supervisor.config.auto_start
-    health.watch(*inputs[1:], needed=lambda: node.supervisor.state in DRIVING or (
-        auto_start and node.supervisor.state == 'idle'))
+
+    def needed() -> bool:
+        state = node.supervisor.state
+        return state in DRIVING or (auto_start and state == 'idle')
+
+    counts = [health.watch_topic(topic, [kind], needed=needed) for topic, kind in deadmen]
 
     def drive(report: Report) -> None:
         last = node.supervisor.last
@@ -43,4 +51,4 @@ def watch_calibration_inputs(node, encoder_inputs: Sequence, inputs: Sequence) -
         report.add('reason', last.reason)
 
     health.add(drive)
-    return health
+    return health, counts

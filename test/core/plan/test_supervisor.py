@@ -8,7 +8,7 @@ import pytest
 from tracked_kinematics.core.plan.calibration import (
     ARC_YAW_FRACTIONS, fence_exit, FenceOdometry, predict_step, protocol, Step, total_duration)
 from tracked_kinematics.core.plan.supervisor import (
-    cap, Inputs, STATES, Supervisor, SupervisorConfig)
+    cap, Inputs, pose_jump, STATES, Supervisor, SupervisorConfig)
 
 CFG = SupervisorConfig(geofence_radius=3.0, max_speed=0.5, max_yaw_rate=1.0)
 
@@ -83,8 +83,13 @@ def test_fence_exit_time():
 class Bench:
     """Feeds the supervisor fresh sensors and moves an ideal (or slipping) vehicle."""
 
-    def __init__(self, steps=None, config=CFG, turn_gain=1.0, dt=0.05):
+    def __init__(self, steps=None, config=CFG, turn_gain=1.0, dt=0.05, encoders=True):
         self.sup = Supervisor(steps or protocol(60.0), config)
+        self.travel = [0.0, 0.0] if encoders else None
+        self.frozen = set()       # 'encoders', 'pose', 'yaw': what reports no change
+        self.reported = [0.0, 0.0, 0.0]
+        self.lateness = 0.0
+        self.fault = ''
         self.t = 0.0
         self.pose = [0.0, 0.0, 0.0]
         self.deadman = True
@@ -97,8 +102,14 @@ class Bench:
         self.outputs = []
 
     def inputs(self):
+        if 'pose' not in self.frozen:
+            self.reported[:2] = self.pose[:2]
+        if 'pose' not in self.frozen and 'yaw' not in self.frozen:
+            self.reported[2] = self.pose[2]
         return Inputs(self.t, self.deadman, self.deadman_t, self.encoder_t, self.reference_t,
-                      tuple(self.pose))
+                      tuple(self.reported),
+                      travel=None if self.travel is None else tuple(self.travel),
+                      lateness=self.lateness, fault=self.fault)
 
     def tick(self, hold=True, sensors=True):
         if hold:
@@ -109,6 +120,10 @@ class Bench:
         self.outputs.append(out)
         # Move the vehicle by the command (a slipping one turns turn_gain as fast).
         v, w = out.v, self.turn_gain * out.w
+        if self.travel is not None and 'encoders' not in self.frozen:
+            half = 0.5 * self.sup.config.track_width
+            self.travel[0] += (out.v - half * out.w) * self.dt
+            self.travel[1] += (out.v + half * out.w) * self.dt
         x, y, yaw = predict_step(self.pose, v, w, self.dt, 1)
         self.pose = [float(x[0]), float(y[0]), float(yaw[0])]
         self.t += self.dt
@@ -141,7 +156,8 @@ def test_auto_start_waits_for_the_deadman():
     bench.deadman = False
     assert bench.run(1.0).state == 'idle'
     bench.deadman = True
-    assert bench.tick().state == 'running'
+    # A press counts once it comes rearm_time (0.1 s) after the last release message.
+    assert [bench.tick().state for _ in range(4)] == ['idle', 'idle', 'running', 'running']
 
 
 def test_deadman_release_zeroes_at_once_and_the_step_restarts():
@@ -155,7 +171,10 @@ def test_deadman_release_zeroes_at_once_and_the_step_restarts():
     assert out.reason == 'deadman released'
     bench.run(1.0)
     bench.deadman = True
-    out = bench.tick()
+    # A press counts once it comes rearm_time (0.1 s) after the last release message.
+    outs = [bench.tick() for _ in range(4)]
+    assert [o.moving for o in outs] == [False, False, True, True]
+    out = outs[2]
     # Resumed: the same step, from its beginning.
     assert out.state == 'running' and out.step == 0 and out.step_elapsed == 0.0
     assert out.v == pytest.approx(0.3)
@@ -277,8 +296,9 @@ def test_a_step_too_long_even_from_the_centre_is_cut():
 
 def test_return_that_never_arrives_stops():
     cfg = SupervisorConfig(return_timeout=5.0)
+    # The vehicle cannot turn at all (and no encoders: the cross-checks would stop it).
     bench = Bench(steps=[Step(0.5, 0.0, 4.0, 'straight'), Step(0.5, 0.0, 4.0, 'straight')],
-                  config=cfg, turn_gain=0.0)      # the vehicle cannot turn at all
+                  config=cfg, turn_gain=0.0, encoders=False)
     bench.start()
     out = bench.run(20.0)
     assert out.state == 'stopped' and 'return' in out.reason and not out.moving
@@ -305,6 +325,177 @@ def test_config_refuses_bad_values():
         SupervisorConfig(inner_fraction=0.9)
     with pytest.raises(ValueError):
         Supervisor([])
+
+
+# Sensors that lie by standing still, faults, the deadman latch, a late loop (issue 27) --
+
+
+def _stopped_within(bench, seconds):
+    for _ in range(int(round(seconds / bench.dt))):
+        out = bench.tick()
+        if out.state == 'stopped':
+            return out
+    return None
+
+
+@pytest.mark.parametrize('step', [Step(0.4, 0.0, 30.0, 'straight'),
+                                  Step(0.0, 0.8, 30.0, 'turn'), Step(0.3, 0.5, 30.0, 'arc')])
+def test_frozen_encoders_stop_the_drive(step):
+    bench = Bench(steps=[step])
+    bench.start()
+    assert bench.run(3.0).state == 'running'
+    bench.frozen.add('encoders')
+    out = _stopped_within(bench, 2.0)
+    assert out is not None and not out.moving
+    assert out.reason.startswith('encoders do not follow the command')
+
+
+@pytest.mark.parametrize('step', [Step(0.4, 0.0, 30.0, 'straight'),
+                                  Step(0.3, 0.8, 30.0, 'arc')])
+def test_frozen_pose_stops_the_drive(step):
+    bench = Bench(steps=[step])
+    bench.start()
+    assert bench.run(3.0).state == 'running'
+    bench.frozen.add('pose')
+    out = _stopped_within(bench, 2.0)
+    assert out is not None and out.reason.startswith('pose reference does not follow')
+
+
+def test_stuck_gyro_stops_a_turn():
+    cfg = SupervisorConfig(reference='imu')
+    bench = Bench(steps=[Step(0.2, 0.8, 30.0, 'arc')], config=cfg)
+    bench.start()
+    assert bench.run(3.0).state == 'running'
+    bench.frozen.add('yaw')
+    out = _stopped_within(bench, 2.0)
+    assert out is not None and out.reason.startswith('gyro does not follow')
+
+
+def test_heavy_slip_is_not_a_frozen_sensor():
+    # On ice the vehicle turns at 0.3 of the commanded rate (effective track width 3.3x):
+    # the reference still follows the encoders well enough; the drive finishes.
+    bench = Bench(steps=protocol(60.0), turn_gain=0.3)
+    bench.start()
+    bench.run(200.0)
+    assert bench.outputs[-1].state == 'finished', bench.sup.events[-3:]
+    assert bench.max_distance <= 3.0
+
+
+def test_a_fault_of_the_node_stops_and_blocks_start():
+    bench = Bench(steps=[Step(0.3, 0.0, 30.0, 'straight')])
+    bench.fault = '2 publishers on /deadman'
+    ok, message = bench.start()
+    assert not ok and '2 publishers' in message
+    bench.fault = ''
+    assert bench.start()[0] and bench.run(1.0).moving
+    bench.fault = 'implausible gyro'
+    out = bench.tick()
+    assert out.state == 'stopped' and out.reason == 'implausible gyro' and not out.moving
+    assert not bench.start()[0]
+    bench.fault = ''
+    assert bench.start()[0] and bench.run(0.5).moving
+
+
+def test_stale_deadman_is_latched_until_released_and_pressed_again():
+    bench = Bench(steps=[Step(0.3, 0.0, 30.0, 'straight')])
+    bench.start()
+    assert bench.run(1.0).moving
+    assert not bench.run(1.0, hold=False).moving          # stale
+    # Fresh "true" messages again (a link that recovers, late deliveries): still zero.
+    out = bench.run(1.0)
+    assert not out.moving and 'press it again' in out.reason
+    bench.deadman = False
+    assert not bench.run(0.3).moving                      # let go ...
+    bench.deadman = True
+    assert bench.run(0.3).moving                          # ... and pressed again
+
+
+def test_two_deadman_publishers_that_disagree_never_move():
+    bench = Bench(steps=[Step(0.3, 0.0, 30.0, 'straight')], dt=0.025)
+    bench.start()
+    bench.deadman = False
+    bench.run(0.5)
+    moving = []
+    for k in range(200):                 # true and false alternating every 25 ms
+        bench.deadman = k % 2 == 0
+        moving.append(bench.tick().moving)
+    assert not any(moving)
+
+
+def test_deadman_age_on_the_steady_clock():
+    # The ROS clock stands still; the steady clock runs: the deadman goes stale on it.
+    sup = Supervisor([Step(0.3, 0.0, 30.0, 'straight')])
+    pose = (0.0, 0.0, 0.0)
+    inputs = Inputs(5.0, True, 5.0, 5.0, 5.0, pose, steady=100.0, deadman_steady=100.0,
+                    encoder_steady=100.0, reference_steady=100.0)
+    assert sup.start(inputs)[0] and sup.update(inputs).moving
+    out = sup.update(Inputs(5.0, True, 5.0, 5.0, 5.0, pose, steady=100.5,
+                            deadman_steady=100.0, encoder_steady=100.5,
+                            reference_steady=100.5))
+    assert not out.moving and 'deadman not held' in out.reason
+
+
+@pytest.mark.parametrize('ros_age, steady_age, stale', [
+    (1.0, 0.05, False),     # a simulation faster than real time
+    (0.05, 1.0, False),     # slower than real time
+    (1.0, 1.0, True)])
+def test_sensors_are_stale_only_when_old_on_both_clocks(ros_age, steady_age, stale):
+    sup = Supervisor([Step(0.3, 0.0, 30.0, 'straight')])
+    pose = (0.0, 0.0, 0.0)
+    assert sup.start(Inputs(10.0, True, 10.0, 10.0, 10.0, pose))[0]
+    out = sup.update(Inputs(10.0, True, 10.0, 10.0 - ros_age, 10.0, pose, steady=50.0,
+                            deadman_steady=50.0, encoder_steady=50.0 - steady_age,
+                            reference_steady=50.0))
+    assert (out.state == 'stopped') == stale and out.moving != stale
+    assert not stale or 'encoders stale' in out.reason
+
+
+def test_a_late_loop_slows_down_and_turns_back_earlier():
+    margin = 0.5 * (1.0 - CFG.guard_fraction) * CFG.geofence_radius
+    bench = Bench(steps=[Step(0.5, 0.0, 30.0, 'straight')])
+    bench.start()
+    assert bench.tick().v == pytest.approx(0.5)
+    bench.lateness = 0.5
+    out = bench.tick()
+    assert out.v == pytest.approx(margin / (CFG.reaction_time + 0.5))
+    bench.lateness = math.nan
+    assert not bench.tick().moving
+    # Late all along, the guard turns back before the stopping distance reaches the fence.
+    bench = Bench(steps=[Step(0.5, 0.0, 30.0, 'straight')], dt=0.3)
+    bench.lateness = 0.25
+    bench.start()
+    bench.run(20.0)
+    assert bench.max_distance <= CFG.geofence_radius
+
+
+def test_a_return_that_comes_no_closer_stops():
+    # The pose says the vehicle stands at 2.7 m whatever it does (no encoders here).
+    cfg = SupervisorConfig(return_progress_time=4.0)
+    bench = Bench(steps=[Step(0.5, 0.0, 6.0, 'straight'), Step(0.5, 0.0, 4.0, 'straight')],
+                  config=cfg, encoders=False)
+    bench.start()
+    while bench.tick().state == 'running':
+        pass
+    bench.frozen.add('pose')
+    out = _stopped_within(bench, 6.0)
+    assert out is not None and 'came no closer' in out.reason
+
+
+def test_a_pose_far_outside_the_fence_stops():
+    bench = Bench(steps=[Step(0.3, 0.0, 30.0, 'straight')], encoders=False)
+    bench.start()
+    bench.run(0.5)
+    bench.pose = [3.5, 0.0, 0.0]
+    out = bench.tick()
+    assert out.state == 'stopped' and out.reason.startswith('outside the geofence')
+
+
+def test_pose_jump():
+    assert pose_jump((0.0, 0.0, 0.0), (0.01, 0.0, 0.0), 0.02, 0.5, 1.0) == ''
+    assert pose_jump((0.0, 0.0, 0.0), (1.0, 0.0, 0.0), 1.0, 0.5, 1.0) == ''
+    assert 'jumped' in pose_jump((2.5, 0.0, 0.0), (0.0, 0.0, 0.0), 0.02, 0.5, 1.0)
+    assert 'jumped' in pose_jump((0.0, 0.0, 0.0), (0.0, 0.0, 3.0), 0.02, 0.5, 1.0)
+    assert 'jumped' in pose_jump((0.0, 0.0, 0.0), (0.2, 0.0, 0.0), -1.0, 0.5, 1.0)
 
 
 # Properties ------------------------------------------------------------------------
@@ -380,6 +571,25 @@ def test_fence_odometry_skips_non_finite_and_gaps():
     fence.add_travel(math.nan, 1.0)
     fence.add_travel(1.0, 1.0)
     assert fence.pose == pytest.approx((1.0, 0.0, 0.0))
+
+
+def test_fence_odometry_refuses_an_implausible_gyro():
+    fence = FenceOdometry(max_rate=5.0, max_jump=2.5)
+    t = 0.0
+    for _ in range(100):
+        t += 0.01
+        assert fence.add_gyro(t, 0.5) == ''
+    yaw = fence.yaw
+    # A saturation burst (+2000 deg/s for 90 ms), 1e308, NaN: refused, not integrated.
+    for rate in [math.radians(2000.0)] * 9 + [1e308, math.nan, -math.inf]:
+        t += 0.01
+        assert fence.add_gyro(t, rate) != ''
+    assert fence.yaw == pytest.approx(yaw)
+    assert fence.add_gyro(t + 0.01, 0.6) == ''
+    # A jump within the range but faster than a vehicle accelerates.
+    assert 'jumped' in fence.add_gyro(t + 0.02, 4.0)
+    assert fence.add_gyro(t + 0.03, 0.6) == ''
+    assert abs(fence.yaw - yaw) < 0.1
 
 
 def test_start_waits_until_ready():

@@ -321,14 +321,28 @@ class FenceOdometry:
         Encoder scales (true travel = scale x nominal).
     settle : float
         Standing time, s, after which the bias counts as measured (:attr:`settled`).
+    max_rate : float
+        Largest plausible yaw rate, rad/s: a sample beyond it (a saturated or broken gyro)
+        is refused.
+    max_jump : float
+        Largest plausible change of the yaw rate from one sample to the next, rad/s, beyond
+        ``max_acceleration`` times the time between them.
+    max_acceleration : float
+        Largest plausible yaw acceleration, rad/s^2.
 
     """
 
-    def __init__(self, scale_left: float = 1.0, scale_right: float = 1.0, settle: float = 1.0):
+    def __init__(self, scale_left: float = 1.0, scale_right: float = 1.0, settle: float = 1.0,
+                 max_rate: float = math.inf, max_jump: float = math.inf,
+                 max_acceleration: float = 20.0):
         self.scales = (float(scale_left), float(scale_right))
         self.x = self.y = self.yaw = 0.0
         self.settle = float(settle)
+        self.max_rate = float(max_rate)
+        self.max_jump = float(max_jump)
+        self.max_acceleration = float(max_acceleration)
         self._gyro_t = None
+        self._rate = None
         self._still_time = 0.0
         self._still_sum = 0.0
 
@@ -347,9 +361,9 @@ class FenceOdometry:
         """Return whether the vehicle stood still long enough to measure the gyro bias."""
         return self._still_time >= self.settle
 
-    def add_gyro(self, t: float, yaw_rate: float, still: bool = False) -> None:
+    def add_gyro(self, t: float, yaw_rate: float, still: bool = False) -> str:
         """
-        Integrate one gyro sample held since the last, less the bias.
+        Integrate one gyro sample held since the last, less the bias; refuse implausible ones.
 
         Parameters
         ----------
@@ -361,9 +375,25 @@ class FenceOdometry:
             The vehicle stands still (its encoders do not move): the sample measures the
             bias.
 
+        Returns
+        -------
+        str
+            '' when the sample was taken; otherwise why it was refused (not finite, beyond
+            ``max_rate``, a jump beyond ``max_jump``): it is not integrated.
+
         """
         if not (math.isfinite(t) and math.isfinite(yaw_rate)):
-            return
+            return f'gyro sample not finite ({yaw_rate!r} rad/s at {t!r} s)'
+        if abs(yaw_rate) > self.max_rate:
+            return (f'gyro sample of {yaw_rate:.4g} rad/s beyond the plausible '
+                    f'{self.max_rate:g} rad/s (saturated?)')
+        if self._rate is not None and self._gyro_t is not None:
+            gap = abs(t - self._gyro_t)
+            allowed = self.max_jump + self.max_acceleration * min(gap, 1.0)
+            if abs(yaw_rate - self._rate) > allowed:
+                return (f'gyro jumped from {self._rate:.4g} to {yaw_rate:.4g} rad/s in '
+                        f'{gap:.3f} s (more than {allowed:.3g} rad/s)')
+        self._rate = yaw_rate
         if self._gyro_t is not None and 0.0 < t - self._gyro_t < 1.0:
             dt = t - self._gyro_t
             if still:
@@ -371,6 +401,7 @@ class FenceOdometry:
                 self._still_sum += yaw_rate * dt
             self.yaw += (yaw_rate - self.bias) * dt
         self._gyro_t = t
+        return ''
 
     def add_travel(self, d_left: float, d_right: float) -> None:
         """Advance along the current heading by the nominal track travel of one step, m."""

@@ -30,6 +30,26 @@ encoders and the reference last delivered, the pose in the geofence frame) and p
    fresh again.
 5. **Finite.** The command is always finite: a pose that is not finite counts as a stale
    reference, and any non-finite command is replaced by zero and stops the drive.
+6. **Sensors that lie by standing still.** Over a sliding window of ``check_window`` (after
+   the command has been non-zero ``settle_time`` longer), the encoders must travel at least
+   ``follow_fraction`` of the track travel the command asks for, and the reference must move
+   at least ``reference_fraction`` of what the encoders say (with ``reference='imu'``: turn);
+   a breach stops the drive naming the sensor. A fault the node found (``Inputs.fault``: more
+   than one publisher, an implausible gyro, a pose jump, a bad clock) stops it too, and
+   ``start`` is refused while it lasts.
+7. **Deadman latch.** With ``Inputs.steady`` the deadman's age is judged on the steady clock
+   from the time of the press (``deadman_steady``); after a release or a stale deadman only a
+   fresh press after a release of at least ``rearm_time`` moves the vehicle again.
+8. **Late loop.** The guard of rule 2 is moved in by the distance driven in ``reaction_time``
+   plus the loop's lateness (``Inputs.lateness``), and ``|v|`` is capped so that this
+   distance stays within half the margin between the guard and the fence.
+9. **Return and outside.** A return that has come no closer to the centre (nor, turning
+   in place, turned towards it) for ``return_progress_time``, or a pose beyond
+   ``outside_fraction`` of the radius, stops the drive.
+
+Sensor freshness (rule 4) with ``Inputs.steady``: stale only when old on both clocks, so that
+a simulation slower or faster than real time works; a stalled or rewound ROS clock is the
+node's fault to report (``Inputs.fault``).
 
 States: ``idle`` (before start), ``running``, ``paused``, ``returning``, ``finished`` (the
 protocol is done), ``stopped`` (by ``stop``, terminal; or by a sensor, resumable).
@@ -45,6 +65,16 @@ from .._checks import require_numbers
 from ..integration import wrap_angle
 
 STATES = ('idle', 'running', 'paused', 'returning', 'finished', 'stopped')
+#: Smallest commanded or measured motion in a window that the cross-checks judge, m (the
+#: simulated Auriga-alpha's tracks stood still under a return's 0.04 m/s).
+MIN_CHECKED = 0.15
+#: Smallest encoder motion in a window against which the reference is judged, m (a slow
+#: vehicle that sticks a moment in a tight arc moved 0.09 m by its encoders and 0.01 m).
+MIN_REFERENCE = 0.15
+#: Noise of a pose step that :func:`pose_jump` allows, m.
+POSE_NOISE = 0.05
+#: A return must come this much closer to the centre to count as progress, m.
+RETURN_PROGRESS = 0.05
 
 
 @dataclass(frozen=True, slots=True)
@@ -72,6 +102,25 @@ class SupervisorConfig:
         Longest return, s.
     heading_tolerance : float
         A return turns in place until it faces the centre this well, rad.
+    track_width : float
+        Nominal track width, m (the command's track travel, the encoders' rotation).
+    reference : str
+        ``'pose'`` (the pose's position and heading are measured) or ``'imu'`` (only the
+        heading is: the position is the encoders').
+    check_window, settle_time : float
+        Window of the cross-checks, and how much longer the command must have been non-zero
+        before they apply, s.
+    follow_fraction, reference_fraction : float
+        Smallest encoder travel per commanded track travel, and smallest reference motion
+        per encoder motion, in a window.
+    rearm_time : float
+        Shortest release that re-arms the deadman, s.
+    reaction_time : float
+        Delay from a pose to a stopped track when the loop is on time, s.
+    return_progress_time : float
+        Longest time a return may go without coming closer to the centre, s.
+    outside_fraction : float
+        A pose beyond this fraction of the radius stops the drive.
 
     """
 
@@ -87,12 +136,29 @@ class SupervisorConfig:
     inner_fraction: float = 0.25
     return_timeout: float = 60.0
     heading_tolerance: float = 0.2
+    track_width: float = 0.5
+    reference: str = 'pose'
+    check_window: float = 1.0
+    settle_time: float = 0.6
+    follow_fraction: float = 0.3
+    reference_fraction: float = 0.05
+    rearm_time: float = 0.1
+    reaction_time: float = 0.15
+    return_progress_time: float = 10.0
+    outside_fraction: float = 1.15
 
     def __post_init__(self):
         require_numbers(self, positive=('geofence_radius', 'max_speed', 'max_yaw_rate',
                                         'deadman_timeout', 'encoder_timeout',
                                         'reference_timeout', 'return_timeout',
-                                        'heading_tolerance'))
+                                        'heading_tolerance', 'track_width', 'check_window',
+                                        'follow_fraction', 'reference_fraction',
+                                        'return_progress_time', 'outside_fraction'),
+                        non_negative=('settle_time', 'rearm_time', 'reaction_time'))
+        if self.reference not in ('pose', 'imu'):
+            raise ValueError(f"reference must be 'pose' or 'imu', got {self.reference!r}")
+        if self.outside_fraction < 1.0:
+            raise ValueError(f'outside_fraction must be >= 1, got {self.outside_fraction!r}')
         if not (0.0 < self.inner_fraction < self.plan_fraction <= self.guard_fraction <= 1.0):
             raise ValueError(
                 'need 0 < inner_fraction < plan_fraction <= guard_fraction <= 1, got '
@@ -119,6 +185,18 @@ class Inputs:
         or dead reckoning); None when unknown.
     not_ready : str
         Why the drive may not start yet (the gyro bias is not measured), or ''.
+    steady : float or None
+        Now on the node's steady clock (None: judge everything on ``t``).
+    deadman_steady : float or None
+        Steady time of the person's last deadman message, at its publication where known.
+    encoder_steady, reference_steady : float or None
+        Steady times the encoders and the reference last delivered.
+    travel : tuple of float or None
+        Cumulative nominal travel of the left and right tracks, m.
+    lateness : float
+        How late the loop runs (its tick interval beyond the period, the age of the pose), s.
+    fault : str
+        A fault the node found ('' when none): it stops the drive.
 
     """
 
@@ -129,6 +207,13 @@ class Inputs:
     reference_t: float | None = None
     pose: tuple | None = None
     not_ready: str = ''
+    steady: float | None = None
+    deadman_steady: float | None = None
+    encoder_steady: float | None = None
+    reference_steady: float | None = None
+    travel: tuple | None = None
+    lateness: float = 0.0
+    fault: str = ''
 
 
 @dataclass(frozen=True, slots=True)
@@ -186,6 +271,10 @@ class _Drive:
     terminal: bool = False
     returned_for: int = -1            # the step a return was already driven for
     log: list = field(default_factory=list)
+    deadman: str = 'new'              # new -> held -> latched -> rearm -> held
+    released_at: float | None = None  # when the deadman was last seen released
+    history: list = field(default_factory=list)  # (t, travel, pose, v, w) while moving
+    best: tuple | None = None         # (t, distance, |heading error|) of a return's best
 
 
 class Supervisor:
@@ -241,21 +330,23 @@ class Supervisor:
             return False, (f'cannot start: the drive is {d.state} ({d.reason}); start the '
                            'node again')
         if d.state == 'idle':
-            problem = inputs.not_ready or self._stale(inputs)
+            problem = inputs.not_ready or inputs.fault or self._stale(inputs)
             if problem:
                 return False, f'cannot start: {problem}'
             pose = inputs.pose
             d.centre = (float(pose[0]), float(pose[1]))
             d.index, d.step, d.step_t0 = 0, None, None
+            d.history.clear()
             self._set(inputs.t, 'running', '')
             return True, (f'started: {len(self.steps)} steps, geofence of '
                           f'{self.config.geofence_radius:g} m around ({d.centre[0]:.2f}, '
                           f'{d.centre[1]:.2f})')
         if d.state == 'stopped':
-            problem = self._stale(inputs)
+            problem = inputs.fault or self._stale(inputs)
             if problem:
                 return False, f'cannot resume: {problem}'
-            d.step_t0 = None
+            d.step_t0 = d.return_t0 = d.best = None
+            d.history.clear()
             self._set(inputs.t, 'returning' if d.return_phase else 'running', 'resumed')
             return True, f'resumed at step {d.index + 1} of {len(self.steps)}'
         if d.paused_by_user:
@@ -292,6 +383,7 @@ class Supervisor:
         if not (math.isfinite(v) and math.isfinite(w)):
             self._stop_for(inputs.t, f'non-finite command ({v!r}, {w!r}) refused')
             out = self._output(inputs, 0.0, 0.0)
+        self._record(inputs, out)
         self._last = out
         return out
 
@@ -312,17 +404,21 @@ class Supervisor:
             if not ok:   # waits for the sensors
                 return self._output(inputs, 0.0, 0.0, reason=message)
         if d.state in ('finished', 'stopped'):
+            self._deadman_fresh(inputs)   # the latch follows the deadman all the same
             return self._output(inputs, 0.0, 0.0)
+        if inputs.fault:
+            # Rule 6: a fault the node found stops, paused or not.
+            self._stop_for(t, inputs.fault)
+            return self._output(inputs, 0.0, 0.0)
+        fresh = self._deadman_fresh(inputs)
         if d.paused_by_user:
             return self._output(inputs, 0.0, 0.0)
-        if not self._deadman_fresh(inputs):
-            # Rule 1: zero at once; the step restarts on resume.
-            d.step_t0 = d.return_t0 = None
-            why = 'deadman released' if (inputs.deadman_t is not None and not inputs.deadman) \
-                else f'deadman not held within {cfg.deadman_timeout:g} s'
-            self._set(t, 'paused', why)
+        if not fresh:
+            # Rules 1 and 7: zero at once; the step restarts on resume.
+            d.step_t0 = d.return_t0 = d.best = None
+            self._set(t, 'paused', self._deadman_reason(inputs))
             return self._output(inputs, 0.0, 0.0)
-        problem = self._stale(inputs)
+        problem = self._stale(inputs) or self._outside(inputs) or self._cross_check(inputs)
         if problem:
             self._stop_for(t, problem)
             return self._output(inputs, 0.0, 0.0)
@@ -332,24 +428,153 @@ class Supervisor:
             return self._returning(inputs)
         return self._running(inputs)
 
+    def _deadman_when(self, inputs: Inputs):
+        """Return (now, when) of the deadman: on the steady clock when the node gives it."""
+        if inputs.steady is not None:
+            return inputs.steady, inputs.deadman_steady
+        return inputs.t, inputs.deadman_t
+
     def _deadman_fresh(self, inputs: Inputs) -> bool:
-        age = None if inputs.deadman_t is None else inputs.t - inputs.deadman_t
-        return bool(inputs.deadman) and age is not None and \
-            -self.config.deadman_timeout <= age <= self.config.deadman_timeout
+        """Rules 1 and 7: held, fresh, and pressed again after a release or a stale one."""
+        d, cfg = self._d, self.config
+        now, when = self._deadman_when(inputs)
+        if when is None or not math.isfinite(when):
+            if d.deadman == 'held':
+                d.deadman = 'latched'
+            return False
+        if not inputs.deadman:
+            # A release (from anyone): the next press must come rearm_time after its last.
+            d.deadman = 'rearm'
+            d.released_at = when if d.released_at is None else max(d.released_at, when)
+            return False
+        age = now - when
+        if not (-cfg.deadman_timeout <= age <= cfg.deadman_timeout):
+            if d.deadman == 'held':
+                d.deadman = 'latched'
+            return False
+        if d.deadman == 'rearm' and when - d.released_at >= cfg.rearm_time:
+            d.deadman = 'held'
+        elif d.deadman == 'new':
+            d.deadman = 'held'
+        return d.deadman == 'held'
+
+    def _deadman_reason(self, inputs: Inputs) -> str:
+        d, cfg = self._d, self.config
+        now, when = self._deadman_when(inputs)
+        if when is not None and not inputs.deadman:
+            return 'deadman released'
+        if d.deadman == 'latched' and when is not None and \
+                -cfg.deadman_timeout <= now - when <= cfg.deadman_timeout:
+            return 'deadman was stale: let go and press it again'
+        if d.deadman == 'rearm':
+            return 'deadman released'
+        return f'deadman not held within {cfg.deadman_timeout:g} s'
 
     def _stale(self, inputs: Inputs) -> str:
+        """Rule 4: with a steady time, stale only when old on both clocks."""
         cfg = self.config
-        for what, when, timeout in (('encoders', inputs.encoder_t, cfg.encoder_timeout),
-                                    ('reference', inputs.reference_t, cfg.reference_timeout)):
+        for what, when, when_steady, timeout in (
+                ('encoders', inputs.encoder_t, inputs.encoder_steady, cfg.encoder_timeout),
+                ('reference', inputs.reference_t, inputs.reference_steady,
+                 cfg.reference_timeout)):
             if when is None:
                 return f'no {what} data'
             age = inputs.t - when
+            if inputs.steady is not None:
+                age_steady = math.inf if when_steady is None else inputs.steady - when_steady
+                if -timeout <= age_steady <= timeout:
+                    continue
+                age = min(age, age_steady) if math.isfinite(age) else age_steady
             if not (-timeout <= age <= timeout):
                 return f'{what} stale ({age:.2f} s old, timeout {timeout:g} s)'
         pose = inputs.pose
         if pose is None or not all(map(math.isfinite, pose)):
             return 'reference stale (no finite pose)'
         return ''
+
+    def _outside(self, inputs: Inputs) -> str:
+        """Rule 9: a pose far beyond the fence means the fence failed: stop."""
+        d, cfg = self._d, self.config
+        pose = inputs.pose
+        distance = math.hypot(pose[0] - d.centre[0], pose[1] - d.centre[1])
+        if distance > cfg.outside_fraction * cfg.geofence_radius:
+            return (f'outside the geofence: {distance:.2f} m from the centre (radius '
+                    f'{cfg.geofence_radius:g} m)')
+        return ''
+
+    def _cross_check(self, inputs: Inputs) -> str:
+        """Rule 6: the command, the encoders and the reference must tell the same story."""
+        d, cfg = self._d, self.config
+        h, t, travel = d.history, inputs.t, inputs.travel
+        if len(h) < 2 or travel is None or not all(map(math.isfinite, travel)) \
+                or t - h[0][0] < cfg.check_window + cfg.settle_time:
+            return ''
+        start = max(i for i, row in enumerate(h) if row[0] <= t - cfg.check_window)
+        rows = h[start:] + [(t, tuple(travel), tuple(inputs.pose), 0.0, 0.0)]
+        half = 0.5 * cfg.track_width
+        cmd = enc = ref_r = 0.0
+        for a, b in zip(rows, rows[1:]):
+            v, w = a[3], a[4]
+            cmd += 0.5 * (abs(v - w * half) + abs(v + w * half)) * (b[0] - a[0])
+            enc += 0.5 * (abs(b[1][0] - a[1][0]) + abs(b[1][1] - a[1][1]))
+            ref_r += float(wrap_angle(b[2][2] - a[2][2]))
+        # Net motion over the window (sums of absolute steps would add up sensor noise).
+        first, last = rows[0], rows[-1]
+        dl, dr = last[1][0] - first[1][0], last[1][1] - first[1][1]
+        enc_d, enc_r = 0.5 * abs(dl + dr), abs(dr - dl) / cfg.track_width
+        ref_d = math.hypot(last[2][0] - first[2][0], last[2][1] - first[2][1])
+        ref_r = abs(ref_r)
+        span = t - rows[0][0]
+        if cmd >= MIN_CHECKED and enc < cfg.follow_fraction * cmd:
+            return (f'encoders do not follow the command: {enc:.3f} m of track travel in '
+                    f'{span:.2f} s against {cmd:.3f} m commanded (frozen encoders?)')
+        # Only motion along the path is judged: a turn in place moves no vehicle out of its
+        # fence, and a skid-steer vehicle may barely turn in place on a grippy floor.
+        if cfg.reference == 'pose':
+            expected, observed = enc_d, ref_d + half * ref_r
+            what = (f'pose reference does not follow the encoders: it moved {ref_d:.3f} m and '
+                    f'{ref_r:.2f} rad in {span:.2f} s, the encoders {enc_d:.3f} m and '
+                    f'{enc_r:.2f} rad (frozen pose?)')
+        else:
+            expected = half * enc_r if enc_d >= MIN_CHECKED else 0.0
+            observed = half * ref_r
+            what = (f'gyro does not follow the encoders: it turned {ref_r:.2f} rad in '
+                    f'{span:.2f} s, the encoders {enc_r:.2f} rad (stuck gyro?)')
+        if expected >= MIN_REFERENCE and observed < cfg.reference_fraction * expected:
+            return what
+        return ''
+
+    def _record(self, inputs: Inputs, out: Output) -> None:
+        """Keep the moving commands with the travel and pose they were sent at (rule 6)."""
+        d, cfg = self._d, self.config
+        travel, pose = inputs.travel, inputs.pose
+        if not out.moving or travel is None or pose is None \
+                or not all(map(math.isfinite, (*travel, *pose, inputs.t))):
+            d.history.clear()
+            return
+        if d.history and inputs.t <= d.history[-1][0]:
+            if inputs.t < d.history[-1][0]:
+                d.history.clear()   # time went back
+            else:
+                d.history.pop()     # a second update at the same instant: keep the latest
+        d.history.append((inputs.t, tuple(travel), tuple(pose), out.v, out.w))
+        keep = inputs.t - cfg.check_window - cfg.settle_time - 1.0
+        while len(d.history) > 2 and d.history[1][0] < keep:
+            d.history.pop(0)
+
+    def _delay(self, inputs: Inputs) -> float:
+        """Rule 8: how long from a pose to stopped tracks, s."""
+        lateness = inputs.lateness
+        if not math.isfinite(lateness):
+            return math.inf
+        return self.config.reaction_time + max(0.0, lateness)
+
+    def _speed_limit(self, inputs: Inputs) -> float:
+        """Rule 8: the speed whose reaction distance is half the guard's margin, m/s."""
+        cfg = self.config
+        delay = self._delay(inputs)
+        margin = 0.5 * (1.0 - cfg.guard_fraction) * cfg.geofence_radius
+        return math.inf if delay <= 0.0 else margin / delay
 
     def _running(self, inputs: Inputs) -> Output:
         d, cfg = self._d, self.config
@@ -377,7 +602,7 @@ class Supervisor:
                 step = replace(step, duration=cut)
             d.step, d.step_t0 = step, t
             self._set(t, 'running', '')
-        if self._leaving(pose):
+        if self._leaving(pose, inputs):
             d.index += 1
             d.step_t0 = None
             return self._begin_return(inputs, 'at the geofence, moving outwards')
@@ -388,10 +613,12 @@ class Supervisor:
         return math.hypot(pose[0] - c[0], pose[1] - c[1]) \
             <= self.config.inner_fraction * self.config.geofence_radius
 
-    def _leaving(self, pose) -> bool:
+    def _leaving(self, pose, inputs: Inputs) -> bool:
         d, cfg = self._d, self.config
         dx, dy = pose[0] - d.centre[0], pose[1] - d.centre[1]
-        if math.hypot(dx, dy) < cfg.guard_fraction * cfg.geofence_radius:
+        v = min(abs(d.step.v), self._speed_limit(inputs))
+        guard = cfg.guard_fraction * cfg.geofence_radius - v * self._delay(inputs)
+        if math.hypot(dx, dy) < guard:
             return False
         # Moving outwards: the body's velocity direction (by the sign of v) points away.
         v = d.step.v
@@ -400,7 +627,7 @@ class Supervisor:
 
     def _begin_return(self, inputs: Inputs, why: str) -> Output:
         d = self._d
-        d.return_phase, d.return_t0 = 'turn', inputs.t
+        d.return_phase, d.return_t0, d.best = 'turn', inputs.t, None
         self._set(inputs.t, 'returning', why)
         return self._returning(inputs)
 
@@ -408,7 +635,7 @@ class Supervisor:
         d, cfg = self._d, self.config
         t, pose = inputs.t, inputs.pose
         if d.return_t0 is None or t < d.return_t0:
-            d.return_t0 = t
+            d.return_t0, d.best = t, None
         if t - d.return_t0 > cfg.return_timeout:
             d.return_phase = ''
             self._stop_for(t, f'the return to the geofence centre took more than '
@@ -416,11 +643,21 @@ class Supervisor:
             return self._output(inputs, 0.0, 0.0)
         dx, dy = d.centre[0] - pose[0], d.centre[1] - pose[1]
         distance = math.hypot(dx, dy)
+        error = float(wrap_angle(math.atan2(dy, dx) - pose[2]))
+        # Progress: closer to the centre, or (turning in place) facing it better.
+        if d.best is None or distance < d.best[1] - RETURN_PROGRESS \
+                or abs(error) < d.best[2] - 2.0 * RETURN_PROGRESS:
+            d.best = (t, min(distance, d.best[1]) if d.best else distance,
+                      min(abs(error), d.best[2]) if d.best else abs(error))
+        elif t - d.best[0] > cfg.return_progress_time:
+            d.return_phase = ''
+            self._stop_for(t, f'the return to the geofence centre came no closer in '
+                           f'{cfg.return_progress_time:g} s ({distance:.2f} m from it)')
+            return self._output(inputs, 0.0, 0.0)
         if distance <= cfg.inner_fraction * cfg.geofence_radius:
-            d.return_phase, d.step_t0 = '', None
+            d.return_phase, d.step_t0, d.best = '', None, None
             self._set(t, 'running', 'back near the centre')
             return self._running(inputs)
-        error = float(wrap_angle(math.atan2(dy, dx) - pose[2]))
         w = max(-cfg.max_yaw_rate, min(cfg.max_yaw_rate, 2.0 * error))
         if d.return_phase == 'turn':
             if abs(error) > cfg.heading_tolerance:
@@ -448,6 +685,10 @@ class Supervisor:
     def _output(self, inputs: Inputs, v: float, w: float, reason: str | None = None) -> Output:
         d, cfg = self._d, self.config
         v, w = cap(v, w, cfg.max_speed, cfg.max_yaw_rate)
+        limit = self._speed_limit(inputs)
+        if abs(v) > limit:
+            # Rule 8: slower when late (both components: the curvature is kept).
+            v, w = cap(v, w, limit, cfg.max_yaw_rate) if limit > 0.0 else (0.0, 0.0)
         if d.state not in ('running', 'returning'):
             v = w = 0.0
         elapsed = 0.0 if d.step_t0 is None else max(0.0, inputs.t - d.step_t0)
@@ -471,3 +712,25 @@ def cap(v: float, w: float, max_speed: float, max_yaw_rate: float) -> tuple[floa
         return 0.0, 0.0
     factor = min(1.0, max_speed / abs(v) if v else 1.0, max_yaw_rate / abs(w) if w else 1.0)
     return v * factor, w * factor
+
+
+def pose_jump(previous, pose, dt: float, max_speed: float, max_yaw_rate: float,
+              margin: float = POSE_NOISE) -> str:
+    """
+    Say why a step of the reference pose is implausible ('' when it is not).
+
+    A vehicle capped at ``max_speed`` and ``max_yaw_rate`` moves at most twice that (slip,
+    a push) in ``dt`` s, plus ``margin`` m (and ten times it in rad) of noise; a longer step
+    is a second publisher or a tracker that jumped. ``dt`` below zero (a stamp that went
+    back) counts as zero.
+    """
+    dt = max(0.0, dt) if math.isfinite(dt) else 0.0
+    step = math.hypot(pose[0] - previous[0], pose[1] - previous[1])
+    turn = abs(float(wrap_angle(pose[2] - previous[2])))
+    allowed = 2.0 * max_speed * dt + margin
+    allowed_turn = 2.0 * max_yaw_rate * dt + 10.0 * margin
+    if step > allowed or turn > allowed_turn:
+        return (f'pose jumped {step:.3f} m and {turn:.3f} rad in {dt:.3f} s (at most '
+                f'{allowed:.3f} m and {allowed_turn:.3f} rad are plausible): a second pose '
+                'publisher or a tracker that lost the body?')
+    return ''
