@@ -165,8 +165,8 @@ def test_calibration_drive_names_a_pose_topic_nobody_publishes(ros_context, exec
     assert stderr.warnings('health_test.calibration_drive', f'{topic}: no publisher')
 
 
-def test_with_auto_start_a_silent_deadman_is_named_before_the_start(ros_context, executor,
-                                                                      made):
+def test_with_auto_start_a_silent_deadman_is_named_before_the_start(
+        ros_context, executor, made):
     # auto_start waits for the deadman: idle, its silence is why nothing happens.
     monitor = Monitor(ros_context, executor)
     made.append(monitor.node)
