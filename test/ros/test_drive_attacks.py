@@ -49,7 +49,7 @@ SCENARIOS = {
     'frozen_encoders_imu': ('imu', 'joint_states'),
     'frozen_encoders_pose': ('pose', 'joint_states'),
     'frozen_pose': ('pose', 'ground_truth/odom'),
-    'second_pose_publisher': ('pose', None),
+    'second_pose_publisher': ('pose', 'ground_truth/odom'),
     'gyro_saturation_burst': ('imu', 'imu/data'),
     'gyro_1e308': ('imu', 'imu/data'),
     'clock_frozen': ('pose', '/clock'),
@@ -90,14 +90,13 @@ class Attacker:
         truth_topic = _raw('ground_truth/odom') if topic == 'ground_truth/odom' \
             else 'ground_truth/odom'
         self.node.create_subscription(Odometry, truth_topic, self._on_truth, reliable)
-        self.node.create_subscription(Clock, _raw('/clock') if topic == '/clock' else '/clock',
-                                      self._on_clock, 10)
+        if topic == '/clock':
+            self.node.create_subscription(Clock, _raw('/clock'), self._on_clock, 10)
         if topic is not None:
             self.out = self.node.create_publisher(TYPES[topic], topic, 10)
             if topic != '/clock':
                 self.node.create_subscription(TYPES[topic], _raw(topic), self._relay, reliable)
-        if scenario == 'second_pose_publisher':
-            self.second = self.node.create_publisher(Odometry, 'ground_truth/odom', 10)
+        self.second = None
 
     # what the world does
     def _on_clock(self, msg):
@@ -114,9 +113,13 @@ class Attacker:
         # clock_frozen: nothing is relayed
 
     def _on_truth(self, msg):
+        if self.topic != '/clock':   # the simulated time, from the true pose's stamps
+            self.sim_t = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
         p = msg.pose.pose.position
         self.truth.append((self.sim_t, p.x, p.y))
         if self.attacking and self.scenario == 'second_pose_publisher':
+            if self.second is None:   # it appears mid-drive (at start the drive refuses)
+                self.second = self.node.create_publisher(Odometry, 'ground_truth/odom', 10)
             fake = Odometry()
             fake.header = msg.header
             fake.child_frame_id = msg.child_frame_id
@@ -167,7 +170,8 @@ def _scenario(scenario, ros_context, executor, tmp_path):
     attacker = Attacker(ros_context, executor, scenario, topic)
     with ConsoleScript('tracked_simulator', '--ros-args', '-p', 'vehicle:=auriga_alpha',
                        '-p', 'terrain:=hard_floor', '-p', f'real_time_factor:={RTF}',
-                       '-p', 'clock_rate:=100.0', '-r', f'__ns:={NS}', *sim_remaps,
+                       '-p', 'clock_rate:=100.0', '-p', 'ground_truth_rate:=25.0',
+                       '-p', 'gyro_rate:=50.0', '-r', f'__ns:={NS}', *sim_remaps,
                        tmp_path=tmp_path) as sim, \
             ConsoleScript('cmd_vel_translator', '--ros-args', '--params-file', terrain,
                           *user, tmp_path=tmp_path) as translator, \

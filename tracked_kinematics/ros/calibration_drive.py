@@ -276,6 +276,7 @@ class CalibrationDriveNode(TableNode):
         self._still = False
         self._pose = None
         self._travel = [0.0, 0.0]
+        self._travel_t = None
         self._rows = {'encoder': [], 'pose': [], 'imu': [], 'cmd': []}
         self._phase = 'drive'         # drive -> fitting -> pushing -> done
         self._result = None
@@ -387,6 +388,7 @@ class CalibrationDriveNode(TableNode):
         self._encoder_steady = self._steady()
         self._travel[0] += d_left
         self._travel[1] += d_right
+        self._travel_t = stamp_s
         self._rows['encoder'].append((_seconds(self.encoder.stamp), *self._travel))
         self._still = dt > 0.0 and max(abs(d_left), abs(d_right)) <= STILL_SPEED * dt
         if self._reference == 'imu':
@@ -484,6 +486,7 @@ class CalibrationDriveNode(TableNode):
                       not_ready, steady=steady, deadman_steady=when_steady,
                       encoder_steady=self._encoder_steady,
                       reference_steady=self._reference_steady, travel=tuple(self._travel),
+                      travel_t=self._travel_t,
                       lateness=self._lateness(steady), fault=self._fault_text())
 
     def _service(self, call):

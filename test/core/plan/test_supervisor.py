@@ -86,6 +86,7 @@ class Bench:
     def __init__(self, steps=None, config=CFG, turn_gain=1.0, dt=0.05, encoders=True):
         self.sup = Supervisor(steps or protocol(60.0), config)
         self.travel = [0.0, 0.0] if encoders else None
+        self.travel_t = None      # the stamp of the encoders' latest sample (None: now)
         self.frozen = set()       # 'encoders', 'pose', 'yaw': what reports no change
         self.reported = [0.0, 0.0, 0.0]
         self.lateness = 0.0
@@ -109,7 +110,7 @@ class Bench:
         return Inputs(self.t, self.deadman, self.deadman_t, self.encoder_t, self.reference_t,
                       tuple(self.reported),
                       travel=None if self.travel is None else tuple(self.travel),
-                      lateness=self.lateness, fault=self.fault)
+                      travel_t=self.travel_t, lateness=self.lateness, fault=self.fault)
 
     def tick(self, hold=True, sensors=True):
         if hold:
@@ -369,6 +370,67 @@ def test_stuck_gyro_stops_a_turn():
     bench.frozen.add('yaw')
     out = _stopped_within(bench, 2.0)
     assert out is not None and out.reason.startswith('gyro does not follow')
+
+
+def test_a_reversal_through_a_lagging_drive_train_is_not_a_frozen_sensor():
+    # Straights each followed by its reverse (the protocol's pairs); tracks that follow the
+    # command through a first-order lag of 0.3 s, the vehicle moving with them, and the
+    # encoders reported 0.3 s late (a loaded machine): across a reversal the encoders
+    # travel a fraction of the command, and the pose and the encoders reverse at different
+    # instants.
+    steps = [Step(sign * 0.5, 0.0, 1.5, 'straight') for sign in (1, -1, 1, -1, 1, -1)]
+    bench = Bench(steps=steps)
+    bench.frozen.add('encoders')      # the test moves the vehicle and the encoders itself
+    speed, delayed = 0.0, []
+    bench.start()
+    for _ in range(int(10.0 / bench.dt)):
+        out = bench.sup.update(bench.inputs())
+        assert out.state in ('running', 'finished'), out.reason
+        if out.state == 'finished':
+            break
+        speed += (out.v - speed) * bench.dt / 0.3
+        bench.pose[0] += speed * bench.dt
+        delayed.append(speed)
+        if len(delayed) > int(0.3 / bench.dt):
+            late = delayed.pop(0)
+            bench.travel[0] += late * bench.dt
+            bench.travel[1] += late * bench.dt
+        bench.t += bench.dt
+        bench.deadman_t = bench.encoder_t = bench.reference_t = bench.t
+    assert out.state == 'finished'
+
+
+@pytest.mark.parametrize('frozen', [False, True])
+def test_encoders_delivered_late_are_judged_by_their_stamps(frozen):
+    # A loaded machine delivers the encoder samples 0.8 s late (honest stamps): the command
+    # is compared over the window their stamps cover. Frozen data with fresh stamps still
+    # travels nothing and stops the drive.
+    bench = Bench(steps=[Step(0.4, 0.0, 30.0, 'straight'), Step(0.0, 0.8, 30.0, 'turn')])
+    bench.frozen.add('encoders')
+    samples = []
+    bench.start()
+    for k in range(int(12.0 / bench.dt)):
+        out = bench.sup.update(bench.inputs())
+        half = 0.5 * bench.sup.config.track_width
+        last = samples[-1][1] if samples else (0.0, 0.0)
+        moved = not (frozen and bench.t > 5.0)
+        samples.append((bench.t, (last[0] + moved * (out.v - half * out.w) * bench.dt,
+                                  last[1] + moved * (out.v + half * out.w) * bench.dt)))
+        while samples[0][0] <= bench.t - 0.8:    # what has arrived by now
+            bench.travel_t, bench.travel[:] = samples.pop(0)
+        if frozen and bench.t > 5.0:
+            bench.travel_t = bench.t - 0.8        # fresh stamps on frozen values
+        x, y, yaw = predict_step(bench.pose, out.v, out.w, bench.dt, 1)
+        bench.pose = [float(x[0]), float(y[0]), float(yaw[0])]
+        bench.t += bench.dt
+        bench.deadman_t = bench.encoder_t = bench.reference_t = bench.t
+        if out.state != 'running':
+            break
+    if frozen:
+        assert out.state == 'stopped' and 5.0 < bench.t < 8.0, (bench.t, out.reason)
+        assert out.reason.startswith('encoders do not follow the command')
+    else:
+        assert out.state == 'running', out.reason
 
 
 def test_heavy_slip_is_not_a_frozen_sensor():
