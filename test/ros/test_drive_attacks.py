@@ -150,13 +150,13 @@ class Attacker:
             self.states.append(self.status['state'])
 
     def distance(self, since=-math.inf):
-        """Largest true distance from the start, over the samples after sim time ``since``."""
+        """Return the largest true distance from the start, after sim time ``since``."""
         x0, y0 = self.truth[0][1:]
         return max((math.hypot(x - x0, y - y0) for t, x, y in self.truth if t >= since),
                    default=0.0)
 
     def moved_since(self, t0):
-        """True path length after sim time ``t0``."""
+        """Return the true path length after sim time ``t0``."""
         pts = [(x, y) for t, x, y in self.truth if t >= t0]
         return sum(math.hypot(b[0] - a[0], b[1] - a[1]) for a, b in zip(pts, pts[1:]))
 
