@@ -34,7 +34,7 @@ from .reference import (
     QUANTITIES,
     ReferenceFit, ReferenceRecording)
 from .search_space import (
-    BASELINES, baselines, bounds, build_model, COMPARE_MODELS, fit_models, FIT_MODELS,
+    BASELINES, baselines, bounds, build_model, COMPARE_MODELS, FIT_MODELS, fit_models,
     initial_guess, search_box, steering_efficiency_guess)
 from .segments import (
     build_segments, covered_spans, gap_threshold, Recording, Segments, stretches)
@@ -53,7 +53,8 @@ __all__ = [
     'check_excitation', 'check_gyro', 'check_heading_weight', 'check_identified',
     'check_saturation', 'correct_ground_truth', 'covered_spans', 'ddc_parameters',
     'dead_reckoning', 'estimate_delay', 'estimate_delay_arrays', 'estimate_delays', 'fit',
-    'fit_drivetrain', 'fit_from_reference', 'fit_models', 'fit_recordings', 'fixed_delay', 'gap_threshold', 'heading_reference', 'identify',
-    'initial_guess', 'prediction_errors', 'resample', 'robust_cost', 'search_box', 'spin_in_place',
-    'steering_efficiency_guess', 'stretches',
+    'fit_drivetrain', 'fit_from_reference', 'fit_models', 'fit_recordings', 'fixed_delay',
+    'gap_threshold', 'heading_reference', 'identify', 'initial_guess', 'prediction_errors',
+    'resample', 'robust_cost', 'search_box', 'spin_in_place', 'steering_efficiency_guess',
+    'stretches',
 ]

@@ -19,7 +19,6 @@ from ..errors import ExcitationError
 from ..models import MotionModel
 
 
-
 @dataclass(frozen=True)
 class Excitation:
     """

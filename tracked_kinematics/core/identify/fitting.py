@@ -154,7 +154,6 @@ residuals this small, is determined by the driving and blurred by the ground tru
 """
 
 
-
 class UncertainError(ExcitationError):
     """A parameter is determined by the data but its standard error is beyond its limit."""
 

@@ -87,6 +87,8 @@ def search_box(model: MotionModel):
         elif not np.isfinite(lo[i]) or not np.isfinite(hi[i]):
             lo[i], hi[i] = -1.0, 1.0
     return lo, hi
+
+
 def steering_efficiency_guess(segments: Segments, track_width: float) -> float:
     """
     Least-squares ratio of measured to ideal heading change, clipped to [0.2, 1].
