@@ -182,7 +182,7 @@ class MotionModel(ABC):
         return len(self.param_names)
 
     def parameter(self, name: str) -> Parameter:
-        """Return the declaration of the parameter ``name`` (unbounded, unchecked if undeclared)."""
+        """Return the declaration of parameter ``name`` (unbounded, unchecked if undeclared)."""
         return next((p for p in self.parameters if p.name == name), None) or Parameter(name)
 
     def guess(self, chi: float, segments) -> np.ndarray:
