@@ -24,11 +24,16 @@ Models
     Tread ICRs that move with lateral acceleration and curvature, the EKF paper's eq. (11)
     (reconstructed, see :class:`AdaptiveIcr`).
 
+Each model class declares what the identification, the reports, the command lines and the
+planner need of it (its :class:`Parameter` entries, whether it has constant ICRs, is a
+baseline, can be planned with) and is registered by name (:func:`register_model`): adding a
+model is one class and its tests (docs/model.md, "Adding a model").
 """
 
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -74,6 +79,45 @@ def _icr_twist(v_left, v_right, y_left, y_right, x):
     return twist, d_icr, d_speeds
 
 
+@dataclass(frozen=True, slots=True)
+class Parameter:
+    """
+    One entry of a model's parameter vector, with what the identification needs of it.
+
+    Attributes
+    ----------
+    name : str
+        Its name in the parameter vector (``param_names``).
+    ros_name : str
+        Its name in messages and terrain files (``icr.y_left``, ``chi``); default ``name``.
+    excited_by : str
+        The driving that identifies it: ``'turning'``, ``'straight'`` or ``''`` (either).
+    bounds : tuple of float
+        Physical ``(lower, upper)`` for least squares; infinite for none.
+    box : tuple of float or None
+        Finite search box of a global method; None: ``bounds``, or +-1 where unbounded.
+    per_track_width : bool
+        ``bounds``, ``box`` and the standard-error limit are in track widths.
+    std_checked : bool
+        The fit refuses it when its standard error is beyond the limit of its kind
+        (:data:`tracked_kinematics.core.identify.STD_LIMITS`: ``'icr'`` when turning
+        identifies it, ``'scale'`` when straight driving does).
+
+    """
+
+    name: str
+    ros_name: str = ''
+    excited_by: str = ''
+    bounds: tuple = (-np.inf, np.inf)
+    box: tuple | None = None
+    per_track_width: bool = False
+    std_checked: bool = False
+
+    def __post_init__(self):
+        if not self.ros_name:
+            object.__setattr__(self, 'ros_name', self.name)
+
+
 class MotionModel(ABC):
     """
     Base of all motion models.
@@ -87,17 +131,44 @@ class MotionModel(ABC):
     ----------
     name : str
         Registry name (see :func:`make_model`).
+    aliases : tuple of str
+        Other registry names of the same model.
+    parameters : tuple of Parameter
+        The entries of the parameter vector ``p``, declared; ``param_names`` follows.
     param_names : tuple of str
         Names of the entries of the parameter vector ``p``.
     linear : bool
         True when the twist is linear in the track speeds, so that body increments over a
         step follow from the travelled distances alone, whatever the step's duration.
+    constant_icr : bool
+        :meth:`as_icr` gives the model itself: a fit of it is written as the ``icr.*`` and
+        ``scale.*`` of a terrain file (otherwise identify_icr writes a constant-ICR fit of
+        the same data).
+    baseline : bool
+        What a user has without this package, reported first (``ideal``, ``tuned_ddc``).
+    plan_name : str or None
+        Its ``plan_trajectory --model`` name; None: not offered there.
 
     """
 
     name = ''
+    aliases: tuple[str, ...] = ()
+    parameters: tuple[Parameter, ...] = ()
     param_names: tuple[str, ...] = ()
     linear = True
+    constant_icr = False
+    baseline = False
+    plan_name: str | None = None
+
+    def __init_subclass__(cls, **kwargs):
+        super().__init_subclass__(**kwargs)
+        if 'parameters' in cls.__dict__:
+            cls.param_names = tuple(p.name for p in cls.parameters)
+
+    @classmethod
+    def build(cls, track_width: float, scales=(1.0, 1.0)) -> MotionModel:
+        """Build the model; ``scales`` are the fixed encoder scales of a model without any."""
+        return cls(track_width)
 
     def __init__(self, track_width: float):
         track_width = float(track_width)
@@ -109,6 +180,28 @@ class MotionModel(ABC):
     def n_params(self) -> int:
         """Length of the parameter vector."""
         return len(self.param_names)
+
+    def parameter(self, name: str) -> Parameter:
+        """Return the declaration of parameter ``name`` (unbounded, unchecked if undeclared)."""
+        return next((p for p in self.parameters if p.name == name), None) or Parameter(name)
+
+    def guess(self, chi: float, segments) -> np.ndarray:
+        """
+        Start of a fit: this model as a drive of steering efficiency ``chi``.
+
+        ``chi`` is the data's ratio of measured to ideal turning (Martinez eq. 16);
+        ``segments`` (:class:`tracked_kinematics.core.identify.Segments`) are the data, for
+        a model whose start depends on their speeds. Default: :meth:`initial`.
+        """
+        return self.initial().astype(float)
+
+    def start_from(self, icr: IcrParams) -> np.ndarray | None:
+        """Start of a fit from a base terrain file's ICR model, or None (:meth:`guess`)."""
+        return None
+
+    def from_icr(self, icr: IcrParams) -> np.ndarray | None:
+        """Parameter vector of a terrain file's ICR model, or None if this model has none."""
+        return None
 
     @abstractmethod
     def initial(self) -> np.ndarray:
@@ -196,10 +289,16 @@ class IdealDiffDrive(MotionModel):
     """
 
     name = 'ideal'
-    param_names = ()
+    parameters = ()
+    constant_icr = True
+    baseline = True
+    plan_name = 'ideal'
 
     def initial(self):
         return np.zeros(0)
+
+    def from_icr(self, icr):
+        return self.initial()
 
     def twist_and_jacobian(self, p, v_left, v_right):
         v_left = np.atleast_1d(np.asarray(v_left, float))
@@ -223,10 +322,19 @@ class EffectiveWheelBase(MotionModel):
     """
 
     name = 'effective_wheel_base'
-    param_names = ('alpha',)
+    aliases = ('symmetric',)
+    parameters = (Parameter('alpha', 'chi', 'turning', (0.05, 1.0), std_checked=True),)
+    constant_icr = True
+    plan_name = 'effective'
 
     def initial(self):
         return np.ones(1)
+
+    def guess(self, chi, segments):
+        return np.array([chi], dtype=float)
+
+    def from_icr(self, icr):
+        return np.array([icr.chi])
 
     def twist_and_jacobian(self, p, v_left, v_right):
         alpha = float(np.asarray(p, float)[0])
@@ -242,9 +350,28 @@ class EffectiveWheelBase(MotionModel):
         return IcrParams.symmetric(self.track_width, float(np.asarray(p, float)[0]))
 
 
+# Tread ICRs lie outside the track centrelines (Martinez sec. 3: slip only moves them
+# outwards), which keeps 0 < chi <= 1 whatever the eccentricity; a tracked vehicle shows them
+# within 2 B of the centre and 1 B ahead or behind. Encoder scales stay near 1.
+ICR_PARAMETERS = (
+    Parameter('y_left', 'icr.y_left', 'turning', (0.5, 10.0), (0.5, 2.0), True, True),
+    Parameter('y_right', 'icr.y_right', 'turning', (-10.0, -0.5), (-2.0, -0.5), True, True),
+    Parameter('x', 'icr.x', 'turning', (-5.0, 5.0), (-1.0, 1.0), True, True),
+)
+"""The tread ICRs ``(y_left, y_right, x)`` of Martinez eqs. (7)-(9), bounds in track widths."""
+SCALE_PARAMETERS = (
+    Parameter('scale_left', 'scale.left', 'straight', (0.5, 2.0), (0.8, 1.2), std_checked=True),
+    Parameter('scale_right', 'scale.right', 'straight', (0.5, 2.0), (0.8, 1.2),
+              std_checked=True),
+)
+"""The encoder scale corrections of Martinez eqs. (20)-(21)."""
+
+
 class ConstantIcr(MotionModel):
     """
     Constant tread ICRs, Martinez et al. (2005) eqs. (7)-(9), optionally with scales.
+
+    Registered as ``icr_scales`` (with scales) and, through :class:`FixedScalesIcr`, ``icr``.
 
     Parameters
     ----------
@@ -257,15 +384,19 @@ class ConstantIcr(MotionModel):
 
     """
 
+    name = 'icr_scales'
+    parameters = ICR_PARAMETERS + SCALE_PARAMETERS
     linear = True
+    constant_icr = True
+    plan_name = 'icr'
 
     def __init__(self, track_width, with_scales=True, scales=(1.0, 1.0)):
         super().__init__(track_width)
         self.with_scales = bool(with_scales)
         self.fixed_scales = (float(scales[0]), float(scales[1]))
         self.name = 'icr_scales' if self.with_scales else 'icr'
-        self.param_names = ('y_left', 'y_right', 'x') + (
-            ('scale_left', 'scale_right') if self.with_scales else ())
+        self.parameters = ICR_PARAMETERS + (SCALE_PARAMETERS if self.with_scales else ())
+        self.param_names = tuple(p.name for p in self.parameters)
 
     def initial(self):
         half = 0.5 * self.track_width
@@ -276,6 +407,15 @@ class ConstantIcr(MotionModel):
         """Parameter vector of an :class:`IcrParams`."""
         p = [icr.y_left, icr.y_right, icr.x]
         return np.array(p + [icr.scale_left, icr.scale_right] if self.with_scales else p)
+
+    def start_from(self, icr):
+        return self.from_icr(icr)
+
+    def guess(self, chi, segments):
+        p = self.initial().astype(float)
+        half = 0.5 * self.track_width / chi
+        p[0], p[1] = half, -half
+        return p
 
     def _scales(self, p):
         return (p[3], p[4]) if self.with_scales else self.fixed_scales
@@ -308,6 +448,21 @@ class ConstantIcr(MotionModel):
         return IcrParams(self.track_width, p[0], p[1], p[2], scale_left, scale_right)
 
 
+class FixedScalesIcr(ConstantIcr):
+    """Constant tread ICRs with fixed encoder scales: the registry's ``icr``."""
+
+    name = 'icr'
+    parameters = ICR_PARAMETERS
+    plan_name = None
+
+    def __init__(self, track_width, scales=(1.0, 1.0)):
+        super().__init__(track_width, with_scales=False, scales=scales)
+
+    @classmethod
+    def build(cls, track_width, scales=(1.0, 1.0)):
+        return cls(track_width, scales)
+
+
 class GeneralKinematicSlip(MotionModel):
     """
     General kinematic slip model, Fink & Stump (eq. 2 and Table I, row 3).
@@ -321,8 +476,11 @@ class GeneralKinematicSlip(MotionModel):
     """
 
     name = 'general_slip'
-    param_names = tuple(f'alpha{i}' for i in range(1, 10))
+    # alpha1, alpha4, alpha7 multiply v_x alone: straight driving identifies them.
+    parameters = tuple(Parameter(f'alpha{i}', excited_by='straight' if i % 3 == 1 else 'turning')
+                       for i in range(1, 10))
     linear = False
+    plan_name = 'general'
 
     def initial(self):
         return np.zeros(9)
@@ -383,11 +541,28 @@ class AdaptiveIcr(MotionModel):
     """
 
     name = 'adaptive_icr'
-    param_names = ('p1', 'p2', 'p3', 'p4', 'p5', 'p6')
+    # The outward terms p1..p4 are >= 0; the search box is 2 B wide.
+    parameters = tuple(Parameter(f'p{i}', excited_by='turning', bounds=(0.0, np.inf),
+                                 box=(0.0, 2.0), per_track_width=True) for i in range(1, 5)) \
+        + tuple(Parameter(f'p{i}', excited_by='turning', box=(-2.0, 2.0), per_track_width=True)
+                for i in (5, 6))
     linear = False
 
     def initial(self):
         return np.zeros(6)
+
+    def guess(self, chi, segments):
+        p = self.initial().astype(float)
+        if len(segments.dt):
+            # The curvature terms put the ICRs where the efficiency guess does, at the median
+            # curvature of the turning steps.
+            _, curv = self.features(segments.d_left / segments.dt,
+                                    segments.d_right / segments.dt)
+            turning = curv[curv > 1e-3]
+            if len(turning):
+                outward = 0.5 * self.track_width * (1.0 / chi - 1.0) / float(np.median(turning))
+                p[1] = p[3] = outward
+        return p
 
     def features(self, v_left, v_right):
         """Absolute nominal lateral acceleration (m/s^2) and bounded curvature (1/m)."""
@@ -447,17 +622,62 @@ class AdaptiveIcr(MotionModel):
         return twist, jac
 
 
-_MODELS = {
-    'ideal': IdealDiffDrive,
-    'effective_wheel_base': EffectiveWheelBase,
-    'symmetric': EffectiveWheelBase,
-    'icr': lambda track_width: ConstantIcr(track_width, with_scales=False),
-    'icr_scales': lambda track_width: ConstantIcr(track_width, with_scales=True),
-    'general_slip': GeneralKinematicSlip,
-    'adaptive_icr': AdaptiveIcr,
-}
+_MODELS: dict[str, type[MotionModel]] = {}
 
-MODEL_NAMES = tuple(_MODELS)
+
+def register_model(cls: type[MotionModel]) -> type[MotionModel]:
+    """
+    Register a model class under its ``name`` and ``aliases``; usable as a class decorator.
+
+    Raises
+    ------
+    ValueError
+        For a name another class holds.
+
+    """
+    for name in (cls.name,) + tuple(cls.aliases):
+        if _MODELS.get(name, cls) is not cls:
+            raise ValueError(f'motion model {name!r} is already registered')
+    for name in (cls.name,) + tuple(cls.aliases):
+        _MODELS[name] = cls
+    return cls
+
+
+def unregister_model(name: str) -> None:
+    """Remove a registered model, with its aliases (nothing for an unknown name)."""
+    cls = _MODELS.get(name)
+    for key in [k for k, v in _MODELS.items() if v is cls]:
+        del _MODELS[key]
+
+
+def model_class(name: str) -> type[MotionModel]:
+    """
+    Return the class registered under ``name``.
+
+    Raises
+    ------
+    ValueError
+        For an unknown name (the message lists the known ones).
+
+    """
+    try:
+        return _MODELS[name]
+    except KeyError:
+        raise ValueError(f'unknown motion model {name!r}; choose one of '
+                         f'{", ".join(model_names())}') from None
+
+
+def model_names(aliases: bool = True) -> tuple[str, ...]:
+    """Return the registered names in registration order, with or without the aliases."""
+    return tuple(n for n, cls in _MODELS.items() if aliases or n == cls.name)
+
+
+for _cls in (IdealDiffDrive, EffectiveWheelBase, FixedScalesIcr, ConstantIcr,
+             GeneralKinematicSlip, AdaptiveIcr):
+    register_model(_cls)
+
+MODEL_NAMES = model_names()
+"""The models of this module (``symmetric`` too); :func:`model_names` has every registered."""
 
 
 def make_model(name: str, track_width: float) -> MotionModel:
@@ -467,7 +687,7 @@ def make_model(name: str, track_width: float) -> MotionModel:
     Parameters
     ----------
     name : str
-        One of :data:`MODEL_NAMES`.
+        One of :func:`model_names`.
     track_width : float
         m.
 
@@ -477,9 +697,4 @@ def make_model(name: str, track_width: float) -> MotionModel:
         For an unknown name (the message lists the known ones).
 
     """
-    try:
-        factory = _MODELS[name]
-    except KeyError:
-        raise ValueError(
-            f'unknown motion model {name!r}; choose one of {", ".join(MODEL_NAMES)}') from None
-    return factory(track_width)
+    return model_class(name).build(track_width)

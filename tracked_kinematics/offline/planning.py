@@ -22,7 +22,7 @@ from tracked_kinematics.core.command import CommandLimits
 from tracked_kinematics.core.errors import InvalidParameters
 from tracked_kinematics.core.integration import relative_pose
 from tracked_kinematics.core.kinematics import IcrParams
-from tracked_kinematics.core.models import MotionModel
+from tracked_kinematics.core.models import model_class, model_names, MotionModel
 from tracked_kinematics.core.plan import CANONICAL, canonical, path_deviation, Plan, Planner
 from tracked_kinematics.core.sim.manoeuvres import fink_stump_sweep
 from tracked_kinematics.core.sim.simulation import GroundTruth, Robot, simulate, TwistTable
@@ -31,9 +31,10 @@ from tracked_kinematics.offline.errors import UsageError
 from tracked_kinematics.offline.outputs import Outputs
 from tracked_kinematics.params import LIMIT_FIELDS, limits_from_values
 
-MODELS = ('ideal', 'effective', 'icr', 'general')
-_MODEL_NAMES = {'ideal': 'ideal', 'effective': 'effective_wheel_base', 'icr': 'icr_scales',
-                'general': 'general_slip'}
+# plan_trajectory's --model names: the registered models that declare one.
+_MODEL_NAMES = {model_class(n).plan_name: n for n in model_names(aliases=False)
+                if model_class(n).plan_name}
+MODELS = tuple(_MODEL_NAMES)
 
 
 # Models --------------------------------------------------------------------------------
@@ -43,36 +44,36 @@ def model_from_terrain(name: str, icr: IcrParams, values=None) -> tuple[MotionMo
     """
     Build the planning model of a terrain file.
 
-    ``ideal``: its track width; ``effective``: ``alpha = chi`` of its ICRs (the effective
-    wheel base equals the symmetric ICR model with that steering efficiency); ``icr``: its
-    ICRs and scales; ``general``: ``identification.parameters.alpha1..alpha9``, which
-    ``identify_icr --model general_slip`` writes.
+    ``name`` is a :data:`MODELS` name. A model with a constant-ICR form takes it from the
+    file's ICRs (:meth:`~tracked_kinematics.core.models.MotionModel.from_icr`: ``ideal`` its
+    track width, ``effective`` ``alpha = chi``, ``icr`` its ICRs and scales); any other reads
+    its ``identification.parameters.*``, which ``identify_icr --model`` writes (``general``:
+    ``alpha1..alpha9``).
 
     Raises
     ------
     UsageError
-        For ``general`` without those parameters in the file.
+        For a model whose parameters the file lacks.
 
     """
     model = ident.build_model(_MODEL_NAMES[name], icr.track_width)
-    if name == 'ideal':
-        return model, model.initial()
-    if name == 'effective':
-        return model, np.array([icr.chi])
-    if name == 'icr':
-        return model, model.from_icr(icr)
-    keys = [f'identification.parameters.alpha{i}' for i in range(1, 10)]
+    p = model.from_icr(icr)
+    if p is not None or not model.n_params:
+        return model, model.initial() if p is None else p
+    names = model.param_names
+    keys = [f'identification.parameters.{n}' for n in names]
+    span = f'identification.parameters.{names[0]}..{names[-1]}'
     values = values or {}
     missing = [k for k in keys if k not in values]
     if missing:
-        raise UsageError('--model general needs identification.parameters.alpha1..alpha9 in '
-                         'the terrain file (identify_icr --model general_slip writes them)')
+        raise UsageError(f'--model {name} needs {span} in the terrain file (identify_icr '
+                         f'--model {model.name} writes them)')
     try:
         p = np.array([float(values[k]) for k in keys])
     except (TypeError, ValueError):
-        raise UsageError('identification.parameters.alpha1..alpha9 must be numbers') from None
+        raise UsageError(f'{span} must be numbers') from None
     if not np.all(np.isfinite(p)):
-        raise UsageError('identification.parameters.alpha1..alpha9 must be finite')
+        raise UsageError(f'{span} must be finite')
     return model, p
 
 
@@ -160,10 +161,11 @@ def identify_on_sweep(robot: Robot, table: TwistTable, dt: float = 0.02, seed: i
                           run.gt_pose[:, 1], run.gt_pose[:, 2], name='sweep')
     segments = ident.build_segments([rec], 1.0)
     segments = segments.select(segments.travel >= 0.01)
-    models = {'ideal': (ident.build_model('ideal', b), np.zeros(0))}
-    for short in ('effective', 'icr', 'general'):
-        model = ident.build_model(_MODEL_NAMES[short], b)
-        models[short] = (model, ident.fit(model, segments, heading_weight=None, check=False).p)
+    models = {}
+    for short, name in _MODEL_NAMES.items():
+        model = ident.build_model(name, b)
+        models[short] = (model, ident.fit(model, segments, heading_weight=None, check=False).p
+                         if model.n_params else model.initial())
     return models
 
 

@@ -34,8 +34,8 @@ from .reference import (
     QUANTITIES,
     ReferenceFit, ReferenceRecording)
 from .search_space import (
-    BASELINES, bounds, build_model, COMPARE_MODELS, FIT_MODELS, initial_guess, search_box,
-    steering_efficiency_guess)
+    BASELINES, baselines, bounds, build_model, COMPARE_MODELS, FIT_MODELS, fit_models,
+    initial_guess, search_box, steering_efficiency_guess)
 from .segments import (
     build_segments, covered_spans, gap_threshold, Recording, Segments, stretches)
 from .spin import spin_in_place, SpinResult
@@ -49,11 +49,12 @@ __all__ = [
     'MIN_TURNING', 'MIN_WINDOWS', 'ModelEvaluation', 'QUANTITIES', 'REFERENCE_RESIDUAL',
     'Recording', 'ReferenceFit', 'ReferenceRecording', 'SensorDataError', 'STD_LIMITS',
     'SegmentProblem', 'Segments', 'SpinResult', 'TunedDiffDrive', 'Uncertain', 'UncertainError',
-    'auto_heading_weight', 'bounds', 'build_model', 'build_segments', 'check_excitation',
-    'check_gyro', 'check_heading_weight', 'check_identified', 'check_saturation',
-    'correct_ground_truth', 'covered_spans', 'ddc_parameters', 'dead_reckoning', 'estimate_delay',
-    'estimate_delay_arrays', 'estimate_delays', 'fit', 'fit_drivetrain', 'fit_from_reference',
-    'fit_recordings', 'fixed_delay', 'gap_threshold', 'heading_reference', 'identify',
-    'initial_guess', 'prediction_errors', 'resample', 'robust_cost', 'search_box', 'spin_in_place',
-    'steering_efficiency_guess', 'stretches',
+    'auto_heading_weight', 'baselines', 'bounds', 'build_model', 'build_segments',
+    'check_excitation', 'check_gyro', 'check_heading_weight', 'check_identified',
+    'check_saturation', 'correct_ground_truth', 'covered_spans', 'ddc_parameters',
+    'dead_reckoning', 'estimate_delay', 'estimate_delay_arrays', 'estimate_delays', 'fit',
+    'fit_drivetrain', 'fit_from_reference', 'fit_models', 'fit_recordings', 'fixed_delay',
+    'gap_threshold', 'heading_reference', 'identify', 'initial_guess', 'prediction_errors',
+    'resample', 'robust_cost', 'search_box', 'spin_in_place', 'steering_efficiency_guess',
+    'stretches',
 ]

@@ -22,13 +22,14 @@ from __future__ import annotations
 import numpy as np
 
 from ..kinematics import IcrParams
-from ..models import MotionModel
+from ..models import MotionModel, Parameter, register_model
 
 DDC_PARAMS = ('wheel_separation_multiplier', 'left_wheel_radius_multiplier',
               'right_wheel_radius_multiplier')
 """The diff_drive_controller parameters :class:`TunedDiffDrive` fits, by their DDC names."""
 
 
+@register_model
 class TunedDiffDrive(MotionModel):
     """
     diff_drive_controller's odometry with its three calibration multipliers as parameters.
@@ -38,11 +39,23 @@ class TunedDiffDrive(MotionModel):
     """
 
     name = 'tuned_ddc'
-    param_names = DDC_PARAMS
+    # The separation multiplier is the inverse of an effective wheel-base factor (0.05-1).
+    parameters = (
+        Parameter(DDC_PARAMS[0], excited_by='turning', bounds=(1.0, 20.0), box=(1.0, 4.0),
+                  std_checked=True),
+        *(Parameter(name, excited_by='straight', bounds=(0.5, 2.0), box=(0.8, 1.2),
+                    std_checked=True) for name in DDC_PARAMS[1:]))
     linear = True
+    constant_icr = True
+    baseline = True
 
     def initial(self):
         return np.ones(3)
+
+    def guess(self, chi, segments):
+        p = self.initial().astype(float)
+        p[0] = 1.0 / chi
+        return p
 
     def twist_and_jacobian(self, p, v_left, v_right):
         m_s, m_l, m_r = (float(v) for v in np.asarray(p, float))

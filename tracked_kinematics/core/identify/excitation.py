@@ -18,16 +18,6 @@ from .segments import Segments
 from ..errors import ExcitationError
 from ..models import MotionModel
 
-# Parameters that need turning, and those that need straight driving, to be identified.
-_TURNING_PARAMS = {'alpha', 'y_left', 'y_right', 'x', 'p1', 'p2', 'p3', 'p4', 'p5', 'p6',
-                   'alpha2', 'alpha3', 'alpha5', 'alpha6', 'alpha8', 'alpha9',
-                   'wheel_separation_multiplier'}
-_STRAIGHT_PARAMS = {'scale_left', 'scale_right', 'alpha1', 'alpha4', 'alpha7',
-                    'left_wheel_radius_multiplier', 'right_wheel_radius_multiplier'}
-# ROS names of the parameters, for messages.
-_ROS_NAMES = {'y_left': 'icr.y_left', 'y_right': 'icr.y_right', 'x': 'icr.x',
-              'scale_left': 'scale.left', 'scale_right': 'scale.right', 'alpha': 'chi'}
-
 
 @dataclass(frozen=True)
 class Excitation:
@@ -70,8 +60,14 @@ MIN_TURNING = 1.0      # rad, summed over moving segments
 MIN_STRAIGHT = 1.0     # m of nearly straight driving
 
 
-def _ros_names(names):
-    return ', '.join(_ROS_NAMES.get(n, n) for n in names)
+def ros_names(model: MotionModel, names) -> str:
+    """Return parameters of ``model`` by their ROS names (:class:`..models.Parameter`), joined."""
+    return ', '.join(model.parameter(n).ros_name for n in names)
+
+
+def excited_by(model: MotionModel, kind: str) -> list[str]:
+    """Return the parameters of ``model`` that ``kind`` of driving identifies, in order."""
+    return [n for n in model.param_names if model.parameter(n).excited_by == kind]
 
 
 def check_excitation(model: MotionModel, excitation: Excitation) -> None:
@@ -79,7 +75,8 @@ def check_excitation(model: MotionModel, excitation: Excitation) -> None:
     Raise :class:`ExcitationError` when the data cannot identify the model's parameters.
 
     Turning identifies the ICRs (and any turn-rate parameter); straight driving identifies
-    the encoder scales (the forward-speed parameters). The thresholds are deliberately low
+    the encoder scales (the forward-speed parameters): each model's parameters say which
+    (:attr:`..models.Parameter.excited_by`). The thresholds are deliberately low
     (:data:`MIN_TURNING` rad in total, :data:`MIN_STRAIGHT` m): the fit's own parameter
     uncertainty is checked afterwards (:func:`.fitting.fit`).
     """
@@ -88,15 +85,15 @@ def check_excitation(model: MotionModel, excitation: Excitation) -> None:
             f'too little motion: {excitation.moving} of {excitation.segments} segments move '
             f'(need {MIN_MOVING_SEGMENTS}); drive longer, or check the encoder topic and '
             'sprocket radius')
-    turning = [n for n in model.param_names if n in _TURNING_PARAMS]
+    turning = excited_by(model, 'turning')
     if turning and excitation.turning < MIN_TURNING:
         raise ExcitationError(
-            f'too little turning to identify {_ros_names(turning)}: the data turn '
+            f'too little turning to identify {ros_names(model, turning)}: the data turn '
             f'{excitation.turning:.2f} rad in total (need {MIN_TURNING:.1f}); drive curves '
             'and turns in place')
-    straight = [n for n in model.param_names if n in _STRAIGHT_PARAMS]
+    straight = excited_by(model, 'straight')
     if straight and excitation.straight < MIN_STRAIGHT:
         raise ExcitationError(
-            f'too little straight driving to identify {_ros_names(straight)}: '
+            f'too little straight driving to identify {ros_names(model, straight)}: '
             f'{excitation.straight:.2f} m of nearly straight motion (need '
             f'{MIN_STRAIGHT:.1f}); drive straight forwards and backwards too')

@@ -20,7 +20,7 @@ import time
 import numpy as np
 from scipy import optimize
 
-from .excitation import _ros_names
+from .excitation import ros_names
 from .problem import DEFAULT_HEADING_WEIGHT, LOSSES, robust_cost, SegmentProblem
 from .search_space import bounds, initial_guess, search_box
 from .segments import Segments
@@ -153,10 +153,6 @@ residuals this small, is determined by the driving and blurred by the ground tru
 (:class:`Uncertain` ``cause == 'noise'``).
 """
 
-_ICR_NAMES = ('y_left', 'y_right', 'x', 'alpha', 'wheel_separation_multiplier')
-_SCALE_NAMES = ('scale_left', 'scale_right', 'left_wheel_radius_multiplier',
-                'right_wheel_radius_multiplier')
-
 
 class UncertainError(ExcitationError):
     """A parameter is determined by the data but its standard error is beyond its limit."""
@@ -203,13 +199,13 @@ class Uncertain:
                 f'{self.std:.3g} (limit {self.limit:.3g})')
 
 
-def _limit(name, track_width):
-    if name in _ICR_NAMES:
-        return STD_LIMITS['icr'] * (track_width if name in ('y_left', 'y_right', 'x') else 1.0), \
-            'turning'
-    if name in _SCALE_NAMES:
-        return STD_LIMITS['scale'], 'straight driving'
-    return None, ''
+def _limit(param, track_width):
+    """Return a parameter's standard-error limit and the driving it needs, or (None, '')."""
+    if not param.std_checked:
+        return None, ''
+    if param.excited_by == 'turning':
+        return STD_LIMITS['icr'] * (track_width if param.per_track_width else 1.0), 'turning'
+    return STD_LIMITS['scale'], 'straight driving'
 
 
 def _noise(result: FitResult) -> str:
@@ -241,20 +237,20 @@ def check_identified(result: FitResult, accept_uncertain: bool = False) -> list[
         For uncertain parameters, unless ``accept_uncertain``.
 
     """
-    b = result.model.track_width
+    model = result.model
     ratio = result.sigma / REFERENCE_RESIDUAL if result.sigma > 0 else 0.0
     uncertain = []
-    for name, std in zip(result.model.param_names, result.std):
-        limit, need = _limit(name, b)
+    for name, std in zip(model.param_names, result.std):
+        limit, need = _limit(model.parameter(name), model.track_width)
         if limit is None or std <= limit:
             continue
         if not math.isfinite(std):
             raise ExcitationError(
-                f'too little {need} to identify {_ros_names([name])}: the data do not '
+                f'too little {need} to identify {ros_names(model, [name])}: the data do not '
                 f'determine it; drive more, and more varied, '
                 f'{"curves and turns in place" if need == "turning" else "straight lines"}')
         reference = std / ratio if ratio > 1.0 else std
-        uncertain.append(Uncertain(_ros_names([name]), float(std), limit,
+        uncertain.append(Uncertain(ros_names(model, [name]), float(std), limit,
                                    'noise' if reference <= limit else 'excitation', need,
                                    float(reference)))
     if uncertain and not accept_uncertain:

@@ -26,7 +26,6 @@ from .search_space import build_model, COMPARE_MODELS
 from .segments import build_segments, covered_spans, ground_truth_jumps, over_jumps, Segments
 from ..errors import ExcitationError, FitError, IdentificationError
 from ..kinematics import IcrParams
-from ..models import ConstantIcr
 
 
 MIN_SPEED = 0.1
@@ -225,11 +224,12 @@ def identify(recordings, model: str = 'icr_scales', track_width: float = 0.42, *
     recordings : sequence of Recording
         The data.
     model : str
-        Model to fit (a name of :data:`.search_space.FIT_MODELS`, or ``symmetric``).
+        Model to fit (a registered name: :func:`.search_space.fit_models`, ``symmetric``).
     track_width : float
         m.
     base : IcrParams, optional
-        Starting point, and the fixed scales of the ``icr`` model.
+        Starting point of a model that can start from it
+        (:meth:`..models.MotionModel.start_from`), and the fixed scales of the ``icr`` model.
     method, loss, max_nfev
         See :func:`fit`.
     heading_weight : float or None
@@ -304,9 +304,7 @@ def identify(recordings, model: str = 'icr_scales', track_width: float = 0.42, *
     seconds['segments'] = time.perf_counter() - started
 
     def start_of(m):
-        if base is None or not isinstance(m, ConstantIcr):
-            return None
-        return m.from_icr(base)
+        return None if base is None else m.start_from(base)
 
     options = {'method': method, 'loss': loss, 'max_nfev': max_nfev}
     started = time.perf_counter()
@@ -318,7 +316,7 @@ def identify(recordings, model: str = 'icr_scales', track_width: float = 0.42, *
     options['heading_weight'] = result.heading_weight
     try:
         icr, source = result.icr, target.name
-        if icr is None:
+        if not target.constant_icr:
             icr_model = build_model('icr_scales', track_width)
             try:
                 icr_fit = fit(icr_model, segments, p0=start_of(icr_model), check=False,

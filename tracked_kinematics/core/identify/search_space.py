@@ -1,71 +1,72 @@
 """
 The models the identification fits, and where it searches: bounds and starting points.
 
-The bounds are physical: tread ICRs lie outside the track centrelines (Martinez et al. 2005,
-sec. 3: slip only moves them outwards), so ``0 < chi <= 1``; the encoder scales (Martinez
-eqs. 20-21) stay near 1; the effective wheel-base factor (Fink & Stump sec. III-A, Table I)
-lies in (0, 1]. The starting point is an ideal drive with its turning rate scaled to the
-data's, a steering efficiency in the sense of Martinez eq. (16).
+Each model declares its parameters' bounds and search box (:class:`..models.Parameter`) and
+its starting point (:meth:`..models.MotionModel.guess`); this module reads them. The bounds
+are physical: tread ICRs lie outside the track centrelines (Martinez et al. 2005, sec. 3:
+slip only moves them outwards), so ``0 < chi <= 1``; the encoder scales (Martinez eqs.
+20-21) stay near 1; the effective wheel-base factor (Fink & Stump sec. III-A, Table I) lies
+in (0, 1]. The starting point is the model as a drive of the data's steering efficiency in
+the sense of Martinez eq. (16).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from .ddc import TunedDiffDrive
+from .ddc import TunedDiffDrive  # noqa: F401 (registers tuned_ddc)
 from .segments import Segments
-from ..models import ConstantIcr, make_model, MotionModel
+from ..models import model_class, model_names, MotionModel
+
+
+def fit_models() -> tuple[str, ...]:
+    """Return the registered models the identification fits, in the order they are reported."""
+    return tuple(n for n in model_names(aliases=False) if not model_class(n).baseline)
+
+
+def baselines() -> tuple[str, ...]:
+    """Return the registered baselines: what a user has without this package."""
+    return tuple(n for n in model_names(aliases=False) if model_class(n).baseline)
+
 
 # Models the identification fits, in the order they are reported.
-FIT_MODELS = ('effective_wheel_base', 'icr', 'icr_scales', 'general_slip', 'adaptive_icr')
-BASELINES = ('ideal', 'tuned_ddc')
+FIT_MODELS = fit_models()
+BASELINES = baselines()
 """What a user has without this package: ideal drive, and diff_drive_controller tuned."""
 COMPARE_MODELS = BASELINES + FIT_MODELS
 
 
 def build_model(name: str, track_width: float, scales=(1.0, 1.0)) -> MotionModel:
     """
-    Motion model by name; the ``icr`` model uses the fixed ``scales`` given.
+    Motion model by name; a model without scale parameters uses the fixed ``scales`` given.
 
     Parameters
     ----------
     name : str
-        A name of :data:`..models.MODEL_NAMES`, or ``tuned_ddc`` (:class:`.ddc.TunedDiffDrive`).
+        A registered name (:func:`..models.model_names`: ``tuned_ddc`` too).
     track_width : float
         m.
     scales : tuple of float
         Encoder scales of a model that does not fit them (``icr``).
 
     """
-    if name == 'icr':
-        return ConstantIcr(track_width, with_scales=False, scales=scales)
-    if name == 'tuned_ddc':
-        return TunedDiffDrive(track_width)
-    return make_model(name, track_width)
+    return model_class(name).build(track_width, scales)
 
 
 def bounds(model: MotionModel):
     """
     Physical bounds for least squares: ``(lower, upper)`` arrays.
 
-    Tread ICRs lie outside the track centrelines (Martinez sec. 3: slip only moves them
-    outwards), which keeps ``0 < chi <= 1`` whatever the eccentricity; scales lie in
-    [0.5, 2]; the effective wheel-base factor (Fink & Stump) in [0.05, 1], and DDC's
-    ``wheel_separation_multiplier``, its inverse, in [1, 20]; the adaptive model's outward
-    ICR terms ``p1..p4`` are >= 0. General slip is unbounded.
+    Each parameter's declared :attr:`..models.Parameter.bounds` (in track widths where it
+    says so); undeclared ones are unbounded.
     """
-    half = 0.5 * model.track_width
+    b = model.track_width
     lo, hi = [], []
     for name in model.param_names:
-        lo_hi = {'alpha': (0.05, 1.0), 'y_left': (half, 20 * half), 'y_right': (-20 * half, -half),
-                 'x': (-10 * half, 10 * half), 'scale_left': (0.5, 2.0),
-                 'scale_right': (0.5, 2.0), 'p1': (0.0, np.inf), 'p2': (0.0, np.inf),
-                 'p3': (0.0, np.inf), 'p4': (0.0, np.inf),
-                 'wheel_separation_multiplier': (1.0, 20.0),
-                 'left_wheel_radius_multiplier': (0.5, 2.0),
-                 'right_wheel_radius_multiplier': (0.5, 2.0)}.get(name, (-np.inf, np.inf))
-        lo.append(lo_hi[0])
-        hi.append(lo_hi[1])
+        param = model.parameter(name)
+        scale = b if param.per_track_width else 1.0
+        lo.append(param.bounds[0] * scale)
+        hi.append(param.bounds[1] * scale)
     return np.array(lo, float), np.array(hi, float)
 
 
@@ -73,21 +74,16 @@ def search_box(model: MotionModel):
     """
     Finite search box for a global method (differential evolution): ``(lower, upper)``.
 
-    The physical :func:`bounds`, narrowed to what a tracked vehicle shows: ICRs within
-    ``2 B`` of the centre and 1 B ahead or behind, scales within 20 %, general-slip
-    coefficients within +-1, adaptive coefficients within 2 B.
+    Each parameter's declared :attr:`..models.Parameter.box`; else its :func:`bounds`
+    where finite, else +-1.
     """
     lo, hi = bounds(model)
     b = model.track_width
-    box = {'y_left': (0.5 * b, 2 * b), 'y_right': (-2 * b, -0.5 * b), 'x': (-b, b),
-           'scale_left': (0.8, 1.2), 'scale_right': (0.8, 1.2),
-           'p1': (0.0, 2 * b), 'p2': (0.0, 2 * b), 'p3': (0.0, 2 * b), 'p4': (0.0, 2 * b),
-           'p5': (-2 * b, 2 * b), 'p6': (-2 * b, 2 * b),
-           'wheel_separation_multiplier': (1.0, 4.0), 'left_wheel_radius_multiplier': (0.8, 1.2),
-           'right_wheel_radius_multiplier': (0.8, 1.2)}
     for i, name in enumerate(model.param_names):
-        if name in box:
-            lo[i], hi[i] = box[name]
+        param = model.parameter(name)
+        if param.box is not None:
+            scale = b if param.per_track_width else 1.0
+            lo[i], hi[i] = param.box[0] * scale, param.box[1] * scale
         elif not np.isfinite(lo[i]) or not np.isfinite(hi[i]):
             lo[i], hi[i] = -1.0, 1.0
     return lo, hi
@@ -109,24 +105,5 @@ def steering_efficiency_guess(segments: Segments, track_width: float) -> float:
 
 
 def initial_guess(model: MotionModel, segments: Segments) -> np.ndarray:
-    """Start of the fit: ideal drive, with the turning rate scaled to the data's."""
-    p = model.initial().astype(float)
-    chi = steering_efficiency_guess(segments, model.track_width)
-    names = model.param_names
-    if 'alpha' in names:
-        p[names.index('alpha')] = chi
-    if 'wheel_separation_multiplier' in names:
-        p[names.index('wheel_separation_multiplier')] = 1.0 / chi
-    if 'y_left' in names:
-        half = 0.5 * model.track_width / chi
-        p[names.index('y_left')] = half
-        p[names.index('y_right')] = -half
-    if 'p2' in names and len(segments.dt):
-        # Adaptive ICRs: the curvature terms put them where the efficiency guess does, at the
-        # median curvature of the turning steps.
-        _, curv = model.features(segments.d_left / segments.dt, segments.d_right / segments.dt)
-        turning = curv[curv > 1e-3]
-        if len(turning):
-            outward = 0.5 * model.track_width * (1.0 / chi - 1.0) / float(np.median(turning))
-            p[names.index('p2')] = p[names.index('p4')] = outward
-    return p
+    """Start of the fit: the model's :meth:`~..models.MotionModel.guess` at the data's chi."""
+    return model.guess(steering_efficiency_guess(segments, model.track_width), segments)

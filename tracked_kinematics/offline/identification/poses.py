@@ -17,8 +17,6 @@ from tracked_kinematics.core.identify.procedure import MIN_SPEED
 from .report import (bag_names, finite_or_none, icr_summary, IcrReport, now, TOOL,
                      yaml_values)
 
-_NO_CONSTANT_ICRS = ('general_slip', 'adaptive_icr')
-
 
 def icr_from_poses(recordings, bags, track_width: float, sprocket_radius: float, *,
                    base=None, base_values=None, terrain: str | None = None,
@@ -51,8 +49,8 @@ def icr_from_poses(recordings, bags, track_width: float, sprocket_radius: float,
     terrain : str, optional
         Terrain name to write.
     model : str
-        ``symmetric`` (written as ``effective_wheel_base``) or a name of
-        :data:`tracked_kinematics.core.identify.FIT_MODELS`.
+        ``symmetric`` (written as ``effective_wheel_base``) or a registered name
+        (:func:`tracked_kinematics.core.identify.fit_models`).
     spin : bool
         Instead of fitting segments, measure the steering efficiency of spin-in-place runs
         (Martinez eq. 16) and write the symmetric model.
@@ -89,7 +87,7 @@ compare, max_nfev, accept_uncertain, min_speed
                        terrain, ground_truth_delay, date, tool, report, lines)
     else:
         result = ident.identify(
-            recordings, 'effective_wheel_base' if model == 'symmetric' else model, track_width,
+            recordings, model, track_width,
             base=base, method=method, segment_length=segment_length or None,
             heading_weight=heading_weight, loss=loss, min_travel=min_travel, holdout=holdout,
             holdout_block=holdout_block, window=window, compare=compare, max_nfev=max_nfev,
@@ -109,7 +107,7 @@ compare, max_nfev, accept_uncertain, min_speed
             'uncertain': [vars(u) for u in result.uncertain]})
         _table(result, recordings, sprocket_radius, tool, lines)
     note = ''
-    if model in _NO_CONSTANT_ICRS and not spin:
+    if result is not None and not result.fit.model.constant_icr:
         note = (f'The {model} model has no constant ICRs: icr.* and scale.* are the '
                 f'{values["identification.icr_source"]} fit of the same data;\nthe '
                 f'{model} parameters are under identification.parameters.')
