@@ -26,10 +26,6 @@ TICK_TYPES = {'int32': 'std_msgs/msg/Int32', 'int64': 'std_msgs/msg/Int64'}
 """The message type of each value of the ``ticks_type`` parameter."""
 
 
-def _mean(values, index):
-    return sum(values[i] for i in index) / len(index)
-
-
 class JointStatesDecoder:
     """
     sensor_msgs/JointState: the joints of each side averaged, positions else velocities.
@@ -83,16 +79,18 @@ class JointStatesDecoder:
         Positions (``'position'``) when the message has them for all ``count`` joints and
         both side means are finite, else velocities (``'velocity'``); None for neither.
         """
-        left_index, right_index = index
-        kind = None
+        left_index, right_index = index   # the sums written out: a node's hot path
         if len(positions) == count:
-            kind = 'position'
-            left, right = _mean(positions, left_index), _mean(positions, right_index)
-        if ((kind is None or not (math.isfinite(left) and math.isfinite(right)))
-                and len(velocities) == count):
-            kind = 'velocity'
-            left, right = _mean(velocities, left_index), _mean(velocities, right_index)
-        return None if kind is None else (kind, left, right)
+            left = sum([positions[i] for i in left_index]) / len(left_index)
+            right = sum([positions[i] for i in right_index]) / len(right_index)
+            if math.isfinite(left) and math.isfinite(right):
+                return 'position', left, right
+            if len(velocities) != count:
+                return 'position', left, right
+        if len(velocities) == count:
+            return ('velocity', sum([velocities[i] for i in left_index]) / len(left_index),
+                    sum([velocities[i] for i in right_index]) / len(right_index))
+        return None
 
     def row(self, index, count: int, positions, velocities) -> list:
         """Return ``[pos_l, pos_r, vel_l, vel_r]`` of one message (NaN where it has none)."""
