@@ -25,6 +25,7 @@ from typing import Any
 
 from tracked_kinematics.core.command import TRACK_SPEED_ENVELOPE
 from tracked_kinematics.core.drivetrain import LOOP_KINDS
+from tracked_kinematics.core.encoder_modes import ENCODER_DECODERS, JointStatesDecoder, TICK_TYPES
 
 from .spec import (Derived, described_as, finite, non_negative, one_of, ParamSpec, positive,
                    unknown_parameters)
@@ -97,12 +98,14 @@ DRIVETRAIN_DEFAULTS: dict[str, Any] = {spec.name: spec.default for spec in DRIVE
 
 # Encoder input ---------------------------------------------------------------------------
 
-INPUT_MODES = ('joint_states', 'track_speeds', 'encoder_ticks')
-TICKS_TYPES = ('int32', 'int64')
+# The modes, their topics and message types are the decoders' (core.encoder_modes).
+INPUT_MODES = tuple(ENCODER_DECODERS)
+TICKS_TYPES = tuple(TICK_TYPES)
 # Per-side topics of the track_speeds and encoder_ticks modes (relative names).
-SIDE_TOPICS = {'track_speeds': ('left_track/speed', 'right_track/speed'),
-               'encoder_ticks': ('left_track/ticks', 'right_track/ticks')}
-JOINT_STATES_TOPIC = 'joint_states'
+SIDE_TOPICS = {mode: decoder.topics for mode, decoder in ENCODER_DECODERS.items()
+               if decoder.per_side}
+JOINT_STATES_TOPIC = JointStatesDecoder.topics[0]
+_MODE_TEXTS = [f'{mode} ({decoder.summary})' for mode, decoder in ENCODER_DECODERS.items()]
 
 
 @described_as('at least one joint, no empty names')
@@ -116,9 +119,8 @@ def _joint_list(value):
 
 ENCODER_INPUT_PARAMS: tuple[ParamSpec, ...] = (
     ParamSpec('input_mode', 'joint_states',
-              'Encoder input: joint_states (sensor_msgs/JointState), track_speeds '
-              '(std_msgs/Float64 per side, m/s) or encoder_ticks (std_msgs/Int32|Int64 per '
-              'side)', check=one_of(INPUT_MODES), read_only=True),
+              f'Encoder input: {", ".join(_MODE_TEXTS[:-1])} or {_MODE_TEXTS[-1]}',
+              check=one_of(INPUT_MODES), read_only=True),
     ParamSpec('left_joints', ['left_sprocket_joint'],
               'JointState joints of the left track, averaged', check=_joint_list),
     ParamSpec('right_joints', ['right_sprocket_joint'],

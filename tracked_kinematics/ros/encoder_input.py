@@ -37,7 +37,7 @@ from __future__ import annotations
 
 from collections import Counter
 from collections.abc import Callable, Mapping
-import math
+import importlib
 import struct
 import time
 from typing import Any
@@ -45,17 +45,14 @@ from typing import Any
 from builtin_interfaces.msg import Time
 from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import JointState
-from std_msgs.msg import Float64, Int32, Int64
+from tracked_kinematics.core.encoder_modes import encoder_decoder
 from tracked_kinematics.core.encoders import IncrementTracker, Status
 from tracked_kinematics.core.integration import stamp_ns
-from tracked_kinematics.params import JOINT_STATES_TOPIC, SIDE_TOPICS
 from tracked_kinematics.ros.input_topic import (CHECK_PERIOD, InputTopic, steady_timer,
                                                 WARN_PERIOD)
 
 __all__ = ['check_encoder_values', 'EncoderInput', 'JointStateReader', 'WARN_PERIOD']
 
-# Message type and bit width of each ticks_type.
-_TICKS_MESSAGES = {'int32': (Int32, 32), 'int64': (Int64, 64)}
 _STEP = Status.STEP
 # JointState messages taken from the queue in one turn of the executor when they wait there
 # (the node fell behind): about 2 ms of work here.
@@ -217,9 +214,10 @@ def _stamp_key(data: bytes) -> int:
     return stamp_ns(stamp.sec, stamp.nanosec)
 
 
-def _side_means(values, left_index, right_index):
-    return (sum(values[i] for i in left_index) / len(left_index),
-            sum(values[i] for i in right_index) / len(right_index))
+def _message_class(type_name: str):
+    """Return the rclpy message class of ``'pkg/msg/Name'``."""
+    package, _, name = type_name.split('/')
+    return getattr(importlib.import_module(f'{package}.msg'), name)
 
 
 # What a sample that was not a plain step did, as the log says it (str.format fields: dt,
@@ -295,28 +293,26 @@ class EncoderInput:
         self.stamp_fields = (0, 0)
         self.stamp_ns = 0
         self._stamp = None
-        self._joints: tuple[list[str], list[str]] = ([], [])
         self._names = None
         self._index = None
         self._missing: list[str] = []
         self._pending = [None, None]
         self._side_counts = [0, 0]
-        self._bits = 64
         self._noted: dict = {}   # status -> steady time of its last log line
+        self.decoder = None
         self.configure(values)
-        if self.mode == 'joint_states':
-            self._reader = JointStateReader()
-            self.inputs = (InputTopic(node, JointState, JOINT_STATES_TOPIC,
-                                      self._on_joint_state, order_key=_stamp_key, raw=True,
-                                      drain=DRAIN),)
-        else:
-            if self.mode == 'track_speeds':
-                msg_type = Float64
-            else:
-                msg_type, self._bits = _TICKS_MESSAGES[values['ticks_type']]
+        decoder = self.decoder
+        msg_type = _message_class(decoder.message_types[0])
+        if decoder.per_side:
+            value = decoder.value
             self.inputs = tuple(
-                InputTopic(node, msg_type, topic, lambda msg, i=i: self._on_side(i, msg.data))
-                for i, topic in enumerate(SIDE_TOPICS[self.mode]))
+                InputTopic(node, msg_type, topic, lambda msg, i=i: self._on_side(i, value(msg)))
+                for i, topic in enumerate(decoder.topics))
+        else:
+            # JointState: read as bytes in place (JointStateReader), the only one-topic mode.
+            self._reader = JointStateReader()
+            self.inputs = (InputTopic(node, msg_type, decoder.topics[0], self._on_joint_state,
+                                      order_key=_stamp_key, raw=True, drain=DRAIN),)
         self.topics = tuple(topic.topic_name for topic in self.inputs)
         self._timer = steady_timer(node, CHECK_PERIOD, self.check) if check_timer else None
 
@@ -330,35 +326,25 @@ class EncoderInput:
 
     def configure(self, values: Mapping[str, Any]) -> None:
         """Apply (new) parameter values from the next message on."""
-        radius = values['sprocket_radius']
         self.tracker.max_dt = values['max_dt']
         self.tracker.max_speed = values['max_plausible_speed']
-        if self.mode == 'joint_states':
-            self._factor = radius
-            joints = (list(values['left_joints']), list(values['right_joints']))
-            if joints != self._joints:
-                self._joints = joints
-                self._names = None  # resolve the indices again
-                self.tracker.reset()
-        elif self.mode == 'track_speeds':
-            self._factor = 1.0
-        else:
-            self._factor = 2.0 * math.pi * radius / values['ticks_per_revolution']
+        old, self.decoder = self.decoder, encoder_decoder({**values, 'input_mode': self.mode})
+        self._factor, self._bits = self.decoder.factor, self.decoder.bits
+        if old is not None and getattr(old, 'joints', None) != getattr(self.decoder, 'joints',
+                                                                       None):
+            self._names = None  # resolve the indices again
+            self.tracker.reset()
 
     def describe(self) -> str:
         """Return one line for the start-up log: mode, topics, joints or ticks, QoS."""
-        text = f'input {self.mode} on {", ".join(self.topics)}'
-        if self.mode == 'joint_states':
-            text += f' (left {self._joints[0]}, right {self._joints[1]})'
-        elif self.mode == 'encoder_ticks':
-            text += f' ({1.0 / self._factor:.6g} ticks per metre)'
-        return text + (f', steps faster than {self.tracker.max_speed:g} m/s skipped')
+        return (f'input {self.mode} on {", ".join(self.topics)}{self.decoder.describe()}, '
+                f'steps faster than {self.tracker.max_speed:g} m/s skipped')
 
     def check(self) -> None:
         """Check the input once a second: publishers (QoS, types) and silent sides."""
         for topic in self.inputs:
             topic.check()
-        if self.mode == 'joint_states':
+        if not self.decoder.per_side:
             return
         counts, self._side_counts = self._side_counts, [0, 0]
         for side in (0, 1):
@@ -373,11 +359,8 @@ class EncoderInput:
 
     def _resolve(self, names) -> None:
         self._names = list(names)
-        where = {name: i for i, name in enumerate(self._names)}
-        missing = [j for side in self._joints for j in side if j not in where]
-        self._missing = missing
-        self._index = None if missing else tuple(
-            [where[j] for j in side] for side in self._joints)
+        self._index = self.decoder.index(self._names)
+        self._missing = self.decoder.missing(self._names)
 
     def _on_joint_state(self, data: bytes) -> None:
         self.received += 1
@@ -398,16 +381,8 @@ class EncoderInput:
                 'set left_joints / right_joints: message skipped',
                 throttle_duration_sec=WARN_PERIOD)
             return
-        left_index, right_index = self._index
-        kind = None
-        if len(positions) == len(names):
-            kind = 'position'
-            left, right = _side_means(positions, left_index, right_index)
-        if ((kind is None or not (math.isfinite(left) and math.isfinite(right)))
-                and len(velocities) == len(names)):
-            kind = 'velocity'
-            left, right = _side_means(velocities, left_index, right_index)
-        if kind is None:
+        reading = self.decoder.reading(self._index, len(names), positions, velocities)
+        if reading is None:
             self.counts['no_readings'] += 1
             self._logger.warning(
                 'joint_states carries neither positions nor velocities for all its joints: '
@@ -420,7 +395,7 @@ class EncoderInput:
                 'joint_states has no header.stamp (zero): message skipped; the driver must '
                 'stamp its messages', throttle_duration_sec=WARN_PERIOD)
             return
-        self._step(now_ns, kind, left, right, sec, nanosec)
+        self._step(now_ns, *reading, sec, nanosec)
 
     # --- track_speeds and encoder_ticks ---------------------------------------------------
 
@@ -434,8 +409,7 @@ class EncoderInput:
         left, right = pending
         self._pending = [None, None]
         now = self._node.get_clock().now()
-        kind = 'velocity' if self.mode == 'track_speeds' else 'ticks'
-        self._step(now.nanoseconds, kind, left, right, *now.seconds_nanoseconds())
+        self._step(now.nanoseconds, self.decoder.kind, left, right, *now.seconds_nanoseconds())
 
     # --- common -----------------------------------------------------------------------------
 

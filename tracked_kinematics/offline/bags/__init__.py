@@ -9,11 +9,12 @@ The face of the sub-package: :mod:`.sources` says what to read, :mod:`.reader` r
 growing arrays they fill).
 """
 
+from tracked_kinematics.core.encoder_modes import TICK_BITS
 from tracked_kinematics.offline.errors import BagError
 
 from .reader import read_bag, read_bags, read_drive_bag, read_evaluation_bag
 from .sources import (CMD_VEL_TOPIC, CMD_VEL_TYPES, COMMAND_KINDS, CommandSource, EncoderSource,
-                      GROUND_TRUTH_TYPES, GroundTruthSource, SETPOINT_TOPICS, TICK_BITS)
+                      GROUND_TRUTH_TYPES, GroundTruthSource, SETPOINT_TOPICS)
 from .writer import BagWriter, STORAGES
 
 __all__ = [

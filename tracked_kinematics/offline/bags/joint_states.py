@@ -13,7 +13,7 @@ from pathlib import Path
 import struct
 
 import numpy as np
-from tracked_kinematics.core.encoders import travel_from_velocities, unwrap_if_wrapped
+from tracked_kinematics.core.encoder_modes import JointStatesDecoder
 from tracked_kinematics.core.integration import stamp_ns
 from tracked_kinematics.offline.errors import BagError
 
@@ -81,7 +81,7 @@ class _Layout:
         """Whether a serialised message has this layout."""
         return len(raw) == self.length and all(raw[o:o + len(b)] == b for o, b in self.checks)
 
-    def decode(self, raws, receive_ns, ref_ns, left, right) -> np.ndarray:
+    def decode(self, raws, receive_ns, ref_ns, index) -> np.ndarray:
         """Rows ``(t, pos_l, pos_r, vel_l, vel_r)`` of many messages, as :class:`_JointStates`."""
         rows = np.frombuffer(b''.join(raws), dtype=np.uint8).reshape(-1, self.length)
 
@@ -96,19 +96,19 @@ class _Layout:
         out[:, 0] = stamp
         for offset, first in ((self.position, 1), (self.velocity, 3)):
             if offset is not None:
-                values = column(offset, '<f8', self.count)
-                out[:, first] = values[:, left].mean(axis=1)
-                out[:, first + 1] = values[:, right].mean(axis=1)
+                out[:, first], out[:, first + 1] = JointStatesDecoder.side_means(
+                    column(offset, '<f8', self.count), index)
         return out
 
 
 class _JointStates:
-    """JointState messages -> time, per-side mean position and velocity."""
+    """JointState messages -> time, per-side mean position and velocity, for the decoder."""
 
     BATCH = 20_000
 
     def __init__(self, source: EncoderSource, path: Path, ref_ns: int, ros2: bool):
         self.source = source
+        self.decoder = source.decoder()
         self.path = path
         self.ref_ns = ref_ns
         self.ros2 = ros2
@@ -116,24 +116,19 @@ class _JointStates:
         self.names_seen: set[str] = set()
         self._index_cache: dict[tuple, tuple | None] = {}
         self._layout = None
-        self._layout_indices = None
+        self._layout_index = None
         self._batch = []
         self._batch_ns = []
 
-    def _indices(self, names):
+    def _index(self, names):
         key = tuple(names)
         if key not in self._index_cache:
-            where = {name: i for i, name in enumerate(key)}
-            src = self.source
-            try:
-                found = ([where[j] for j in src.left_joints], [where[j] for j in src.right_joints])
-            except KeyError:
-                found = None
+            found = self._index_cache[key] = self.decoder.index(key)
+            if found is None:
                 self.names_seen.update(key)
-            self._index_cache[key] = found
         return self._index_cache[key]
 
-    def add_raw(self, raw, receive_ns, deserialize) -> None:
+    def feed(self, reader, conn, receive_ns, raw) -> None:
         """Take one serialised message: batched when it has the known layout."""
         if self._layout and self._layout.matches(raw):
             self._batch.append(raw)
@@ -141,18 +136,18 @@ class _JointStates:
             if len(self._batch) == self.BATCH:
                 self.flush()
             return
-        msg = deserialize(raw)
+        msg = reader.deserialize(raw, conn.msgtype)
         row = self._row(msg, receive_ns)
         if row is None:
             return
         self.columns.append(row)
         if self._layout is None:
             layout = _Layout.of(raw, self.ros2)
-            indices = self._indices(msg.name)
+            index = self._index(msg.name)
             if layout is not None:
-                decoded = layout.decode([bytes(raw)], [receive_ns], self.ref_ns, *indices)[0]
+                decoded = layout.decode([bytes(raw)], [receive_ns], self.ref_ns, index)[0]
                 if np.allclose(decoded, row, equal_nan=True, rtol=1e-12, atol=0.0):
-                    self._layout, self._layout_indices = layout, indices
+                    self._layout, self._layout_index = layout, index
             if self._layout is None:
                 self._layout = False   # never try again: every message goes the slow way
 
@@ -160,25 +155,18 @@ class _JointStates:
         """Decode the batched messages."""
         if self._batch:
             self.columns.extend(self._layout.decode(self._batch, self._batch_ns, self.ref_ns,
-                                                    *self._layout_indices))
+                                                    self._layout_index))
             self._batch, self._batch_ns = [], []
 
     def _row(self, msg, receive_ns):
-        indices = self._indices(msg.name)
-        if indices is None:
+        index = self._index(msg.name)
+        if index is None:
             return None
-        left, right = indices
-        n = len(msg.name)
-        nan = float('nan')
-        row = [_stamp(msg.header, receive_ns, self.ref_ns), nan, nan, nan, nan]
-        for values, first in ((msg.position, 1), (msg.velocity, 3)):
-            if len(values) == n:
-                row[first] = sum(float(values[i]) for i in left) / len(left)
-                row[first + 1] = sum(float(values[i]) for i in right) / len(right)
-        return row
+        return [_stamp(msg.header, receive_ns, self.ref_ns),
+                *self.decoder.row(index, len(msg.name), msg.position, msg.velocity)]
 
-    def travel(self):
-        """Return the times (ns) and cumulative nominal travel of each side (m)."""
+    def _samples(self):
+        """Return the rows sorted by time, raising the missing-joint error when there are none."""
         if self._layout:
             self.flush()
         data = _sort_unique(self.columns.array)
@@ -188,32 +176,17 @@ class _JointStates:
             raise BagError(
                 f'{self.path}: joint {", ".join(missing) or "?"} not in {src.topic}; joint '
                 f'names present: {", ".join(sorted(self.names_seen)) or "none"}')
-        t, pos_l, pos_r, vel_l, vel_r = data.T
-        radius = self.source.sprocket_radius
-        positions = np.isfinite(pos_l) & np.isfinite(pos_r)
-        if np.count_nonzero(positions) >= 2 and np.count_nonzero(positions) >= 0.5 * len(t):
-            t = t[positions]
-            return (t, unwrap_if_wrapped(pos_l[positions]) * radius,
-                    unwrap_if_wrapped(pos_r[positions]) * radius)
-        ok = np.isfinite(vel_l) & np.isfinite(vel_r)
-        t, vel_l, vel_r = t[ok], vel_l[ok], vel_r[ok]
-        if len(t) < 2:
+        return data.T
+
+    def travel(self):
+        """Return the times (ns) and cumulative nominal travel of each side (m)."""
+        travel = self.decoder.travel(*self._samples())
+        if travel is None:
             raise BagError(f'{self.path}: the JointState messages on {self.source.topic} carry '
                            'neither positions nor velocities for the joints')
-        seconds = t * 1e-9
-        return t, *(np.concatenate([[0.0], np.cumsum(travel_from_velocities(v, seconds, radius))])
-                    for v in (vel_l, vel_r))
+        return travel
 
     def velocities(self):
         """Return times (ns) and nominal track speeds (m/s) from the joint velocities, or None."""
-        if self._layout:
-            self.flush()
-        data = _sort_unique(self.columns.array)
-        if len(data) == 0:
-            self.travel()   # raises the missing-joint error
-        t, _, _, vel_l, vel_r = data.T
-        ok = np.isfinite(vel_l) & np.isfinite(vel_r)
-        if np.count_nonzero(ok) < 2 or np.count_nonzero(ok) < 0.5 * len(t):
-            return None
-        radius = self.source.sprocket_radius
-        return t[ok], vel_l[ok] * radius, vel_r[ok] * radius
+        t, _, _, vel_l, vel_r = self._samples()
+        return self.decoder.speeds(t, vel_l, vel_r)

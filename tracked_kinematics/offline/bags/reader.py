@@ -136,7 +136,7 @@ def read_drive_bag(path, encoders: EncoderSource, setpoint_topics=SETPOINT_TOPIC
 
 def _read_drive(reader, path, encoders, commands, progress) -> DriveData:
     enc, setpoints = _read(reader, path, encoders, _Commands, commands, progress)
-    speeds = enc.velocities() if encoders.mode == 'joint_states' else None
+    speeds = enc.velocities()
     if speeds is None:
         t, left, right = enc.travel()
         dt = np.diff(t) * 1e-9

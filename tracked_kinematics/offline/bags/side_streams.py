@@ -1,34 +1,36 @@
-"""Decode per-side encoder topics: std_msgs/Float64 track speeds or Int32/Int64 tick counters."""
+"""Collect per-side encoder topics (track speeds, tick counters) for their decoder."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
 import numpy as np
-from tracked_kinematics.core.encoders import (
-    counter_increments, travel_from_ticks, travel_from_velocities)
 from tracked_kinematics.offline.errors import BagError
 
 from .columns import _Columns
-from .sources import EncoderSource, TICK_BITS
+from .sources import EncoderSource
 
 
 class _SideStream:
-    """Per-side Float64 speeds or Int32/Int64 tick counters -> cumulative travel."""
+    """Per-side messages -> cumulative travel, by the mode's decoder (one value a message)."""
 
     def __init__(self, source: EncoderSource, path: Path, ref_ns: int):
         self.source = source
+        self.decoder = source.decoder()
         self.path = path
         self.ref_ns = ref_ns
         self.columns = {source.left_topic: _Columns(2), source.right_topic: _Columns(2)}
-        self.bits = {}
+        self.types = {}
         self.first = {}
 
-    def add(self, topic, msgtype, msg, receive_ns) -> None:
-        self.bits[topic] = TICK_BITS.get(msgtype, 0)
+    def feed(self, reader, conn, receive_ns, raw) -> None:
+        """Take one serialised message."""
+        topic = conn.topic
+        self.types[topic] = conn.msgtype
+        value = self.decoder.value(reader.deserialize(raw, conn.msgtype))
         # Counters relative to their first value, so that floats hold them exactly.
-        first = self.first.setdefault(topic, msg.data if self.bits[topic] else 0)
-        self.columns[topic].append((float(receive_ns - self.ref_ns), float(msg.data - first)))
+        first = self.first.setdefault(topic, value if self.decoder.counter else 0)
+        self.columns[topic].append((float(receive_ns - self.ref_ns), float(value - first)))
 
     def _side(self, topic):
         data = self.columns[topic].array
@@ -39,14 +41,7 @@ class _SideStream:
         values = data[order, 1]
         keep = np.concatenate([[True], np.diff(t) > 0])
         t, values = t[keep], values[keep]
-        if self.source.mode == 'track_speeds':
-            travel = travel_from_velocities(values, t * 1e-9)
-        else:
-            travel = travel_from_ticks(counter_increments(values.astype(np.int64),
-                                                          self.bits[topic]),
-                                       self.source.ticks_per_revolution,
-                                       self.source.sprocket_radius)
-        return t, np.concatenate([[0.0], np.cumsum(travel)])
+        return t, self.decoder.travel(t, values, self.types[topic])
 
     def travel(self):
         """Return common times (ns) and the cumulative nominal travel of each side (m)."""
@@ -56,3 +51,7 @@ class _SideStream:
         t = np.union1d(t_l, t_r)
         t = t[(t >= lo) & (t <= hi)]
         return t, np.interp(t, t_l, c_l), np.interp(t, t_r, c_r)
+
+    def velocities(self):
+        """Return None: the speeds of per-side topics come from their travel."""
+        return None

@@ -23,13 +23,12 @@ from __future__ import annotations
 from dataclasses import dataclass
 import math
 
+from tracked_kinematics.core.encoder_modes import encoder_decoder, ENCODER_DECODERS
 from tracked_kinematics.params import ENCODER_INPUT_DEFAULTS, JOINT_STATES_TOPIC, SIDE_TOPICS
 
 GROUND_TRUTH_TYPES = ('nav_msgs/msg/Odometry', 'geometry_msgs/msg/PoseStamped',
                       'geometry_msgs/msg/PoseWithCovarianceStamped', 'tf2_msgs/msg/TFMessage')
 """Message types a ground-truth topic may carry."""
-TICK_BITS = {'std_msgs/msg/Int32': 32, 'std_msgs/msg/Int64': 64}
-"""Tick counter message types (``encoder_ticks``) and the width at which they wrap."""
 SETPOINT_TOPICS = ('/left_track/setpoint', '/right_track/setpoint')
 """Default left and right setpoint topics of :func:`.reader.read_drive_bag`."""
 CMD_VEL_TOPIC = '/cmd_vel'
@@ -73,9 +72,16 @@ class EncoderSource:
 
     def topics(self) -> tuple[str, ...]:
         """Topics this source reads."""
-        if self.mode == 'joint_states':
-            return (self.topic,)
-        return (self.left_topic, self.right_topic)
+        if ENCODER_DECODERS[self.mode].per_side:
+            return (self.left_topic, self.right_topic)
+        return (self.topic,)
+
+    def decoder(self):
+        """Return the decoder of the mode (:mod:`tracked_kinematics.core.encoder_modes`)."""
+        return encoder_decoder({'input_mode': self.mode, 'left_joints': self.left_joints,
+                                'right_joints': self.right_joints,
+                                'sprocket_radius': self.sprocket_radius,
+                                'ticks_per_revolution': self.ticks_per_revolution})
 
 
 @dataclass(frozen=True)

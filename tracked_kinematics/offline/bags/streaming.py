@@ -11,28 +11,15 @@ from __future__ import annotations
 from .joint_states import _JointStates
 from .opening import _connections, _Progress
 from .side_streams import _SideStream
-from .sources import TICK_BITS
 
 
 def _encoder_stream(reader, path, encoders, ref_ns):
-    """Return the decoder of the encoder messages and the bag connections it reads."""
-    if encoders.mode == 'joint_states':
-        enc = _JointStates(encoders, path, ref_ns, reader.is2)
-        return enc, _connections(reader, path, encoders.topic, ('sensor_msgs/msg/JointState',),
-                                 'encoders')
-    enc = _SideStream(encoders, path, ref_ns)
-    allowed = (('std_msgs/msg/Float64',) if encoders.mode == 'track_speeds'
-               else tuple(TICK_BITS))
+    """Return the collector of the encoder messages and the bag connections it reads."""
+    decoder = encoders.decoder()
+    enc = (_SideStream(encoders, path, ref_ns) if decoder.per_side
+           else _JointStates(encoders, path, ref_ns, reader.is2))
     return enc, [c for topic in encoders.topics()
-                 for c in _connections(reader, path, topic, allowed, 'encoders')]
-
-
-def _feed(enc, reader, conn, receive_ns, raw) -> None:
-    """Pass one encoder message to its decoder (JointStates decode their columns lazily)."""
-    if isinstance(enc, _JointStates):
-        enc.add_raw(raw, receive_ns, lambda data, t=conn.msgtype: reader.deserialize(data, t))
-    else:
-        enc.add(conn.topic, conn.msgtype, reader.deserialize(raw, conn.msgtype), receive_ns)
+                 for c in _connections(reader, path, topic, decoder.message_types, 'encoders')]
 
 
 def _read(reader, path, encoders, kind, source, progress):
@@ -74,7 +61,7 @@ def _read(reader, path, encoders, kind, source, progress):
             if id(conn) in other_ids:
                 other.add(conn, reader.deserialize(raw, conn.msgtype), receive_ns)
             else:
-                _feed(enc, reader, conn, receive_ns, raw)
+                enc.feed(reader, conn, receive_ns, raw)
             bar.step()
     finally:
         bar.close()
