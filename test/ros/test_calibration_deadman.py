@@ -85,6 +85,14 @@ def test_hold_presses_the_deadman_starts_the_drive_shows_its_status_and_ends_wit
                      'step_kind': 'straight', 'distance': 0.5, 'phase': 'drive',
                      'exit_status': None}
             status.publish(String(data=json.dumps(state)))
+            # The drive latched a deadman that went stale: --hold lets go and presses again.
+            n = len(seen)
+            status.publish(String(data=json.dumps(
+                {**state, 'state': 'paused', 'reason': 'deadman not held within 0.3 s'})))
+            assert spin_until(executor, lambda: False in seen[n:], timeout=10)
+            k = n + seen[n:].index(False)
+            assert spin_until(executor, lambda: True in seen[k:], timeout=10)
+            status.publish(String(data=json.dumps(state)))
             status.publish(String(data=json.dumps({**state, 'state': 'finished', 'step': 30,
                                                    'phase': 'done', 'exit_status': 0})))
             assert spin_until(executor, lambda: tool.process.poll() is not None, timeout=20)
@@ -93,6 +101,7 @@ def test_hold_presses_the_deadman_starts_the_drive_shows_its_status_and_ends_wit
         out = tool.stdout_path.read_text()
         assert 'start: started: 30 steps' in out
         assert 'running step 1/30 straight 0.50 m from the centre' in out
+        assert 'the deadman went stale: pressing it again (--hold)' in out
         assert 'calibration drive done (exit status 0)' in out
     finally:
         executor.remove_node(node)

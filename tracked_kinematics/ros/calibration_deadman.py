@@ -36,6 +36,8 @@ FIRST_REPEAT = 0.8
 #: Let go: no repeat for this many repeat intervals (at least RELEASE_MIN s).
 RELEASE_REPEATS = 3.0
 RELEASE_MIN = 0.15
+#: After the drive latched a stale deadman, --hold lets go this long, then presses again, s.
+REPRESS = 0.3
 #: --hold publishes false this long after a subscriber appears, so the drive sees a press
 #: (a false, then true).
 PRESS_AFTER = 0.5
@@ -96,6 +98,7 @@ class DeadmanNode(Node):
         self._options = options
         self._hold = KeyHold()
         self._matched: float | None = None   # when a subscriber first appeared
+        self._repress_until = 0.0             # --hold lets go until then (a new press)
         self._lock = threading.Lock()
         self._shown = None
         self._start_client = None
@@ -129,7 +132,8 @@ class DeadmanNode(Node):
         if self._options.hold:
             if self._matched is None and self._pub.get_subscription_count() > 0:
                 self._matched = now
-            return self._matched is not None and now - self._matched >= PRESS_AFTER
+            return self._matched is not None and now - self._matched >= PRESS_AFTER \
+                and now >= self._repress_until
         with self._lock:
             return self._hold.held(now)
 
@@ -156,6 +160,13 @@ class DeadmanNode(Node):
         if line != self._shown:
             self._shown = line
             print(line, flush=True)
+            reason = str(status.get('reason', ''))
+            if self._options.hold and status.get('state') == 'paused' and (
+                    'stale' in reason or 'not held within' in reason):
+                # The drive latched a deadman that went stale (a hiccup of this process or
+                # of the link): like a person, --hold lets go and presses again.
+                print('the deadman went stale: pressing it again (--hold)', flush=True)
+                self._repress_until = time.monotonic() + REPRESS
         if status.get('exit_status') is not None and self.done_status is None:
             self.done_status = int(status['exit_status'])
             self._pub.publish(Bool(data=False))

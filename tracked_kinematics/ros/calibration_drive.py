@@ -481,6 +481,9 @@ class CalibrationDriveNode(TableNode):
         not_ready = '' if self._reference != 'imu' or self._fence.settled else (
             f'measuring the gyro bias: the vehicle must stand still for '
             f'{self._fence.settle:g} s first')
+        if not self._cmd_pub.get_subscription_count():
+            not_ready = (f'nobody subscribes {self._cmd_pub.topic_name} (start '
+                         'cmd_vel_translator)')
         steady = self._steady()
         return Inputs(self._now(), held, when, self._encoder_t, self._reference_t, self._pose,
                       not_ready, steady=steady, deadman_steady=when_steady,

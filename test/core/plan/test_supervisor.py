@@ -433,6 +433,27 @@ def test_encoders_delivered_late_are_judged_by_their_stamps(frozen):
         assert out.state == 'running', out.reason
 
 
+@pytest.mark.parametrize('comes_up_after', [2.0, math.inf])
+def test_a_command_path_that_comes_up_late_has_a_grace(comes_up_after):
+    # At start the tracks may not move for a while (cmd_vel_translator discovered late, its
+    # /clock not yet received): start_grace (3 s) before the encoders are judged; a path
+    # that never comes up stops the drive, and the reason says where to look.
+    bench = Bench(steps=[Step(0.0, 1.0, 30.0, 'turn')])
+    bench.frozen.add('encoders')
+    bench.start()
+    while bench.t < 8.0:
+        if bench.t >= comes_up_after:
+            bench.frozen.discard('encoders')
+        out = bench.tick()
+        if out.state != 'running':
+            break
+    if math.isinf(comes_up_after):
+        assert out.state == 'stopped' and 3.5 < bench.t < 5.0, (bench.t, out.reason)
+        assert 'the tracks have not moved since the start' in out.reason
+    else:
+        assert out.state == 'running', out.reason
+
+
 def test_heavy_slip_is_not_a_frozen_sensor():
     # On ice the vehicle turns at 0.3 of the commanded rate (effective track width 3.3x):
     # the reference still follows the encoders well enough; the drive finishes.

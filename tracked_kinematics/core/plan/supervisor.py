@@ -113,6 +113,9 @@ class SupervisorConfig:
     check_window, settle_time : float
         Window of the cross-checks, and how much longer the command must have been non-zero
         before they apply, s.
+    start_grace : float
+        The settle time until the tracks first move after the start: the command path may
+        still be coming up (a late discovery, a /clock not yet received), s.
     follow_fraction, reference_fraction : float
         Smallest encoder travel per commanded track travel, and smallest reference motion
         per encoder motion, in a window. Frozen data moves exactly zero; honest data falls
@@ -146,6 +149,7 @@ class SupervisorConfig:
     reference: str = 'pose'
     check_window: float = 1.0
     settle_time: float = 0.6
+    start_grace: float = 3.0
     follow_fraction: float = 0.1
     reference_fraction: float = 0.05
     rearm_time: float = 0.1
@@ -160,7 +164,7 @@ class SupervisorConfig:
                                         'heading_tolerance', 'track_width', 'check_window',
                                         'follow_fraction', 'reference_fraction',
                                         'return_progress_time', 'outside_fraction'),
-                        non_negative=('settle_time', 'rearm_time', 'reaction_time'))
+                        non_negative=('settle_time', 'start_grace', 'rearm_time', 'reaction_time'))
         if self.reference not in ('pose', 'imu'):
             raise ValueError(f"reference must be 'pose' or 'imu', got {self.reference!r}")
         if self.outside_fraction < 1.0:
@@ -284,6 +288,8 @@ class _Drive:
     released_at: float | None = None  # when the deadman was last seen released
     history: list = field(default_factory=list)  # (t, travel, pose, v, w, travel_t) moving
     best: tuple | None = None         # (t, distance, |heading error|) of a return's best
+    start_travel: tuple | None = None  # the encoders' travel at start (None: not known)
+    moved: bool = False               # the tracks have moved since the start
 
 
 class Supervisor:
@@ -346,6 +352,7 @@ class Supervisor:
             d.centre = (float(pose[0]), float(pose[1]))
             d.index, d.step, d.step_t0 = 0, None, None
             d.history.clear()
+            d.start_travel, d.moved = inputs.travel, False
             self._set(inputs.t, 'running', '')
             return True, (f'started: {len(self.steps)} steps, geofence of '
                           f'{self.config.geofence_radius:g} m around ({d.centre[0]:.2f}, '
@@ -523,7 +530,13 @@ class Supervisor:
         travel_t = inputs.travel_t if inputs.travel_t is not None and \
             math.isfinite(inputs.travel_t) else t
         end = t - min(max(t - travel_t, 0.0), MAX_ENCODER_LAG)
-        if end - h[0][0] < cfg.check_window + cfg.settle_time:
+        if not d.moved and d.start_travel is not None:
+            d.moved = 0.5 * (abs(travel[0] - d.start_travel[0])
+                             + abs(travel[1] - d.start_travel[1])) >= MIN_CHECKED
+        # Until the tracks first move, the command path may still be coming up (a node
+        # discovered late, a clock not yet received): it has start_grace to show life.
+        settle = cfg.settle_time if d.moved else max(cfg.settle_time, cfg.start_grace)
+        if end - h[0][0] < cfg.check_window + settle:
             return ''
         row = self._history_row
         rows = h[row(t - cfg.check_window):] + [(t, tuple(travel), tuple(inputs.pose), 0.0,
@@ -558,7 +571,10 @@ class Supervisor:
         span = cfg.check_window
         if cmd >= MIN_CHECKED and enc < cfg.follow_fraction * cmd:
             return (f'encoders do not follow the command: {enc:.3f} m of track travel in '
-                    f'{span:.2f} s against {cmd:.3f} m commanded (frozen encoders?)')
+                    f'{span:.2f} s against {cmd:.3f} m commanded ' + (
+                        '(frozen encoders?)' if d.moved else '(the tracks have not moved '
+                        'since the start: is the command path up, cmd_vel_translator and '
+                        'the motor drivers? frozen encoders?)'))
         # Only motion along the path is judged: a turn in place moves no vehicle out of its
         # fence, and a skid-steer vehicle may barely turn in place on a grippy floor.
         if cfg.reference == 'pose':
@@ -595,10 +611,8 @@ class Supervisor:
         travel_t = inputs.t if inputs.travel_t is None else inputs.travel_t
         d.history.append((inputs.t, tuple(travel), tuple(pose), out.v, out.w, travel_t))
         # What the checks can still look at (rows before it only say how long it moved).
-        keep = inputs.t - (cfg.check_window + cfg.settle_time + MAX_ENCODER_LAG + 0.5)
-        while len(d.history) > 2 and d.history[1][0] < keep:
-            d.history.pop(0)
-        keep = inputs.t - cfg.check_window - cfg.settle_time - 1.0
+        keep = inputs.t - (cfg.check_window + max(cfg.settle_time, cfg.start_grace)
+                           + MAX_ENCODER_LAG + 0.5)
         while len(d.history) > 2 and d.history[1][0] < keep:
             d.history.pop(0)
 
