@@ -22,6 +22,7 @@ import threading
 import time
 import tty
 
+from rclpy.duration import Duration
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from std_msgs.msg import Bool, String
@@ -170,6 +171,8 @@ class DeadmanNode(Node):
         if status.get('exit_status') is not None and self.done_status is None:
             self.done_status = int(status['exit_status'])
             self._pub.publish(Bool(data=False))
+            # Delivered before the context goes (a shutdown drops what is in flight).
+            self._pub.wait_for_all_acked(Duration(seconds=1.0))
             print(f'calibration drive done (exit status {self.done_status})', flush=True)
             self.context.try_shutdown()
 
