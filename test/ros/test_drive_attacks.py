@@ -208,9 +208,14 @@ def _scenario(scenario, ros_context, executor, tmp_path):
         if scenario == 'two_deadman_publishers':
             liar = attacker.node.create_publisher(Bool, 'deadman', 10)
             liar_timer = attacker.node.create_timer(0.05, lambda: liar.publish(Bool(data=False)))
+            # Both publishers there before the press, as a second operator's stale node
+            # would be (the drive can only refuse what DDS has discovered).
             deadline = time.monotonic() + 60.0
-            while not (attacker.status and attacker.truth) and time.monotonic() < deadline:
-                hold()
+            while not (attacker.status and attacker.truth
+                       and attacker.node.count_publishers('deadman') >= 2) \
+                    and time.monotonic() < deadline:
+                hold(False)
+            hold(False, 1.0)
             start_t = attacker.sim_t     # the drive and the world are up: hold 10 s more
             while attacker.sim_t < start_t + WATCH and time.monotonic() < deadline:
                 assert drive.process.poll() is None, logs()
