@@ -76,9 +76,11 @@ def test_hold_presses_the_deadman_starts_the_drive_shows_its_status_and_ends_wit
     node.create_service(Trigger, '~/start', start)
     try:
         with ConsoleScript('calibration_deadman', '--hold', '--start', tmp_path=tmp_path) as tool:
-            # A press: false first, then true; ~/start is called once the deadman is held.
+            # ~/start is called once the deadman is held. (It publishes false for 0.5 s after
+            # it sees the subscriber first; under load this side may match it later than that,
+            # so the test cannot count on receiving those. A first true arms the drive's
+            # deadman; the false that re-arms a latched one is checked below.)
             assert spin_until(executor, lambda: True in seen and starts, timeout=20)
-            assert seen[0] is False and starts[0][0] is False
             assert starts[0][-1] is True
             assert spin_until(executor, lambda: status.get_subscription_count() > 0)
             state = {'state': 'running', 'reason': '', 'step': 0, 'steps': 30,
