@@ -1,40 +1,9 @@
 """
 From a body twist command to track speed setpoints, with limits that keep the path.
 
-The command path of a tracked vehicle: the commanded twist ``(v_x, w)`` goes through the
-inverse ICR kinematics (Martinez et al. 2005, eqs. 10-11, in the ROS frame, see
-:func:`~tracked_kinematics.core.kinematics.inverse`) to true track speeds, which are divided
-by the encoder scale corrections (eqs. 20-21) to give the *nominal* speeds a track speed
-controller that trusts its encoders must be asked for.
-
-Limits are applied so that the path the vehicle follows stays the commanded one:
-
-- velocity limits (on the twist, like diff_drive_controller's ``linear.x.max_velocity`` and
-  ``angular.z.max_velocity``, and on each track's setpoint) scale ``v_x`` and ``w`` by one
-  common factor, which keeps the curvature ``w / v_x`` (diff_drive_controller clamps the
-  two independently, which turns a commanded arc into a tighter one);
-- acceleration and deceleration limits (on the twist and on each track's setpoint) move the
-  setpoints along the straight segment from the last setpoints to the target, by the largest
-  fraction of it that no limit forbids. Both tracks reach the target together, and a ramp
-  from or to rest keeps the commanded curvature all the way. A quantity whose change moves
-  it toward zero (its last value and its change have opposite signs) is held to the
-  deceleration limit, any other change to the acceleration limit: the rule of
-  diff_drive_controller's rate limiter (control_toolbox ``RateLimiter``, which decides on
-  the sign of the last value the same way). An unset deceleration limit is the acceleration
-  limit, as there.
-
-Track limits apply to the nominal setpoints, the numbers the motor controllers receive.
-Unlimited is ``math.inf``.
-
-The vehicle envelope
---------------------
-Whatever the limits, no setpoint leaves the command path faster than
-:data:`TRACK_SPEED_ENVELOPE`: a user's ``max_track_speed`` can only lower it. A command is
-scaled into the envelope (one factor on ``v_x`` and ``w``, so its curvature is kept) before
-anything downstream sees it, and the inverse kinematics is evaluated so that it cannot
-overflow (:func:`envelope_setpoints`). Every number of the ramp, its differences and its
-fractions is then bounded, for every finite command: a Twist of 1.8e308 m/s becomes 30 m/s,
-never the inf of an overflow nor the ``0 * inf = NaN`` of a ramp that would latch.
+Inverse ICR kinematics (Martinez et al. 2005, eqs. 10-11) and the encoder scales (eqs. 20-21)
+give nominal setpoints; velocity limits scale ``v_x`` and ``w`` by one factor, ramps move both
+tracks along one segment. See docs/nodes/cmd_vel_translator.md, "Limits and the vehicle envelope".
 """
 
 from __future__ import annotations
@@ -60,27 +29,11 @@ _DECELERATION_OF = {'max_track_decel': 'max_track_accel',
 @dataclass(frozen=True, slots=True)
 class CommandLimits:
     """
-    Velocity, acceleration and deceleration limits of the command path; ``inf`` is no limit.
+    Velocity (m/s, rad/s) and rate (m/s^2, rad/s^2) limits of the command path; ``inf`` is none.
 
-    Attributes
-    ----------
-    max_track_speed : float
-        Largest nominal track speed setpoint, m/s.
-    max_track_accel : float
-        Largest rate of change of a nominal track speed setpoint away from zero, m/s^2.
-    max_linear_velocity, max_linear_acceleration : float
-        Largest ``|v_x|`` (m/s) and its rate of change away from zero (m/s^2).
-    max_angular_velocity, max_angular_acceleration : float
-        Largest ``|w|`` (rad/s) and its rate of change away from zero (rad/s^2).
-    max_track_decel, max_linear_deceleration, max_angular_deceleration : float or None
-        Largest rate of change toward zero of a track setpoint, ``v_x`` and ``w``; None (the
-        default) is the matching acceleration limit.
-
-    Raises
-    ------
-    ValueError
-        On a limit that is not a number > 0 (``inf`` allowed); the message names it.
-
+    Track limits apply to the nominal setpoints. ``*_decel*`` limits hold changes toward zero;
+    None (the default) is the matching acceleration limit. Raises ValueError on a limit that is
+    not > 0.
     """
 
     max_track_speed: float = math.inf
@@ -108,22 +61,7 @@ def _factor(magnitude, limit):
 
 
 def limit_twist(v_x, w, max_linear=math.inf, max_angular=math.inf):
-    """
-    Scale a twist command into the twist velocity limits, keeping its curvature.
-
-    Parameters
-    ----------
-    v_x, w : array_like
-        Commanded forward velocity (m/s) and yaw rate (rad/s), finite.
-    max_linear, max_angular : float
-        Limits on ``|v_x|`` (m/s) and ``|w|`` (rad/s), > 0; ``inf`` for none.
-
-    Returns
-    -------
-    v_x, w : ndarray
-        The command times one factor in (0, 1], the largest that meets both limits.
-
-    """
+    """Scale ``v_x`` (m/s), ``w`` (rad/s) by one factor <= 1 into the limits (keeps curvature)."""
     v_x = np.asarray(v_x, dtype=float)
     w = np.asarray(w, dtype=float)
     factor = np.minimum(_factor(np.abs(v_x), max_linear), _factor(np.abs(w), max_angular))
@@ -132,46 +70,16 @@ def limit_twist(v_x, w, max_linear=math.inf, max_angular=math.inf):
 
 def track_setpoints(v_x, w, icr: IcrParams):
     """
-    Nominal track speed setpoints that make the vehicle move with a commanded twist.
+    Nominal track speed setpoints (m/s) that make the vehicle move with twist ``(v_x, w)``.
 
-    Inverse kinematics, Martinez et al. (2005) eqs. (10)-(11) in the ROS frame, then the
-    encoder corrections of eqs. (20)-(21) undone: ``nominal = true / scale``.
-
-    Parameters
-    ----------
-    v_x, w : array_like
-        Commanded forward velocity (m/s) and yaw rate (rad/s).
-    icr : IcrParams
-        Kinematic model of the vehicle on its terrain.
-
-    Returns
-    -------
-    left, right : ndarray
-        Nominal track speeds, m/s.
-
+    Martinez et al. (2005) eqs. (10)-(11) in the ROS frame, then eqs. (20)-(21) undone:
+    ``nominal = true / scale``.
     """
     return nominal_speeds(*inverse(v_x, w, icr), icr)
 
 
 def saturate_tracks(left, right, max_speed):
-    """
-    Scale both track setpoints by one factor so that neither exceeds ``max_speed``.
-
-    Scaling both sides together scales the twist they produce, so the curvature of the
-    path is kept (clipping each side alone would change it).
-
-    Parameters
-    ----------
-    left, right : array_like
-        Track speed setpoints, m/s.
-    max_speed : float
-        Largest allowed ``|setpoint|``, m/s, > 0; ``inf`` for none.
-
-    Returns
-    -------
-    left, right : ndarray
-
-    """
+    """Scale both setpoints by one factor so neither exceeds ``max_speed`` (keeps curvature)."""
     left = np.asarray(left, dtype=float)
     right = np.asarray(right, dtype=float)
     factor = _factor(np.maximum(np.abs(left), np.abs(right)), max_speed)
@@ -180,31 +88,11 @@ def saturate_tracks(left, right, max_speed):
 
 def envelope_setpoints(v_x, w, icr: IcrParams, max_speed: float = TRACK_SPEED_ENVELOPE):
     """
-    Nominal setpoints of a twist, both scaled by one factor <= 1 into ``max_speed``.
+    Nominal setpoints of a twist, both scaled by one factor <= 1 into ``max_speed`` (m/s).
 
-    :func:`track_setpoints` then :func:`saturate_tracks`, made safe for every finite
-    command: where the inverse kinematics of the command itself overflows (a Twist of
-    1.8e308 m/s), it is evaluated on the command divided by ``m = max(|v_x|, |w|)``, whose
-    setpoints ``s`` are finite, and the result is ``s * min(m, max_speed / max|s|)``: the
-    same direction in setpoint space (the curvature is kept), at the largest magnitude
-    within ``max_speed``. Where the model itself overflows even then (a scale of 5e-324,
-    which no parameter range accepts), the setpoints are zero.
-
-    Parameters
-    ----------
-    v_x, w : array_like
-        Commanded forward velocity (m/s) and yaw rate (rad/s), finite.
-    icr : IcrParams
-        Kinematic model of the vehicle on its terrain.
-    max_speed : float
-        Largest ``|setpoint|``, m/s, finite and > 0: the envelope or a lower limit.
-
-    Returns
-    -------
-    left, right : ndarray
-        Nominal track speeds, m/s, finite, ``|left|, |right| <= max_speed``; exactly
-        :func:`track_setpoints` where those are within ``max_speed``.
-
+    :func:`track_setpoints` then :func:`saturate_tracks`, finite for every finite command: where
+    the inverse kinematics overflows, it is evaluated on the command divided by
+    ``max(|v_x|, |w|)`` and rescaled; where the model itself overflows, the setpoints are zero.
     """
     v_x = np.asarray(v_x, dtype=float)
     w = np.asarray(w, dtype=float)
@@ -227,12 +115,7 @@ def envelope_setpoints(v_x, w, icr: IcrParams, max_speed: float = TRACK_SPEED_EN
 
 def exceeds_envelope(v_x: float, w: float, icr: IcrParams,
                      envelope: float = TRACK_SPEED_ENVELOPE) -> bool:
-    """
-    Tell whether a twist asks for a nominal track speed beyond ``envelope`` (m/s).
-
-    Eqs. (10)-(11) and (20)-(21) on Python floats; an overflow (inf, or the NaN of inf - inf)
-    counts as beyond.
-    """
+    """Tell whether a twist asks for a nominal track speed beyond ``envelope`` (or overflows)."""
     peak = max(abs((v_x - icr.y_left * w) / icr.scale_left),
                abs((v_x - icr.y_right * w) / icr.scale_right))
     return not peak <= envelope
@@ -240,13 +123,9 @@ def exceeds_envelope(v_x: float, w: float, icr: IcrParams,
 
 def setpoint_twist(left: float, right: float, icr: IcrParams) -> tuple[float, float]:
     """
-    Body twist ``(v_x, w)`` that one pair of nominal setpoints makes, on Python floats.
+    Body twist ``(v_x, w)`` of a pair of nominal setpoints, on Python floats (fast per publish).
 
-    The forward kinematics of :func:`~tracked_kinematics.core.kinematics.forward`
-    (Martinez et al. 2005, eqs. 7-9 in the ROS frame) after the scale corrections of
-    eqs. (20)-(21), written out for two floats: it runs at every publish, where numpy's
-    per-call cost on scalars would be most of the work. Linear, so it also maps a change
-    of the setpoints to the change of the twist.
+    Martinez et al. (2005) eqs. (7)-(9) in the ROS frame after the scales of eqs. (20)-(21).
     """
     v_left, v_right = left * icr.scale_left, right * icr.scale_right
     w = (v_right - v_left) / (icr.y_left - icr.y_right)
@@ -255,19 +134,7 @@ def setpoint_twist(left: float, right: float, icr: IcrParams) -> tuple[float, fl
 
 def setpoint_problem(left: float, right: float, icr: IcrParams, limits: CommandLimits,
                      envelope: float = TRACK_SPEED_ENVELOPE, rel: float = 1e-9) -> str | None:
-    """
-    Say what forbids sending a pair of nominal setpoints, or return None when nothing does.
-
-    The check of an output guard: both finite, neither beyond ``max_track_speed`` nor the
-    envelope, and the twist they make (:func:`setpoint_twist`) within the twist velocity
-    limits, each up to a relative rounding margin ``rel``.
-
-    Returns
-    -------
-    str or None
-        What is wrong, with the numbers, for a warning.
-
-    """
+    """Say what forbids sending a pair of nominal setpoints (output guard), or return None."""
     if not (math.isfinite(left) and math.isfinite(right)):
         return f'non-finite setpoints ({left!r}, {right!r})'
     speed = max(abs(left), abs(right))
@@ -292,40 +159,10 @@ class CommandLimiter:
     """
     Twist commands in, limited nominal track setpoints out, one update per publish period.
 
-    The caller gives each command with its time (:meth:`command`) and asks for the
-    setpoints at every publish time (:meth:`update`). A command older than ``timeout`` (or,
-    when the caller gives steady times too, older than ``steady_timeout`` on the steady
-    clock) is replaced by a stop, reached at the deceleration limits (at once when there are
-    none). A stale command stays stale until a new one comes, whatever the clocks say later
-    (a clock that goes back cannot revive it); :meth:`stop` ramps to zero on a clock of the
-    caller's choice (a fault of the ROS clock).
-
-    Parameters
-    ----------
-    icr : IcrParams
-        Kinematic model of the vehicle on its terrain.
-    limits : CommandLimits, optional
-        Velocity, acceleration and deceleration limits; none by default.
-    timeout : float, optional
-        Age (s) beyond which a command is stale, > 0; ``inf`` disables the timeout.
-    steady_timeout : float, optional
-        Steady time (s) since its arrival beyond which a command is stale, > 0; ``inf`` (the
-        default) judges on ``timeout`` alone.
-    envelope : float, optional
-        Largest nominal setpoint, m/s, whatever the limits (:data:`TRACK_SPEED_ENVELOPE`).
-
-    Attributes
-    ----------
-    icr, limits, timeout, steady_timeout
-        May be replaced between updates (runtime parameter changes); the ramp continues
-        from the last setpoints, scaled at once into new velocity limits (a velocity limit
-        is never exceeded, not even to ramp down to it).
-
-    Notes
-    -----
-    The target setpoints of a command are computed once, when the command (or the model,
-    or a limit) changes; an update in between costs a few microseconds.
-
+    A command older than ``timeout`` (s; or ``steady_timeout`` on the steady clock) is replaced
+    by a stop at the deceleration limits and stays stale until a new one comes. ``icr``,
+    ``limits`` and the timeouts may be replaced between updates; the ramp continues. See
+    docs/nodes/cmd_vel_translator.md.
     """
 
     def __init__(self, icr: IcrParams, limits: CommandLimits | None = None,
@@ -376,24 +213,9 @@ class CommandLimiter:
 
     def command(self, v_x: float, w: float, t: float, steady: float | None = None) -> None:
         """
-        Take a new twist command.
+        Take a twist command ``(v_x, w)`` at time ``t`` (s; ``steady``: steady time of arrival).
 
-        Parameters
-        ----------
-        v_x, w : float
-            Forward velocity (m/s) and yaw rate (rad/s), finite (any magnitude: the envelope
-            scales it).
-        t : float
-            Time of the command (its arrival, or its stamp if older), s, on the clock of
-            :meth:`update`.
-        steady : float, optional
-            Steady time of its arrival, s (``time.monotonic()``); None: not judged on it.
-
-        Raises
-        ------
-        ValueError
-            When ``v_x`` or ``w`` is not finite; the last good command stays in force.
-
+        Raises ValueError when ``v_x`` or ``w`` is not finite; the last good command stays.
         """
         v_x, w = float(v_x), float(w)
         if not (math.isfinite(v_x) and math.isfinite(w)):
@@ -405,12 +227,7 @@ class CommandLimiter:
         self._live = True
 
     def is_stale(self, t: float, steady: float | None = None) -> bool:
-        """
-        Tell whether the command in force is stale at ``t`` (and steady time ``steady``).
-
-        Stale: judged stale before or dropped, older than ``timeout`` at ``t``, or (when
-        both steady times are known) older than ``steady_timeout`` at ``steady``.
-        """
+        """Tell whether the command in force is stale at ``t`` (and steady time ``steady``)."""
         if not self._live or t - self._command_time > self.timeout:
             return True
         arrival = self._command_steady
@@ -422,15 +239,7 @@ class CommandLimiter:
         self._live = False
 
     def target(self, v_x: float, w: float) -> tuple[float, float]:
-        """
-        Nominal setpoints for a twist within the velocity limits and the envelope, unramped.
-
-        Returns
-        -------
-        left, right : float
-            m/s, finite for every finite twist.
-
-        """
+        """Nominal setpoints (m/s) of a twist within the velocity limits and envelope, unramped."""
         limits, icr = self._limits, self._icr
         if abs(v_x) <= limits.max_linear_velocity and abs(w) <= limits.max_angular_velocity:
             # Within every limit (the usual case): eqs. (10)-(11), (20)-(21) on floats, the
@@ -446,23 +255,10 @@ class CommandLimiter:
     def update(self, t: float, max_dt: float = math.inf,
                steady: float | None = None) -> tuple[float, float]:
         """
-        Setpoints at time ``t``: toward the current command (or a stop) at the ramp limits.
+        Nominal setpoints (m/s) at time ``t``, ramped toward the command (or a stop).
 
-        Parameters
-        ----------
-        t : float
-            Current time, s.
-        max_dt : float, optional
-            Longest interval (s) one update may ramp over, so that a caller that stalled
-            does not get a jump (the node passes two publish periods).
-        steady : float, optional
-            Steady time now, s, to judge the command on ``steady_timeout`` too.
-
-        Returns
-        -------
-        left, right : float
-            Nominal track speed setpoints, m/s.
-
+        ``max_dt`` bounds the interval one update ramps over (no jump after a stall); ``steady``
+        judges the command on ``steady_timeout`` too.
         """
         t = float(t)
         dt = 0.0 if self._last_update is None else min(max(t - self._last_update, 0.0), max_dt)
@@ -478,12 +274,7 @@ class CommandLimiter:
         return self._setpoints
 
     def stop(self, dt: float) -> tuple[float, float]:
-        """
-        Drop the command and ramp toward zero over ``dt`` s at the deceleration limits.
-
-        For a fault of the clock of :meth:`update`: ``dt`` comes from another clock (the
-        steady one), and the next :meth:`update` ramps from there without a jump.
-        """
+        """Drop the command; ramp toward zero over ``dt`` s (another clock's) at decel limits."""
         self._live = False
         self._last_update = None
         self._setpoints = self._ramp((0.0, 0.0), max(float(dt), 0.0))
@@ -545,12 +336,7 @@ def _ratio(limit: float, magnitude: float) -> float:
 
 
 def _fraction(value: float, change: float, accel: float, decel: float, dt: float) -> float:
-    """
-    Fraction (at most 1) of ``change`` that the rate limits allow in ``dt``.
-
-    A change toward zero (``value`` and ``change`` of opposite signs) is held to ``decel``,
-    any other to ``accel`` (both > 0, ``inf`` for none).
-    """
+    """Fraction (<= 1) of ``change`` the rate limits allow in ``dt`` (``decel`` toward zero)."""
     rate = decel if value * change < 0.0 else accel
     if math.isinf(rate):
         return 1.0
