@@ -1,33 +1,9 @@
 """
 Motion models: measured track speeds -> body twist, with a parameter vector.
 
-One interface serves odometry, identification, online estimation and planning: a model is a
-function ``twist(p, v_left, v_right)`` of a parameter vector ``p`` and of the *measured*
-(nominal, encoder) track speeds, with its Jacobian with respect to ``p``. The identifier fits
-``p``; the estimator tracks it; odometry and planning integrate the twist.
-
-Models
-------
-``ideal``
-    Ideal differential drive (Fink & Stump, Table I, row 1). No parameter.
-``effective_wheel_base`` (alias ``symmetric``)
-    Fink & Stump, Table I, row 2: the turning rate scaled by ``alpha``. Identical to the
-    symmetric ICR model of Martinez sec. 4.2 with ``chi = alpha``.
-``icr``
-    Constant tread ICRs ``(y_left, y_right, x)``, Martinez eqs. (7)-(9).
-``icr_scales``
-    The same plus encoder scale corrections ``(scale_left, scale_right)``, Martinez
-    eqs. (20)-(21). This is the model the terrain YAML stores.
-``general_slip``
-    General kinematic slip, 9 parameters, Fink & Stump eq. (2).
-``adaptive_icr``
-    Tread ICRs that move with lateral acceleration and curvature, the EKF paper's eq. (11)
-    (reconstructed, see :class:`AdaptiveIcr`).
-
-Each model class declares what the identification, the reports, the command lines and the
-planner need of it (its :class:`Parameter` entries, whether it has constant ICRs, is a
-baseline, can be planned with) and is registered by name (:func:`register_model`): adding a
-model is one class and its tests (docs/model.md, "Adding a model").
+A model is ``twist(p, v_left, v_right)`` with its Jacobian in ``p``, registered by name; the
+identifier fits ``p``, the estimator tracks it, odometry and planning integrate the twist.
+See docs/model.md, "Motion models" and "Adding a model".
 """
 
 from __future__ import annotations
@@ -43,19 +19,10 @@ from .kinematics import IcrParams
 
 def _icr_twist(v_left, v_right, y_left, y_right, x):
     """
-    Twist and its partial derivatives with respect to ``(y_left, y_right, x)``.
+    Twist (..., 3) and its derivatives in ``(y_left, y_right, x)`` and in ``(V_l, V_r)``.
 
-    Martinez eqs. (7)-(9) in the ROS frame, in the compact form
+    Martinez eqs. (7)-(9) in the ROS frame:
     ``v_x = (V_r y_left - V_l y_right) / (y_left - y_right)``.
-
-    Returns
-    -------
-    twist : ndarray, shape (..., 3)
-    d_twist_d_icr : ndarray, shape (..., 3, 3)
-        Rows ``(v_x, v_y, w)``, columns ``(y_left, y_right, x)``.
-    d_twist_d_speeds : ndarray, shape (..., 3, 2)
-        Rows ``(v_x, v_y, w)``, columns ``(V_l, V_r)``.
-
     """
     span = y_left - y_right
     w = (v_right - v_left) / span
@@ -86,22 +53,16 @@ class Parameter:
 
     Attributes
     ----------
-    name : str
-        Its name in the parameter vector (``param_names``).
-    ros_name : str
-        Its name in messages and terrain files (``icr.y_left``, ``chi``); default ``name``.
+    name, ros_name : str
+        Name in the parameter vector; name in messages and terrain files (``icr.y_left``).
     excited_by : str
         The driving that identifies it: ``'turning'``, ``'straight'`` or ``''`` (either).
-    bounds : tuple of float
-        Physical ``(lower, upper)`` for least squares; infinite for none.
-    box : tuple of float or None
-        Finite search box of a global method; None: ``bounds``, or +-1 where unbounded.
+    bounds, box : tuple of float
+        Physical bounds of least squares; finite search box of a global method (None: bounds).
     per_track_width : bool
         ``bounds``, ``box`` and the standard-error limit are in track widths.
     std_checked : bool
-        The fit refuses it when its standard error is beyond the limit of its kind
-        (:data:`tracked_kinematics.core.identify.STD_LIMITS`: ``'icr'`` when turning
-        identifies it, ``'scale'`` when straight driving does).
+        The fit refuses it beyond the standard-error limit of its kind (``identify.STD_LIMITS``).
 
     """
 
@@ -120,35 +81,11 @@ class Parameter:
 
 class MotionModel(ABC):
     """
-    Base of all motion models.
+    Base of all motion models, for a ``track_width`` in m (``B`` in Fink & Stump).
 
-    Parameters
-    ----------
-    track_width : float
-        Distance between the track centrelines, m (``B`` in Fink & Stump).
-
-    Attributes
-    ----------
-    name : str
-        Registry name (see :func:`make_model`).
-    aliases : tuple of str
-        Other registry names of the same model.
-    parameters : tuple of Parameter
-        The entries of the parameter vector ``p``, declared; ``param_names`` follows.
-    param_names : tuple of str
-        Names of the entries of the parameter vector ``p``.
-    linear : bool
-        True when the twist is linear in the track speeds, so that body increments over a
-        step follow from the travelled distances alone, whatever the step's duration.
-    constant_icr : bool
-        :meth:`as_icr` gives the model itself: a fit of it is written as the ``icr.*`` and
-        ``scale.*`` of a terrain file (otherwise identify_icr writes a constant-ICR fit of
-        the same data).
-    baseline : bool
-        What a user has without this package, reported first (``ideal``, ``tuned_ddc``).
-    plan_name : str or None
-        Its ``plan_trajectory --model`` name; None: not offered there.
-
+    Class attributes: ``name``/``aliases`` (registry), ``parameters`` (the entries of ``p``),
+    ``linear`` (twist linear in the track speeds), ``constant_icr`` (:meth:`as_icr` is the model
+    itself), ``baseline`` (what a user has without this package), ``plan_name``.
     """
 
     name = ''
@@ -186,13 +123,7 @@ class MotionModel(ABC):
         return next((p for p in self.parameters if p.name == name), None) or Parameter(name)
 
     def guess(self, chi: float, segments) -> np.ndarray:
-        """
-        Start of a fit: this model as a drive of steering efficiency ``chi``.
-
-        ``chi`` is the data's ratio of measured to ideal turning (Martinez eq. 16);
-        ``segments`` (:class:`tracked_kinematics.core.identify.Segments`) are the data, for
-        a model whose start depends on their speeds. Default: :meth:`initial`.
-        """
+        """Start a fit: the model as a drive of steering efficiency ``chi`` (Martinez eq. 16)."""
         return self.initial().astype(float)
 
     def start_from(self, icr: IcrParams) -> np.ndarray | None:
@@ -210,34 +141,13 @@ class MotionModel(ABC):
     @abstractmethod
     def twist_and_jacobian(self, p, v_left, v_right):
         """
-        Body twist and its Jacobian with respect to the parameters.
+        Body twist (N, 3; m/s, m/s, rad/s) and its Jacobian ``d twist / d p`` (N, 3, P).
 
-        Parameters
-        ----------
-        p : array_like, shape (P,)
-            Parameter vector.
-        v_left, v_right : array_like, shape (N,) or scalar
-            Measured (nominal) track speeds, m/s.
-
-        Returns
-        -------
-        twist : ndarray, shape (N, 3)
-            ``(v_x, v_y, w)`` in base_link: m/s, m/s, rad/s.
-        jacobian : ndarray, shape (N, 3, P)
-            ``d twist / d p``.
-
+        ``v_left``, ``v_right`` are the measured (nominal) track speeds, m/s.
         """
 
     def twist(self, p, v_left, v_right):
-        """
-        Body twist from measured track speeds.
-
-        Returns
-        -------
-        v_x, v_y, w : ndarray
-            m/s, m/s, rad/s, shaped like the broadcast of the speeds.
-
-        """
+        """Body twist ``v_x, v_y, w`` (m/s, m/s, rad/s) from measured track speeds."""
         v_left, v_right = np.broadcast_arrays(np.asarray(v_left, float),
                                               np.asarray(v_right, float))
         twist, _ = self.twist_and_jacobian(p, v_left.ravel(), v_right.ravel())
@@ -247,18 +157,9 @@ class MotionModel(ABC):
 
     def increments(self, p, d_left, d_right, dt):
         """
-        Body-frame increments ``(dx, dy, dtheta)`` over steps of measured track travel.
+        Body-frame increments ``(dx, dy, dtheta)`` over steps of measured track travel (m).
 
-        Parameters
-        ----------
-        p : array_like
-            Parameter vector.
-        d_left, d_right : array_like, shape (N,)
-            Measured (nominal) track travel over each step, m.
-        dt : array_like, shape (N,) or scalar
-            Step durations, s. Unused by linear models; for the others, a step with
-            ``dt <= 0`` contributes no motion.
-
+        ``dt`` (s) is unused by linear models; for the others a step with ``dt <= 0`` adds nothing.
         """
         if self.linear:
             return self.twist(p, d_left, d_right)
@@ -282,11 +183,7 @@ class MotionModel(ABC):
 
 
 class IdealDiffDrive(MotionModel):
-    """
-    Ideal differential drive, Fink & Stump Table I (row 1).
-
-    ``v_x = (V_l + V_r) / 2``, ``v_y = 0``, ``w = (V_r - V_l) / B``.
-    """
+    """Ideal differential drive, Fink & Stump Table I (row 1): ``w = (V_r - V_l) / B``."""
 
     name = 'ideal'
     parameters = ()
@@ -314,11 +211,9 @@ class IdealDiffDrive(MotionModel):
 
 class EffectiveWheelBase(MotionModel):
     """
-    Effective wheel-base model, Fink & Stump Table I (row 2).
+    Effective wheel-base model, Fink & Stump Table I (row 2): ``w = alpha (V_r - V_l) / B``.
 
-    ``v_x = (V_l + V_r) / 2``, ``v_y = 0``, ``w = alpha (V_r - V_l) / B``. Equal to the
-    symmetric ICR model of Martinez sec. 4.2 with steering efficiency ``chi = alpha``
-    (ICRs at ``+-B / (2 alpha)``).
+    Equal to the symmetric ICR model of Martinez sec. 4.2 with ``chi = alpha``.
     """
 
     name = 'effective_wheel_base'
@@ -371,17 +266,8 @@ class ConstantIcr(MotionModel):
     """
     Constant tread ICRs, Martinez et al. (2005) eqs. (7)-(9), optionally with scales.
 
-    Registered as ``icr_scales`` (with scales) and, through :class:`FixedScalesIcr`, ``icr``.
-
-    Parameters
-    ----------
-    track_width : float
-        m.
-    with_scales : bool
-        Also fit the encoder corrections ``scale_left``, ``scale_right`` (eqs. 20-21).
-    scales : tuple of float
-        Fixed scales used when ``with_scales`` is False.
-
+    ``with_scales`` also fits ``scale_left``, ``scale_right`` (eqs. 20-21; else fixed ``scales``).
+    Registered as ``icr_scales`` and, through :class:`FixedScalesIcr`, ``icr``.
     """
 
     name = 'icr_scales'
@@ -467,8 +353,7 @@ class GeneralKinematicSlip(MotionModel):
     """
     General kinematic slip model, Fink & Stump (eq. 2 and Table I, row 3).
 
-    ``v = [v_x, 0, v_theta] + C(v_x, v_theta) alpha`` with the ideal ``v_x``, ``v_theta``
-    and the block-diagonal 3 x 9 matrix of rows::
+    ``v = [v_x, 0, v_theta] + C(v_x, v_theta) alpha``, ``C`` block-diagonal with rows::
 
         c_x     = [v_x, |v_theta|, v_x |v_theta|]
         c_y     = [v_x,  v_theta,  v_x  v_theta ]
@@ -518,26 +403,15 @@ class AdaptiveIcr(MotionModel):
     """
     Tread ICRs parameterised over lateral acceleration and curvature (EKF paper, eq. 11).
 
-    The source text lost the equations; what survives says that the ICR locations are
-    functions of the absolute lateral acceleration and curvature, formed from the product
-    and the ratio of the track speeds, with a six-element parameter vector, and that on a
-    straight line they converge to ``-B/2``, ``B/2`` and 0. We therefore use, in the ROS
-    frame::
+    The source text lost the equations; reconstructed from what survives (six parameters, ICRs
+    of ``|a|`` and ``|k|``, ideal on a straight line) as, in the ROS frame::
 
         y_left  =  B/2 + p1 |a| + p2 |k|
         y_right = -B/2 - p3 |a| - p4 |k|
         x       =        p5 |a| + p6 |k|
 
-    with the nominal (ideal-drive) lateral acceleration and curvature::
-
-        a = v w = (V_r^2 - V_l^2) / (2 B)
-        k = w / v = 2 (V_r - V_l) / (B (V_r + V_l))
-
-    ``k`` is unbounded in a spin; we bound it by using ``max(|v|, |w| B / 2)`` as the
-    denominator, which leaves it exact whenever the tracks turn the same way and saturates
-    it at ``2 / B`` (one track stopped) when they counter-rotate. ``p1..p4`` and ``p6``
-    (m per unit) are >= 0 for physical slip; they are not constrained here. The ICR span
-    ``y_left - y_right`` is floored at ``B / 100`` so the twist stays finite for any ``p``.
+    with ``a = v w`` and ``k = w / max(|v|, |w| B / 2)`` of the ideal drive; the span is floored
+    at ``B / 100``. See docs/model.md, "Motion models".
     """
 
     name = 'adaptive_icr'
@@ -626,15 +500,7 @@ _MODELS: dict[str, type[MotionModel]] = {}
 
 
 def register_model(cls: type[MotionModel]) -> type[MotionModel]:
-    """
-    Register a model class under its ``name`` and ``aliases``; usable as a class decorator.
-
-    Raises
-    ------
-    ValueError
-        For a name another class holds.
-
-    """
+    """Register a model class by ``name`` and ``aliases`` (a decorator); ValueError if taken."""
     for name in (cls.name,) + tuple(cls.aliases):
         if _MODELS.get(name, cls) is not cls:
             raise ValueError(f'motion model {name!r} is already registered')
@@ -651,15 +517,7 @@ def unregister_model(name: str) -> None:
 
 
 def model_class(name: str) -> type[MotionModel]:
-    """
-    Return the class registered under ``name``.
-
-    Raises
-    ------
-    ValueError
-        For an unknown name (the message lists the known ones).
-
-    """
+    """Return the class registered under ``name``; ValueError (listing the known) for another."""
     try:
         return _MODELS[name]
     except KeyError:
@@ -681,20 +539,5 @@ MODEL_NAMES = model_names()
 
 
 def make_model(name: str, track_width: float) -> MotionModel:
-    """
-    Build a motion model by its registry name.
-
-    Parameters
-    ----------
-    name : str
-        One of :func:`model_names`.
-    track_width : float
-        m.
-
-    Raises
-    ------
-    ValueError
-        For an unknown name (the message lists the known ones).
-
-    """
+    """Build a motion model by name for ``track_width`` (m); ValueError for an unknown one."""
     return model_class(name).build(track_width)

@@ -1,47 +1,9 @@
 """
 Stationary track-soil dynamics of a tracked vehicle: track speeds -> body twist -> tread ICRs.
 
-Martinez et al. (2005), sec. 4.1 and 5.2, compute the map of tread ICR positions of a
-vehicle, without driving it, from the stationary response of a dynamic model: a pressure
-field under the tracks set by the centre of mass (Fig. 5) and anisotropic Coulomb friction on
-the slip velocity of every contact point (eqs. 22-23). This module implements that model in
-the ROS frame (x forward, y left; base_link at the centre of the two contact patches).
-
-Model and assumptions (hard, flat, uniform soil at moderate speed, as in the paper):
-
-- Each track touches the ground on a rectangle ``contact_length x contact_width`` centred on
-  its centreline ``y = +-track_width / 2``. The patches are discretised into a grid of cells
-  (midpoint rule); every sum below is vectorised over the cells.
-- Pressure is linear along the track and constant across it (Fig. 5). With three unknowns
-  ``p(x, y_s) = a + b x + c y_s`` (``y_s`` the track centreline) the three equations of
-  statics (total load ``m g``, moments putting the resultant under the centre of mass) fix
-  it uniquely: this is the distribution of a rigid body on a uniform elastic foundation. It
-  is computed on the grid itself, so the discrete loads are statically consistent exactly.
-- Friction per unit area on a tread point of slip velocity ``v_s`` (the velocity of the tread
-  material over the ground) is ``-p diag(mu_x, mu_y) v_s / |v_s|`` (eq. 22 with eq. 23 in
-  ROS axes: ``mu_x`` along the track, ``mu_y`` across it; the paper's ``mu_y`` is our
-  ``mu_x``). Coulomb's law is non-smooth at zero slip; we regularise the unit vector as
-  ``v_s / sqrt(|v_s|^2 + eps^2)`` with ``eps`` a small fraction (default 1e-3) of the track
-  speed, which changes the tread ICRs by well under a millimetre and makes the equations
-  smooth, so Newton-type solvers converge.
-- Stationary motion: the body twist ``(v_x, v_y, w)`` is constant, so eqs. (14)-(15) with the
-  accelerations set to zero reduce to: the friction forces and their moment over both patches
-  balance. No motion resistance (hard soil), no gyroscopic torques, no aerodynamic drag.
-- Optional load transfer (``com_height > 0``): the steady-turn centripetal acceleration of
-  the centre of mass, ``a = w x v_G``, is kept in eq. (14) (``m a = sum F``) and its inertial
-  moment at height ``com_height`` shifts the pressure towards the outer track (and the rear
-  when ``a_x > 0``). The response then depends on the speed, not only on the ratio of the
-  track speeds. With ``com_height = 0`` the model is the paper's: no inertia at all.
-
-Without inertia the equations are homogeneous: scaling both track speeds by ``s > 0`` scales
-the twist by ``s``, and reversing both reverses it; mass and the common scale of the friction
-coefficients drop out, only their ratio and the pressure shape matter.
-
-The tread ICRs follow from the twist by Martinez eqs. (3)-(6), in ROS axes::
-
-    y_left = (v_x - V_l) / w,   y_right = (v_x - V_r) / w,   x = -v_y / w
-
-:mod:`.icr_maps` computes them over a grid of track speeds and averages them (sec. 5.2).
+Martinez et al. (2005), sec. 4.1 and 5.2: linear pressure under the tracks (Fig. 5) and
+regularised anisotropic Coulomb friction (eqs. 22-23), balanced at zero acceleration (eqs.
+14-15), in the ROS frame. See docs/simulator.md, "The dynamic model and its assumptions".
 """
 
 from __future__ import annotations
@@ -60,40 +22,26 @@ GRAVITY = 9.81
 @dataclass(frozen=True, slots=True)
 class Vehicle:
     """
-    Description of a tracked vehicle and its soil, for the dynamic model.
-
-    All coordinates in base_link (x forward, y left, origin at the centre of the two contact
-    patches). Martinez et al. give the Auriga-alpha centre of mass as (-0.015, 0.04) m in
-    their frame (X right, Y forward): in ROS axes ``com_x = 0.04``, ``com_y = 0.015``.
+    Description of a tracked vehicle and its soil, for the dynamic model (SI units, base_link).
 
     Attributes
     ----------
     track_width : float
         Distance between the track centrelines, m (``L``).
-    contact_length : float
-        Length of the ground contact of one track, m.
-    contact_width : float
-        Width of one track belt, m (< ``track_width``: the patches must not overlap).
+    contact_length, contact_width : float
+        Length and belt width of one track's ground contact, m (width < ``track_width``).
     mass : float
-        Vehicle mass, kg.
+        kg.
     com_x, com_y : float
-        Centre of mass in base_link, m. The static pressure must stay >= 0 everywhere:
-        ``|com_x| <= contact_length / 6`` for a linear distribution, and the centre of mass
-        between the tracks.
+        Centre of mass, m; needs ``|com_x| <= contact_length / 6`` and to lie between the tracks.
     com_height : float
-        Height of the centre of mass above the ground, m. 0 (default) is the paper's model
-        without inertia; a height > 0 adds centripetal force and load transfer in turns.
+        m; 0 (default) is the paper's model without inertia, > 0 adds load transfer in turns.
     mu_x, mu_y : float
         Coulomb friction coefficients along and across the tracks (eq. 23, ROS axes).
     max_track_speed : float
         Largest track speed of the drives, m/s (the range of the ICR map).
     name : str
         Label for reports.
-
-    Raises
-    ------
-    ValueError
-        On a non-finite or out-of-range value; the message names it.
 
     """
 
@@ -136,21 +84,7 @@ class Vehicle:
 
 @dataclass(frozen=True)
 class ContactGrid:
-    """
-    Cells of both contact patches: centres, areas and the track each belongs to.
-
-    Attributes
-    ----------
-    x, y : ndarray, shape (M,)
-        Cell centres in base_link, m.
-    area : ndarray, shape (M,)
-        Cell areas, m^2.
-    left : ndarray of bool, shape (M,)
-        True for cells of the left track.
-    y_track : ndarray, shape (M,)
-        Centreline of the cell's track, m (``+-track_width / 2``).
-
-    """
+    """Cells of both patches: centres ``x, y`` (m), ``area`` (m^2), ``left``, ``y_track``."""
 
     x: np.ndarray
     y: np.ndarray
@@ -160,21 +94,7 @@ class ContactGrid:
 
 
 def contact_grid(vehicle: Vehicle, n_long: int = 40, n_lat: int = 4) -> ContactGrid:
-    """
-    Discretise both contact patches into ``n_long x n_lat`` cells each (midpoint rule).
-
-    Parameters
-    ----------
-    vehicle : Vehicle
-        Geometry.
-    n_long, n_lat : int
-        Cells along and across each track.
-
-    Returns
-    -------
-    ContactGrid
-
-    """
+    """Discretise both contact patches into ``n_long x n_lat`` cells each (midpoint rule)."""
     if n_long < 2 or n_lat < 1:
         raise ValueError(f'need n_long >= 2 and n_lat >= 1, got {n_long}, {n_lat}')
     length, width = vehicle.contact_length, vehicle.contact_width
@@ -195,25 +115,8 @@ def normal_loads(vehicle: Vehicle, grid: ContactGrid, com_x=None, com_y=None) ->
     """
     Compute the normal force on every cell, N: the linear pressure of Martinez Fig. 5.
 
-    ``p = a + b x + c y_track`` with ``a, b, c`` chosen so that, on this grid, the loads sum
-    to ``m g`` and their resultant lies under ``(com_x, com_y)``.
-
-    Parameters
-    ----------
-    vehicle : Vehicle
-        Mass and static centre of mass.
-    grid : ContactGrid
-        Cells.
-    com_x, com_y : float, optional
-        Effective centre of mass (default: the vehicle's); the load transfer of a turn moves
-        it (:class:`StationarySolver`).
-
-    Returns
-    -------
-    ndarray, shape (M,)
-        Loads; may be negative for an effective centre of mass far outside the patches
-        (the caller clips).
-
+    ``p = a + b x + c y_track`` with the loads summing to ``m g`` under ``(com_x, com_y)``
+    (default: the vehicle's). May be negative for a centre of mass far outside (caller clips).
     """
     com_x = vehicle.com_x if com_x is None else com_x
     com_y = vehicle.com_y if com_y is None else com_y
@@ -228,18 +131,10 @@ def normal_loads(vehicle: Vehicle, grid: ContactGrid, com_x=None, com_y=None) ->
 @dataclass(frozen=True)
 class Solution:
     """
-    Stationary response to one pair of track speeds.
+    Stationary response to one pair of track speeds: ``twist`` (m/s, m/s, rad/s), convergence.
 
-    Attributes
-    ----------
-    twist : ndarray, shape (3,)
-        ``(v_x, v_y, w)`` in base_link: m/s, m/s, rad/s.
-    converged : bool
-        The balance residual is below tolerance.
-    residual : float
-        Largest balance residual, as a fraction of ``mu_x m g`` (forces) and of
-        ``mu_x m g contact_length`` (moment).
-
+    ``residual`` is the largest balance residual, normalised as in
+    :meth:`StationarySolver.residuals`.
     """
 
     twist: np.ndarray
@@ -252,24 +147,9 @@ class StationarySolver:
     Body twist at which the friction forces and moment over both contact patches balance.
 
     Martinez et al. (2005) eqs. (14)-(15) with zero accelerations (plus the centripetal term
-    when the vehicle has a ``com_height > 0``), friction by eqs. (22)-(23) on the slip velocity
-    of every cell. The three balance equations are solved with MINPACK's hybrid Powell method
-    (``scipy.optimize.root``, ``method='hybr'``) and an analytic Jacobian, from the ideal
-    differential-drive twist; on failure, again by continuation from a heavily regularised
-    (almost viscous, hence almost linear) friction law down to ``eps``.
-
-    Parameters
-    ----------
-    vehicle : Vehicle
-        Vehicle and soil.
-    n_long, n_lat : int
-        Grid cells along and across each patch.
-    eps : float
-        Regularisation velocity of the Coulomb unit vector, as a fraction of the larger
-        track speed.
-    tol : float
-        Convergence tolerance on the normalised balance residual.
-
+    when ``com_height > 0``), friction by eqs. (22)-(23). ``eps`` is the Coulomb regularisation
+    velocity as a fraction of the larger track speed; ``tol`` the tolerance on the normalised
+    residual.
     """
 
     def __init__(self, vehicle: Vehicle, n_long: int = 40, n_lat: int = 4, eps: float = 1e-3,
@@ -316,8 +196,8 @@ class StationarySolver:
         Returns
         -------
         r : ndarray, shape (N, 3)
-            ``(F_x - m a_x, F_y - m a_y) / (mu_x m g)`` and ``M_z / (mu_x m g l)``, the moment
-            taken about the centre of mass (``a = 0`` when ``com_height = 0``).
+            ``(F_x - m a_x, F_y - m a_y) / (mu_x m g)`` and ``M_z / (mu_x m g l)`` (about the
+            centre of mass).
         jac : ndarray, shape (N, 3, 3)
             ``d r / d twist``.
 
@@ -384,25 +264,7 @@ class StationarySolver:
         return r / scale, jac / scale[:, None]
 
     def residual(self, twist, v_left: float, v_right: float, eps: float | None = None):
-        """
-        Normalised balance residual and Jacobian of one problem (see :meth:`residuals`).
-
-        Parameters
-        ----------
-        twist : array_like, shape (3,)
-            Trial ``(v_x, v_y, w)``.
-        v_left, v_right : float
-            Track speeds, m/s.
-        eps : float, optional
-            Absolute regularisation velocity, m/s (default: the solver's fraction of the
-            larger track speed).
-
-        Returns
-        -------
-        r : ndarray, shape (3,)
-        jac : ndarray, shape (3, 3)
-
-        """
+        """Normalised balance residual and Jacobian of one problem (see :meth:`residuals`)."""
         if eps is None:
             eps = self.eps * max(abs(v_left), abs(v_right))
         r, jac = self.residuals(np.reshape(twist, (1, 3)), [v_left], [v_right], [eps])
@@ -456,21 +318,7 @@ class StationarySolver:
         return result.x, float(np.max(np.abs(r)))
 
     def solve(self, v_left: float, v_right: float, guess=None) -> Solution:
-        """
-        Stationary body twist for one pair of track speeds, by scipy's hybrid Powell method.
-
-        Parameters
-        ----------
-        v_left, v_right : float
-            True track speeds, m/s.
-        guess : array_like, shape (3,), optional
-            Starting twist (default: ideal differential drive).
-
-        Returns
-        -------
-        Solution
-
-        """
+        """Stationary body twist for one pair of true track speeds (m/s), by hybrid Powell."""
         v_left, v_right = float(v_left), float(v_right)
         speed = max(abs(v_left), abs(v_right))
         if speed == 0.0:
@@ -493,27 +341,10 @@ class StationarySolver:
 
     def solve_many(self, v_left, v_right, guess=None):
         """
-        Stationary twists for many pairs of track speeds at once.
+        Stationary twists, shape (N, 3), and convergence flags for many pairs of track speeds.
 
-        A damped Newton iteration runs on all pairs together (vectorised residuals, batched
-        3 x 3 solves): from ``guess`` when given, else first on a strongly regularised
-        friction law (``eps`` x 30, nearly viscous) from the ideal twist and then on the
-        requested one. Pairs it leaves unconverged are solved one by one with :meth:`solve`
-        (hybrid Powell, continuation in ``eps``).
-
-        Parameters
-        ----------
-        v_left, v_right : array_like, shape (N,)
-            Track speeds, m/s.
-        guess : array_like, shape (N, 3), optional
-            Starting twists (for a continuation, e.g. over speed).
-
-        Returns
-        -------
-        twist : ndarray, shape (N, 3)
-            NaN rows where no method converged.
-        converged : ndarray of bool, shape (N,)
-
+        Damped Newton on all pairs at once (from ``guess``, or via a nearly viscous friction law);
+        unconverged pairs go to :meth:`solve`. Rows no method solved are NaN.
         """
         v_left, v_right = np.broadcast_arrays(np.atleast_1d(np.asarray(v_left, float)),
                                               np.atleast_1d(np.asarray(v_right, float)))
@@ -542,11 +373,6 @@ class StationarySolver:
         return twists, ok
 
     def _lift(self, speed):
-        """
-        Factor raising track speeds below 1e-6 max_track_speed to that floor.
-
-        Tiny speeds would underflow the regularisation (``eps^2``); the response there is
-        inertia-free, hence homogeneous, so solving at the floor and scaling back is exact.
-        """
+        """Factor raising track speeds below 1e-6 max_track_speed up to it (exact: homogeneous)."""
         floor = 1e-6 * self.vehicle.max_track_speed
         return np.where(speed < floor, floor / np.maximum(speed, 1e-300), 1.0)
