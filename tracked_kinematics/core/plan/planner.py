@@ -1,36 +1,9 @@
 """
 Trajectory generation with identified motion models, Fink & Stump sec. III-C and IV-C.
 
-A plan is a sequence of *nominal track speed setpoints* (what ``cmd_vel_translator``
-publishes, one every ``dt``), found by optimisation so that the robot, as predicted by a
-motion model (:mod:`..models`) driven through the drive-train model (:mod:`..drivetrain`,
-Fink & Stump eqs. 6-8), reaches a goal pose or follows a reference path.
-
-Parameterisation
-----------------
-The setpoints of each track are piecewise linear between evenly spaced knots (the
-"spline-based" knot parameterisation of Fink & Stump Fig. 3(b), of degree one), the first
-and last knots fixed at zero: the robot starts and ends at rest. We parameterise the two
-*track speeds* rather than the paper's ``(v, kappa)``: curvature is undefined in a spin and
-at rest, and with knots on the track speeds every limit of the command path is a linear
-inequality in the knots (speed at the knots, acceleration between them, and, through the
-translator's ICR model, the twist limits), exactly the constraints the translator enforces.
-
-Optimiser
----------
-scipy's COBYLA, as in the paper (sec. III-C, via NLopt there). We keep it because the
-path-following cost of eq. (9) contains ``min_s ||rho(t) - rho_d(s)||``, which is not
-differentiable (the nearest reference point jumps), so a gradient method with
-finite-difference gradients (SLSQP) gets poor steps there, and because COBYLA takes the
-linear limits as constraints and never needs derivatives of the drive-train simulation.
-The horizon is fixed (we do not minimise ``t_f``: the paper's ``w_t`` term is left out), and
-the final-pose condition of eq. (10) is a weighted penalty, not an equality: COBYLA has only
-inequality constraints, and a penalty lets an unreachable goal end with an honest distance
-instead of an infeasible iterate. A plan whose predicted final pose misses the goal by more
-than the tolerance is returned with ``success = False`` and a message; a goal beyond what
-the limits allow within the horizon is refused before optimising.
-
-Canonical reference inputs (Fink & Stump Table V) are in :mod:`.references`.
+A plan is nominal track speed setpoints, piecewise linear between knots, found by COBYLA so that
+the motion model driven through the drive train (eqs. 6-8) reaches a goal or follows a path. See
+docs/tools/plan_trajectory.md, "How it plans".
 """
 
 from __future__ import annotations
@@ -60,29 +33,13 @@ class Plan:
     Attributes
     ----------
     commands : ndarray, shape (N, 2)
-        Nominal track speed setpoints ``(left, right)``, m/s, one per ``dt``, held; the
-        last is zero, and the robot is left to settle after it.
-    dt : float
-        Command period, s.
+        Nominal setpoints ``(left, right)``, m/s, one per ``dt`` (s), held; the last is zero.
     poses : ndarray, shape (N + S, 3)
         Predicted poses at the command times and through ``S`` settling samples.
-    goal : ndarray, shape (3,)
-        Goal pose ``(x, y, theta)``.
     position_error, yaw_error : float
-        Predicted final pose minus goal: distance (m) and ``|heading|`` difference (rad).
-    success : bool
-        Whether the predicted final pose is within the tolerance of the goal.
-    message : str
-        One line: what was achieved, or why not.
-    model : str
-        Name of the planning model.
+        Predicted final pose minus goal: m and rad.
     path_deviation : float
-        Largest distance of the predicted path from the reference path, m (NaN for a plan
-        to a goal without a reference).
-    nfev : int
-        Predictions evaluated.
-    seconds : float
-        Planning wall time, s.
+        Largest distance of the predicted path from the reference path, m (NaN without one).
 
     """
 
@@ -106,30 +63,14 @@ class Plan:
         return np.arange(len(self.commands)) * self.dt
 
     def twists(self, icr: IcrParams):
-        """
-        ``cmd_vel`` that the translator with model ``icr`` turns back into these setpoints.
-
-        The translator computes ``nominal = inverse(v_x, w) / scale`` (Martinez eqs. 10-11,
-        20-21); its inverse is the forward kinematics of ``scale * nominal``.
-
-        Returns
-        -------
-        v_x, w : ndarray, shape (N,)
-            m/s, rad/s.
-
-        """
+        """``cmd_vel`` ``(v_x, w)`` the translator with model ``icr`` turns into these."""
         v_x, _, w = forward(self.commands[:, 0] * icr.scale_left,
                             self.commands[:, 1] * icr.scale_right, icr)
         return np.asarray(v_x, float), np.asarray(w, float)
 
 
 def path_deviation(path, ref_path) -> np.ndarray:
-    """
-    Distance of each point of ``path`` to the nearest point of ``ref_path``, m.
-
-    ``min_s ||rho(t) - rho_d(s)||`` of Fink & Stump eq. (9), with the reference sampled
-    densely (every ``dt``) rather than interpolated between samples.
-    """
+    """Distance (m) of each point of ``path`` to the nearest of ``ref_path`` (F&S eq. 9)."""
     path = np.asarray(path, float)[:, :2]
     ref = np.asarray(ref_path, float)[:, :2]
     d2 = (np.sum(path ** 2, 1)[:, None] + np.sum(ref ** 2, 1)[None, :]
@@ -138,12 +79,7 @@ def path_deviation(path, ref_path) -> np.ndarray:
 
 
 def _within(z, matrix, bound):
-    """
-    Scale knots into the limits ``matrix z <= bound``, which COBYLA meets only to ``catol``.
-
-    Every limit is symmetric about rest (``bound > 0``), so shrinking toward rest keeps all
-    of them; the returned knots never exceed any limit.
-    """
+    """Scale knots toward rest into the limits ``matrix z <= bound`` (COBYLA's catol)."""
     load = matrix @ z
     over = load > bound
     if not np.any(over):
@@ -170,26 +106,16 @@ class Planner:
 
     Parameters
     ----------
-    model : MotionModel
-        Planning model (from measured track speeds to twist).
-    p : array_like
-        Its parameters.
+    model, p : MotionModel, array_like
+        Planning model and its parameters.
     drivetrain : DriveTrain
-        Command -> measured track speed response (both tracks).
+        Command -> measured track speed response.
     limits : CommandLimits, optional
-        The translator's limits, enforced on the setpoints as constraints. Track limits
-        default to the drive train's own (``max_speed``, ``max_accel``); at least a finite
-        track speed limit is needed.
+        The translator's limits, as constraints; track limits default to the drive train's.
     command_icr : IcrParams, optional
-        The translator's model, needed for twist limits (``max_linear_velocity`` ...) and to
-        write ``cmd_vel``; default ideal drive of the model's track width.
-    dt : float
-        Command period, s (the translator's rate: 50 Hz by default).
-    knot_spacing : float
-        Target time between knots, s.
-    settle : float
-        Time after the last command over which the prediction continues (delay and lag of
-        the drive train), s.
+        The translator's model (twist limits, ``cmd_vel``); default the ideal drive.
+    dt, knot_spacing, settle : float
+        Command period, time between knots, settling time after the last command: s.
 
     """
 
@@ -221,25 +147,7 @@ class Planner:
     # Prediction ---------------------------------------------------------------------------
 
     def predict(self, commands, start=(0.0, 0.0, 0.0)) -> np.ndarray:
-        """
-        Poses the planning model predicts for setpoints, through the settling time.
-
-        The same chain as :func:`..sim.simulation.simulate`, with the motion model in place of
-        the dynamics: drive train, mean speed over each step, twist, exact arcs.
-
-        Parameters
-        ----------
-        commands : array_like, shape (N, 2)
-            Nominal setpoints, m/s, held over each ``dt``.
-        start : sequence of float
-            Start pose.
-
-        Returns
-        -------
-        ndarray, shape (N + S, 3)
-            Pose at each sample, the first being ``start``.
-
-        """
+        """Poses (N + S, 3) the model predicts for setpoints (N, 2; m/s), through settling."""
         commands = np.asarray(commands, dtype=float)
         full = np.vstack([commands, np.zeros((self.settle_steps, 2))])
         speeds = self.drivetrain.simulate(full, self.dt)
@@ -292,12 +200,7 @@ class Planner:
 
     def _optimise(self, cost, z0, matrix, bound, maxiter, extra=(), tol=1e-4,
                   time_limit=None):
-        """
-        COBYLA over the free knots with the linear limits as constraints.
-
-        Returns the knots (scaled into the limits) and whether the optimiser was stopped at
-        ``time_limit`` (seconds, None = none) before it converged.
-        """
+        """Run COBYLA over the free knots; return them and whether ``time_limit`` stopped it."""
         cons = {'type': 'ineq', 'fun': lambda z: bound - matrix @ z,
                 'jac': lambda z: -matrix}
         # Start inside the limits: shrink the guess toward rest (which is feasible).
@@ -333,42 +236,12 @@ class Planner:
                 tolerance=(0.05, 0.05), heading_weight: float = 0.5,
                 maxiter: int = 3000, time_limit: float | None = None) -> Plan:
         """
-        Setpoints that bring the robot from ``start`` to ``goal`` within ``horizon``.
+        Setpoints that bring the robot from ``start`` to ``goal`` within ``horizon`` (s).
 
-        Minimises ``|dp|^2 + (lambda dtheta)^2 + mu sum (knot steps)^2`` of the predicted
-        final pose error (the final-pose condition of eq. 10 as a penalty; ``mu`` small,
-        for the smoothest of the many sequences that reach the goal), subject to the
-        limits.
-
-        Parameters
-        ----------
-        goal : sequence of float
-            Goal pose ``(x, y, theta)`` in the frame of ``start``'s parent: m, m, rad.
-        horizon : float
-            Time of the last setpoint, s; the robot settles after it.
-        start : sequence of float
-            Start pose, at rest.
-        tolerance : tuple of float
-            Largest final position (m) and heading (rad) error of a successful plan.
-        heading_weight : float
-            ``lambda``, m/rad.
-        maxiter : int
-            COBYLA's evaluation budget.
-        time_limit : float, optional
-            Seconds after which the optimiser stops with its best point so far (the
-            message says so); None: no limit.
-
-        Returns
-        -------
-        Plan
-            ``success`` False with a message when the goal is out of reach or missed.
-
-        Raises
-        ------
-        ValueError
-            On a non-finite pose, a horizon shorter than 2 knots' worth of commands, or a
-            non-positive tolerance.
-
+        Minimises ``|dp|^2 + (lambda dtheta)^2 + mu sum (knot steps)^2`` of the final pose error
+        (eq. 10 as a penalty), subject to the limits. ``tolerance`` is (m, rad), ``heading_weight``
+        is ``lambda`` (m/rad). A missed or unreachable goal gives ``success`` False with a message;
+        ValueError on a non-finite pose, a too-short horizon or a non-positive tolerance.
         """
         started = time.perf_counter()
         goal, start = self._check_pose(goal, 'goal'), self._check_pose(start, 'start')
@@ -430,34 +303,10 @@ class Planner:
                heading_weight: float = 0.5, maxiter: int = 3000,
                time_limit: float | None = None) -> Plan:
         """
-        Setpoints that follow a reference path and end at its final pose (eq. 9 and 10).
+        Setpoints that follow a reference path and end at its final pose (eqs. 9 and 10).
 
-        Minimises ``w_p mean_t min_s ||rho(t) - rho_d(s)|| + w_g (|dp| + lambda |dtheta|)``
-        over the horizon of the reference (fixed: the ``w_t t_f`` term of eq. 9 is left
-        out), starting, as the paper does, from the inputs that give the desired path to an
-        ideal drive.
-
-        Parameters
-        ----------
-        ref : Reference
-            Reference inputs and desired path (from the origin; moved to ``start``).
-        start : sequence of float
-            Start pose.
-        tolerance : tuple of float
-            Final position (m) and heading (rad) tolerance of a successful plan.
-        path_weight, goal_weight : float
-            ``w_p`` and the weight of the final-pose penalty.
-        heading_weight : float
-            ``lambda``, m/rad.
-        maxiter : int
-            COBYLA's evaluation budget.
-        time_limit : float, optional
-            Seconds after which the optimiser stops with its best point so far.
-
-        Returns
-        -------
-        Plan
-
+        Minimises ``w_p mean_t min_s ||rho(t) - rho_d(s)|| + w_g (|dp| + lambda |dtheta|)`` over
+        the reference's horizon (the ``w_t t_f`` term is left out), from the ideal drive's inputs.
         """
         started = time.perf_counter()
         start = self._check_pose(start, 'start')
