@@ -1,58 +1,10 @@
 """
 The safety supervisor of a calibration drive: a pure state machine from inputs to a command.
 
-A node calls :meth:`Supervisor.update` at a fixed rate (and whenever the deadman changes)
-with what it knows (:class:`Inputs`: the time, the deadman's value and when it came, when the
-encoders and the reference last delivered, the pose in the geofence frame) and publishes the
-``(v, w)`` of the :class:`Output`; the services call :meth:`Supervisor.start`,
-:meth:`Supervisor.pause` and :meth:`Supervisor.stop`. The rules, each one tested on its own
-(test/core/plan/test_supervisor.py):
-
-1. **Deadman.** The vehicle moves only while the deadman is held and its last message is at
-   most ``deadman_timeout`` old. Released or stale, the command is zero at once and the
-   state ``paused``; the current step restarts (planned again from the pose then) when the
-   deadman is held again. A return towards the centre resumes where it was.
-2. **Geofence.** A circle of ``geofence_radius`` around the pose at start. Before a step is
-   driven it is predicted with the ideal kinematics from the current pose
-   (:func:`.calibration.fence_exit`) and must stay within ``plan_fraction`` of the radius;
-   otherwise a return towards the centre is driven first (state ``returning``), and a step
-   that still does not fit from there is cut where it would leave. While driving, a vehicle
-   whose real path (it slips: an uncalibrated vehicle turns less than commanded) is past
-   ``guard_fraction`` of the radius and moving outwards ends its step and returns. The
-   return is closed-loop on the measured pose: turn in place towards the centre, then drive
-   to within ``inner_fraction`` of the radius; one that takes longer than ``return_timeout``
-   stops the drive.
-3. **Caps.** ``|v| <= max_speed`` and ``|w| <= max_yaw_rate``; a command beyond either is
-   scaled down, both components together (the path's curvature is kept).
-4. **Stale sensors.** Encoders or the reference that have not delivered for
-   ``encoder_timeout`` / ``reference_timeout`` while the vehicle should move stop the drive
-   (state ``stopped``, the reason names the sensor); ``start`` resumes it once they are
-   fresh again.
-5. **Finite.** The command is always finite: a pose that is not finite counts as a stale
-   reference, and any non-finite command is replaced by zero and stops the drive.
-6. **Sensors that lie by standing still.** Over a sliding window of ``check_window`` (after
-   the command has been non-zero ``settle_time`` longer), the encoders must travel at least
-   ``follow_fraction`` of the track travel the command asks for, and the reference must move
-   at least ``reference_fraction`` of what the encoders say (with ``reference='imu'``: turn);
-   a breach stops the drive naming the sensor. A fault the node found (``Inputs.fault``: more
-   than one publisher, an implausible gyro, a pose jump, a bad clock) stops it too, and
-   ``start`` is refused while it lasts.
-7. **Deadman latch.** With ``Inputs.steady`` the deadman's age is judged on the steady clock
-   from the time of the press (``deadman_steady``); after a release or a stale deadman only a
-   fresh press after a release of at least ``rearm_time`` moves the vehicle again.
-8. **Late loop.** The guard of rule 2 is moved in by the distance driven in ``reaction_time``
-   plus the loop's lateness (``Inputs.lateness``), and ``|v|`` is capped so that this
-   distance stays within half the margin between the guard and the fence.
-9. **Return and outside.** A return that has come no closer to the centre (nor, turning
-   in place, turned towards it) for ``return_progress_time``, or a pose beyond
-   ``outside_fraction`` of the radius, stops the drive.
-
-Sensor freshness (rule 4) with ``Inputs.steady``: stale only when old on both clocks, so that
-a simulation slower or faster than real time works; a stalled or rewound ROS clock is the
-node's fault to report (``Inputs.fault``).
-
-States: ``idle`` (before start), ``running``, ``paused``, ``returning``, ``finished`` (the
-protocol is done), ``stopped`` (by ``stop``, terminal; or by a sensor, resumable).
+A node calls :meth:`Supervisor.update` with :class:`Inputs` and publishes the :class:`Output`; the
+rules (deadman, geofence, caps, stale or lying sensors, latch, late loop, returns) are in
+docs/nodes/calibration_drive.md, "Safety", and tested one by one in
+test/core/plan/test_supervisor.py.
 """
 
 from __future__ import annotations
@@ -83,54 +35,11 @@ RETURN_PROGRESS = 0.05
 @dataclass(frozen=True, slots=True)
 class SupervisorConfig:
     """
-    Limits and timeouts of the supervisor.
+    Limits (m, m/s, rad/s), timeouts (s) and fractions of the geofence radius of the supervisor.
 
-    Attributes
-    ----------
-    geofence_radius : float
-        m, around the pose at start.
-    max_speed, max_yaw_rate : float
-        Caps of the command, m/s and rad/s.
-    deadman_timeout, encoder_timeout, reference_timeout : float
-        Oldest acceptable deadman message, encoder step and reference message, s.
-    auto_start : bool
-        Start when the deadman is first held, without ``start``.
-    plan_fraction : float
-        A planned step must stay within this fraction of the radius.
-    guard_fraction : float
-        Past this fraction of the radius, moving outwards ends the step.
-    inner_fraction : float
-        A return ends within this fraction of the radius from the centre.
-    return_timeout : float
-        Longest return, s.
-    heading_tolerance : float
-        A return turns in place until it faces the centre this well, rad.
-    track_width : float
-        Nominal track width, m (the command's track travel, the encoders' rotation).
-    reference : str
-        ``'pose'`` (the pose's position and heading are measured) or ``'imu'`` (only the
-        heading is: the position is the encoders').
-    check_window, settle_time : float
-        Window of the cross-checks, and how much longer the command must have been non-zero
-        before they apply, s.
-    start_grace : float
-        The settle time until the tracks first move after the start: the command path may
-        still be coming up (a late discovery, a /clock not yet received), s.
-    follow_fraction, reference_fraction : float
-        Smallest encoder travel per commanded track travel, and smallest reference motion
-        per encoder motion, in a window. Frozen data moves exactly zero; honest data falls
-        short of the command by the drive train's lag and the encoders' latency, most in a
-        reversal (+v to -v: 28 % of the commanded travel was seen in closed loop on a
-        loaded machine), hence 0.1.
-    rearm_time : float
-        Shortest release that re-arms the deadman, s.
-    reaction_time : float
-        Delay from a pose to a stopped track when the loop is on time, s.
-    return_progress_time : float
-        Longest time a return may go without coming closer to the centre, s.
-    outside_fraction : float
-        A pose beyond this fraction of the radius stops the drive.
-
+    The names follow docs/nodes/calibration_drive.md, "Parameters". ``reference`` is ``'pose'`` or
+    ``'imu'`` (heading only). ``follow_fraction`` is 0.1 because honest encoders fell short of the
+    command by up to 72 % in a reversal (drive-train lag, encoder latency).
     """
 
     geofence_radius: float = 3.0
@@ -178,38 +87,11 @@ class SupervisorConfig:
 @dataclass(frozen=True, slots=True)
 class Inputs:
     """
-    What the node knows at one instant; times on one clock (the node's), s.
+    What the node knows at one instant; times in s on the node's clock (``*_steady``: steady).
 
-    Attributes
-    ----------
-    t : float
-        Now.
-    deadman : bool
-        Last deadman value (False before any).
-    deadman_t : float or None
-        When the last deadman message arrived (None: never).
-    encoder_t, reference_t : float or None
-        When the encoders and the reference last delivered (None: never).
-    pose : tuple of float or None
-        Current pose ``(x, y, yaw)`` in the frame the geofence is kept in (the reference's,
-        or dead reckoning); None when unknown.
-    not_ready : str
-        Why the drive may not start yet (the gyro bias is not measured), or ''.
-    steady : float or None
-        Now on the node's steady clock (None: judge everything on ``t``).
-    deadman_steady : float or None
-        Steady time of the person's last deadman message, at its publication where known.
-    encoder_steady, reference_steady : float or None
-        Steady times the encoders and the reference last delivered.
-    travel : tuple of float or None
-        Cumulative nominal travel of the left and right tracks, m.
-    travel_t : float or None
-        Time (on ``t``'s clock) of the encoder sample ``travel`` is as of: its stamp.
-    lateness : float
-        How late the loop runs (its tick interval beyond the period, the age of the pose), s.
-    fault : str
-        A fault the node found ('' when none): it stops the drive.
-
+    ``None`` times mean never; ``pose`` is ``(x, y, yaw)`` in the geofence frame or None;
+    ``travel`` the cumulative nominal track travel (m) as of ``travel_t``; ``lateness`` how late
+    the loop runs (s); ``not_ready`` and ``fault`` say why not to drive ('' when nothing).
     """
 
     t: float
@@ -232,25 +114,9 @@ class Inputs:
 @dataclass(frozen=True, slots=True)
 class Output:
     """
-    The command to publish and the state, with the reason for it.
+    The command ``(v, w)`` (m/s, rad/s; finite, capped) with the state and the reason for it.
 
-    Attributes
-    ----------
-    v, w : float
-        Command, m/s and rad/s; always finite, within the caps, zero unless moving.
-    state : str
-        One of :data:`STATES`.
-    reason : str
-        Why (``''`` when running normally).
-    step : int
-        Index of the current protocol step (``len(steps)`` when done).
-    steps : int
-        Number of protocol steps.
-    step_elapsed : float
-        Time into the current step, s.
-    distance : float or None
-        Distance from the geofence centre, m (None before start or without a pose).
-
+    ``distance`` is from the geofence centre, m (None before start or without a pose).
     """
 
     v: float
@@ -293,17 +159,7 @@ class _Drive:
 
 
 class Supervisor:
-    """
-    The calibration drive's state machine (see the module docstring for the rules).
-
-    Parameters
-    ----------
-    steps : sequence of Step
-        The protocol (:func:`.calibration.protocol`).
-    config : SupervisorConfig
-        Limits and timeouts.
-
-    """
+    """The calibration drive's state machine over protocol ``steps`` with ``config``."""
 
     def __init__(self, steps, config: SupervisorConfig = SupervisorConfig()):
         self.steps = tuple(steps)
@@ -331,15 +187,7 @@ class Supervisor:
         return list(self._d.log)
 
     def start(self, inputs: Inputs) -> tuple[bool, str]:
-        """
-        Start the protocol (from ``idle``), or resume it (after ``pause`` or a sensor stop).
-
-        Returns
-        -------
-        ok : bool
-        message : str
-
-        """
+        """Start the protocol (from ``idle``) or resume it; return ``(ok, message)``."""
         d = self._d
         if d.terminal or d.state == 'finished':
             return False, (f'cannot start: the drive is {d.state} ({d.reason}); start the '
@@ -755,12 +603,7 @@ class Supervisor:
 
 
 def cap(v: float, w: float, max_speed: float, max_yaw_rate: float) -> tuple[float, float]:
-    """
-    Scale ``(v, w)`` down, both together, until ``|v| <= max_speed`` and ``|w| <= max_yaw_rate``.
-
-    Scaling both keeps the curvature ``w / v`` of the commanded path. A non-finite input
-    gives ``(0.0, 0.0)``.
-    """
+    """Scale ``(v, w)`` down together into the caps, keeping the curvature; non-finite -> zero."""
     v, w = float(v), float(w)
     if not (math.isfinite(v) and math.isfinite(w)):
         return 0.0, 0.0
@@ -773,10 +616,8 @@ def pose_jump(previous, pose, dt: float, max_speed: float, max_yaw_rate: float,
     """
     Say why a step of the reference pose is implausible ('' when it is not).
 
-    A vehicle capped at ``max_speed`` and ``max_yaw_rate`` moves at most twice that (slip,
-    a push) in ``dt`` s, plus ``margin`` m (and ten times it in rad) of noise; a longer step
-    is a second publisher or a tracker that jumped. ``dt`` below zero (a stamp that went
-    back) counts as zero.
+    Allowed: twice the caps over ``dt`` s (slip, a push), plus ``margin`` m (ten times it in rad);
+    a longer step is a second publisher or a tracker that jumped. ``dt < 0`` counts as 0.
     """
     dt = max(0.0, dt) if math.isfinite(dt) else 0.0
     step = math.hypot(pose[0] - previous[0], pose[1] - previous[1])

@@ -1,55 +1,9 @@
 """
 Sensor models of the simulator: a yaw-rate gyro and a GNSS receiver, vectorised.
 
-What robots without motion capture carry. Both take the simulated truth as plain arrays
-and a ``numpy.random.Generator``, and return what the sensor would report, stamped as it
-would stamp it. Pure numpy/scipy; the bag writer and the live simulator node wrap the
-results into sensor_msgs/Imu and sensor_msgs/NavSatFix.
-
-API
----
-``GyroModel(rate=100.0, bias=0.0, noise_std=0.0, bias_walk=0.0, latency=0.0, scale=1.0,
-saturation=inf)``
-    A z-axis rate gyro; all SI (Hz, rad/s, rad/s/sqrt(s), s).
-``gyro_samples(times_true, yaw_rate_true, model, rng) -> (stamps, z_rate)``
-    Gyro readings at ``model.rate`` over the span of ``times_true``.
-``GnssModel(rate=5.0, noise_std=2.0, correlation_time=0.0, latency=0.0, dropout=0.0,
-antenna_x=0.0, antenna_y=0.0, status=0)``
-    A GNSS receiver reporting the antenna's horizontal position.
-``gnss_samples(times_true, x, y, theta, model, rng) -> (stamps, east, north, status)``
-    Fixes at ``model.rate`` in the local plane; ``status`` is NavSatStatus' (-1: no fix,
-    then ``east``/``north`` are NaN).
-``GyroStream(model, rng)``, ``GnssStream(model, rng)``
-    The same models fed incrementally (a live node): ``push(times, values...)`` appends
-    truth and returns the readings that became due, with the same statistics as the batch
-    functions.
-``GeoOrigin``, ``geodetic_to_enu``, ``enu_to_geodetic``
-    Local plane <-> latitude/longitude (re-exported from :mod:`..geodesy`, where
-    identification finds them too).
-
-Conventions
------------
-- Truth: ``times_true`` increasing (s); a rate ``yaw_rate_true[k]`` is held from
-  ``times_true[k]`` to ``times_true[k + 1]`` (the simulator's steps; length N or N - 1),
-  poses are interpolated linearly between samples. Before the first and after the last
-  sample the robot is taken as at rest there.
-- Latency: a reading stamped ``s`` shows the truth of ``s - latency`` (a late stamp,
-  positive latency; what the identification estimates as ``imu_delay``).
-- A gyro reading is the mean true rate over one sample period centred on ``s - latency``
-  (an integrating gyro), so that summing ``z_rate / rate`` recovers the heading change
-  exactly when noise and bias are zero. Then
-  ``z = clip(scale * mean_rate + bias_k + noise_std * N(0, 1), -saturation, saturation)``,
-  ``bias_k = bias + bias_walk * sqrt(1 / rate) * (sum of k standard normals)``.
-- GNSS noise is white (``correlation_time`` 0) or first-order Gauss-Markov with time
-  constant ``correlation_time`` and the same standard deviation ``noise_std`` per axis
-  (standalone receivers wander slowly; RTK is near white at centimetres).
-- Stamps are ``times_true[0] + k / rate``.
-
-A short example:
->>> rng = np.random.default_rng(0)
->>> t = np.arange(0.0, 10.0, 0.01)
->>> stamps, z = gyro_samples(t, np.full(t.size, 0.5), GyroModel(bias=0.01), rng)
-
+Batch functions (:func:`gyro_samples`, :func:`gnss_samples`) and incremental streams with the same
+statistics take the simulated truth and a ``numpy.random.Generator``. Conventions (truth holding,
+latency, the integrating gyro, Gauss-Markov GNSS): docs/simulator.md, "Sensor models".
 """
 
 from __future__ import annotations
@@ -77,25 +31,9 @@ STATUS_GBAS_FIX = 2
 @dataclass(frozen=True, slots=True)
 class GyroModel:
     """
-    A z-axis rate gyro.
+    A z-axis rate gyro; all SI (Hz, rad/s, rad/s/sqrt(s) for ``bias_walk``, s).
 
-    Attributes
-    ----------
-    rate : float
-        Readings per second, Hz.
-    bias : float
-        Constant offset at the first reading, rad/s.
-    noise_std : float
-        Standard deviation of the white noise of one reading, rad/s.
-    bias_walk : float
-        Random walk of the bias, rad/s/sqrt(s) (0: a constant bias).
-    latency : float
-        A reading stamped ``s`` shows the truth at ``s - latency``, s (may be negative).
-    scale : float
-        Scale-factor of the gyro (1: exact).
-    saturation : float
-        Largest magnitude the gyro reports, rad/s (inf: none); readings are clipped.
-
+    A reading stamped ``s`` shows the truth at ``s - latency``; ``saturation`` clips (inf: none).
     """
 
     rate: float = 100.0
@@ -115,26 +53,10 @@ class GyroModel:
 @dataclass(frozen=True, slots=True)
 class GnssModel:
     """
-    A GNSS receiver: horizontal position of its antenna.
+    A GNSS receiver: horizontal position of its antenna (``antenna_x, antenna_y``: m).
 
-    Attributes
-    ----------
-    rate : float
-        Fixes per second, Hz.
-    noise_std : float
-        Standard deviation of the position error per horizontal axis, m (1-3 standalone,
-        0.01-0.03 RTK).
-    correlation_time : float
-        Time constant of the error (first-order Gauss-Markov), s; 0 for white noise.
-    latency : float
-        A fix stamped ``s`` shows the position at ``s - latency``, s.
-    dropout : float
-        Probability that a fix is missing (reported with ``STATUS_NO_FIX``), in [0, 1].
-    antenna_x, antenna_y : float
-        Antenna position in base_link, m.
-    status : int
-        NavSatStatus of a good fix: 0 (FIX), 1 (SBAS), 2 (GBAS, e.g. RTK).
-
+     ``noise_std`` per axis, m; ``correlation_time`` s (0: white); ``dropout`` a probability;
+    ``status`` NavSatStatus of a good fix.
     """
 
     rate: float = 5.0
@@ -207,26 +129,10 @@ def _gyro_readings(stamps, t, heading, model, bias0, rng):
 
 def gyro_samples(times_true, yaw_rate_true, model: GyroModel, rng: np.random.Generator):
     """
-    Gyro readings of a simulated run.
+    Gyro readings ``(stamps, z_rate)`` of a simulated run, at ``model.rate``.
 
-    Parameters
-    ----------
-    times_true : array_like, shape (N,)
-        Truth sample times, s, strictly increasing.
-    yaw_rate_true : array_like, shape (N,) or (N - 1,)
-        True yaw rate held over each step, rad/s (``Run.twist[:, 2]``).
-    model : GyroModel
-        The gyro.
-    rng : numpy.random.Generator
-        Source of noise and bias walk.
-
-    Returns
-    -------
-    stamps : ndarray, shape (M,)
-        Reading stamps, s: ``times_true[0] + k / model.rate`` up to ``times_true[-1]``.
-    z_rate : ndarray, shape (M,)
-        Angular velocity about z, rad/s (REP-103: counter-clockwise positive).
-
+    ``yaw_rate_true`` (rad/s, length N or N - 1) is held over each step of ``times_true`` (s,
+    increasing). Stamps are ``times_true[0] + k / model.rate``; ``z_rate`` is REP-103 (CCW +).
     """
     t = _truth_times(times_true)
     heading = _heading_of_rates(t, yaw_rate_true)
@@ -283,33 +189,10 @@ def _pose_arrays(t, x, y, theta):
 
 def gnss_samples(times_true, x, y, theta, model: GnssModel, rng: np.random.Generator):
     """
-    GNSS fixes of a simulated run, in the local east-north plane.
+    GNSS fixes ``(stamps, east, north, status)`` of a simulated run, in the local plane.
 
-    Parameters
-    ----------
-    times_true : array_like, shape (N,)
-        Truth sample times, s, strictly increasing.
-    x, y, theta : array_like, shape (N,)
-        True pose of base_link in the local plane (x east, y north), m, m, rad
-        (theta continuous, ``Run.pose.T``).
-    model : GnssModel
-        The receiver.
-    rng : numpy.random.Generator
-        Source of noise and dropouts.
-
-    Returns
-    -------
-    stamps : ndarray, shape (M,)
-        Fix stamps, s.
-    east, north : ndarray, shape (M,)
-        Antenna position, m; NaN where there is no fix.
-    status : ndarray of int8, shape (M,)
-        NavSatStatus status: ``model.status`` or ``STATUS_NO_FIX``.
-
-    Notes
-    -----
-    Convert to NavSatFix latitude/longitude with :func:`enu_to_geodetic`.
-
+    ``x, y, theta`` are base_link's true pose (east, north: m; theta continuous, rad). East and
+    north are NaN where ``status`` is ``STATUS_NO_FIX``; :func:`enu_to_geodetic` converts.
     """
     t = _truth_times(times_true)
     x, y, theta = _pose_arrays(t, x, y, theta)
@@ -321,11 +204,7 @@ def gnss_samples(times_true, x, y, theta, model: GnssModel, rng: np.random.Gener
 # Incremental use (a live simulator) -------------------------------------------------------
 
 class _Stream:
-    """
-    Truth history and the index of the next reading; subclasses say what is due.
-
-    ``model`` is a sensor model with a ``rate`` (Hz) and a ``latency`` (s).
-    """
+    """Truth history and the index of the next reading; subclasses say what is due."""
 
     def __init__(self, model, rng):
         self.model = model
@@ -355,12 +234,7 @@ class _Stream:
         return stamps
 
     def _trim(self):
-        """
-        Index of the oldest truth sample to keep.
-
-        The next reading needs the truth from ``latency`` plus a period before its stamp;
-        older truth is dropped but for one sample before that time.
-        """
+        """Index of the oldest truth sample the next reading may need."""
         m = self.model
         keep_from = self._first + self._next / m.rate - m.latency - 1.0 / m.rate
         k = int(np.searchsorted(self._t, keep_from)) - 1
@@ -368,22 +242,7 @@ class _Stream:
 
 
 class GyroStream(_Stream):
-    """
-    A :class:`GyroModel` fed with truth as it is simulated.
-
-    Parameters
-    ----------
-    model : GyroModel
-        The gyro.
-    rng : numpy.random.Generator
-        Source of noise and bias walk.
-
-    Notes
-    -----
-    A reading stamped ``s`` is returned once the truth covers ``s - latency`` plus half a
-    period, and never before the truth has reached ``s`` (no reading from the future).
-
-    """
+    """A :class:`GyroModel` fed with truth as it is simulated (no reading from the future)."""
 
     def __init__(self, model: GyroModel, rng: np.random.Generator):
         super().__init__(model, rng)
@@ -392,15 +251,7 @@ class GyroStream(_Stream):
         self._bias = model.bias
 
     def push(self, times, yaw_rates):
-        """
-        Append truth: ``yaw_rates[k]`` is held from ``times[k]`` to the next time, rad/s.
-
-        Returns
-        -------
-        stamps, z_rate : ndarray
-            Readings that became due (possibly none).
-
-        """
+        """Append truth (``yaw_rates[k]`` held from ``times[k]``); return readings now due."""
         times = self._append_times(times)
         w = np.atleast_1d(np.asarray(yaw_rates, dtype=float))
         if w.shape != times.shape or not np.all(np.isfinite(w)):
@@ -425,17 +276,7 @@ class GyroStream(_Stream):
 
 
 class GnssStream(_Stream):
-    """
-    A :class:`GnssModel` fed with truth as it is simulated.
-
-    Parameters
-    ----------
-    model : GnssModel
-        The receiver.
-    rng : numpy.random.Generator
-        Source of noise and dropouts.
-
-    """
+    """A :class:`GnssModel` fed with truth as it is simulated."""
 
     def __init__(self, model: GnssModel, rng: np.random.Generator):
         super().__init__(model, rng)
@@ -443,15 +284,7 @@ class GnssStream(_Stream):
         self._state = None
 
     def push(self, times, x, y, theta):
-        """
-        Append true poses (local plane, theta continuous) at ``times``.
-
-        Returns
-        -------
-        stamps, east, north, status : ndarray
-            Fixes that became due (possibly none), as :func:`gnss_samples`.
-
-        """
+        """Append true poses at ``times``; return fixes now due, as :func:`gnss_samples`."""
         times = self._append_times(times)
         pose = np.column_stack(_pose_arrays(times, x, y, theta)) if times.size else None
         if pose is None:
