@@ -1,16 +1,10 @@
 """
-From encoder readings to nominal track travel, for the three input kinds drivers publish.
+From encoder readings to nominal track travel, for the input kinds drivers publish.
 
-- joint positions (rad, cumulative): exact travel ``radius * delta angle``;
-- joint or track velocities: travel by the trapezoidal rule between samples;
-- tick counters (integers that wrap around at 2^bits): unwrapped increments;
-- joint angles a driver wraps into [-pi, pi] (continuous joints): unwrapped
-  (:func:`unwrap_if_wrapped`, one rule for logs and live streams).
-
-Everything is vectorised over samples (for logs); :class:`IncrementTracker` is the same
-arithmetic one sample at a time, with the checks a live stream needs (for nodes).
-Travel is *nominal* (encoder) travel: the scale corrections of the kinematic model turn it
-into true travel (Martinez eqs. 18-21).
+Joint positions (rad, cumulative or wrapped into [-pi, pi]), joint or track velocities (trapezoidal
+rule) and wrapping tick counters; vectorised for logs, and one sample at a time with a live
+stream's checks (:class:`IncrementTracker`). The encoder scales (Martinez eqs. 18-21) turn nominal
+into true travel.
 """
 
 from __future__ import annotations
@@ -21,62 +15,21 @@ import numpy as np
 
 
 def mean_over_joints(values) -> np.ndarray:
-    """
-    Average the joints of one side (several sprockets or wheels per track).
-
-    Parameters
-    ----------
-    values : array_like, shape (N, J) or (N,)
-        One column per joint of the side.
-
-    Returns
-    -------
-    ndarray, shape (N,)
-
-    """
+    """Average the joints of one side, (N, J) -> (N,) (several sprockets or wheels per track)."""
     values = np.asarray(values, dtype=float)
     return values if values.ndim == 1 else values.mean(axis=-1)
 
 
 def travel_from_positions(positions, radius: float) -> np.ndarray:
-    """
-    Nominal track travel between consecutive joint positions.
-
-    Parameters
-    ----------
-    positions : array_like, shape (N,)
-        Cumulative sprocket angle, rad.
-    radius : float
-        Sprocket radius, m.
-
-    Returns
-    -------
-    ndarray, shape (N - 1,)
-        Travel over each interval, m.
-
-    """
+    """Nominal travel (m, N - 1) between cumulative sprocket angles (rad) of a ``radius`` (m)."""
     return np.diff(np.asarray(positions, dtype=float)) * radius
 
 
 def travel_from_velocities(velocities, stamps, scale: float = 1.0) -> np.ndarray:
     """
-    Nominal track travel from sampled speeds, by the trapezoidal rule.
+    Nominal travel (m, N - 1) from sampled speeds at ``stamps`` (s), by the trapezoidal rule.
 
-    Parameters
-    ----------
-    velocities : array_like, shape (N,)
-        Joint angular velocities (rad/s, with ``scale`` = sprocket radius) or track speeds
-        (m/s, with ``scale`` = 1).
-    stamps : array_like, shape (N,)
-        Sample times, s.
-    scale : float
-        Factor from the velocity unit to m/s.
-
-    Returns
-    -------
-    ndarray, shape (N - 1,)
-        Travel over each interval, m.
-
+    ``scale`` converts the velocity unit to m/s: the sprocket radius for rad/s, 1 for m/s.
     """
     velocities = np.asarray(velocities, dtype=float)
     dt = np.diff(np.asarray(stamps, dtype=float))
@@ -85,23 +38,9 @@ def travel_from_velocities(velocities, stamps, scale: float = 1.0) -> np.ndarray
 
 def counter_increments(counts, bits: int) -> np.ndarray:
     """
-    Increments of a wrapping tick counter.
+    Increments (int64, N - 1) of a wrapping ``bits``-bit tick counter, the smallest in magnitude.
 
-    The counter is taken to be a ``bits``-bit integer (signed or unsigned, the increments
-    are the same) that wraps around; any increment is read as the smallest in magnitude,
-    so a counter must be sampled at least twice per half range.
-
-    Parameters
-    ----------
-    counts : array_like of int, shape (N,)
-        Raw counter values.
-    bits : int
-        Counter width (32 for std_msgs/Int32, 64 for Int64).
-
-    Returns
-    -------
-    ndarray of int64, shape (N - 1,)
-
+    A counter must therefore be sampled at least twice per half range.
     """
     counts = np.asarray(counts)
     if bits >= 64:
@@ -115,24 +54,7 @@ def counter_increments(counts, bits: int) -> np.ndarray:
 
 
 def travel_from_ticks(tick_increments, ticks_per_revolution: float, radius: float) -> np.ndarray:
-    """
-    Nominal track travel of tick increments: ``ticks / ticks_per_rev * 2 pi * radius``.
-
-    Parameters
-    ----------
-    tick_increments : array_like
-        Counter increments (:func:`counter_increments`).
-    ticks_per_revolution : float
-        Ticks per sprocket revolution (after any gearing).
-    radius : float
-        Sprocket radius, m.
-
-    Returns
-    -------
-    ndarray
-        Travel, m.
-
-    """
+    """Nominal travel (m) of tick increments: ``ticks / ticks_per_rev * 2 pi * radius``."""
     return np.asarray(tick_increments, dtype=float) * (2.0 * np.pi * radius
                                                        / ticks_per_revolution)
 
@@ -147,23 +69,7 @@ WRAP_JUMP = 1.5 * math.pi
 
 
 def unwrap_increments(increments):
-    """
-    Read increments of a wrapped angle as the smallest equivalent ones.
-
-    An increment larger than :data:`WRAP_JUMP` (1.5 pi) in magnitude is taken to have crossed
-    the +-pi boundary: it is replaced by the one of the same angle within [-pi, pi]. Smaller
-    ones are kept (a real step of a fast wheel). Works on scalars and arrays.
-
-    Parameters
-    ----------
-    increments : float or array_like
-        Differences of consecutive angles, rad.
-
-    Returns
-    -------
-    float or ndarray
-
-    """
+    """Read angle increments (rad) beyond :data:`WRAP_JUMP` as crossing +-pi; keep the rest."""
     delta = np.asarray(increments, dtype=float)
     out = np.where(np.abs(delta) > WRAP_JUMP,
                    np.remainder(delta + np.pi, 2.0 * np.pi) - np.pi, delta)
@@ -172,24 +78,10 @@ def unwrap_increments(increments):
 
 def unwrap_if_wrapped(positions) -> np.ndarray:
     """
-    Unwrap joint angles that a driver reports wrapped into [-pi, pi] (continuous joints).
+    Unwrap joint angles (rad) that a driver reports wrapped into [-pi, pi] (continuous joints).
 
-    The rule, shared by the bag reader and the nodes' :class:`IncrementTracker`: a series of
-    angles that stays within [-pi, pi] (:data:`WRAP_LIMIT`) is wrapped when it jumps by
-    about 2 pi (more than :data:`WRAP_JUMP`) between two samples, and each such jump is read
-    as the smallest equivalent increment (:func:`unwrap_increments`); a series that leaves
-    [-pi, pi] is cumulative and kept as it is.
-
-    Parameters
-    ----------
-    positions : array_like, shape (N,)
-        Joint angles, rad.
-
-    Returns
-    -------
-    ndarray, shape (N,)
-        The angles unwrapped, or ``positions`` itself when it is not wrapped.
-
+    A series within [-pi, pi] that jumps by more than :data:`WRAP_JUMP` is wrapped and is
+    unwrapped; any other is returned as it is. The one rule of logs and :class:`IncrementTracker`.
     """
     if len(positions) < 2 or np.max(np.abs(positions)) > WRAP_LIMIT:
         return positions
@@ -227,38 +119,10 @@ class IncrementTracker:
     """
     Turn a live stream of encoder samples into steps of nominal track travel.
 
-    The per-sample form of :func:`travel_from_positions`, :func:`travel_from_velocities`
-    and :func:`counter_increments` / :func:`travel_from_ticks`, plus the checks a live
-    stream needs. Written with Python numbers because a node calls it once per message.
-
-    - A sample with a non-finite value is skipped and the baseline kept, so that cumulative
-      positions still give the exact travel across it.
-    - Positions and tick counters are cumulative: their travel across a gap of any length
-      is exact, and is integrated (``Status.LONG_STEP`` beyond ``max_dt``). Velocities are
-      bridged by the trapezoidal rule up to ``max_dt``; a longer gap restarts from the new
-      sample (``Status.GAP``): the travel over it is unknown.
-    - Angles reported wrapped into [-pi, pi] are unwrapped (the rule of
-      :func:`unwrap_if_wrapped`, decided sample by sample: a side is cumulative from its
-      first reading outside [-pi, pi] on).
-    - The plausibility gate: a step in which a track travels more than ``max_speed x (dt +
-      PLAUSIBILITY_SLACK)`` (or a velocity sample faster than ``max_speed``) is skipped
-      (``Status.IMPLAUSIBLE``) and the baseline kept, so a glitch costs nothing: the next
-      sample is measured from the baseline. When the next sample is not plausible from the
-      baseline either but is from the skipped one (a counter restarted from 0, a driver that
-      re-zeroed its positions), integration resumes from there (``Status.RESUMED``): the
-      jump itself is never integrated. Garbage (int64 noise, 1e100 rad) is never plausible.
-    - A stamp not after the baseline's (a sim-time reset, a bag loop) restarts from the new
-      sample without producing a step; the odometry keeps its pose. The baseline itself
-      again (same stamp and readings: a sample delivered twice) is ignored.
-    - Switching between positions and velocities restarts the same way.
-
-    Parameters
-    ----------
-    max_dt : float
-        Longest gap bridged between velocity samples, s.
-    max_speed : float
-        Fastest plausible track speed, m/s.
-
+    The per-sample form of the functions above, on Python numbers, with a live stream's checks:
+    non-finite samples skipped, velocity gaps beyond ``max_dt`` (s) restarted, steps faster than
+    ``max_speed`` (m/s) refused by the plausibility gate, stamps that go back restarted. See
+    docs/nodes/odometry_node.md, "The plausibility gate".
     """
 
     def __init__(self, max_dt: float = 0.5, max_speed: float = 10.0):
@@ -296,34 +160,29 @@ class IncrementTracker:
 
     def update(self, stamp_ns: int, kind: str, left, right, factor: float, bits: int = 64):
         """
-        Take one sample of both tracks.
+        Take one sample of both tracks; return ``(status, d_left, d_right, dt)``.
 
         Parameters
         ----------
         stamp_ns : int
-            Sample time, ns (integers, so differences of large stamps stay exact).
+            Sample time, ns.
         kind : str
-            ``'position'`` (cumulative angle or distance; travel = difference x ``factor``),
-            ``'velocity'`` (travel = trapezoidal rule x ``factor``) or ``'ticks'`` (integer
-            counters of ``bits`` bits that wrap; travel = increment x ``factor``).
+            ``'position'``, ``'velocity'`` (trapezoidal) or ``'ticks'`` (``bits``-bit counters).
         left, right : float or int
             The two tracks' readings (averaged over the joints of each side).
+        bits : int
+            Counter width for ``'ticks'``.
         factor : float
             Metres per unit of the reading (sprocket radius for rad and rad/s, 1 for m/s,
             ``2 pi r / ticks_per_revolution`` for ticks).
-        bits : int
-            Counter width for ``'ticks'``.
 
         Returns
         -------
         status : str
             One of :class:`Status`; ``Status.STEPS`` produce a step.
-        d_left, d_right : float
-            Nominal travel over the step, m; for ``IMPLAUSIBLE`` the travel (or, for
-            velocities, the speeds in m/s) that was refused; 0 otherwise.
-        dt : float
-            The step's duration, s; for ``TIME_BACK``, ``GAP`` and ``IMPLAUSIBLE`` the
-            offending interval.
+        d_left, d_right, dt : float
+            Nominal travel (m) over the step and its duration (s); for a refused step what was
+            refused (velocities: the speeds), else 0.
 
         """
         if kind != 'ticks' and not (math.isfinite(left) and math.isfinite(right)):

@@ -1,59 +1,10 @@
 """
 Online estimation of the slip-model parameters by an EKF, after the EKF paper (sec. 3).
 
-The state is the parameter vector ``p`` of a motion model (the paper's six coefficients of
-eq. 11 with :class:`~tracked_kinematics.core.models.AdaptiveIcr`, or the constant tread ICRs
-``(y_left, y_right, x)`` of :class:`~tracked_kinematics.core.models.ConstantIcr`). It follows
-a random walk (eq. 15, ``p_k = p_{k-1} + w``) whose variance grows with time, so the filter
-can follow a change of terrain.
-
-The measurement is a *pose change*, not a velocity (eqs. 16-18): between two pose
-measurements (an anchor and the current one) the model integrates the encoder travel of the
-window into a predicted pose change ``h(p)``, expressed in the frame of the anchor pose; the
-pose source gives the measured change ``z``. A heading-only source (an IMU during an RTK
-outage, the paper's sec. 5.3) measures only the heading component. The Jacobian
-``H = dh/dp`` (eq. 19) is not written out in the surviving text; we use the exact
-integration sensitivities of the identification (Fink & Stump eq. 4), which are eq. (19) for
-the exact-arc integration of eq. (14).
-
-The filter equations are the standard EKF (eqs. 20-21), with the Joseph form of the
-covariance update so that the covariance stays symmetric positive definite. Three guards
-keep bad pose data out of the state:
-
-* non-finite, stale (not after the anchor) and too-old (beyond ``max_window``) measurements
-  are refused before any arithmetic;
-* windows with an encoder gap are refused (their travel is unknown);
-* an innovation whose normalised squared size exceeds the chi-square gate is refused as a
-  jump. After ``max_outliers`` consecutive refusals the filter takes the pose as a new
-  anchor: the pose source jumped for good (re-localised), or the terrain changed faster than
-  the process noise allows. Only when the windows from the new anchor are refused again
-  (the data keep disagreeing, so it is the terrain) does it widen its covariance.
-
-What the paper does not need but real pose sources do (lidar ICP at 5-10 Hz, stamped on
-receipt, with re-localisation jumps; docs/nodes/icr_estimator.md has the figures), each
-reconstructed by us, not from the paper:
-
-* ``pose_delay``: the pose stamps are that many seconds behind the encoders (a pose source
-  stamped on receipt); the filter compares each pose with the encoder travel of the window
-  that really ended then.
-* ``adaptive_noise``: the model error per metre travelled (``travel_std``) is estimated from
-  the innovations of recent moving windows, and raised (never lowered) to what they show.
-  A constant-ICR model on grass misses 10-30 % of a metre where the default assumes 1 %;
-  with the default the filter takes every slip fluctuation for a change of terrain and
-  refuses good windows as jumps. Innovation-based adaptive estimation (Mehra 1970) in a
-  robust form: the median of the per-window moment estimates.
-* ``prior_std``, ``prior_time`` (when the start values come from a terrain file, i.e. differ
-  from ideal drive): the parameters follow an Ornstein-Uhlenbeck process about the start
-  values instead of a random walk, ``dp = -(p - p0) / T dt + prior sqrt(2 / T) dW``, so
-  their spread about the identified values stays ``prior`` (``prior_std`` track widths)
-  unless the data insist, and a departure the data stop supporting fades in ``T`` s.
-* ``fallback``: the estimate the filter stands behind (:attr:`SlipEstimator.estimate`, what
-  :meth:`~SlipEstimator.icr` and :meth:`~SlipEstimator.pose_now` use) is the start values
-  until the filter's own a-priori predictions of the last ``fallback_span`` seconds of
-  windows beat theirs by ``fallback_margin``; then it is the filter's state.
-
-The settings and the outcome of a measurement are in :mod:`.config` (imported here too).
-Nothing here imports rclpy; the ``icr_estimator`` node is a thin adapter.
+State: a motion model's parameters as a random walk (eq. 15); measurement: a pose change over a
+window (eqs. 16-18); Jacobian eq. (19) as exact integration sensitivities (Fink & Stump eq. 4);
+Joseph-form update (eqs. 20-21). Gates, re-anchoring and what real pose sources needed:
+docs/nodes/icr_estimator.md, "How it works, and what we reconstructed".
 """
 
 from __future__ import annotations
@@ -81,15 +32,7 @@ def _gate(probability: float, dof: int) -> float:
 
 
 def model_icr(model: MotionModel, p, v_left: float, v_right: float):
-    """
-    Tread ICRs ``(y_left, y_right, x)`` (m) of a model with parameters ``p`` at given speeds.
-
-    Raises
-    ------
-    TypeError
-        For a model that has no tread ICRs (e.g. the 9-parameter general slip model).
-
-    """
+    """Tread ICRs ``(y_left, y_right, x)`` (m) of a model at ``p``; TypeError if it has none."""
     if isinstance(model, AdaptiveIcr):
         y_left, y_right, x, _ = model._floored_icr(p, v_left, v_right)
         return float(y_left), float(y_right), float(x)
@@ -118,12 +61,7 @@ class _TravelLog:
             self.steps.popleft()
 
     def window(self, t_a: float, t_b: float):
-        """
-        Clip the steps to ``[t_a, t_b]``: travel, durations, and the covered fraction.
-
-        A step that straddles a window edge contributes the part inside, in proportion to
-        time (constant track speed over a step, as in the identification).
-        """
+        """Clip the steps to ``[t_a, t_b]`` pro rata: travel, durations, covered fraction."""
         if not self.steps:
             return np.zeros(0), np.zeros(0), np.zeros(0), 0.0
         data = np.array(self.steps)
@@ -141,33 +79,10 @@ class SlipEstimator:
     """
     EKF over the parameters of a motion model, from encoder travel and pose measurements.
 
-    Parameters
-    ----------
-    model : MotionModel
-        The slip model whose parameters are estimated (the paper: ``AdaptiveIcr``).
-    p0 : array_like, optional
-        Initial parameters; default ``model.initial()`` (ideal differential drive). Start
-        values other than ideal drive are taken as identified (a terrain file): the prior
-        and the fallback of the configuration hold them.
-    config : EstimatorConfig, optional
-        Noise model, windows and gates.
-
-    Attributes
-    ----------
-    p, P : ndarray
-        The filter's state and its covariance.
-    updates : int
-        Windows that updated the state.
-    noise_scale : float
-        Factor (>= 1) on the configured ``travel_std`` the adaptive noise applies.
-
-    Notes
-    -----
-    Feed :meth:`add_step` with every encoder step (nominal travel, scale-corrected by the
-    caller if the terrain file has scales) and :meth:`add_pose` / :meth:`add_heading` with
-    every pose measurement, each in time order. Poses whose stamp is ahead of the encoder
-    data wait (one at a time, the newest wins) until the encoders catch up.
-
+    ``p0`` defaults to ``model.initial()`` (ideal drive); other start values count as identified,
+    and the prior and fallback of ``config`` hold them. Feed :meth:`add_step` every encoder step
+    and :meth:`add_pose` / :meth:`add_heading` every pose, in time order; a pose ahead of the
+    encoders waits. Attributes ``p``, ``P`` are the state and its covariance.
     """
 
     def __init__(self, model: MotionModel, p0=None, config: EstimatorConfig | None = None):
@@ -197,18 +112,10 @@ class SlipEstimator:
 
     def add_step(self, t: float, d_left: float, d_right: float, dt: float) -> Outcome | None:
         """
-        Record one encoder step: nominal travel (m) of each track over ``dt`` s ending at ``t``.
+        Record nominal travel (m) of each track over ``dt`` s ending at ``t``.
 
-        Returns
-        -------
-        Outcome or None
-            The outcome of a deferred pose measurement this step made processable.
-
-        Raises
-        ------
-        ValueError
-            For a non-finite value or ``dt <= 0`` (the caller filters encoder faults).
-
+        Returns the :class:`Outcome` of a deferred pose this step made processable, or None; raises
+        ValueError for a non-finite value or ``dt <= 0``.
         """
         values = (t, d_left, d_right, dt)
         if not all(math.isfinite(v) for v in values) or dt <= 0.0:
@@ -235,12 +142,7 @@ class SlipEstimator:
         return self._receive(t, (math.nan, math.nan, yaw), True)
 
     def configure(self, config: EstimatorConfig) -> None:
-        """
-        Use new noise, window and gate settings from the next measurement on.
-
-        With ``adaptive_noise`` off, ``travel_std`` applies as given from then on (what the
-        adaptation learnt is forgotten); a shorter ``noise_memory`` keeps the newest windows.
-        """
+        """Use new noise, window and gate settings from the next measurement on."""
         self.config = config
         self._log.span = config.max_window + 1.0
         self._excess = deque(self._excess, maxlen=config.noise_memory)
@@ -282,22 +184,15 @@ class SlipEstimator:
         """
         Return the parameters the estimator stands behind: what to predict and publish with.
 
-        The filter's state :attr:`p`, except with ``fallback`` and identified start values:
-        then the start values until the filter's a-priori predictions of the windows of the
-        last ``fallback_span`` s cost ``fallback_margin`` less than theirs (costs are the
-        squared innovations over their variance, each capped at the gate), the state after.
+        The state :attr:`p`, except with ``fallback`` and identified start values: those until the
+        filter's a-priori predictions over ``fallback_span`` s beat theirs by ``fallback_margin``.
         """
         if self._trusted or not self.config.fallback:
             return self.p
         return self._p0
 
     def icr(self, v_left: float | None = None, v_right: float | None = None):
-        """
-        Tread ICRs ``(y_left, y_right, x)`` of the current :attr:`estimate`, m.
-
-        For speed-dependent models they are evaluated at the given track speeds (default:
-        the latest encoder speeds).
-        """
+        """Tread ICRs (m) of the :attr:`estimate`, at the given (default: latest) track speeds."""
         if v_left is None:
             v_left, v_right = self.last_speeds
         return model_icr(self.model, self.estimate, v_left, v_right)
@@ -311,17 +206,7 @@ class SlipEstimator:
             return None
 
     def pose_now(self):
-        """
-        Return the latest accepted pose advanced by the encoder travel since, or None.
-
-        Returns
-        -------
-        tuple or None
-            ``(t, x, y, yaw)`` at the time of the latest encoder step, in the pose source's
-            frame, dead-reckoned with the current :attr:`estimate`; None before the first
-            full pose (or with heading-only measurements).
-
-        """
+        """Return ``(t, x, y, yaw)``: the last pose dead-reckoned to the last step, or None."""
         if not self._history or self._heading_only:
             return None
         t_a, x, y, yaw = self._history[-1]
@@ -370,12 +255,7 @@ class SlipEstimator:
         self._history.append((t, *pose))
 
     def _anchor_for(self, t):
-        """
-        Past pose that starts the window ending at ``t``.
-
-        The newest pose at least ``window`` s old, else the oldest one kept (a shorter
-        window while the history fills up).
-        """
+        """Past pose starting the window ending at ``t`` (newest ``window`` s old, or oldest)."""
         cfg = self.config
         while self._history and t - self._history[0][0] > cfg.max_window:
             self._history.popleft()
@@ -467,11 +347,9 @@ class SlipEstimator:
         """
         Predicted state and covariance ``elapsed`` s after the last update.
 
-        Random walk, eq. (15): ``p`` unchanged, ``P + process_std^2 elapsed``. With a finite
-        prior (identified start values), the exact discretisation of an Ornstein-Uhlenbeck
-        process about them instead: ``p0 + a (p - p0)``, ``a^2 P + prior^2 (1 - a^2)``,
-        ``a = exp(-elapsed / prior_time)``: the parameters wander at most ``prior`` from the
-        start values and forget a departure in ``prior_time`` s.
+        Random walk, eq. (15): ``P + process_std^2 elapsed``. With a finite prior, the exact
+        Ornstein-Uhlenbeck step about ``p0`` instead (ours, not the paper's): ``p0 + a (p - p0)``,
+        ``a^2 P + prior^2 (1 - a^2)``, ``a = exp(-elapsed / prior_time)``.
         """
         n = len(self.p)
         prior = self._prior()
@@ -485,10 +363,8 @@ class SlipEstimator:
         """
         Update the adaptive factor on ``travel_std^2`` from one full-pose window.
 
-        Method of moments per window: ``E[nu nu^T] = H P H^T + R_fixed + s R_travel``, so
-        ``s_k = (|nu|^2 - tr(H P H^T + R_fixed)) / tr(R_travel)``; the factor is the median
-        of the last ``noise_memory`` moving windows (robust to the jumps among them), at
-        least 1. Windows that hardly move carry no information on a per-metre error.
+        Per window ``s_k = (|nu|^2 - tr(H P H^T + R_fixed)) / tr(R_travel)`` (method of moments);
+        the factor is the median over the last ``noise_memory`` moving windows, at least 1.
         """
         cfg = self.config
         unit = float(per_travel.sum())
@@ -540,14 +416,7 @@ class SlipEstimator:
         return h, H
 
     def _noise_parts(self, travel, z):
-        """
-        Measurement noise of a window: the part of the pose source, the part per travel.
-
-        Both end poses' noise, the heading noise's lever on the displacement; and
-        ``travel_std`` per metre travelled, in position and (over half the track width)
-        heading. Returns the diagonals ``(fixed, per_travel)``; the noise is ``fixed +
-        noise_scale * per_travel``.
-        """
+        """Diagonals ``(fixed, per_travel)`` of a window's measurement noise."""
         cfg = self.config
         distance2 = float(z[0] ** 2 + z[1] ** 2)
         pos = 2.0 * cfg.pose_std_xy ** 2 + cfg.pose_std_yaw ** 2 * distance2

@@ -1,53 +1,10 @@
 """
 Time offset between ground truth and encoders, estimated without a motion model.
 
-A pose from lidar ICP, visual odometry or a motion-capture bridge is often stamped when it
-*arrives*, some tenths of a second after the scan or frame it belongs to, while the encoders
-are stamped when they are sampled. Every comparison of a ground-truth pose change with the
-encoder travel over "the same" interval then compares two different intervals. This module
-measures the offset ``d`` (s, ground-truth stamps *behind* the encoders: the pose stamped
-``t`` describes the vehicle at ``t - d``) from the data alone, so that it does not depend on
-the model being right, and :func:`correct_ground_truth` removes it.
-
-Method (a cross-correlation of increments, reconstructed here; no paper of the package
-has it): for every interval between consecutive ground-truth samples ``[t_a, t_b]``, two
-ground-truth increments, the *heading* change and the *forward* displacement (along the
-heading at ``t_a``), are regressed on the travel of the left and of the right track over
-the shifted interval ``[t_a - d, t_b - d]`` (and a constant). For any constant tread ICRs
-and scales the heading change is exactly linear in the two travels, and the forward
-displacement nearly so (Martinez eqs. 7-9, 20-21), so the coefficient of determination
-``R_c(d)^2`` of each channel peaks at the true ``d`` whatever the model: nothing is
-assumed of it. The channels are combined as the Gaussian profile likelihood of the two
-regressions, ``cost(d) = sum_c n_c log(1 - R_c(d)^2)``, which weighs each channel by how
-well it fits. ``cost`` is evaluated over the whole search range on a coarse grid
-(:data:`COARSE` x :data:`RESOLUTION`), then at :data:`RESOLUTION` within :data:`LOCAL` of
-its minimum, then on a grid ten times finer, refined by the parabola through the three
-points around the minimum.
-
-Robustness, for ground truth as lidar ICP gives it:
-
-- intervals the ground truth cannot time are left out: an interval longer than
-  :data:`IRREGULAR` x the median interval and its two neighbours (a mapper that falls behind
-  delivers late, then catches up in bursts: these stamps are not the usual delay), jumps
-  (a step longer than :data:`.segments.JUMP_MARGIN` plus the fastest track's travel, or a
-  heading change above :data:`.segments.MAX_HEADING_STEP`: re-localisations and glitches),
-  intervals whose shifted span leaves a gap-free stretch of encoder samples at every
-  candidate delay (and, at each delay, those it leaves at that delay), and intervals over
-  which the encoders do not move at any candidate delay (no timing information);
-- the regressions are computed twice, the second time with Huber weights
-  (:data:`HUBER_K` robust standard deviations) of the residuals at the first estimate, so
-  that heading noise spikes do not pull it.
-
-Uncertainty: the data are cut into windows of :data:`WINDOW` seconds of kept intervals, and
-the standard error is the delete-one-window jackknife of the estimate when there are at least
-:data:`MIN_JACKKNIFE_WINDOWS` windows (the windows absorb the correlation between neighbouring
-intervals, which the curvature does not see); otherwise it is the curvature of the profile
-likelihood at its minimum, ``sqrt(2 / cost'')``, which is optimistic.
-
-The estimator is a public function with a stable signature for every tool that meets ground
-truth and encoders (identify_icr, evaluate_model, the online estimator's pose stream):
-:func:`estimate_delay` on :class:`.segments.Recording` objects, or
-:func:`estimate_delay_arrays` on plain arrays.
+Regresses the ground truth's heading change and forward displacement per interval on the track
+travel over the interval shifted by a candidate delay (a cross-correlation of increments, our
+reconstruction, in no paper); robust to bursts and jumps, with a jackknife error. See
+docs/tools/identify_icr.md, "What latency does, and how it is removed".
 """
 
 from __future__ import annotations
@@ -98,34 +55,17 @@ class DelayEstimate:
 
     Attributes
     ----------
-    delay : float
-        s, ground-truth stamps behind the encoders (subtract it from the ground-truth
-        stamps to correct them: :func:`correct_ground_truth`). 0 when not ``determined``.
-    std : float
-        Standard error, s (inf when not determined).
+    delay, std : float
+        s, to subtract from the ground-truth stamps (:func:`correct_ground_truth`); 0 and inf
+        when not ``determined`` (then ``problem`` says why).
     uncertainty : str
-        How ``std`` was obtained: ``'jackknife'`` (delete-one-window, over ``windows``
-        windows) or ``'curvature'`` (of the profile likelihood at the peak), or ``''``.
-    determined : bool
-        Whether the data time the ground truth at all; when False, ``problem`` says why.
-    problem : str
-        Why the delay is not determined ('' when it is), one line.
+        ``'jackknife'`` (over ``windows`` windows), ``'curvature'`` (of the profile) or ``''``.
     correlation : dict
-        Multiple correlation ``R`` of each channel's regression at ``delay`` (``heading``,
-        ``forward``), in [0, 1].
-    intervals : int
-        Ground-truth intervals used.
+        Multiple correlation ``R`` of each channel (``heading``, ``forward``) at ``delay``.
     excluded : dict
         Intervals left out, by reason: ``irregular``, ``jumps``, ``still``, ``coverage``.
-    windows : int
-        Jackknife windows with data.
-    window_delays : ndarray
-        The delete-one-window estimates (empty for the curvature).
     shifts, cost : ndarray
-        The coarse search grid over the whole range (s) and the profile cost on it (lower
-        is better; the robust pass).
-    search : tuple of float
-        The search range, s.
+        The coarse search grid (s) and the profile cost on it (lower is better).
 
     """
 
@@ -164,12 +104,7 @@ def fixed_delay(delay: float) -> DelayEstimate:
 
 
 def correct_ground_truth(recordings, delay: float) -> list[Recording]:
-    """
-    Return the recordings with their ground-truth stamps moved ``delay`` s earlier.
-
-    ``delay`` is a :attr:`DelayEstimate.delay` (ground-truth stamps behind the encoders); 0
-    returns the recordings unchanged.
-    """
+    """Return the recordings with their ground-truth stamps moved ``delay`` s earlier."""
     recordings = list(recordings)
     if not delay:
         return recordings
@@ -255,17 +190,7 @@ def _intervals(recordings, lo, hi, window) -> _Intervals:
 
 
 def _increments(data: _Intervals, shifts):
-    """
-    Return the travel of each track over every interval shifted by each delay.
-
-    Returns
-    -------
-    d_left, d_right : ndarray, shape (S, M)
-        m.
-    valid : ndarray of bool, shape (S, M)
-        Whether the shifted interval lies inside a gap-free stretch of encoder samples.
-
-    """
+    """Travel (m, (S, M)) of each track over every interval shifted by each delay, and validity."""
     shape = (len(shifts), len(data.ta))
     d_left, d_right = np.empty(shape), np.empty(shape)
     valid = np.empty(shape, dtype=bool)
@@ -283,14 +208,7 @@ def _increments(data: _Intervals, shifts):
 
 
 def _window_sums(data: _Intervals, shifts, weights, chunk=32):
-    """
-    Per-window weighted sums of every channel's regression on both tracks, for every shift.
-
-    Returns, per channel, an array of shape (10, S, W): the sums of ``w``, ``w x_l``,
-    ``w x_r``, ``w x_l^2``, ``w x_l x_r``, ``w x_r^2``, ``w x_l y``, ``w x_r y``, ``w y``,
-    ``w y^2``, where ``w`` is the interval's weight where the shifted interval is covered by
-    the encoders, else 0.
-    """
+    """Per-window weighted sums (10, S, W) of each channel's regression, per shift."""
     n_windows = int(data.window.max()) + 1
     first = np.flatnonzero(np.diff(np.concatenate([[-1], data.window])))
     present = data.window[first]
@@ -310,14 +228,7 @@ def _window_sums(data: _Intervals, shifts, weights, chunk=32):
 
 
 def _profile(sums, mask, channels):
-    """
-    Profile cost ``sum_c n_c log(1 - R_c^2)`` over the windows of ``mask``, and the R_c.
-
-    ``R_c^2`` is the coefficient of determination of the weighted regression of channel
-    ``c`` on the two tracks' travel (and a constant), so that any tread ICRs and scales fit;
-    ``n_c`` the largest weight sum over the shifts, so that shifts at which fewer intervals
-    are covered are not favoured. A shift at which less than half of it is covered scores 0.
-    """
+    """Profile cost ``sum_c n_c log(1 - R_c^2)`` over the windows of ``mask``, and the R_c."""
     n_shifts = sums[channels[0]].shape[1]
     cost = np.zeros(n_shifts)
     corr = {}
@@ -379,34 +290,10 @@ def estimate_delay(recordings, *, min_delay: float = MIN_DELAY, max_delay: float
     """
     Estimate the delay of the ground-truth stamps behind the encoders, without a model.
 
-    The method, its robustness and its uncertainty are in the module notes. One delay is
-    estimated for all ``recordings`` together (one vehicle, one logging set-up); recordings
-    in pieces (gaps in either stream, several bags) are handled interval by interval.
-
-    Parameters
-    ----------
-    recordings : sequence of Recording
-        Encoder travel and ground-truth poses, on one clock.
-    min_delay, max_delay : float
-        Search range, s (``min_delay < max_delay``).
-    resolution : float
-        Grid of the search, s (> 0).
-    window : float
-        Seconds of data per jackknife window (> 0).
-    channels : sequence of str
-        Channels of :data:`CHANNELS` to use.
-
-    Returns
-    -------
-    DelayEstimate
-        ``determined`` False (and ``delay`` 0) when the data do not time the ground truth:
-        too few moving intervals, no correlation, or the best delay on a bound of the search.
-
-    Raises
-    ------
-    ValueError
-        For an invalid search range, resolution, window or channel.
-
+    One delay for all ``recordings`` (one vehicle, one logging set-up), searched in ``[min_delay,
+    max_delay]`` (s) on a ``resolution`` grid, with jackknife windows of ``window`` s.
+    ``determined`` is False (delay 0) when the data do not time the ground truth. Raises ValueError
+    for an invalid range, resolution, window or channel.
     """
     for name, value in (('min_delay', min_delay), ('max_delay', max_delay),
                         ('resolution', resolution), ('window', window)):
@@ -489,26 +376,8 @@ def estimate_delays(recordings, **options) -> tuple[DelayEstimate, list[DelayEst
     """
     Estimate the delay of all recordings together, and of each one when each can.
 
-    The latency of a pose stamped on receipt depends on how busy its producer is, so it
-    can differ from one bag to the next (the Warthog bags of ../shared/realdata: 0.19 to
-    0.26 s). When every recording determines its own delay to within
-    :data:`PER_RECORDING_STD`, each recording's delay is the one to remove from it; else
-    (short pieces, little motion) the pooled one is removed from all.
-
-    Parameters
-    ----------
-    recordings : sequence of Recording
-        The data.
-    **options
-        Keyword options of :func:`estimate_delay`.
-
-    Returns
-    -------
-    pooled : DelayEstimate
-        One delay for all recordings.
-    each : list of DelayEstimate
-        One per recording when they are to be used, else empty.
-
+    Returns ``(pooled, each)``: ``each`` has one estimate per recording when every one is within
+    :data:`PER_RECORDING_STD` (latency varies by bag: 0.19-0.26 s on the Warthog), else is empty.
     """
     recordings = list(recordings)
     pooled = estimate_delay(recordings, **options)
@@ -522,17 +391,5 @@ def estimate_delays(recordings, **options) -> tuple[DelayEstimate, list[DelayEst
 
 def estimate_delay_arrays(enc_t, left, right, gt_t, gt_x, gt_y, gt_yaw,
                           **options) -> DelayEstimate:
-    """
-    :func:`estimate_delay` on the arrays of one recording.
-
-    Parameters
-    ----------
-    enc_t, left, right : array_like, shape (N,)
-        Encoder times (s, increasing) and cumulative nominal travel of each track (m).
-    gt_t, gt_x, gt_y, gt_yaw : array_like, shape (M,)
-        Ground-truth times (s, increasing, same clock) and poses (m, m, rad).
-    **options
-        Keyword options of :func:`estimate_delay`.
-
-    """
+    """:func:`estimate_delay` on one recording's arrays (times, cumulative travel, poses)."""
     return estimate_delay([Recording(enc_t, left, right, gt_t, gt_x, gt_y, gt_yaw)], **options)
