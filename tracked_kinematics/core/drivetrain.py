@@ -1,27 +1,9 @@
 """
 Drive-train response: commanded track speeds -> track speeds, Fink & Stump sec. III-B.
 
-Each track is an independent chain of three parts (Fink & Stump Fig. 2):
-
-1. input shaping: a command delay ``tau`` (``v_d(t) = v_c(t - tau)``), a speed limit and an
-   acceleration limit ``a_max`` (a rate limiter);
-2. a closed speed loop: either a PID controller (eq. 6) around a DC motor (eq. 7), whose
-   closed-loop transfer function is eq. (8), or, for users without motor data, a first-order
-   lag ``1 / (T s + 1)``, or nothing (the shaped command is the speed);
-3. the output is the track speed the encoders measure.
-
-The linear part is simulated exactly in discrete time: the rate limiter makes the shaped
-command piecewise linear between samples, and the first-order-hold discretisation
-(``scipy.signal.cont2discrete(..., method='foh')``) of a rational transfer function is exact
-for such inputs. The resulting difference equation runs in ``scipy.signal.lfilter`` (C),
-so the only Python loop is the rate limiter's, which is truly sequential.
-
-Commands are taken as sample-and-hold signals (a setpoint holds until the next one), so the
-delayed command at sample ``t_k`` is exactly the command sample in force at ``t_k - tau``.
-
-The API is meant to be reused by the identification of issue 8: every parameter is a plain
-attribute, :meth:`DriveTrain.simulate` maps commands to speeds for any candidate parameters,
-and :meth:`DriveTrain.transfer_function` exposes the linear part.
+Per track: a command delay, speed and acceleration limits, then a speed loop (PID around a DC
+motor, eqs. 6-8, or a first-order lag), simulated exactly by a first-order hold in
+``scipy.signal.lfilter``. See docs/simulator.md, "Drive train".
 """
 
 from __future__ import annotations
@@ -45,26 +27,10 @@ class PidMotor:
     """
     PID speed loop around a DC motor, Fink & Stump eqs. (6)-(8).
 
-    ``C(s) = K_p + K_d s + K_i / s`` (eq. 6), ``M(s) = K / ((b + J s)(L s + R) + K^2)``
-    (eq. 7), closed loop ``C M / (1 + C M)`` (eq. 8). As in the paper the loop maps the
-    desired track speed to the track speed directly (any gearing and sprocket radius are
-    absorbed in the gains), so its steady-state gain is 1 whenever ``K_i > 0``.
-
-    Attributes
-    ----------
-    kp, ki, kd : float
-        Controller gains (``K_p``, ``K_i``, ``K_d``), >= 0.
-    inertia : float
-        Rotor moment of inertia ``J``, kg m^2.
-    damping : float
-        Viscous friction ``b``, N m s.
-    resistance : float
-        Armature resistance ``R``, Ohm.
-    inductance : float
-        Armature inductance ``L``, H.
-    motor_constant : float
-        Torque and back-EMF constant ``K``, N m / A = V s / rad.
-
+    ``C(s) = K_p + K_d s + K_i / s`` (eq. 6), ``M(s) = K / ((b + J s)(L s + R) + K^2)`` (eq. 7),
+    closed loop ``C M / (1 + C M)`` (eq. 8), from desired to actual track speed (gearing in the
+    gains). Attributes: gains ``kp, ki, kd`` (>= 0); ``inertia`` J (kg m^2), ``damping`` b (N m s),
+    ``resistance`` R (Ohm), ``inductance`` L (H), ``motor_constant`` K (N m / A).
     """
 
     kp: float
@@ -87,16 +53,10 @@ class PidMotor:
 
     def transfer_function(self):
         """
-        Closed-loop transfer function, eq. (8), as polynomial coefficients in ``s``.
+        Closed-loop transfer function, eq. (8): ``num, den`` in ``s``, highest power first.
 
-        ``C M / (1 + C M) = K (K_d s^2 + K_p s + K_i) / (J L s^3 + (J R + b L + K K_d) s^2
-        + (b R + K^2 + K K_p) s + K K_i)``, one order less when ``K_i = 0``.
-
-        Returns
-        -------
-        num, den : ndarray
-            Highest power first.
-
+        ``K (K_d s^2 + K_p s + K_i) / (J L s^3 + (J R + b L + K K_d) s^2 + (b R + K^2 + K K_p) s +
+        K K_i)``, one order less when ``K_i = 0``.
         """
         k, j, b = self.motor_constant, self.inertia, self.damping
         r, ell = self.resistance, self.inductance
@@ -111,15 +71,7 @@ class PidMotor:
 
 @dataclass(frozen=True, slots=True)
 class FirstOrderLag:
-    """
-    First-order lag ``1 / (T s + 1)``: the speed loop for users without motor data.
-
-    Attributes
-    ----------
-    time_constant : float
-        ``T``, s (> 0): the speed reaches 63 % of a step after ``T``.
-
-    """
+    """First-order lag ``1 / (T s + 1)``, ``time_constant`` T (s): users without motor data."""
 
     time_constant: float
 
@@ -134,18 +86,14 @@ class FirstOrderLag:
 @dataclass(frozen=True, slots=True)
 class DriveTrain:
     """
-    Command delay, speed and acceleration limits, and speed loop of one track.
-
-    The same drive train is applied to both tracks (columns of the command array).
+    Command delay, speed and acceleration limits, and speed loop of one track (or each column).
 
     Attributes
     ----------
     delay : float
         Command delay ``tau``, s (>= 0).
-    max_accel : float
-        Acceleration limit of the input shaping, m/s^2 (> 0; ``inf`` for none).
-    max_speed : float
-        Speed limit applied to the commands, m/s (> 0; ``inf`` for none).
+    max_accel, max_speed : float
+        Limits of the input shaping, m/s^2 and m/s (> 0; ``inf`` for none).
     loop : PidMotor, FirstOrderLag or None
         Speed loop; None passes the shaped command through (an ideal drive).
 
@@ -173,8 +121,8 @@ class DriveTrain:
         """
         Drive train identified on the Packbot, Fink & Stump Table II.
 
-        The table prints the delay as "0.049 ms"; the text (sec. IV-A) measures 0.049 s,
-        which is what we use.
+        The table prints the delay as "0.049 ms"; the text (sec. IV-A) measures 0.049 s, which we
+        use.
         """
         return cls(delay=0.049, max_accel=5.5, max_speed=max_speed,
                    loop=PidMotor(kp=56.49, ki=1.11, kd=2.77, inertia=0.059, damping=0.456,
@@ -193,41 +141,16 @@ class DriveTrain:
         return float(num[-1] / den[-1])
 
     def discretise(self, dt: float):
-        """
-        Exact discrete-time speed loop for piecewise-linear inputs (first-order hold).
-
-        Parameters
-        ----------
-        dt : float
-            Sample period, s.
-
-        Returns
-        -------
-        b, a : ndarray
-            Numerator and denominator for ``scipy.signal.lfilter``.
-
-        """
+        """Return ``b, a`` for ``lfilter``: the speed loop at period ``dt`` by first-order hold."""
         num, den = self.transfer_function()
         return _foh(tuple(num), tuple(den), float(dt))
 
     def shape(self, commands, dt: float, initial=0.0) -> np.ndarray:
         """
-        Input shaping: delay, speed limit and acceleration limit of the commands.
+        Input shaping of held commands (m/s, every ``dt`` s): delay, speed and acceleration limits.
 
-        Parameters
-        ----------
-        commands : array_like, shape (N,) or (N, K)
-            Commanded speeds sampled every ``dt`` and held in between, m/s.
-        dt : float
-            Sample period, s.
-        initial : float or array_like, shape (K,)
-            Speed before the first sample (what the delay line holds at the start), m/s.
-
-        Returns
-        -------
-        ndarray, like ``commands``
-            Shaped speed demand at the samples (linear in between).
-
+        ``initial`` is the speed before the first sample; the result is the demand at the samples
+        (linear in between).
         """
         commands = np.asarray(commands, dtype=float)
         dt = _check_dt(dt)
@@ -247,24 +170,7 @@ class DriveTrain:
         return shaped
 
     def respond(self, shaped, dt: float, initial=0.0) -> np.ndarray:
-        """
-        Speed loop response to a shaped demand (exact for a piecewise-linear demand).
-
-        Parameters
-        ----------
-        shaped : array_like, shape (N,) or (N, K)
-            Demand at the samples, m/s (from :meth:`shape`).
-        dt : float
-            Sample period, s.
-        initial : float or array_like, shape (K,)
-            Demand the loop was in steady state with before the first sample, m/s.
-
-        Returns
-        -------
-        ndarray, like ``shaped``
-            Track speeds at the samples, m/s.
-
-        """
+        """Speed loop response (m/s) to a shaped demand, from steady state at ``initial``."""
         shaped = np.asarray(shaped, dtype=float)
         if self.loop is None or not len(shaped):
             return shaped.copy()
@@ -276,24 +182,7 @@ class DriveTrain:
         return out
 
     def simulate(self, commands, dt: float, initial=0.0) -> np.ndarray:
-        """
-        Track speeds from commanded speeds: :meth:`shape`, then :meth:`respond`.
-
-        Parameters
-        ----------
-        commands : array_like, shape (N,) or (N, K)
-            Commanded speeds every ``dt`` (held in between), m/s.
-        dt : float
-            Sample period, s.
-        initial : float or array_like, shape (K,)
-            Speed in steady state before the start, m/s.
-
-        Returns
-        -------
-        ndarray, like ``commands``
-            Track speeds at the samples, m/s.
-
-        """
+        """Track speeds (m/s) from held commanded speeds: :meth:`shape`, then :meth:`respond`."""
         shaped = self.shape(commands, dt, initial)
         start = np.clip(initial, -self.max_speed, self.max_speed)
         return self.respond(shaped, dt, start)
@@ -301,12 +190,7 @@ class DriveTrain:
 
 @functools.lru_cache(maxsize=64)
 def _foh(num: tuple, den: tuple, dt: float):
-    """
-    Discretise by first-order hold, cached.
-
-    A planner simulates one drive train thousands of times, and the matrix exponential
-    costs more than the simulation itself.
-    """
+    """Discretise by first-order hold, cached (the matrix exponential costs more than a run)."""
     numd, dend, _ = signal.cont2discrete((np.array(num), np.array(den)), dt, method='foh')
     numd, dend = np.atleast_1d(np.squeeze(numd)), np.atleast_1d(dend)
     numd.flags.writeable = False

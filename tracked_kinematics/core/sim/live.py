@@ -1,19 +1,9 @@
 """
 The simulator one step at a time: for a live node that does not know its commands ahead.
 
-:func:`.simulation.simulate` maps a whole array of commands to a run at once. A live
-simulator gets its track setpoints as they come, so :class:`LiveSimulator` keeps the state of
-the same chain (drive train, encoder scales, stationary dynamics, exact arc integration) and
-advances it by one period ``dt`` per :meth:`LiveSimulator.step`. Fed the same commands, it
-reproduces :func:`.simulation.simulate` (to rounding, 1e-12 m over minutes): the drive train
-is the same discrete filter run sample by sample (:class:`DriveTrainStepper`), the twist of a
-step comes from the mean true track speed over it, and the pose follows the arc.
-
-The terrain can change between two steps (:meth:`LiveSimulator.set_table`): the drives keep
-their state, the dynamics of the next step are those of the new soil.
-
-:class:`SetpointHold` keeps the last valid setpoint of a track and says when it is stale.
-The sensors of a live run (encoders, gyro, a lidar pose) are in :mod:`.live_sensors`.
+:class:`LiveSimulator` keeps the state of the chain of :func:`.simulation.simulate` and reproduces
+it to rounding when fed the same commands; the terrain may change between steps. The sensors of a
+live run are in :mod:`.live_sensors`.
 """
 
 from __future__ import annotations
@@ -31,20 +21,10 @@ from ..integration import integrate_twist
 
 class DriveTrainStepper:
     """
-    A :class:`~tracked_kinematics.core.drivetrain.DriveTrain` run sample by sample.
+    A :class:`~tracked_kinematics.core.drivetrain.DriveTrain` run sample by sample, on floats.
 
-    The same chain as :meth:`DriveTrain.simulate` for both tracks: a delay line of
-    ``ceil(delay / dt)`` samples, the speed limit, the rate limiter, then the first-order-hold
-    discrete speed loop as a direct-form II transposed filter (what ``scipy.signal.lfilter``
-    runs), on plain floats: a sample costs a few microseconds.
-
-    Parameters
-    ----------
-    drivetrain : DriveTrain
-        The drives' response.
-    dt : float
-        Sample period, s.
-
+    The chain of :meth:`DriveTrain.simulate`, the speed loop as a direct-form II transposed filter
+    (what ``scipy.signal.lfilter`` runs).
     """
 
     def __init__(self, drivetrain: DriveTrain, dt: float):
@@ -67,15 +47,7 @@ class DriveTrainStepper:
         self.speeds = (0.0, 0.0)
 
     def step(self, left: float, right: float) -> tuple[float, float]:
-        """
-        Take the commands of the next sample; return the track speeds at that sample, m/s.
-
-        Parameters
-        ----------
-        left, right : float
-            Commanded (nominal) track speeds of the sample, m/s; finite.
-
-        """
+        """Take the commands (m/s) of the next sample; return the track speeds then, m/s."""
         out = []
         top = self.drivetrain.max_speed
         for side, command in enumerate((left, right)):
@@ -108,25 +80,10 @@ class DriveTrainStepper:
 @dataclass(frozen=True, slots=True)
 class SimState:
     """
-    The true state after a step.
+    The true state after a step (SI units; pose in odom, theta continuous).
 
-    Attributes
-    ----------
-    t : float
-        Simulated time, s (0 at the start).
-    pose : tuple of float
-        True pose ``(x, y, theta)`` in the odom frame (theta continuous, not wrapped).
-    twist : tuple of float
-        Body twist held over the step just taken, ``(v_x, v_y, w)``: m/s, m/s, rad/s.
-    nominal : tuple of float
-        Track speeds the drives achieve, as the encoders see them, m/s (left, right).
-    true_speeds : tuple of float
-        ``scale * nominal``, m/s.
-    travel : tuple of float
-        Cumulative nominal track travel (what the encoders count), m.
-    command : tuple of float
-        The commands the step took, m/s.
-
+    ``twist`` is held over the step; ``nominal`` the track speeds as encoders see them,
+    ``true_speeds`` ``scale * nominal``, ``travel`` the cumulative nominal travel (m).
     """
 
     t: float
@@ -140,19 +97,7 @@ class SimState:
 
 @dataclass(frozen=True)
 class Steps:
-    """
-    The true states after each of several steps (:meth:`LiveSimulator.step_many`).
-
-    Attributes
-    ----------
-    t : ndarray, shape (n,)
-        Simulated time at the end of each step, s.
-    pose, twist : ndarray, shape (n, 3)
-        As :class:`SimState`'s, one row per step.
-    nominal, true_speeds, travel, command : ndarray, shape (n, 2)
-        As :class:`SimState`'s, one row per step.
-
-    """
+    """The states after several steps (:meth:`LiveSimulator.step_many`), a row per step."""
 
     t: np.ndarray
     pose: np.ndarray
@@ -176,23 +121,10 @@ class Steps:
 
 class LiveSimulator:
     """
-    Step the simulated robot by ``dt`` per call, given the track setpoints in force.
+    Step the simulated robot by ``dt`` (s) per call, given the track setpoints in force.
 
-    Sample 0 is the robot at rest at ``pose0`` with zero commands; each :meth:`step` appends
-    one command sample, so that stepping through ``commands[1:]`` gives the run
+    Sample 0 is the robot at rest at ``pose0``; stepping through ``commands[1:]`` gives the run
     :func:`.simulation.simulate` makes of ``commands`` when ``commands[0]`` is zero.
-
-    Parameters
-    ----------
-    robot : Robot
-        Vehicle, drive train and encoders.
-    dt : float
-        Step period, s.
-    table : TwistTable, optional
-        Dynamics of ``robot.vehicle`` (built when not given).
-    pose0 : tuple of float
-        Start pose ``(x, y, theta)``.
-
     """
 
     def __init__(self, robot: Robot, dt: float, table: TwistTable | None = None,
@@ -221,24 +153,9 @@ class LiveSimulator:
 
     def step(self, left: float, right: float) -> SimState:
         """
-        Advance by one period with the commanded nominal track speeds ``left``, ``right``.
+        Advance one period with commands ``left``, ``right`` (m/s); return the :class:`SimState`.
 
-        Parameters
-        ----------
-        left, right : float
-            Commands in force over the step, m/s; must be finite (the drive train limits
-            their size).
-
-        Returns
-        -------
-        SimState
-            The state at the end of the step.
-
-        Raises
-        ------
-        ValueError
-            On a non-finite command (the state is left as it was).
-
+        Raises ValueError on a non-finite command (the state is left as it was).
         """
         left, right = float(left), float(right)
         if not (math.isfinite(left) and math.isfinite(right)):
@@ -259,26 +176,10 @@ class LiveSimulator:
 
     def step_many(self, commands) -> Steps:
         """
-        Take one step per row of ``commands``, vectorised over the steps.
+        Take one step per row of ``commands`` (n, 2; m/s), vectorised; return :class:`Steps`.
 
-        The same as calling :meth:`step` on each row (to rounding): the drive train runs
-        sample by sample, the dynamics and the arc integration on all steps at once, which
-        is what makes a simulation many times faster than real time cheap.
-
-        Parameters
-        ----------
-        commands : array_like, shape (n, 2)
-            Commanded nominal track speeds (left, right) of each step, m/s; finite.
-
-        Returns
-        -------
-        Steps
-
-        Raises
-        ------
-        ValueError
-            On a non-finite command or a wrong shape (no step is taken then).
-
+        Equal to :meth:`step` per row to rounding. Raises ValueError on a non-finite command or a
+        wrong shape (no step is taken then).
         """
         commands = np.asarray(commands, dtype=float).reshape(-1, 2)
         if not np.all(np.isfinite(commands)):
@@ -317,12 +218,7 @@ def _sinc(x: float) -> float:
 
 
 def _arc_step(pose, dx: float, dy: float, dtheta: float) -> tuple:
-    """
-    Pose after one arc of body increments, on floats.
-
-    :func:`~tracked_kinematics.core.integration.integrate` for one step, operation for
-    operation (so a run stepped one by one is the run it integrates at once).
-    """
+    """Pose after one arc of body increments, on floats, as :func:`.integration.integrate`."""
     s = _sinc(dtheta / math.pi)
     c = 0.5 * dtheta * _sinc(dtheta / (2.0 * math.pi)) ** 2
     chord_x, chord_y = s * dx - c * dy, c * dx + s * dy
@@ -337,19 +233,8 @@ class SetpointHold:
     """
     The setpoint in force for one track: the last valid one, or zero once it is stale.
 
-    A setpoint is stale when it is older than ``timeout`` both in simulated and in wall time:
-    a publisher paced on the wall clock (cmd_vel_translator) sends fewer setpoints per
-    simulated second when the simulation runs faster than real time, and a stall of a loaded
-    machine must not cut it off; one that has died stops the robot after ``timeout`` of
-    whichever clock is slower.
-
-    Parameters
-    ----------
-    timeout : float
-        s; ``inf`` for none.
-    limit : float
-        Largest magnitude taken, m/s: a larger finite value is clamped to it.
-
+    Stale: older than ``timeout`` (s) in both simulated and wall time, so a wall-paced publisher
+    survives a fast simulation and a dead one stops the robot. ``limit`` (m/s) clamps.
     """
 
     def __init__(self, timeout: float, limit: float):
@@ -360,12 +245,7 @@ class SetpointHold:
         self._wall = -math.inf
 
     def take(self, value, sim_t: float, wall_t: float) -> str | None:
-        """
-        Take a setpoint received at ``sim_t`` / ``wall_t``; return a problem, or None.
-
-        A non-finite value is ignored (the last good one holds); a finite one beyond
-        ``limit`` is clamped to it. Either way the returned text says what was done.
-        """
+        """Take a setpoint received at ``sim_t`` / ``wall_t``; return what was wrong, or None."""
         try:
             value = float(value)
         except (TypeError, ValueError):

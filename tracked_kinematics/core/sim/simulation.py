@@ -1,28 +1,9 @@
 """
 Trajectory simulation of a tracked vehicle: commands -> drive train -> dynamics -> sensors.
 
-The chain, for track-speed commands sampled every ``dt``:
-
-1. the drive train (:mod:`.drivetrain`) turns the commanded (nominal) speeds into the speeds
-   the drives achieve, as their encoders measure them;
-2. encoder scale errors make the true track speeds ``scale * nominal`` (Martinez eqs. 20-21);
-3. the stationary dynamic model (:mod:`.dynamics`) gives the body twist of the true speeds,
-   held over each step;
-4. the pose is integrated exactly along arcs (:func:`.integration.integrate_twist`);
-5. sensors: joint positions (sprocket angles, quantised to encoder ticks, optional noise),
-   joint velocities (optional noise), and ground-truth poses at their own rate with noise.
-
-The stationary solver costs milliseconds per call, far too much at 100 Hz over minutes, so
-:class:`TwistTable` precomputes it. It is parameterised by the direction of the track-speed
-vector, ``phi = atan2(V_r, V_l)``, and its length ``S = hypot(V_l, V_r)``: the twist divided
-by ``S`` is a smooth, periodic function of ``phi`` (straight driving is ``phi = pi/4`` or
-``-3 pi/4``, an ordinary interior point, unlike the speed ratio or the curvature, which blow
-up in spins or at standstill), and without inertia it does not depend on ``S`` at all
-(the model is homogeneous). With load transfer the dependence on ``S`` enters through the
-centripetal acceleration, ``~ S^2``: the table then has a few speed levels equally spaced in
-``S^2``. The table is interpolated by cubic splines in ``phi`` (periodic) and ``S^2``.
-
-Everything random takes a ``numpy.random.Generator``, so runs are reproducible from a seed.
+Drive train, encoder scales (Martinez eqs. 20-21), the stationary dynamics through a precomputed
+:class:`TwistTable`, exact arcs, then the sensors; everything random takes a
+``numpy.random.Generator``. See docs/tools/simulate_bag.md, "The simulation chain".
 """
 
 from __future__ import annotations
@@ -45,22 +26,9 @@ class TwistTable:
     """
     Precomputed stationary response: true track speeds -> body twist, vectorised.
 
-    Parameters
-    ----------
-    vehicle : Vehicle
-        Vehicle and soil.
-    n_angles : int
-        Directions ``phi`` tabulated over the full circle.
-    n_speeds : int
-        Speed levels (only for a vehicle with load transfer; 1 otherwise).
-    solver : StationarySolver, optional
-        Solver (default: one with the default grid).
-
-    Raises
-    ------
-    RuntimeError
-        When the solver fails at a table point (the message gives the speeds).
-
+    Tabulated over ``n_angles`` directions ``atan2(V_r, V_l)`` and, with load transfer,
+    ``n_speeds`` levels of ``V_l^2 + V_r^2``; cubic splines in between. Raises RuntimeError when
+    the solver fails at a table point.
     """
 
     def __init__(self, vehicle: Vehicle, n_angles: int = 144, n_speeds: int = 8,
@@ -106,21 +74,7 @@ class TwistTable:
                                                  kx=order, ky=3) for k in range(3)]
 
     def __call__(self, v_left, v_right):
-        """
-        Body twist for true track speeds.
-
-        Parameters
-        ----------
-        v_left, v_right : array_like
-            True track speeds, m/s. Speeds beyond the table are treated as its largest
-            level (the drive train's speed limit keeps them inside).
-
-        Returns
-        -------
-        v_x, v_y, w : ndarray
-            Body twist in base_link: m/s, m/s, rad/s.
-
-        """
+        """Body twist ``v_x, v_y, w`` for true track speeds (m/s; clamped to the table)."""
         v_left, v_right = np.broadcast_arrays(np.asarray(v_left, float),
                                               np.asarray(v_right, float))
         shape = v_left.shape
@@ -148,12 +102,10 @@ class Encoders:
     ticks_per_revolution : float
         Encoder ticks per sprocket revolution (after gearing); 0 for no quantisation.
     scale_left, scale_right : float
-        True track speed = scale x nominal (Martinez eqs. 20-21): worn tracks, a radius that
-        is not quite the nominal one.
-    position_noise : float
-        Standard deviation of white noise added to the reported joint positions, rad.
-    velocity_noise : float
-        Standard deviation of white noise added to the reported joint velocities, rad/s.
+        True track speed = scale x nominal (Martinez eqs. 20-21).
+    position_noise, velocity_noise : float
+        Standard deviations of white noise on the reported joint positions (rad) and
+        velocities (rad/s).
 
     """
 
@@ -172,19 +124,7 @@ class Encoders:
 
 @dataclass(frozen=True, slots=True)
 class GroundTruth:
-    """
-    Ground-truth pose sensor (motion capture, RTK GPS, scan matching).
-
-    Attributes
-    ----------
-    rate : float
-        Samples per second, Hz.
-    position_noise : float
-        Standard deviation of white noise on x and y, m.
-    yaw_noise : float
-        Standard deviation of white noise on the heading, rad.
-
-    """
+    """Ground-truth pose sensor: ``rate`` (Hz), white noise on x, y (m) and heading (rad)."""
 
     rate: float = 10.0
     position_noise: float = 0.0
@@ -196,19 +136,7 @@ class GroundTruth:
 
 @dataclass(frozen=True)
 class Robot:
-    """
-    Everything the simulator needs about one vehicle on one terrain.
-
-    Attributes
-    ----------
-    vehicle : Vehicle
-        Geometry, mass, centre of mass, friction, speed limit.
-    drivetrain : DriveTrain
-        Command -> speed response of each track.
-    encoders : Encoders
-        Sprocket encoders.
-
-    """
+    """Everything the simulator needs about one vehicle on one terrain."""
 
     vehicle: Vehicle
     drivetrain: DriveTrain = field(default_factory=DriveTrain)
@@ -216,11 +144,9 @@ class Robot:
 
     def true_icr(self, n: int = 21, weighting: str = 'uniform') -> IcrParams:
         """
-        Averaged constant-ICR model of the vehicle with its encoder scales.
+        Averaged constant-ICR model (Martinez sec. 5.2) with the encoders' scales.
 
-        The tread ICRs averaged over the ``n x n`` stationary map (Martinez sec. 5.2), with
-        ``scale_left``, ``scale_right`` of the encoders: the terrain model an identification
-        from this robot's encoders should approach.
+        The terrain model an identification from this robot's encoders should approach.
         """
         icr = averaged_icr(icr_map(self.vehicle, n), weighting)
         return IcrParams(icr.track_width, icr.y_left, icr.y_right, icr.x,
@@ -230,32 +156,20 @@ class Robot:
 @dataclass(frozen=True)
 class Run:
     """
-    One simulated run.
-
-    Sample ``k`` is at time ``t[k]``; step ``k`` goes from ``t[k]`` to ``t[k + 1]``.
+    One simulated run: sample ``k`` at ``t[k]`` (s), step ``k`` from ``t[k]`` to ``t[k + 1]``.
 
     Attributes
     ----------
-    t : ndarray, shape (N,)
-        Sample times from 0, s (encoder rate).
-    commands : ndarray, shape (N, 2)
-        Commanded nominal track speeds (left, right) in force at each sample, m/s.
-    nominal : ndarray, shape (N, 2)
-        Track speeds achieved by the drives, as encoders measure them, m/s.
-    true_speeds : ndarray, shape (N, 2)
-        True track speeds ``scale * nominal``, m/s.
+    commands, nominal, true_speeds : ndarray, shape (N, 2)
+        Commanded, achieved (as encoders measure) and true (``scale * nominal``) track speeds.
     twist : ndarray, shape (N - 1, 3)
-        Body twist held over each step, ``(v_x, v_y, w)``.
+        Body twist held over each step.
     pose : ndarray, shape (N, 3)
-        True pose ``(x, y, theta)`` at each sample (theta continuous, not wrapped).
+        True pose (theta continuous).
     joint_position, joint_velocity : ndarray, shape (N, 2)
-        What the encoders report (left, right): rad, rad/s.
-    gt_t : ndarray, shape (G,)
-        Ground-truth sample times, s.
-    gt_pose : ndarray, shape (G, 3)
-        Ground-truth poses with noise (theta wrapped to [-pi, pi)).
-    gt_pose_true : ndarray, shape (G, 3)
-        The same without noise (theta continuous).
+        What the encoders report: rad, rad/s.
+    gt_t, gt_pose, gt_pose_true : ndarray
+        Ground-truth times and poses with noise (theta wrapped) and without (continuous).
 
     """
 
@@ -283,12 +197,9 @@ class Run:
 
     def best_constant_icr(self, track_width: float) -> IcrParams | None:
         """
-        Constant tread ICRs that best explain this run's true twists (scales 1).
+        Constant tread ICRs that best fit this run's true twists (least squares), or None.
 
-        Least squares of the inverse kinematics ``V = v_x - y w`` per track and of
-        ``v_y = -x w`` over the steps, in closed form (``y = sum w (v_x - V) / sum w^2``):
-        what an identification on perfect data of this run would find. None when the run
-        never turns.
+        What an identification on perfect data would find; None when the run never turns.
         """
         mean = 0.5 * (self.true_speeds[1:] + self.true_speeds[:-1])
         v_x, v_y, w = self.twist.T
@@ -315,24 +226,17 @@ def simulate(robot: Robot, commands, dt: float, table: TwistTable | None = None,
     robot : Robot
         Vehicle, drive train and encoders.
     commands : array_like, shape (N, 2)
-        Commanded nominal track speeds (left, right), m/s, one per encoder sample, held over
-        the step. The drives start at rest.
+        Commanded nominal track speeds, m/s, one per encoder sample of period ``dt`` (s).
     dt : float
         Encoder sample period, s.
     table : TwistTable, optional
-        Precomputed dynamics of ``robot.vehicle`` (built when not given; reuse it across
-        runs, it is the costly part).
+        Precomputed dynamics of ``robot.vehicle``; reuse it across runs (it is the costly part).
     ground_truth : GroundTruth, optional
-        Ground-truth sensor (default: 10 Hz, no noise).
+        Default: 10 Hz, no noise.
     rng : numpy.random.Generator, optional
-        Source of the sensor noise and of the encoders' initial tick phase (default: seeded
-        with 0, so that a run is reproducible).
+        Sensor noise and the initial tick phase (default: seeded with 0).
     pose0 : tuple of float
         Start pose ``(x, y, theta)``.
-
-    Returns
-    -------
-    Run
 
     """
     commands = np.asarray(commands, dtype=float)
