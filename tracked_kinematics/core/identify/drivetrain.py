@@ -1,36 +1,10 @@
 """
 Identify the drive train (Fink & Stump sec. III-B) from commanded and measured track speeds.
 
-The model is :class:`~tracked_kinematics.core.drivetrain.DriveTrain`: a command delay
-``tau``, an acceleration limit ``a_max`` and a closed speed loop (a first-order lag, or the
-PID + DC motor loop of eqs. 6-8), the same for both tracks. Its parameters are found by least
-squares on the simulated response, as Fink & Stump fit theirs (sec. IV-A: "least squares fit
-of the simulated to the measured speeds"; the exact procedure is not given, this is ours):
-
-1. Both series are resampled onto a common grid of period ``dt``, the commands as held
-   setpoints and the measured speeds linearly, cut at gaps (:func:`.drive_data.resample`).
-2. The delay is not a smooth parameter (the model holds it to whole samples), so it is found
-   by search: the rate limiter and the loop are time-invariant, so they commute with the
-   delay, and the response for every candidate delay is the zero-delay response shifted by
-   whole samples. One simulation thus scores every delay in ``[0, max_delay]``.
-3. With the delay fixed, ``scipy.optimize.least_squares`` fits the smooth parameters: the
-   time constant ``T`` (or the PID gains), and ``u = 1 / a_max`` (``u = 0`` is no limit, a
-   bound the optimiser can reach).
-4. Steps 2 and 3 alternate until the delay stops changing. The delay and the loop's lag
-   trade off, so the search then walks the profile cost (the least-squares optimum at each
-   delay) to its minimum over neighbouring delays, a bracket search on whole samples.
-
-What speed data can identify. The loop of eq. (8),
-``K (K_d s^2 + K_p s + K_i) / (J L s^3 + (J R + b L + K K_d) s^2 + (b R + K^2 + K K_p) s
-+ K K_i)``, divided through by ``J L``, has five coefficients: ``K K_p / (J L)``,
-``K K_i / (J L)``, ``K K_d / (J L)``, ``R / L + b / J`` and ``(b R + K^2) / (J L)``. A
-measured speed response can fix at most these five, never the eight constants
-``K_p, K_i, K_d, J, b, R, L, K``: for instance ``(J, L, R, b) -> (c J, L / c, R / c, c b)``
-leaves the loop unchanged for any ``c > 0``. We therefore hold the five motor constants fixed
-(from a base file, else Fink & Stump Table II) and fit the three gains, which then map one
-to one onto the first three coefficients. Table II's ``K_i`` puts a pole at -0.018 rad/s, a
-time constant of about a minute: only long steady runs inform it, and its standard error
-says so.
+Least squares on the simulated response (the paper's words; the procedure is ours): the delay by a
+search over whole samples, the smooth parameters by ``least_squares``, alternated. Only three PID
+gains are identifiable with the motor constants fixed. See docs/tools/identify_drivetrain.md, "How
+it fits" and "What is identifiable".
 """
 
 from __future__ import annotations
@@ -66,53 +40,18 @@ class DriveTrainFit:
     ----------
     drivetrain : DriveTrain
         The identified model (``max_accel`` is ``inf`` when the limit never binds).
-    loop : str
-        One of :data:`LOOP_KINDS`.
-    parameters : dict
-        Fitted values by name: ``delay`` (s), ``max_accel`` (m/s^2), ``time_constant`` (s)
-        or ``kp``, ``ki``, ``kd``.
-    standard_errors : dict
-        One-sigma errors from the Jacobian (residuals taken as white, so optimistic);
-        ``delay``'s is the delete-one-block jackknife of the best delay over blocks of
-        :data:`DELAY_BLOCK` seconds (the smooth parameters at their fit), combined with the
-        grid's own half sample (the delay is a whole number of samples):
-        ``delay_uncertainty`` says which. With the smooth parameters held, it leaves out
-        the trade-off of the delay with the loop's lag (``delay_profile`` shows that).
-    fixed : dict
-        Constants held fixed (the motor constants of ``pid_dc_motor``).
-    rms : float
-        RMS error of the simulated against the measured speeds, m/s.
-    rms_commands : float
-        The same with the commands taken as the speeds (no drive-train model), m/s.
+    parameters, standard_errors : dict
+        Fitted values by name (``delay`` s, ``max_accel`` m/s^2, ``time_constant`` s or
+        ``kp, ki, kd``) and one-sigma errors (Jacobian, optimistic; the delay's as
+        ``delay_uncertainty`` says).
+    rms, rms_commands : float
+        RMS error of the simulated speeds, and of the commands taken as speeds, m/s.
     fit_percent : float
         ``100 (1 - |error| / |speeds - mean|)``, as system identification tools report it.
-    accel_limit_binding : float
-        Fraction of samples where the fitted acceleration limit shapes the demand.
-    max_command_accel : float
-        Largest rate of change of the commands on the grid, m/s^2.
-    dt : float
-        Grid period, s.
-    samples : int
-        Grid samples (per track) in the cost.
-    seconds_of_data : float
-        Duration of those samples, s.
-    segments : list of Segment
-        The resampled data.
     delay_profile : tuple of ndarray
         Candidate delays (s) and the RMS error of each, other parameters at their fit.
-    rounds : int
-        Delay / least-squares alternations.
-    delays_fitted : int
-        Delays at which the smooth parameters were fitted (alternation and profile walk).
-    delay_uncertainty : str
-        How ``standard_errors['delay']`` was obtained.
     delay_at_zero : bool
-        The best delay is 0, the lower end of the search: the loop's lag may absorb the
-        delay, or the measured speeds lead the setpoint stamps (setpoints stamped late).
-    nfev : int
-        Simulations run.
-    seconds : float
-        Wall time of the fit, s.
+        The best delay is 0: the lag may absorb it, or the setpoints are stamped late.
 
     """
 
@@ -241,15 +180,10 @@ def _defaults_motor(base: DriveTrain | None) -> PidMotor:
 
 def _delay_std(blocks, lag: int, dt: float):
     """
-    Return the best delay's standard error: a delete-one-block jackknife and the grid.
+    Return the best delay's standard error: a block jackknife plus the grid's half sample.
 
-    ``blocks`` (K, 3) holds each block's squared errors at the delays ``lag - 1``, ``lag``
-    and ``lag + 1``, each with the smooth parameters fitted at it (the profile); each
-    jackknife estimate is the minimum of the parabola through the three, within one sample.
-    None (the best delay at an end of the search, a loop that goes unstable): the grid's
-    half sample alone. The half sample stays in any case: the model holds the delay to whole
-    samples, and its discrete simulation is off the continuous truth by up to about one
-    (on simulated data the best delay lands one sample from the true one).
+    ``blocks`` (K, 3) are each block's squared errors at ``lag - 1, lag, lag + 1``; each estimate
+    is the parabola's minimum. None (delay at an end, unstable loop): the grid alone.
     """
     grid = 0.5 * dt
     if blocks is None or len(blocks) < MIN_DELAY_BLOCKS:
@@ -282,28 +216,21 @@ def fit_drivetrain(data: DriveData | Sequence[DriveData], loop: str = 'first_ord
     data : DriveData or sequence of DriveData
         Recordings; both tracks of all of them share one model.
     loop : {'first_order', 'pid_dc_motor', 'ideal'}
-        Speed loop to fit: a lag ``1 / (T s + 1)``; the PID gains of eq. (8) with the motor
-        constants of ``base`` (else Table II) fixed; or none.
+        A lag ``1 / (T s + 1)``; the PID gains of eq. (8) with ``base``'s (else Table II's)
+        motor constants fixed; or none.
     dt : float, optional
-        Grid period, s; default the median period of the measured speeds, within
-        [0.002, 0.02] s. It is also the resolution of the delay.
-    max_delay : float
-        Largest delay searched, s.
-    max_gap : float
-        Longest gap bridged in either stream, s.
+        Grid period and delay resolution, s; default the median measured period in [2, 20] ms.
+    max_delay, max_gap : float
+        Largest delay searched and longest gap bridged, s.
     base : DriveTrain, optional
-        Starting point and fixed motor constants (``pid_dc_motor``).
+        Starting point and fixed motor constants.
     max_rounds : int
         Most delay / least-squares alternations before the profile walk.
-
-    Returns
-    -------
-    DriveTrainFit
 
     Raises
     ------
     ValueError
-        Malformed inputs or options (shapes, lengths).
+        Malformed inputs or options.
     TrackedKinematicsError
         Commands and measured speeds that do not overlap in time.
     ExcitationError

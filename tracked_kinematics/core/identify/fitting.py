@@ -1,14 +1,9 @@
 """
 Fit a motion model to segments: robust, bounded least squares of Martinez eq. (17).
 
-The cost and its Jacobian are :class:`.problem.SegmentProblem` (Fink & Stump sec. III-A,
-eq. 4); the fit is robust (soft-L1 loss with a scale from the median absolute residual),
-bounded (:func:`.search_space.bounds`: ``0 < chi <= 1``, scales > 0), and checks from the
-standard errors of its parameters that the data identify what it fitted. The heading weight
-``lambda`` of eq. (17) is fixed (default :data:`.problem.DEFAULT_HEADING_WEIGHT`) or, on
-request, balances the noise of the residuals (:func:`auto_heading_weight`). Martinez
-searched with a genetic algorithm; differential evolution is offered in its place, for
-comparison.
+Soft-L1 loss, bounds from :func:`.search_space.bounds`, a check from the standard errors that the
+data identify each parameter; differential evolution stands in for Martinez's genetic algorithm.
+See docs/tools/identify_icr.md, "How it fits".
 """
 
 from __future__ import annotations
@@ -40,12 +35,10 @@ def _mad_sigma(values) -> float:
 
 def auto_heading_weight(residuals, lo: float = 0.25, hi: float = 4.0) -> float:
     """
-    Heading weight that puts position and heading residuals on one noise scale, m/rad.
+    Heading weight ``lambda`` (m/rad) that puts position and heading residuals on one noise scale.
 
-    ``lambda = sigma_position / sigma_heading`` from robust (median absolute deviation)
-    spreads of unweighted residuals (``residuals`` with ``lambda = 1``), clipped to
-    [``lo``, ``hi``]: eq. (17) then weighs each residual by its own noise, as maximum
-    likelihood would. Martinez's unweighted sum is ``lambda = 1``.
+    ``sigma_position / sigma_heading`` (median absolute deviations of residuals at ``lambda = 1``),
+    clipped to [``lo``, ``hi``]; Martinez's unweighted sum is ``lambda = 1``.
     """
     r = np.asarray(residuals, dtype=float).reshape(-1, 3)
     sigma_pos = _mad_sigma(r[:, :2].ravel())
@@ -58,35 +51,19 @@ def auto_heading_weight(residuals, lo: float = 0.25, hi: float = 4.0) -> float:
 @dataclass
 class FitResult:
     """
-    A fitted model and how well it fits.
+    A fitted model ``p`` and how well it fits.
 
     Attributes
     ----------
-    model : MotionModel
-        The model.
-    p : ndarray
-        Fitted parameters.
-    method, loss : str
-        Optimiser and loss.
     heading_weight, f_scale : float
         ``lambda`` (m/rad) and the robust loss scale used.
-    cost : float
-        Final cost (:func:`robust_cost` of the weighted residuals).
     rms_position, rms_heading : float
-        Root mean square of the inlier position (m) and heading (rad) residuals.
+        RMS of the inlier position (m) and heading (rad) residuals.
     segments, inliers : int
         Segments fitted, and those whose residuals are all within 3 ``f_scale``.
-    std : ndarray
-        Standard errors of the parameters (inf when not identified).
-    sigma : float
-        The residual noise behind ``std``: root mean square of the weighted inlier residuals
-        per degree of freedom (m, heading counted through ``heading_weight``).
-    nfev : int
-        Cost evaluations.
-    seconds : float
-        Wall time of the fit.
-    message : str
-        The optimiser's last word.
+    std, sigma : ndarray, float
+        Standard errors (inf: not identified) and the residual noise per degree of freedom
+        they are scaled by.
 
     """
 
@@ -119,11 +96,7 @@ class FitResult:
 
 
 def _standard_errors(jac, residuals, inlier_rows, with_sigma=False):
-    """
-    Compute standard errors from the Jacobian and inlier residuals (inf: unidentified).
-
-    With ``with_sigma``, also return the residual noise they are scaled by.
-    """
+    """Compute standard errors from the Jacobian and inlier residuals (inf: unidentified)."""
     n_params = jac.shape[1]
     jac = jac[inlier_rows]
     variance = float(np.sum(residuals[inlier_rows] ** 2)) / max(len(jac) - n_params, 1)
@@ -163,22 +136,9 @@ class Uncertain:
     """
     A parameter the data determine, with a standard error beyond its limit.
 
-    Attributes
-    ----------
-    name : str
-        Its ROS name (``scale.left``, ``icr.y_left``, ...).
-    std, limit : float
-        Its standard error and the limit (:data:`STD_LIMITS`).
-    cause : str
-        ``'noise'``: the driving would determine it within the limit with ground truth of
-        :data:`REFERENCE_RESIDUAL`; the residuals (ground-truth noise, and slip the model
-        does not capture) blur it. ``'excitation'``: too little of the driving that
-        determines it (``need``), for this noise.
-    need : str
-        ``'turning'`` or ``'straight driving'``.
-    reference_std : float
-        Its standard error with residuals of :data:`REFERENCE_RESIDUAL`.
-
+    ``cause`` is ``'noise'`` (it would be within the limit with residuals of
+    :data:`REFERENCE_RESIDUAL`, its ``reference_std``) or ``'excitation'`` (too little of the
+    driving in ``need``: ``'turning'`` or ``'straight driving'``).
     """
 
     name: str
@@ -218,24 +178,8 @@ def check_identified(result: FitResult, accept_uncertain: bool = False) -> list[
     """
     Check from the standard errors that the data pin down each ICR and scale parameter.
 
-    A parameter the data cannot determine at all (a rank-deficient fit: infinite standard
-    error) is refused. A parameter determined but uncertain (standard error beyond
-    :data:`STD_LIMITS`) is refused too, unless ``accept_uncertain``; the message says
-    whether the ground-truth noise or too little driving of its kind is the cause
-    (:class:`Uncertain`).
-
-    Returns
-    -------
-    list of Uncertain
-        The uncertain parameters accepted (empty when all are within their limits).
-
-    Raises
-    ------
-    ExcitationError
-        For a parameter that is not determined.
-    UncertainError
-        For uncertain parameters, unless ``accept_uncertain``.
-
+    Returns the uncertain parameters accepted (``accept_uncertain``). Raises ExcitationError for
+    one not determined at all, UncertainError for one beyond :data:`STD_LIMITS`.
     """
     model = result.model
     ratio = result.sigma / REFERENCE_RESIDUAL if result.sigma > 0 else 0.0
@@ -282,33 +226,26 @@ def fit(model: MotionModel, segments: Segments, *, p0=None, method: str = 'lsq',
     model : MotionModel
         What to fit.
     segments : Segments
-        The data (stationary segments should already be removed).
+        The data, stationary segments removed.
     p0 : array_like, optional
-        Starting point; default :func:`initial_guess`. Clipped into :func:`bounds`.
+        Starting point (default :func:`initial_guess`), clipped into :func:`bounds`.
     method : {'lsq', 'de'}
-        ``'lsq'``: trust-region least squares with the analytic Jacobian
-        (:meth:`SegmentProblem.jacobian`). ``'de'``: scipy's differential evolution over
-        :func:`search_box`, the derivative-free global search in the spirit of the paper's
-        genetic algorithm; much slower, offered for comparison.
+        Trust-region least squares with the analytic Jacobian, or differential evolution
+        over :func:`search_box` (slow; the paper's genetic algorithm's counterpart).
     heading_weight : float or None
-        ``lambda``, m/rad, a finite number > 0 (:func:`.problem.check_heading_weight`);
-        default :data:`.problem.DEFAULT_HEADING_WEIGHT`. None: :func:`auto_heading_weight`
-        of the unweighted residuals at the start of each round.
+        ``lambda``, m/rad, > 0; None: :func:`auto_heading_weight` at the start of each round.
     loss : str
-        One of :data:`LOSSES`; soft-L1 by default, so that ground-truth glitches do not pull
-        the fit.
+        One of :data:`LOSSES` (soft-L1 by default).
     f_scale : float, optional
-        Loss scale. Default: twice the robust standard deviation of the weighted residuals
-        at the start of each round.
+        Loss scale; default twice the robust std of the weighted residuals, per round.
     max_nfev : int, optional
-        Evaluation budget per round (least squares). Default 100 x (parameters + 1).
+        Evaluation budget per round; default 100 x (parameters + 1).
     rounds : int
         Rounds of (re)estimating ``lambda`` and ``f_scale`` then fitting, warm-started.
     seed : int
         Seed of the differential evolution.
     check : bool
-        Raise :class:`ExcitationError` when a parameter is not identified (its standard
-        error is beyond :data:`STD_LIMITS`).
+        Apply :func:`check_identified`.
 
     Raises
     ------

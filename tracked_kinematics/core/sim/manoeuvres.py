@@ -1,16 +1,8 @@
 """
-Manoeuvre sets: commanded track speeds for simulated runs.
+Manoeuvre sets: commanded nominal track speeds ``(N, 2)`` (m/s) for simulated runs.
 
-Every generator returns an array of shape ``(N, 2)`` of commanded nominal track speeds
-(left, right) in m/s, one per command period ``dt``, held in between, starting and ending at
-rest. Random ones take a ``numpy.random.Generator`` and are reproducible from its seed.
-
-- :func:`random_drive`: manual-like driving, smooth random joystick motions (straights, arcs,
-  sharp turns, spins, stops, some reversing).
-- :func:`fink_stump_sweep`: the trapezoidal speed x curvature grid of Fink & Stump sec. IV-B.
-- :func:`spin_in_place`: equal and opposite track speeds at several levels, both ways
-  (Martinez sec. 4.2, eq. 16).
-- :func:`mixed`: a reproducible shuffle of the three, for identification data.
+One row per command period, held, from rest to rest; random sets take a ``numpy.random.Generator``.
+See docs/tools/simulate_bag.md, "Manoeuvres".
 """
 
 from __future__ import annotations
@@ -38,32 +30,11 @@ def _limit(speeds, max_speed):
 def random_drive(duration: float, dt: float, max_speed: float, rng: np.random.Generator,
                  smoothing: float = 0.4) -> np.ndarray:
     """
-    Manual-like driving: a sequence of random joystick gestures, smoothed.
+    Manual-like driving over ``duration`` s: random joystick gestures, smoothed.
 
-    Each gesture lasts 1-6 s and asks for a pair of track speeds: the outer track at 30-100 %
-    of ``max_speed`` and the inner one at a random ratio of it, drawn from a mixture of
-    straights (ratio ~1), gentle and tight arcs (0 to 0.95), pivots (-0.6 to 0), spins (-1)
-    and stops; one gesture in six drives backwards. The piecewise-constant requests pass
-    through a first-order filter of time constant ``smoothing`` (a hand moves the stick in a
-    fraction of a second), and the run ends with a stop of ``5 x smoothing``.
-
-    Parameters
-    ----------
-    duration : float
-        Length, s.
-    dt : float
-        Command period, s.
-    max_speed : float
-        Largest track speed, m/s.
-    rng : numpy.random.Generator
-        Random source.
-    smoothing : float
-        Time constant of the stick filter, s.
-
-    Returns
-    -------
-    ndarray, shape (round(duration / dt), 2)
-
+    Gestures of 1-6 s (straights, arcs, pivots, spins, stops, one in six backwards) with the outer
+    track at 30-100 % of ``max_speed`` (m/s), through a first-order filter of time constant
+    ``smoothing`` (s); the run ends with a stop of ``5 x smoothing``.
     """
     n = _samples(duration, dt)
     targets = np.zeros((n, 2))
@@ -93,28 +64,7 @@ def random_drive(duration: float, dt: float, max_speed: float, rng: np.random.Ge
 
 
 def trapezoid(duration: float, peak: float, rate: float, dt: float) -> np.ndarray:
-    """
-    Trapezoidal profile from 0 to ``peak`` and back to 0 at ``rate`` per second.
-
-    When ``duration`` is too short to reach ``peak``, the profile is a triangle that turns
-    back at half time.
-
-    Parameters
-    ----------
-    duration : float
-        Length, s.
-    peak : float
-        Travelling value (signed).
-    rate : float
-        Slope of the ramps, > 0 (unit of ``peak`` per second).
-    dt : float
-        Sample period, s.
-
-    Returns
-    -------
-    ndarray, shape (round(duration / dt),)
-
-    """
+    """Trapezoid 0 -> ``peak`` -> 0 at ``rate`` per s over ``duration`` s (or a triangle)."""
     t = (np.arange(_samples(duration, dt)) + 0.5) * dt
     ramp = rate * np.minimum(t, duration - t)
     return np.sign(peak) * np.minimum(abs(peak), ramp)
@@ -126,43 +76,10 @@ def fink_stump_sweep(dt: float, track_width: float, max_speed: float, speeds=Non
     """
     Trapezoidal speed x curvature sweep of Fink & Stump, sec. IV-B.
 
-    For every pair ``(v_trav, kappa_trav)`` whose faster track stays within ``max_speed``,
-    the forward speed follows a trapezoid (0 -> ``v_trav`` -> 0 at ``accel``) and the
-    curvature another one (0 -> ``kappa_trav`` -> 0 at ``curvature_rate``), for a path of
-    about ``path_length``; the tracks get the ideal-drive speeds ``v (1 -+ kappa B / 2)``.
-    The vehicle rests ``pause`` seconds between trajectories. The paper's Packbot grid is
-    ``v_trav = 0.5, 0.6, ..., 2.0`` m/s and ``kappa_trav = +-1/4, +-1/2, +-3/4, +-1, +-3/2,
-    +-2`` 1/m, with ``a = 5`` m/s^2 and ``a_kappa = 1`` 1/(m s): the defaults here, the
-    speeds scaled to the vehicle (``0.25 .. 1 x max_speed`` in 16 steps).
-
-    Parameters
-    ----------
-    dt : float
-        Command period, s.
-    track_width : float
-        ``B``, m.
-    max_speed : float
-        Largest track speed, m/s.
-    speeds, curvatures : array_like, optional
-        Travelling speeds (m/s) and curvatures (1/m).
-    path_length : float
-        Approximate length of each trajectory, m.
-    accel : float
-        Speed ramp, m/s^2.
-    curvature_rate : float
-        Curvature ramp, 1/(m s).
-    pause : float
-        Rest between trajectories, s.
-
-    Returns
-    -------
-    ndarray, shape (N, 2)
-
-    Raises
-    ------
-    ValueError
-        When no pair of the grid respects ``max_speed``.
-
+    Each ``(v_trav, kappa_trav)`` (m/s, 1/m) whose faster track is within ``max_speed`` gives a
+    path of about ``path_length`` m with trapezoids at ``accel`` (m/s^2) and ``curvature_rate``
+    (1/(m s)), tracks at ``v (1 -+ kappa B / 2)``, ``pause`` s between paths. Defaults: the paper's
+    Packbot grid, speeds scaled to ``max_speed``. ValueError if no pair fits.
     """
     if speeds is None:
         speeds = np.linspace(0.25, 1.0, 16) * max_speed
@@ -188,27 +105,9 @@ def fink_stump_sweep(dt: float, track_width: float, max_speed: float, speeds=Non
 def spin_in_place(dt: float, max_speed: float, levels=(0.25, 0.5, 0.75, 1.0),
                   hold: float = 4.0, pause: float = 1.0) -> np.ndarray:
     """
-    Spins in place: track speeds ``(-V, V)`` then ``(V, -V)`` held ``hold`` s per level.
+    Spins in place: ``(-V, V)`` then ``(V, -V)`` held ``hold`` s per level (Martinez eq. 16).
 
-    The experiment of Martinez sec. 4.2 (eq. 16) for the steering efficiency.
-
-    Parameters
-    ----------
-    dt : float
-        Command period, s.
-    max_speed : float
-        Largest track speed, m/s.
-    levels : sequence of float
-        Track speeds as fractions of ``max_speed``.
-    hold : float
-        Duration of each spin, s.
-    pause : float
-        Rest between spins, s.
-
-    Returns
-    -------
-    ndarray, shape (N, 2)
-
+    ``levels`` are fractions of ``max_speed`` (m/s); ``pause`` s of rest between spins.
     """
     rest = np.zeros((_samples(pause, dt), 2))
     pieces = [rest]
@@ -221,18 +120,7 @@ def spin_in_place(dt: float, max_speed: float, levels=(0.25, 0.5, 0.75, 1.0),
 
 def mixed(duration: float, dt: float, track_width: float, max_speed: float,
           rng: np.random.Generator) -> np.ndarray:
-    """
-    Mix random driving, sweep trajectories and spins, reproducibly, for identification.
-
-    Blocks are drawn until ``duration`` is filled: 20 s of :func:`random_drive` (45 %), one
-    random trajectory of :func:`fink_stump_sweep` (40 %) or one spin of
-    :func:`spin_in_place` at a random level and direction (15 %).
-
-    Returns
-    -------
-    ndarray, shape (round(duration / dt), 2)
-
-    """
+    """Mix random driving (45 %), sweep paths (40 %) and spins (15 %), for identification."""
     n = _samples(duration, dt)
     sweep = fink_stump_sweep(dt, track_width, max_speed, pause=0.5)
     # Split the sweep into its trajectories at the rests.
@@ -260,30 +148,9 @@ def mixed(duration: float, dt: float, track_width: float, max_speed: float,
 def manoeuvre(name: str, duration: float, dt: float, track_width: float, max_speed: float,
               rng: np.random.Generator) -> np.ndarray:
     """
-    Commands of a named manoeuvre set, filling ``duration``.
+    Commands of a named set (``'random'``, ``'sweep'``, ``'spin'``, ``'mixed'``) for ``duration``.
 
-    ``'random'`` and ``'mixed'`` are generated for the duration; ``'sweep'`` and ``'spin'``
-    are fixed sequences, repeated (Fink & Stump ran every trajectory twice) or cut to fit.
-
-    Parameters
-    ----------
-    name : {'random', 'sweep', 'spin', 'mixed'}
-        Manoeuvre set.
-    duration : float
-        Length, s.
-    dt : float
-        Command period, s.
-    track_width : float
-        m.
-    max_speed : float
-        Largest track speed, m/s.
-    rng : numpy.random.Generator
-        Random source.
-
-    Returns
-    -------
-    ndarray, shape (round(duration / dt), 2)
-
+    Fixed sequences are repeated (Fink & Stump ran every trajectory twice) or cut to fit.
     """
     n = _samples(duration, dt)
     if name == 'random':
