@@ -1,21 +1,9 @@
 """
 Gap-free pieces of a recording, and odometry along them.
 
-Every score of :mod:`.metrics` compares an odometry path with the ground truth between two
-ground-truth samples of one *piece*: a stretch where both streams run without a gap
-(:func:`~tracked_kinematics.core.identify.gap_threshold` of each: five median intervals, at
-least 0.2 s) and the ground truth does not jump. Jumps are identify_icr's
-(:func:`~tracked_kinematics.core.identify.segments.ground_truth_jumps`): a step longer than
-0.5 m plus the travel of the faster track over it (the count of
-../shared/realdata/README.md: a re-localising mapper, or one that falls behind and catches
-up), or a heading step 0.5 rad beyond the ideal drive's turn (a glitch). Nothing is scored
-across a gap or a jump; the odometry of a piece starts at its first ground-truth pose.
-
-Odometry integrates the encoder travel with constant tread ICRs (Martinez et al. 2005,
-eqs. 7-9, with the scales of eqs. 20-21) along exact arcs
-(:func:`~tracked_kinematics.core.integration.integrate`), on a grid of the encoder times
-and the ground-truth times (linear interpolation of the travel in between, as
-identify_icr), with parameters that may change from step to step (the online estimator's).
+Scores compare odometry with the ground truth only within a piece (no gap in either stream, no
+ground-truth jump, as identify_icr finds them); odometry integrates the travel with constant tread
+ICRs (Martinez et al. 2005, eqs. 7-9, 20-21) along exact arcs.
 """
 
 from __future__ import annotations
@@ -37,14 +25,10 @@ class Piece:
 
     Attributes
     ----------
-    recording : int
-        Index of the recording it comes from.
-    t : ndarray, shape (M,)
-        Ground-truth times, s.
-    truth : ndarray, shape (M, 3)
-        Ground-truth ``(x, y, yaw)``: m, m, rad (yaw unwrapped).
+    t, truth : ndarray, shape (M,), (M, 3)
+        Ground-truth times (s) and ``(x, y, yaw)`` (m, m, rad; yaw unwrapped).
     grid : ndarray, shape (K,)
-        Step boundaries: the encoder times and the ground-truth times of the piece, s.
+        Step boundaries: the encoder and ground-truth times of the piece, s.
     left, right : ndarray, shape (K,)
         Cumulative nominal travel of each track at the grid times, m.
     at : ndarray of int, shape (M,)
@@ -78,20 +62,7 @@ class Piece:
 
 @dataclass(frozen=True)
 class Cut:
-    """
-    How a recording was cut into pieces.
-
-    Attributes
-    ----------
-    pieces : list of Piece
-    gaps : int
-        Ground-truth intervals left out for a gap in either stream.
-    jumps : int
-        Ground-truth steps left out as jumps.
-    seconds : float
-        Time covered by the pieces, s.
-
-    """
+    """How a recording was cut: pieces, intervals left out (gaps, jumps), seconds covered."""
 
     pieces: list
     gaps: int
@@ -104,17 +75,7 @@ def cut(recording: Recording, index: int = 0, jumps: bool = True,
     """
     Cut a recording into gap-free, jump-free pieces of at least two ground-truth samples.
 
-    Parameters
-    ----------
-    recording : Recording
-        Encoders and ground truth on one clock (the ground-truth delay already taken off).
-    index : int
-        Its index, stored in the pieces.
-    jumps : bool
-        Cut at ground-truth jumps too (False: score across them).
-    track_width : float, optional
-        m, for the heading glitches of the jumps (without it, position jumps only).
-
+    ``jumps`` False scores across jumps; ``track_width`` (m) adds the heading glitches.
     """
     rec = recording
     keep = (rec.gt_t >= rec.enc_t[0]) & (rec.gt_t <= rec.enc_t[-1])
@@ -154,26 +115,7 @@ def cut(recording: Recording, index: int = 0, jumps: bool = True,
 
 
 def mean_track_speeds(piece: Piece, i, j) -> np.ndarray:
-    """
-    Mean track speed over windows of a piece: the nominal track travel, m/s.
-
-    The mean over the window from sample ``i`` to sample ``j`` of ``(|V_l| + |V_r|) / 2``:
-    half the summed absolute travel of both tracks over the grid steps of the window, divided
-    by its duration (a turn on the spot moves; a standstill does not).
-
-    Parameters
-    ----------
-    piece : Piece
-        The piece.
-    i, j : ndarray of int
-        First and last ground-truth sample of each window (``j > i``).
-
-    Returns
-    -------
-    ndarray
-        m/s, one per window.
-
-    """
+    """Mean of ``(|V_l| + |V_r|) / 2`` (m/s) over windows from sample ``i`` to ``j`` of a piece."""
     i, j = np.asarray(i, dtype=np.intp), np.asarray(j, dtype=np.intp)
     d_left, d_right, _ = piece.steps
     moved = np.concatenate([[0.0], np.cumsum(0.5 * (np.abs(d_left) + np.abs(d_right)))])
@@ -181,27 +123,7 @@ def mean_track_speeds(piece: Piece, i, j) -> np.ndarray:
 
 
 def moving_windows(piece: Piece, length: float, min_speed: float | None):
-    """
-    Windows of ``length`` s of a piece (:func:`.metrics.window_pairs`) in which it moves.
-
-    Parameters
-    ----------
-    piece : Piece
-        The piece.
-    length : float
-        Window length, s.
-    min_speed : float or None
-        Keep the windows whose :func:`mean_track_speeds` is at least this, m/s; None: every
-        window.
-
-    Returns
-    -------
-    i, j : ndarray of int
-        The windows kept.
-    total : int
-        Windows of that length before the selection.
-
-    """
+    """Windows ``(i, j)`` of ``length`` s moving at >= ``min_speed`` m/s, and the total."""
     i, j = window_pairs(piece.t, length)
     total = len(i)
     if min_speed is not None and total:
@@ -212,16 +134,10 @@ def moving_windows(piece: Piece, length: float, min_speed: float | None):
 
 def icr_increments(d_left, d_right, y_left, y_right, x, scale_left=1.0, scale_right=1.0):
     """
-    Body increments over steps of nominal track travel, constant tread ICRs per step.
+    Body increments ``dx, dy, dtheta`` (m, m, rad) over steps of nominal travel, constant ICRs.
 
-    Martinez et al. (2005) eqs. (7)-(9) in the ROS frame (docs/model.md), with the encoder
-    scales of eqs. (20)-(21); every argument broadcasts (per-step or per-column parameters).
-
-    Returns
-    -------
-    dx, dy, dtheta : ndarray
-        Body-frame increments: m, m, rad.
-
+    Martinez et al. (2005) eqs. (7)-(9) in the ROS frame with the scales of eqs. (20)-(21); every
+    argument broadcasts.
     """
     v_left = scale_left * np.asarray(d_left, dtype=float)
     v_right = scale_right * np.asarray(d_right, dtype=float)
@@ -232,21 +148,9 @@ def icr_increments(d_left, d_right, y_left, y_right, x, scale_left=1.0, scale_ri
 
 def odometry(piece: Piece, params) -> np.ndarray:
     """
-    Dead-reckon a piece from its first ground-truth pose; poses at its ground-truth times.
+    Dead-reckon a piece from its first ground-truth pose; ``(x, y, yaw)`` (M, 3) at ``piece.t``.
 
-    Parameters
-    ----------
-    piece : Piece
-        The piece.
-    params : tuple
-        ``(y_left, y_right, x, scale_left, scale_right)``, scalars or arrays over the grid
-        steps (``len(piece.grid) - 1``).
-
-    Returns
-    -------
-    ndarray, shape (M, 3)
-        ``(x, y, yaw)`` at ``piece.t`` (yaw unwrapped).
-
+    ``params`` are ``(y_left, y_right, x, scale_left, scale_right)``, scalars or per grid step.
     """
     d_left, d_right, _ = piece.steps
     dx, dy, dth = icr_increments(d_left, d_right, *params)

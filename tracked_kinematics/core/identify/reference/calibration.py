@@ -26,23 +26,10 @@ from ...kinematics import IcrParams
 def _checked_recordings(recordings, track_width: float, hold, gnss_antenna,
                         segment_length: float, straight_distance):
     """
-    Check the arguments and the sensor data; drop the few non-finite gyro readings.
+    Check the arguments and sensor data; return the recordings with gyros cleaned, hold, antenna.
 
-    Returns
-    -------
-    recs : list of ReferenceRecording
-        The recordings, their gyros cleaned (:func:`.recordings._clean_gyro`).
-    hold : tuple of str
-    gnss_antenna : tuple of float
-
-    Raises
-    ------
-    ValueError
-        For an invalid argument, or a recording without a heading reference.
-    SensorDataError
-        For a gyro that reads nothing or is saturated (:func:`check_gyro`,
-        :func:`check_saturation`), an orientation without yaw.
-
+    Raises ValueError for an invalid argument or a recording without heading reference, and
+    SensorDataError for a gyro that reads nothing or saturates, or an orientation without yaw.
     """
     recs = list(recordings)
     if not recs:
@@ -79,17 +66,10 @@ def _checked_recordings(recordings, track_width: float, hold, gnss_antenna,
 def _model(track_width: float, heading: _Heading, distance: _Distance, determined,
            base: IcrParams) -> IcrParams:
     """
-    Return the ICR model of the fitted quantities (the base's where held).
+    Return the ICR model of the fitted quantities (the base's where held); FitError if invalid.
 
-    The spread ``W = s / u`` when chi is determined (else the base's), the treads at
-    ``c +- W / 2`` and the scales ``s_l, s_r = 2 s / (1 + rho), 2 s rho / (1 + rho)``
-    (module notes).
-
-    Raises
-    ------
-    FitError
-        For an invalid model.
-
+    ``W = s / u``, treads at ``c +- W / 2``, scales ``2 s / (1 + rho)`` and ``2 s rho / (1 +
+    rho)``.
     """
     s, u, rho, c = distance.s, heading.u, heading.rho, distance.c
     width = s / u if 'chi' in determined else _quantities(base)[2]
@@ -113,12 +93,7 @@ def _reference_name(recs, straight_distance) -> str:
 def _report(icr: IcrParams, reference: str, determined, held, heading: _Heading,
             distance: _Distance, headings: _HeadingData, delays, segment_length: float,
             n_rec: int) -> dict:
-    """
-    Return the report of a calibration: the model, what is determined, errors, statistics.
-
-    JSON-ready; the standard errors of what is held are None. ``delays``: the gyro's and
-    the pose's (:func:`.delays._delays`).
-    """
+    """Return the JSON-ready report: model, what is determined, errors (None where held), stats."""
     imu, pose_delay = delays
     std_rho = heading.std_rho if 'scale_ratio' in determined else None
     gyro = any(g is not None for g in headings.gyro)
@@ -156,31 +131,16 @@ def fit_recordings(recordings, track_width: float, *, base: IcrParams | None = N
                    position_window: float | None = None, hold=(),
                    gnss_antenna=(0.0, 0.0)) -> ReferenceFit:
     """
-    Calibrate from gyro, pose and/or positions over several recordings (module notes).
+    Calibrate from gyro, pose and/or positions over several recordings.
 
-    1. Check the arguments and the sensor data (:func:`check_gyro`,
-       :func:`check_saturation`: a gyro that reads nothing or is stuck at its range is
-       refused) and drop the few non-finite gyro readings.
-    2. Estimate (or take) the delays of the gyro and of the pose stamps behind the
-       encoders (:func:`.delays._delays`: :func:`..delay.estimate_delay` on the integrated
-       gyro, as on the pose) and remove them.
-    3. Cut the encoders and each heading reference into segments of ``segment_length`` s
-       (:func:`.headings._heading_data`); refuse fewer than
-       :data:`.headings.MIN_MOVING_SEGMENTS` moving ones and a "straight" that turns.
-    4. Fit the turn gain ``u``, the veer ``v`` and one gyro bias per recording to the
-       heading increments (:func:`.heading_fit._fit_heading`, Martinez et al. 2005 eqs. (9)
-       and (16) with the scales of eqs. (20)-(21)), robustly; hold the scale ratio, or chi,
-       where they are not determined.
-    5. Find the distance scale (:func:`.positions._fit_distance`): from a straight drive of
-       measured length, or from the positions by dead reckoning on the gyro heading (eqs.
-       (7)-(8)), with ``icr.x`` and the ICR offset where they are determined; else hold it.
-    6. Build the ICR model: ``W = s / u``, the scales from ``s`` and ``rho``
-       (:func:`_model`), and the report (:func:`_report`).
+    Checks the sensor data, removes the gyro and pose delays, fits the turn gain, veer and gyro
+    biases to heading increments (Martinez et al. 2005 eqs. (9) and (16) with the scales of eqs.
+    (20)-(21)), then the distance scale (eqs. (7)-(8)) from a straight or from positions.
 
     Parameters
     ----------
     recordings : sequence of ReferenceRecording
-        On one vehicle and terrain; each needs a gyro or a pose (a heading reference).
+        One vehicle and terrain; each needs a gyro or a pose.
     track_width : float
         m.
     base : IcrParams, optional
@@ -194,21 +154,14 @@ def fit_recordings(recordings, track_width: float, *, base: IcrParams | None = N
     position_window : float, optional
         s; default :data:`.positions.POSITION_WINDOW` per source.
     hold : sequence of str
-        Quantities of :data:`QUANTITIES` to hold at ``base`` even where the data determine
-        them (``('scale_ratio',)``: the plain gyro fit of symmetric scales).
+        Quantities of :data:`QUANTITIES` to hold at ``base`` even where determined.
     gnss_antenna : pair of float
-        Position of the GNSS antenna in base_link, m. It matters: an antenna ``a`` ahead of
-        base_link moves with the heading exactly as ICRs ``a`` behind it would
-        (``icr.x = -a``), so an unknown lever arm would be fitted as ``icr.x``.
-
-    Returns
-    -------
-    ReferenceFit
+        Antenna in base_link, m (unknown, its lever arm would be fitted as ``icr.x``).
 
     Raises
     ------
     SensorDataError, ExcitationError, FitError
-        See the module notes.
+        Unusable sensor data, too little excitation, an invalid result.
 
     """
     # 1. The data, checked.
@@ -247,7 +200,7 @@ def fit_from_reference(enc_t, left, right, *, track_width: float, gyro_t=None, g
                        position_window: float | None = None, hold=(),
                        gnss_antenna=(0.0, 0.0)) -> ReferenceFit:
     """
-    Calibrate one recording from plain arrays: the entry point of nodes (module notes).
+    Calibrate one recording from plain arrays: the entry point of nodes.
 
     Parameters
     ----------
@@ -255,29 +208,16 @@ def fit_from_reference(enc_t, left, right, *, track_width: float, gyro_t=None, g
         Encoder times (s, increasing) and cumulative nominal track travel (m).
     track_width : float
         m.
-    gyro_t, gyro_rate : array_like, optional
-        Gyro stamps (s, same clock) and yaw rates (rad/s, counter-clockwise positive).
-    gyro_yaw : array_like, optional
-        Yaw angles (rad) of an orientation estimate, instead of ``gyro_rate``.
+    gyro_t, gyro_rate, gyro_yaw : array_like, optional
+        Gyro stamps (s) and yaw rates (rad/s, REP-103), or yaw angles (rad) instead.
     pose : tuple of array_like, optional
         ``(t, x, y, yaw)`` of a pose reference (s, m, m, rad).
     positions : tuple of array_like, optional
-        ``(t, x, y)`` positions in a local plane (GNSS), s, m, m.
-    straight_distance : float, optional
-        The recording is one straight drive of this many metres.
-    base : IcrParams, optional
-        Held values (default: ideal drive).
-    imu_delay, pose_delay : float or 'auto'
-        Delays of the gyro / pose stamps behind the encoders, s, or estimated.
-    segment_length : float
-        Heading segments, s.
+        ``(t, x, y)`` in a local plane (GNSS), s, m, m.
+    straight_distance, base, imu_delay, pose_delay, segment_length
+        As :func:`fit_recordings`.
     position_window, hold, gnss_antenna
         As :func:`fit_recordings`.
-
-    Returns
-    -------
-    ReferenceFit
-        ``.icr`` and ``.report`` (JSON-ready dict) among others.
 
     """
     rec = ReferenceRecording(enc_t, left, right, gyro_t, gyro_rate, gyro_yaw, pose, positions)

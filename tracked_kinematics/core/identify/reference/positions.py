@@ -1,14 +1,9 @@
 """
 The distance: positions (GNSS, a pose) or a measured straight give the distance scale.
 
-With positions, the body step over each short interval is ``(s m + c dpsi, -x dpsi)`` with
-``m = (D_l + rho D_r) / (1 + rho)``: Martinez et al. (2005) eqs. (7)-(8) in the ROS frame,
-with the scales of eqs. (20)-(21) (``c`` the ICR offset, ``x = icr.x``), rotated by the gyro
-heading. :func:`_dead_reckoning_basis` sums its three parts, so that the dead-reckoned
-position is linear in ``(s, c, x)``; :func:`_position_fit` compares it with the positions in
-windows, each centred on its mean, after a rotation per recording and source.
-:func:`_fit_distance` (step 5 of :func:`.calibration.fit_recordings`) takes the scale from a
-straight drive of measured length instead, or holds it.
+The body step ``(s m + c dpsi, -x dpsi)``, ``m = (D_l + rho D_r) / (1 + rho)`` (Martinez et al.
+2005 eqs. 7-8 in the ROS frame, scales of eqs. 20-21), rotated by the gyro heading, is linear in
+``(s, c, x)`` and fitted to the positions in windows (step 5 of the calibration).
 """
 
 from __future__ import annotations
@@ -33,11 +28,7 @@ POSITION_WINDOW = {'gnss': 120.0, 'pose': 10.0}
 
 
 def _dead_reckoning_basis(rec, heading_series, bias, rho, dt=0.05):
-    """
-    Cumulative sums ``P_A, P_B, P_C`` on a grid: model position = s P_A + c P_B + x P_C.
-
-    In the gyro's frame; heading from the gyro with its bias removed.
-    """
+    """Cumulative sums ``P_A, P_B, P_C`` (gyro frame): model position = s P_A + c P_B + x P_C."""
     ht, heading = heading_series
     start, stop = max(rec.enc_t[0], ht[0]), min(rec.enc_t[-1], ht[-1])
     grid = np.arange(start, stop + 1e-9, dt)
@@ -102,12 +93,7 @@ def _centred(values, window):
 
 
 def _position_fit(blocks, free, fixed, sigma):
-    """
-    Least squares of the windowed positions: shared ``(s, c, x)``, rotation per block.
-
-    ``free``: names among ('s', 'c', 'x') to fit; ``fixed``: values of the others.
-    ``sigma``: noise scale per source (robust loss scale). Returns values, std, residuals.
-    """
+    """Fit ``(s, c, x)`` (``free`` ones) to windowed positions with a rotation per block."""
     names = [n for n in ('s', 'c', 'x') if n in free]
     n_shared = len(names)
 
@@ -164,23 +150,7 @@ def _position_fit(blocks, free, fixed, sigma):
 
 @dataclass
 class _Distance:
-    """
-    The distance step of the calibration (step 5): scale, ICR offset and ``icr.x``.
-
-    Attributes
-    ----------
-    s, c, x : float
-        Distance scale, ICR offset (m) and ``icr.x`` (m): fitted, or the base's.
-    std_s, std_x, std_c : float or None
-        Standard errors of the position fit (None without one).
-    stats : dict
-        Residual spread (m) and samples per position source.
-    straight : dict or None
-        The measured straight: length, encoder chord, largest heading excursion.
-    determined : list of str
-        Of ``distance_scale``, ``icr.x`` and ``icr_offset``.
-
-    """
+    """The distance step of the calibration: ``s``, ``c``, ``x`` (fitted or the base's), errors."""
 
     s: float
     c: float
@@ -194,12 +164,7 @@ class _Distance:
 
 
 def _bases(recs, headings: _HeadingData, heading: _Heading):
-    """
-    Return the dead-reckoning basis of every recording (None where too short).
-
-    Each is rotated by the gyro's heading with its fitted bias removed, or by the pose's
-    heading on a recording without a gyro, at the scale ratio of the heading fit.
-    """
+    """Return the dead-reckoning basis of every recording (None where too short)."""
     out = []
     for k, r in enumerate(recs):
         gyro = headings.gyro[k] is not None
@@ -211,17 +176,10 @@ def _bases(recs, headings: _HeadingData, heading: _Heading):
 
 def _straight_scale(bases, straight_distance: float):
     """
-    Return the distance scale from one straight drive of measured length, and its record.
+    Return the distance scale from one straight drive (its length over the encoders' chord).
 
-    The scale is ``straight_distance`` over the chord the encoders give between the first and
-    the last moving step (summed over the recordings).
-
-    Raises
-    ------
-    ExcitationError
-        The encoders do not move, or the heading turns by more than
-        :data:`MAX_STRAIGHT_TURN`.
-
+    Raises ExcitationError when the encoders do not move or the heading turns by more than
+    :data:`MAX_STRAIGHT_TURN`.
     """
     chords, excursions = [], []
     for basis in bases:
@@ -250,23 +208,7 @@ def _straight_scale(bases, straight_distance: float):
 
 
 def _position_blocks(recs, bases, pose_delay: float, position_window, gnss_antenna):
-    """
-    Return the position blocks of every recording and source (GNSS first, then the pose).
-
-    Parameters
-    ----------
-    recs : list of ReferenceRecording
-        The recordings (checked and cleaned).
-    bases : list
-        Their dead-reckoning bases (:func:`_bases`).
-    pose_delay : float
-        s of pose stamps behind the encoders, removed.
-    position_window : float or None
-        s; default :data:`POSITION_WINDOW` per source.
-    gnss_antenna : pair of float
-        The antenna in base_link, m (the pose is of base_link itself).
-
-    """
+    """Return the position blocks of every recording and source (GNSS first, then the pose)."""
     blocks = []
     for r, basis in zip(recs, bases):
         if basis is None:
@@ -287,19 +229,8 @@ def _fit_positions(blocks, hold, base) -> _Distance:
     """
     Fit the distance scale, and ``icr.x`` and the ICR offset where determined, to positions.
 
-    Shared ``(s, c, x)`` (``c`` only from a pose: a GNSS does not see it), one slowly
-    turning rotation per block (:func:`_position_fit`). The noise per source comes from
-    the data: a first fit at unit noise, then the fit weighted by its residual spread; up to
-    three rounds drop ``x`` and ``c`` while their standard errors exceed
-    :data:`X_STD_LIMIT` m (held at the base's then).
-
-    Raises
-    ------
-    ExcitationError
-        The distance scale's relative standard error exceeds :data:`DISTANCE_STD_LIMIT`.
-    FitError
-        The position fit does not converge.
-
+    Noise per source from a first fit's residuals; ``x`` and ``c`` beyond :data:`X_STD_LIMIT` are
+    held. Raises ExcitationError (scale beyond :data:`DISTANCE_STD_LIMIT`) or FitError.
     """
     base_s, _, _, base_c = _quantities(base)
     sigma = dict.fromkeys({b.source for b in blocks}, 1.0)
@@ -336,36 +267,7 @@ def _fit_positions(blocks, hold, base) -> _Distance:
 def _fit_distance(recs, headings: _HeadingData, heading: _Heading, base, hold,
                   straight_distance: float | None, pose_delay: float, position_window,
                   gnss_antenna) -> _Distance:
-    """
-    Find the distance scale: from a measured straight, from positions, or held at the base's.
-
-    Parameters
-    ----------
-    recs : list of ReferenceRecording
-        Checked and cleaned (step 1).
-    headings, heading : _HeadingData, _Heading
-        The heading references (step 3) and their fit (step 4).
-    base : IcrParams
-        Held values.
-    hold : tuple of str
-        Quantities to hold.
-    straight_distance : float or None
-        m of a straight drive; it then gives the scale (positions are not fitted).
-    pose_delay : float
-        s of pose stamps behind the encoders (step 2).
-    position_window, gnss_antenna
-        As :func:`.calibration.fit_recordings`.
-
-    Returns
-    -------
-    _Distance
-
-    Raises
-    ------
-    ExcitationError, FitError
-        See :func:`_straight_scale` and :func:`_fit_positions`.
-
-    """
+    """Find the distance scale: from a measured straight, from positions, or held at the base's."""
     base_s, _, _, base_c = _quantities(base)
     bases = _bases(recs, headings, heading)
     distance = _Distance(base_s, base_c, base.x)
