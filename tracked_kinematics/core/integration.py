@@ -1,11 +1,8 @@
 """
 Planar pose integration, exact for a constant body twist over each step.
 
-A body twist held for one step moves the vehicle along a circular arc (a straight line when
-it does not turn). Integrating the arc exactly, rather than by Euler steps, makes the result
-independent of the encoder rate for the piecewise-constant speeds that encoders report, and
-lets the whole log be integrated without a Python loop: the heading is a cumulative sum, and
-the position the cumulative sum of arc chords rotated into the fixed frame.
+Exact arcs make the result independent of the encoder rate and allow a closed form without a Python
+loop: a cumulative heading, then the cumulative sum of rotated arc chords.
 """
 
 from __future__ import annotations
@@ -14,45 +11,20 @@ import numpy as np
 
 
 def wrap_angle(angle):
-    """
-    Wrap angles to [-pi, pi).
-
-    Parameters
-    ----------
-    angle : array_like
-        Angles, rad.
-
-    Returns
-    -------
-    ndarray
-        The same angles, wrapped.
-
-    """
+    """Wrap angles (rad) to [-pi, pi)."""
     return (np.asarray(angle, dtype=float) + np.pi) % (2.0 * np.pi) - np.pi
 
 
 def arc_chord(dx, dy, dtheta):
     """
-    Displacement over one step of constant twist, in the frame at the start of the step.
+    Displacement (m) over one step of body increments ``dx, dy, dtheta``, in its start frame.
 
-    For a constant body twist ``(v_x, v_y, w)`` held for ``T`` seconds, write the body-frame
-    increments ``dx = v_x T``, ``dy = v_y T``, ``dtheta = w T``. The vehicle ends at::
+    ::
 
         [X]   [S  -C] [dx]        S = sin(dtheta) / dtheta
         [Y] = [C   S] [dy],       C = (1 - cos(dtheta)) / dtheta
 
     with ``S -> 1``, ``C -> dtheta / 2`` as ``dtheta -> 0`` (evaluated without a division).
-
-    Parameters
-    ----------
-    dx, dy, dtheta : array_like
-        Body-frame increments of one step: m, m, rad.
-
-    Returns
-    -------
-    chord_x, chord_y : ndarray
-        End of the step in the frame at its start, m.
-
     """
     dx = np.asarray(dx, dtype=float)
     dy = np.asarray(dy, dtype=float)
@@ -64,27 +36,11 @@ def arc_chord(dx, dy, dtheta):
 
 def integrate(dx, dy, dtheta, pose0=(0.0, 0.0, 0.0)):
     """
-    Integrate body-frame increments into poses, exactly along arcs.
+    Integrate body-frame increments (m, m, rad per step) into poses, exactly along arcs.
 
-    The closed form of the recursion ``pose_k = pose_{k-1} (+) arc(dx_k, dy_k, dtheta_k)``:
-    the heading is ``theta0 + cumsum(dtheta)``, and the position the cumulative sum of the
-    arc chords (:func:`arc_chord`) rotated by the heading at the start of each step.
-    O(N) and vectorised.
-
-    Parameters
-    ----------
-    dx, dy, dtheta : array_like, shape (N,)
-        Body-frame increments, one per step: m, m, rad.
-    pose0 : tuple of float
-        Start pose ``(x, y, theta)`` in the fixed frame.
-
-    Returns
-    -------
-    x, y, theta : ndarray, shape (N,)
-        Pose after each step. ``theta`` is continuous (not wrapped), so that heading
-        differences over many turns stay meaningful; wrap it with :func:`wrap_angle`
-        for display or messages.
-
+    Heading ``theta0 + cumsum(dtheta)``; position the cumulative sum of the arc chords rotated by
+    the heading at each step's start. Returns ``x, y, theta`` after each step; ``theta`` is
+    continuous (wrap it with :func:`wrap_angle` for messages).
     """
     dtheta = np.asarray(dtheta, dtype=float)
     chord_x, chord_y = arc_chord(dx, dy, dtheta)
@@ -98,43 +54,13 @@ def integrate(dx, dy, dtheta, pose0=(0.0, 0.0, 0.0)):
 
 
 def integrate_twist(v_x, v_y, w, dt, pose0=(0.0, 0.0, 0.0)):
-    """
-    Integrate a piecewise-constant body twist, exactly along arcs.
-
-    Parameters
-    ----------
-    v_x, v_y, w : array_like, shape (N,)
-        Body twist held over each step: m/s, m/s, rad/s.
-    dt : array_like, shape (N,) or scalar
-        Step durations, s.
-    pose0 : tuple of float
-        Start pose ``(x, y, theta)``.
-
-    Returns
-    -------
-    x, y, theta : ndarray, shape (N,)
-        Pose at the end of each step, see :func:`integrate`.
-
-    """
+    """Integrate a piecewise-constant twist (m/s, m/s, rad/s over ``dt`` s) exactly along arcs."""
     dt = np.asarray(dt, dtype=float)
     return integrate(np.asarray(v_x) * dt, np.asarray(v_y) * dt, np.asarray(w) * dt, pose0)
 
 
 def relative_pose(x0, y0, theta0, x1, y1, theta1):
-    """
-    Pose 1 expressed in the frame of pose 0 (the SE(2) difference ``pose0^-1 (+) pose1``).
-
-    Parameters
-    ----------
-    x0, y0, theta0, x1, y1, theta1 : array_like
-        Two poses (or arrays of pose pairs) in a common fixed frame.
-
-    Returns
-    -------
-    dx, dy, dtheta : ndarray
-        Displacement in the frame of pose 0, m; heading change wrapped to [-pi, pi).
-
-    """
+    """Pose 1 in the frame of pose 0 (``pose0^-1 (+) pose1``), heading wrapped to [-pi, pi)."""
     theta0 = np.asarray(theta0, dtype=float)
     ex = np.asarray(x1, dtype=float) - x0
     ey = np.asarray(y1, dtype=float) - y0
@@ -144,11 +70,7 @@ def relative_pose(x0, y0, theta0, x1, y1, theta1):
 
 
 def compose(x0, y0, theta0, dx, dy, dtheta):
-    """
-    Apply a displacement given in the frame of pose 0 (``pose0 (+) d``).
-
-    Inverse of :func:`relative_pose`; the heading is not wrapped.
-    """
+    """Apply a displacement given in the frame of pose 0 (``pose0 (+) d``); heading not wrapped."""
     theta0 = np.asarray(theta0, dtype=float)
     c = np.cos(theta0)
     s = np.sin(theta0)
@@ -162,11 +84,7 @@ def compose(x0, y0, theta0, dx, dy, dtheta):
 # stamp; nodes and bag readers/writers call these instead of their own copies.
 
 def yaw_from_quaternion(x, y, z, w):
-    """
-    Heading of a quaternion: rotation about z of its projection on the plane, rad.
-
-    Works on scalars and arrays alike (REP-103: counter-clockwise positive).
-    """
+    """Heading of a quaternion (rad, REP-103): rotation about z of its projection on the plane."""
     x, y, z, w = (np.asarray(v, dtype=float) for v in (x, y, z, w))
     yaw = np.arctan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
     return float(yaw) if yaw.ndim == 0 else yaw

@@ -1,13 +1,9 @@
 """
 Tread-ICR kinematics of a tracked vehicle, in the ROS frame (x forward, y left).
 
-Martinez et al. (2005), sec. 3, write the kinematics in a frame with Y forward and X to the
-right. Everything here speaks REP-103 instead; the mapping of one tread ICR is
-
-    paper (x_ICR, y_ICR)  ->  ROS (x = y_ICR, y = -x_ICR)
-
-so ``y_left = -x_ICRl`` (> 0), ``y_right = -x_ICRr`` (< 0) and ``x = y_ICRv``.
-See docs/model.md for the derivation of every formula below.
+Martinez et al. (2005), sec. 3, with the paper's tread ICR ``(x_ICR, y_ICR)`` at ROS ``(x = y_ICR,
+y = -x_ICR)``. See docs/model.md, "Frames: the papers and ROS", for the derivation of every formula
+below.
 """
 
 from __future__ import annotations
@@ -20,12 +16,7 @@ from ._checks import require_numbers
 
 
 def steering_efficiency(track_width, y_left, y_right):
-    """
-    Steering efficiency ``chi = L / (y_left - y_right)`` of tread ICRs, Martinez eq. (12).
-
-    Defined for any ICR pair (an estimate may give chi > 1); :class:`IcrParams` refuses
-    values outside (0, 1].
-    """
+    """Steering efficiency ``chi = L / (y_left - y_right)`` of tread ICRs, Martinez eq. (12)."""
     return track_width / (y_left - y_right)
 
 
@@ -37,26 +28,24 @@ def eccentricity(y_left, y_right):
 @dataclass(frozen=True, slots=True)
 class IcrParams:
     """
-    Constant tread-ICR model of one vehicle on one terrain.
+    Constant tread-ICR model of one vehicle on one terrain (base_link, m).
 
     Attributes
     ----------
     track_width : float
         Distance between the track centrelines, m (``L`` in Martinez, ``B`` in Fink & Stump).
     y_left, y_right : float
-        Lateral coordinates of the left and right tread ICRs in base_link, m.
-        ``y_left > y_right``; ideal differential drive has ``+-track_width / 2``.
+        Lateral coordinates of the tread ICRs, ``y_left > y_right`` (ideal: ``+-track_width / 2``).
     x : float
-        Longitudinal coordinate shared by both tread ICRs, m (+ ahead of base_link).
+        Longitudinal coordinate shared by both tread ICRs (+ ahead of base_link).
     scale_left, scale_right : float
-        Encoder scale corrections: true track speed = scale * nominal speed
-        (``alpha_l``, ``alpha_r`` of Martinez eqs. 20-21).
+        True track speed = scale * nominal speed (``alpha_l``, ``alpha_r``, Martinez eqs. 20-21).
 
     Raises
     ------
     ValueError
-        On any non-finite value, ``track_width <= 0``, ``y_left <= y_right``, a steering
-        efficiency outside (0, 1] or a scale <= 0. The message names the offending value.
+        On a non-finite value, ``track_width <= 0``, ``y_left <= y_right``, chi outside (0, 1]
+        or a scale <= 0; the message names it.
 
     """
 
@@ -98,11 +87,7 @@ class IcrParams:
 
     @classmethod
     def symmetric(cls, track_width: float, chi: float) -> IcrParams:
-        """
-        Symmetric model of steering efficiency ``chi`` (Martinez sec. 4.2).
-
-        ``y_left = -y_right = track_width / (2 chi)``, from eq. (12) with ``e = 0``.
-        """
+        """Symmetric model ``y_left = -y_right = track_width / (2 chi)`` (Martinez eq. 12)."""
         half = 0.5 * float(track_width) / float(chi)
         return cls(track_width, half, -half)
 
@@ -111,19 +96,11 @@ class IcrParams:
                    track_width: float, alpha_left: float = 1.0,
                    alpha_right: float = 1.0) -> IcrParams:
         """
-        Convert the paper's coordinates (Y forward, X right) to ROS.
+        Convert the paper's coordinates (Y forward, X right; m) to ROS.
 
-        Parameters
-        ----------
-        x_icr_left, x_icr_right : float
-            ``x_ICRl`` (< 0) and ``x_ICRr`` (> 0) of Martinez et al., m.
-        y_icr : float
-            ``y_ICRv``, m.
-        track_width : float
-            ``L``, m.
-        alpha_left, alpha_right : float
-            Encoder corrections of Martinez eqs. (20)-(21).
-
+        ``x_icr_left`` (< 0), ``x_icr_right`` (> 0), ``y_icr`` and ``track_width`` are Martinez's
+        ``x_ICRl``, ``x_ICRr``, ``y_ICRv`` and ``L``; ``alpha_*`` the corrections of eqs.
+        (20)-(21).
         """
         return cls(track_width, -float(x_icr_left), -float(x_icr_right), float(y_icr),
                    alpha_left, alpha_right)
@@ -145,8 +122,7 @@ def forward(v_left, v_right, icr: IcrParams):
         v_x = (V_r + V_l) / 2 + w (y_left + y_right) / 2
         v_y = -w x
 
-    The map is linear, so it applies equally to speeds (m/s -> m/s, rad/s) and to
-    travelled distances over one step (m -> m, rad).
+    Linear, so it maps travel over a step (m -> m, rad) as well as speeds.
 
     Parameters
     ----------
@@ -171,31 +147,15 @@ def forward(v_left, v_right, icr: IcrParams):
 
 def inverse(v_x, w, icr: IcrParams):
     """
-    Compute the true track speeds that produce a commanded body twist.
+    Compute the true track speeds (m/s) that produce a twist ``v_x`` (m/s), ``w`` (rad/s).
 
     Implements Martinez et al. (2005) eqs. (10)-(11) in the ROS frame::
 
         V_l = v_x - y_left  w
         V_r = v_x - y_right w
 
-    The lateral velocity cannot be imposed (non-holonomic); the one the vehicle will show
-    is ``-x w`` (see :func:`forward`).
-
-    Parameters
-    ----------
-    v_x : array_like
-        Commanded forward velocity, m/s.
-    w : array_like
-        Commanded yaw rate, rad/s.
-    icr : IcrParams
-        Tread ICR coordinates in base_link.
-
-    Returns
-    -------
-    v_left, v_right : ndarray
-        True track speeds, m/s. Divide by the scales (:func:`nominal_speeds`) to get the
-        setpoint a track speed controller that trusts its encoders must be given.
-
+    The lateral velocity cannot be imposed; the vehicle shows ``-x w``. Divide by the scales
+    (:func:`nominal_speeds`) for setpoints of a controller that trusts its encoders.
     """
     v_x = np.asarray(v_x, dtype=float)
     w = np.asarray(w, dtype=float)

@@ -1,22 +1,9 @@
 """
 Sensors of a live simulation: encoders, and a lidar-ICP-like pose, fed step by step.
 
-The gyro is :class:`.sensors.GyroStream`. What is here:
-
-- :class:`EncoderReadout`: sprocket joint positions and velocities as a motor driver reports
-  them: positions floored to whole encoder ticks from a random phase (as
-  :func:`.simulation.simulate` does), white noise on positions and velocities, and
-  optionally wrapped to ``[-pi, pi)`` (drivers that report a continuous joint's angle
-  modulo a turn; odometry_node unwraps them).
-- :class:`Schedule`: which steps of a fixed-period simulation a sensor of another rate
-  samples (the first step at or after each of its due times).
-- :class:`PoseModel` and :class:`PoseStream`: a pose source as lidar ICP gives one: the pose
-  of ``delay`` seconds ago (the scan's processing time), white noise on position and
-  heading, and occasional jumps (a mis-registration that shifts the estimate by
-  ``jump_size`` in a random direction and stays until the next one; a Poisson process of
-  ``jump_rate`` per second).
-
-Everything random takes a ``numpy.random.Generator``: a run is reproducible from its seed.
+Encoder joints (ticks, noise, optionally wrapped), the schedule of a sensor of another rate, and a
+pose source with delay, noise and Poisson jumps; the gyro is :class:`.sensors.GyroStream`. See
+docs/nodes/tracked_simulator.md, "Sensors".
 """
 
 from __future__ import annotations
@@ -34,21 +21,8 @@ class EncoderReadout:
     """
     Joint positions and velocities of the two sprockets from the true nominal travel.
 
-    Parameters
-    ----------
-    sprocket_radius : float
-        m: joint angle (rad) x radius = nominal track travel.
-    ticks_per_revolution : float
-        Encoder ticks per sprocket turn; 0 for no quantisation.
-    position_noise, velocity_noise : float
-        Standard deviations of the white noise on reported positions (rad) and velocities
-        (rad/s).
-    wrap : bool
-        Report positions wrapped to ``[-pi, pi)``.
-    rng : numpy.random.Generator
-        Source of the tick phase (drawn first, as :func:`.simulation.simulate` does) and of
-        the noise.
-
+    ``sprocket_radius`` in m; ``ticks_per_revolution`` 0 for no quantisation; noise std on
+    positions (rad) and velocities (rad/s); ``wrap`` reports positions in ``[-pi, pi)``.
     """
 
     def __init__(self, sprocket_radius: float, ticks_per_revolution: float = 0.0,
@@ -73,24 +47,7 @@ class EncoderReadout:
             self._tick = None
 
     def read(self, travel, nominal) -> tuple[np.ndarray, np.ndarray]:
-        """
-        Report the joints for cumulative nominal travel and nominal speeds (left, right).
-
-        Parameters
-        ----------
-        travel : array_like, shape (2,)
-            Nominal track travel since the start, m.
-        nominal : array_like, shape (2,)
-            Nominal track speeds, m/s.
-
-        Returns
-        -------
-        position : ndarray, shape (2,)
-            rad (wrapped when asked).
-        velocity : ndarray, shape (2,)
-            rad/s.
-
-        """
+        """Report joint positions (rad), velocities (rad/s) of nominal travel (m), speeds (m/s)."""
         angle = np.asarray(travel, float) / self.radius
         if self._tick is not None:
             angle = np.floor(angle / self._tick + self._phase) * self._tick
@@ -106,18 +63,9 @@ class EncoderReadout:
 
 class Schedule:
     """
-    The steps at which a sensor of ``rate`` samples a simulation stepped every ``dt``.
+    The steps at which a sensor of ``rate`` (Hz) samples a simulation stepped every ``dt`` s.
 
-    Sample ``k >= 1`` is due at ``k / rate``; it is taken at the first step at or after that
-    time (exact when ``rate`` divides the step rate, otherwise within one step).
-
-    Parameters
-    ----------
-    rate : float
-        Hz (> 0).
-    dt : float
-        Step period of the simulation, s.
-
+    Sample ``k >= 1`` is due at ``k / rate`` and taken at the first step at or after it.
     """
 
     def __init__(self, rate: float, dt: float):
@@ -139,25 +87,11 @@ class Schedule:
 @dataclass(frozen=True, slots=True)
 class PoseModel:
     """
-    A pose source as lidar ICP gives one.
+    A pose source as lidar ICP gives one (SI units).
 
-    Attributes
-    ----------
-    rate : float
-        Poses per second, Hz.
-    delay : float
-        Processing time: the pose measured at ``m`` is available at ``m + delay``, s.
-    position_noise : float
-        Standard deviation of white noise on x and y, m.
-    yaw_noise : float
-        Standard deviation of white noise on the heading, rad.
-    jump_rate : float
-        Mean number of jumps per second (0: none).
-    jump_size : float
-        Length of the position shift of a jump, m (random direction).
-    jump_yaw : float
-        Standard deviation of the heading shift of a jump, rad.
-
+    A pose measured at ``m`` is available at ``m + delay``; white noise on position and yaw; jumps
+    at ``jump_rate`` per s shift it by ``jump_size`` m (random direction) and ``jump_yaw`` rad
+    (std) until the next one.
     """
 
     rate: float = 10.0
@@ -175,17 +109,7 @@ class PoseModel:
 
 
 class PoseStream:
-    """
-    A :class:`PoseModel` fed with the true poses of a live simulation.
-
-    Parameters
-    ----------
-    model : PoseModel
-        The source.
-    rng : numpy.random.Generator
-        Source of noise and jumps.
-
-    """
+    """A :class:`PoseModel` fed with the true poses of a live simulation."""
 
     def __init__(self, model: PoseModel, rng: np.random.Generator):
         self.model = model
@@ -197,16 +121,7 @@ class PoseStream:
         self.jumps = 0
 
     def push(self, t: float, pose) -> list[tuple[float, np.ndarray]]:
-        """
-        Append the true pose ``(x, y, theta)`` at time ``t``; return the poses now available.
-
-        Returns
-        -------
-        list of (float, ndarray)
-            ``(measurement time, (x, y, theta))`` of each pose whose processing ended at or
-            before ``t``; theta wrapped to ``[-pi, pi)``.
-
-        """
+        """Append the true pose at ``t``; return ``(time measured, (x, y, theta))`` now due."""
         m = self.model
         self._t.append(float(t))
         self._pose.append(tuple(pose))
