@@ -1,27 +1,9 @@
 """
 The EKF paper's simulations (sec. 4), rebuilt: truth, sensors, and how to score a filter.
 
-The paper gives the settings in words, not the full script, so some details are ours:
-
-* :func:`abrupt_change` (sec. 4.1): a 13.6-t vehicle (track width 2.464 m, so the ideal ICRs
-  are the paper's +-1.23 m) drives straight at 2 m/s for 2 s, then the right track drops to
-  1 m/s and the ICRs jump from (1.23, -1.23, 0) to (2.23, -2.23, 0.5) m (the paper's
-  numbers). The paper changes them again at 12 s without saying to what; we use
-  (1.73, -1.73, 0.25) m and end at 20 s. Poses at 10 Hz, encoders at 100 Hz (the rates of
-  its experiment), pose noise 2 cm / 0.01 rad (the paper: "similar to the errors of the
-  sensor devices", RTK GPS and an IMU).
-* :func:`low_rate` (sec. 4.2): 1 Hz poses and 10 Hz encoders, track speeds that vary as a
-  driver's would (two sines), and ICRs that move with lateral acceleration and curvature
-  (the adaptive model with fixed true coefficients), so that the velocity-based method of
-  the paper's ref. [5] sees the mismatch between a 1-s average velocity and the
-  instantaneous track speeds.
-
-:class:`VelocityEkf` is that traditional method: the same random-walk EKF, but measuring
-the body velocity by differencing consecutive poses and comparing it with the model's twist
-at the current track speeds. :func:`prediction_errors` scores a run as the paper does
-(Figs. 6, 8, 11): from each pose time, predict the next two seconds with the recorded track
-speeds, with the estimate of that time and with the no-slip model, and compare the end pose
-with the truth.
+The paper gives its settings in words; what it does not say is ours and marked in
+:func:`abrupt_change` and :func:`low_rate`. :class:`VelocityEkf` is the velocity-based method of
+its ref. [5]; :func:`prediction_errors` scores 2-s predictions as its Figs. 6, 8, 11.
 """
 
 from __future__ import annotations
@@ -42,23 +24,11 @@ PAPER_TRACK_WIDTH = 2.464
 @dataclass(frozen=True)
 class Scenario:
     """
-    One simulated run: the truth and what the sensors saw.
+    One simulated run: the truth and what the sensors saw (SI units).
 
-    Attributes
-    ----------
-    track_width : float
-        m.
-    t_fine, v_left, v_right : ndarray
-        Fine time grid (s) and the true (nominal) track speeds held over each fine step.
-    truth : ndarray, shape (N + 1, 3)
-        True poses on ``t_fine`` (one more: the start).
-    true_icr : ndarray, shape (N, 3)
-        True ``(y_left, y_right, x)`` over each fine step, m.
-    enc_t, enc_left, enc_right, enc_dt : ndarray
-        Encoder steps: end time (s), nominal travel (m) and duration (s).
-    pose_t, poses : ndarray
-        Pose measurements: time (s) and noisy ``(x, y, yaw)``.
-
+    ``t_fine``, ``v_left``, ``v_right``: fine grid and true track speeds per step; ``truth`` (N +
+    1, 3) and ``true_icr`` (N, 3); encoder steps ``enc_t, enc_left, enc_right, enc_dt`` (end time,
+    travel, duration); noisy ``poses`` at ``pose_t``.
     """
 
     track_width: float
@@ -118,7 +88,13 @@ def _sensors(track_width, t_fine, v_left, v_right, twist, icr, encoder_rate, pos
 def abrupt_change(seed: int = 0, encoder_rate: float = 100.0, pose_rate: float = 10.0,
                   pose_std_xy: float = 0.02, pose_std_yaw: float = 0.01,
                   duration: float = 20.0) -> Scenario:
-    """Sec. 4.1: straight, then an arc where the ICRs jump at 2 s and again at 12 s."""
+    """
+    Sec. 4.1: straight, then an arc where the ICRs jump at 2 s and again at 12 s.
+
+    The paper's: 13.6 t, ICRs +-1.23 -> (2.23, -2.23, 0.5) m, 10 Hz poses, 100 Hz encoders. Ours:
+    the second jump's values (1.73, -1.73, 0.25) m, the 20 s end, pose noise 2 cm / 0.01 rad (the
+    paper: "similar to the errors of the sensor devices").
+    """
     dt = 1e-3
     t = np.arange(int(round(duration / dt))) * dt
     half = 0.5 * PAPER_TRACK_WIDTH
@@ -140,7 +116,12 @@ LOW_RATE_TRUE_P = np.array([1.2, 0.4, 1.0, 0.3, 0.5, 0.1])
 def low_rate(seed: int = 0, encoder_rate: float = 10.0, pose_rate: float = 1.0,
              pose_std_xy: float = 0.02, pose_std_yaw: float = 0.01,
              duration: float = 40.0) -> Scenario:
-    """Sec. 4.2: 1 Hz poses, 10 Hz encoders, varying speeds, speed-dependent ICRs."""
+    """
+    Sec. 4.2: 1 Hz poses, 10 Hz encoders, varying speeds, speed-dependent ICRs.
+
+    Ours: the speed profiles (two sines, as a driver's) and the true eq. (11) coefficients
+    :data:`LOW_RATE_TRUE_P`.
+    """
     dt = 1e-3
     t = np.arange(int(round(duration / dt))) * dt
     v_left = 1.6 + 0.6 * np.sin(2.0 * np.pi * t / 7.0)
@@ -155,21 +136,7 @@ def low_rate(seed: int = 0, encoder_rate: float = 10.0, pose_rate: float = 1.0,
 
 @dataclass(frozen=True)
 class Run:
-    """
-    A filter's history over a scenario, one row per pose measurement.
-
-    Attributes
-    ----------
-    t : ndarray
-        Pose times, s.
-    p : ndarray, shape (M, P)
-        Parameters after each pose measurement.
-    icr : ndarray, shape (M, 3)
-        Estimated ICRs after each, at the track speeds of that time.
-    status : list of str
-        Outcome of each measurement.
-
-    """
+    """A filter's history over a scenario per pose time ``t``: parameters ``p``, ICRs, outcomes."""
 
     t: np.ndarray
     p: np.ndarray
@@ -178,11 +145,7 @@ class Run:
 
 
 def run_filter(scenario: Scenario, estimator, heading_only: bool = False) -> Run:
-    """
-    Feed a scenario's encoder steps and poses, in time order, to a filter.
-
-    ``estimator`` is a :class:`SlipEstimator` or a :class:`VelocityEkf`.
-    """
+    """Feed a scenario's encoder steps and poses, in time order, to a filter."""
     times, ps, icrs, status = [], [], [], []
     k = 0
     n_enc = len(scenario.enc_t)
@@ -204,11 +167,7 @@ def run_filter(scenario: Scenario, estimator, heading_only: bool = False) -> Run
 
 def settling_time(run: Run, scenario: Scenario, t_change: float, tolerance: float = 0.1,
                   until: float = math.inf) -> float:
-    """
-    Seconds after ``t_change`` until the estimated ICRs stay within ``tolerance`` (m).
-
-    Returns ``inf`` if they never settle before ``until``.
-    """
+    """Seconds after ``t_change`` until the estimated ICRs stay within ``tolerance`` m (or inf)."""
     window = (run.t >= t_change) & (run.t < until)
     t = run.t[window]
     error = np.max(np.abs(run.icr[window] - scenario.icr_at(t)), axis=1)
@@ -225,16 +184,9 @@ def prediction_errors(scenario: Scenario, model: MotionModel, run: Run, horizon:
     """
     End-of-horizon errors of slip and no-slip predictions from every pose time.
 
-    From each pose time ``t_k >= start`` with a full horizon ahead, the recorded track speeds
-    (fine grid) are integrated from the *true* pose at ``t_k`` with the estimate of ``t_k``
-    and with ideal differential drive (the paper's "no-slip").
-
-    Returns
-    -------
-    dict
-        ``t`` (s), ``slip_position``, ``noslip_position`` (m), ``slip_heading``,
-        ``noslip_heading`` (rad), one entry per prediction.
-
+    From the true pose at each ``t_k >= start``, the recorded track speeds are integrated with the
+    estimate of ``t_k`` and with ideal drive; returns ``t`` and ``slip_position``,
+    ``noslip_position`` (m), ``slip_heading``, ``noslip_heading`` (rad).
     """
     dt = scenario.fine_dt
     steps = int(round(horizon / dt))
@@ -261,10 +213,8 @@ class VelocityEkf:
     """
     The traditional method (the paper's ref. [5]): update from differentiated poses.
 
-    The measured body velocity is the pose change between consecutive poses divided by their
-    interval; the predicted one is the model's twist at the latest track speeds. With
-    low-rate poses the two describe different things (an average over the interval against
-    an instant), which is why the paper's sec. 4.2 finds this method biased.
+    The pose change over an interval, divided by it, against the model's twist at the latest track
+    speeds: biased with low-rate poses (sec. 4.2).
     """
 
     def __init__(self, model: MotionModel, p0=None, config: EstimatorConfig | None = None):

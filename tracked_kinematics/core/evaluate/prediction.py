@@ -1,23 +1,9 @@
 """
 Predictions over horizons, all horizons at once: from the encoders, and from the commands.
 
-From the measured pose at the start of each horizon (the ground truth there), a model with
-the parameters of that moment predicts the next ``horizon`` seconds (EKF paper sec. 3,
-eq. 14; the DRIVE benchmark of Baril et al. 2024 scores 2-s predictions this way):
-
-- *from the encoders* (:func:`encoder_horizons`): the measured track travel of the horizon,
-  through the motion model: the dead reckoning a short-horizon odometry would give;
-- *from the commands* (:func:`command_horizons`): the commanded track speeds of the horizon,
-  through the drive-train model (Fink & Stump sec. III-B,
-  :class:`~tracked_kinematics.core.drivetrain.DriveTrain`) from the measured track speeds at
-  the start, then the motion model, on a grid of ``dt`` s (DRIVE: 20 Hz, 40 steps); or, for
-  the naive prediction, the commands taken as the speeds (no drive train).
-
-Each prediction is compared with the ground-truth samples of its horizon
-(:func:`.metrics.horizon_members`), in the frame of the start pose: the errors of
-:func:`.metrics.relative_errors` between the predicted and the measured motion since the
-start. Vectorised over horizons: the horizons' steps are laid end to end and integrated
-along exact arcs with a cumulative sum that restarts at each horizon.
+From the measured pose at each horizon's start, a model predicts ``horizon`` s (EKF paper eq. 14;
+DRIVE, Baril et al. 2024) from the measured travel, or from the commands through the drive train
+(Fink & Stump sec. III-B); errors as :func:`.metrics.relative_errors`.
 """
 
 from __future__ import annotations
@@ -35,31 +21,14 @@ from ..integration import arc_chord, wrap_angle
 
 @dataclass(frozen=True)
 class Commands:
-    """
-    Commanded nominal track speeds of one recording, each held until the next.
-
-    Attributes
-    ----------
-    t : ndarray, shape (N,)
-        Times, s, on the encoders' clock, increasing.
-    values : ndarray, shape (N, 2)
-        ``(left, right)`` m/s of nominal track speed.
-    source : str
-        Where they came from (``setpoints``, ``cmd_vel``), for reports.
-
-    """
+    """Commanded nominal track speeds ``values`` (N, 2; m/s) at times ``t`` (s), each held."""
 
     t: np.ndarray
     values: np.ndarray
     source: str = 'setpoints'
 
     def held(self, times, max_age: float):
-        """
-        Return the commands in force at ``times`` and whether each is fresh.
-
-        A command is fresh when it is at most ``max_age`` s old (the stream did not stop).
-        A command is in force from its stamp on (within a nanosecond: sums of steps round).
-        """
+        """Return the commands in force at ``times`` and whether each is <= ``max_age`` s old."""
         times = np.asarray(times, dtype=float)
         k = np.searchsorted(self.t, times + 1e-9, side='right') - 1
         fresh = (k >= 0) & (times - self.t[np.maximum(k, 0)] <= max_age)
@@ -68,19 +37,7 @@ class Commands:
 
 @dataclass(frozen=True)
 class HorizonErrors:
-    """
-    A prediction's errors over horizons.
-
-    Attributes
-    ----------
-    t0 : ndarray, shape (H,)
-        Start time of each horizon, s.
-    rms_translation, rms_rotation : ndarray, shape (H,)
-        Root mean square of the errors at the ground-truth samples of each horizon: m, rad.
-    final_translation, final_rotation : ndarray, shape (H,)
-        Errors at its last sample: m, rad.
-
-    """
+    """A prediction's errors per horizon from ``t0``: RMS over it and at its end, m and rad."""
 
     t0: np.ndarray
     rms_translation: np.ndarray
@@ -119,11 +76,7 @@ def _errors(piece, starts, owner, member, px, py, pth) -> HorizonErrors:
 
 
 def _segment_integrate(dx, dy, dth, first):
-    """
-    Integrate body increments along arcs, restarting at the origin at every ``first`` step.
-
-    Returns the pose after each step, in the frame of its segment's start.
-    """
+    """Integrate body increments along arcs, restarting at the origin at every ``first`` step."""
     segment = np.cumsum(first) - 1
     heading = np.cumsum(dth)
     base = (heading - dth)[first]
@@ -140,18 +93,9 @@ def _segment_integrate(dx, dy, dth, first):
 
 def encoder_horizons(piece: Piece, horizon: float, params_at) -> HorizonErrors:
     """
-    Errors of predictions from the measured travel over every horizon of a piece.
+    Errors of predictions from the measured travel over every ``horizon`` (s) of a piece.
 
-    Parameters
-    ----------
-    piece : Piece
-        The piece.
-    horizon : float
-        s.
-    params_at : callable
-        ``params_at(times)`` -> ``(y_left, y_right, x, scale_left, scale_right)`` in force
-        at the horizons' start times (scalars or arrays).
-
+    ``params_at(times)`` gives ``(y_left, y_right, x, scale_left, scale_right)`` at the starts.
     """
     starts, owner, member = horizon_members(piece.t, horizon)
     if len(starts) == 0:
@@ -199,26 +143,9 @@ def command_horizons(piece: Piece, horizon: float, commands: Commands, params_at
     """
     Errors of predictions from the commands over the horizons of a piece that have them.
 
-    Parameters
-    ----------
-    piece : Piece
-        The piece.
-    horizon : float
-        s.
-    commands : Commands
-        The recording's commands.
-    params_at : callable
-        See :func:`encoder_horizons`.
-    drivetrain : DriveTrain or None
-        The drive train the commands go through, from the measured track speeds at the
-        start; None: the commands are the speeds (the naive prediction).
-    dt : float
-        Prediction step, s.
-    max_age : float
-        A command older than this (s) is not in force: horizons that need one are skipped.
-    chunk : int
-        Horizons simulated at once (memory).
-
+    Through ``drivetrain`` from the measured track speeds at the start (None: the commands are the
+    speeds, the naive prediction), on steps of ``dt`` s; horizons needing a command older than
+    ``max_age`` s are skipped; ``chunk`` horizons are simulated at once.
     """
     starts, owner, member = horizon_members(piece.t, horizon)
     if len(starts) == 0:

@@ -1,22 +1,9 @@
 """
 The whole evaluation of terrain models on recordings, as one dictionary per model.
 
-:func:`evaluate` cuts every recording into pieces (:mod:`.pieces`), dead-reckons each model
-over them, and scores it (:mod:`.metrics`, :mod:`.prediction`):
-
-- ``odometry.windows.<seconds>``: final position and heading errors of the odometry started
-  at every ground-truth sample, after windows of that length (mean, p90), and the drift in
-  percent of the distance the ground truth travelled over those windows; with
-  ``Settings.min_speed``, only over the windows in which the vehicle moves (``n`` of
-  ``n_total``);
-- ``rpe_<D>m``: evo's relative pose error per ``D`` m travelled (translation part, RMSE; the
-  mean and every statistic under ``rpe``, and the same with the pairs chosen along the
-  ground truth, the same pairs for every model);
-- ``odometry.horizon``: predictions from the measured travel over the horizon;
-- ``prediction``: predictions from the commands through the model's drive train (the ideal
-  model: the commands as speeds, the naive prediction).
-
-The keys are the public contract of evaluate_model's report (docs/tools/evaluate_model.md).
+:func:`evaluate` cuts the recordings into pieces, dead-reckons each model and scores it: windows,
+evo's RPE, horizons from the encoders and predictions from the commands. The keys are the public
+contract of evaluate_model's report (docs/tools/evaluate_model.md).
 """
 
 from __future__ import annotations
@@ -37,29 +24,10 @@ from ..kinematics import IcrParams
 @dataclass(frozen=True)
 class Settings:
     """
-    What to score.
+    What to score: ``windows`` and ``horizon`` (s), ``rpe_deltas`` (m), command ``dt`` and age (s).
 
-    Attributes
-    ----------
-    windows : tuple of float
-        Window lengths, s.
-    horizon : float
-        Prediction horizon, s.
-    dt : float
-        Step of the predictions from the commands, s.
-    rpe_deltas : tuple of float
-        Path lengths of the relative pose errors, m.
-    max_command_age : float
-        A command older than this is not in force, s.
-    jumps : bool
-        Cut the data at ground-truth jumps (identify_icr's), as at gaps.
-    track_width : float or None
-        m, for the jumps' heading glitches (the ideal drive's turn).
-    min_speed : float or None
-        m/s: score only the windows in which the vehicle moves, whose mean track speed
-        (:func:`.pieces.mean_track_speeds`) is at least this; None: every window, idle ones
-        too. evaluate_model's default is 0.1.
-
+    ``jumps`` cuts the data at ground-truth jumps too (``track_width`` m for heading glitches);
+    ``min_speed`` (m/s) scores only windows whose mean track speed reaches it (None: all).
     """
 
     windows: tuple = (5.0, 10.0)
@@ -74,17 +42,7 @@ class Settings:
 
 @dataclass(frozen=True)
 class Data:
-    """
-    One recording to score on.
-
-    Attributes
-    ----------
-    recording : Recording
-        Encoders and ground truth (its delay already taken off).
-    commands : Commands or None
-        Its commands, if it has any.
-
-    """
+    """One recording to score on (ground-truth delay taken off), with its commands or None."""
 
     recording: Recording
     commands: Commands | None = None
@@ -93,20 +51,9 @@ class Data:
 @dataclass(frozen=True)
 class Candidate:
     """
-    A model to score.
+    A model to score: report ``name``, ``icr``, and the ``drivetrain`` of its command predictions.
 
-    Attributes
-    ----------
-    name : str
-        Its key in the report.
-    icr : IcrParams
-        Its tread ICRs and scales (the online estimator: its start values and scales).
-    drivetrain : DriveTrain or None
-        The drive train its command predictions go through; None: commands as speeds.
-    runs : tuple of OnlineRun, optional
-        The online estimator's replay of each recording; its estimates replace ``icr``'s
-        ICRs at every moment.
-
+    ``runs`` (the online estimator's replay of each recording) replace ``icr``'s ICRs over time.
     """
 
     name: str
@@ -258,21 +205,7 @@ def _report(candidate: Candidate, scores: _Scores, settings: Settings, commands)
 
 @dataclass(frozen=True)
 class Evaluation:
-    """
-    Result of :func:`evaluate`.
-
-    Attributes
-    ----------
-    models : dict
-        Report entry of each candidate, in the order given (see the module docstring).
-    pieces : list of Piece
-        The pieces scored.
-    cuts : list of Cut
-        How each recording was cut.
-    paths : dict
-        Odometry of each candidate over each piece, ``(M, 3)`` arrays (for the plots).
-
-    """
+    """Result of :func:`evaluate`: report entry per model, the pieces and cuts, odometry paths."""
 
     models: dict
     pieces: list
@@ -281,19 +214,7 @@ class Evaluation:
 
 
 def evaluate(data, candidates, settings: Settings | None = None) -> Evaluation:
-    """
-    Score every candidate on every recording.
-
-    Parameters
-    ----------
-    data : sequence of Data
-        The recordings (ground-truth delay taken off) and their commands.
-    candidates : sequence of Candidate
-        The models, in report order (baselines first).
-    settings : Settings, optional
-        What to score; default :class:`Settings`.
-
-    """
+    """Score every candidate (in report order) on every recording."""
     settings = settings or Settings()
     cuts = [cut(d.recording, index, settings.jumps, settings.track_width)
             for index, d in enumerate(data)]

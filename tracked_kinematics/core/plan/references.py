@@ -1,13 +1,9 @@
 """
 Canonical reference trajectories: Fink & Stump Table V and three of ours.
 
-Table V: a trapezoidal speed profile ``p_v = [v0, a0, v_trav, af, vf]`` (Fig. 3(a)) and a
-curvature through evenly spaced knots ``kappa_0..kappa_5`` (Fig. 3(b)). The paper does not
-say how its splines interpolate; we use a monotone cubic (PCHIP), which does not overshoot
-between knots (a natural cubic spline through ``[0, 0, 1.5, 0, 0, 0]`` turns the wrong way
-between them). The desired path is the ideal differential drive's path of these inputs, as
-in the paper (sec. IV-C). Straight, spin and lane change complete the set (not in Table V;
-ours). The planner (:mod:`.planner`) follows these paths.
+A trapezoidal speed (Fig. 3(a)) and a curvature through knots (Fig. 3(b)), interpolated by PCHIP
+(the paper does not say how; a natural spline overshoots); the desired path is the ideal drive's
+(sec. IV-C). See docs/tools/plan_trajectory.md, "How it plans".
 """
 
 from __future__ import annotations
@@ -26,28 +22,10 @@ CANONICAL = ('straight', 'left', 'right', 's_curve', 'lane_change', 'spin')
 def trapezoid_profile(t, t_f: float, v0: float = 0.0, a0: float = 5.0, v_trav: float = 1.0,
                       a_f: float = 5.0, v_f: float = 0.0) -> np.ndarray:
     """
-    Trapezoidal profile ``[v0, a0, v_trav, af, vf]`` of Fink & Stump Fig. 3(a).
+    Trapezoidal profile ``[v0, a0, v_trav, af, vf]`` of Fink & Stump Fig. 3(a) at times ``t``.
 
-    Ramps from ``v0`` toward ``v_trav`` at ``a0``, travels, and ramps to ``v_f`` at ``a_f``
-    so as to arrive at ``t_f``; when the ramps meet before ``v_trav`` the profile turns at
-    their crossing.
-
-    Parameters
-    ----------
-    t : array_like
-        Times, s, in ``[0, t_f]``.
-    t_f : float
-        Duration, s.
-    v0, v_trav, v_f : float
-        Initial, travelling and final values (same sign, ``|v_trav|`` the largest).
-    a0, a_f : float
-        Ramp rates, > 0 (unit of ``v`` per second).
-
-    Returns
-    -------
-    ndarray
-        The profile at ``t``.
-
+    Ramps at ``a0`` and ``a_f`` (> 0, per s) to arrive at ``t_f`` (s); turns at the ramps' crossing
+    when they meet before ``v_trav`` (``|v_trav|`` the largest, same signs).
     """
     t = np.asarray(t, dtype=float)
     if not (a0 > 0.0 and a_f > 0.0):
@@ -59,26 +37,7 @@ def trapezoid_profile(t, t_f: float, v0: float = 0.0, a0: float = 5.0, v_trav: f
 
 
 def curvature_profile(t, t_f: float, knots) -> np.ndarray:
-    """
-    Curvature through knots evenly spaced over ``[0, t_f]`` (Fink & Stump Fig. 3(b)).
-
-    Interpolated by a monotone cubic (PCHIP); see the module notes.
-
-    Parameters
-    ----------
-    t : array_like
-        Times, s.
-    t_f : float
-        Duration, s.
-    knots : array_like, shape (K,), K >= 2
-        Curvature at ``t_f * k / (K - 1)``, 1/m.
-
-    Returns
-    -------
-    ndarray
-        Curvature at ``t``, 1/m.
-
-    """
+    """Curvature (1/m) at ``t``, PCHIP through ``knots`` spread over ``[0, t_f]`` (Fig. 3(b))."""
     knots = np.asarray(knots, dtype=float)
     if knots.ndim != 1 or len(knots) < 2:
         raise ValueError('curvature knots must be a sequence of at least 2 values')
@@ -87,21 +46,7 @@ def curvature_profile(t, t_f: float, knots) -> np.ndarray:
 
 @dataclass(frozen=True)
 class Reference:
-    """
-    Reference inputs and the path they give an ideal differential drive.
-
-    Attributes
-    ----------
-    name : str
-        Trajectory name.
-    dt : float
-        Sample period, s.
-    v, w : ndarray, shape (N,)
-        Reference forward speed (m/s) and turn rate (rad/s), held over each period.
-    path : ndarray, shape (N + 1, 3)
-        Desired path ``(x, y, theta)`` from the origin, ideal drive without drive train.
-
-    """
+    """Reference inputs ``v`` (m/s), ``w`` (rad/s) per ``dt`` s, and the ideal drive's path."""
 
     name: str
     dt: float
@@ -139,36 +84,12 @@ def canonical(name: str, dt: float = 0.02, speed: float = 1.0, accel: float = 5.
     """
     Canonical reference trajectory, Fink & Stump Table V and three of ours.
 
-    With the defaults, ``left``, ``right`` and ``s_curve`` are Table V exactly:
-    ``p_v = [0 m/s, 5 m/s^2, 1 m/s, 5 m/s^2, 0 m/s]`` with the curvature knots
-    ``[0, 0, 1.5, 0, 0, 0]`` over 4 s (``p_L``), ``[0, 0, -1.5, 0, 0, 0]`` over 4 s
-    (``p_R``), ``[0, 0, -1, 0, 1, 0]`` over 6 s (``p_S``). Ours: ``straight`` (4 s, zero
-    curvature), ``lane_change`` (5 s, knots ``[0, 0.75, 0, -0.75, 0]``: a sideways offset
-    with the heading back to zero) and ``spin`` (no forward speed, the turn rate a trapezoid
-    to ``speed / 0.5 m`` rad/s lasting 3 s).
-
-    Parameters
-    ----------
-    name : str
-        One of :data:`CANONICAL`.
-    dt : float
-        Sample period, s.
-    speed : float
-        Travelling speed ``v_trav``, m/s (> 0); scale it to the vehicle.
-    accel : float
-        Ramp rates ``a0 = af`` of the speed profile, m/s^2.
-    curvature_scale : float
-        Factor on the curvature knots (a smaller vehicle turns tighter).
-
-    Returns
-    -------
-    Reference
-
-    Raises
-    ------
-    ValueError
-        For an unknown name or a non-positive speed, accel or dt.
-
+    With the defaults, ``left``, ``right`` and ``s_curve`` are Table V exactly (``p_v = [0, 5, 1,
+    5, 0]``, knots ``[0, 0, +-1.5, 0, 0, 0]`` over 4 s and ``[0, 0, -1, 0, 1, 0]`` over 6 s). Ours:
+    ``straight`` (4 s), ``lane_change`` (5 s, knots ``[0, 0.75, 0, -0.75, 0]``) and ``spin`` (turn
+    rate a trapezoid to ``speed / 0.5 m`` rad/s for 3 s). ``speed`` (m/s), ``accel`` (m/s^2) and
+    ``curvature_scale`` scale them to the vehicle. ValueError for an unknown name or a non-positive
+    speed, accel or dt.
     """
     for label, value in (('dt', dt), ('speed', speed), ('accel', accel)):
         if not (math.isfinite(value) and value > 0.0):
