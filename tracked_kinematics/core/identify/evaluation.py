@@ -1,12 +1,8 @@
 """
 How well a model predicts: final-pose errors over segments, held-out blocks, dead reckoning.
 
-A model is judged by the odometry it gives on data it was not fitted to, as Martinez et
-al. (2005) judge theirs on validation paths other than the training ones (sec. 6, Figs.
-9-12), and by the final pose error of Fink & Stump (sec. IV-B, Fig. 6, Table III):
-:class:`HoldOut` sets aside time blocks, :func:`prediction_errors` measures each held-out
-segment's final pose error, and :func:`dead_reckoning` integrates a whole recording for
-the pictures.
+Judged on data it was not fitted to, as Martinez et al. (2005, sec. 6) judge theirs, by the final
+pose error of Fink & Stump (sec. IV-B, Table III).
 """
 
 from __future__ import annotations
@@ -24,19 +20,7 @@ from ..models import MotionModel
 
 @dataclass(frozen=True)
 class ErrorStats:
-    """
-    Final-pose errors of a model over segments (or windows).
-
-    Attributes
-    ----------
-    n : int
-        Number of segments (0: none, and the other fields are NaN).
-    position_mean, position_p90 : float
-        Mean and 90th percentile of the final position error, m.
-    heading_mean, heading_p90 : float
-        Mean and 90th percentile of the absolute final heading error, rad.
-
-    """
+    """Final-pose errors over ``n`` segments: mean and p90 of position (m) and |heading| (rad)."""
 
     n: int
     position_mean: float
@@ -56,11 +40,9 @@ class ErrorStats:
 
     def improvement_over(self, baseline: ErrorStats) -> dict[str, float | None] | None:
         """
-        Return the percent reduction of the mean errors relative to ``baseline``.
+        Return the percent reduction of the mean errors relative to ``baseline``, or None.
 
-        None when either has no segments: there is nothing to compare, which is not a
-        0 % improvement. Against a baseline error of exactly 0, an equal error is 0 % and a
-        larger one None (no finite percentage).
+        None when either has no segments, or against a zero baseline error that is exceeded.
         """
         if self.n == 0 or baseline.n == 0:
             return None
@@ -74,14 +56,7 @@ class ErrorStats:
 
 
 def prediction_errors(model: MotionModel, p, segments: Segments):
-    """
-    Compute the final position (m) and heading (rad, absolute) error of each prediction.
-
-    Returns
-    -------
-    position, heading : ndarray, shape (S,)
-
-    """
+    """Compute the final position (m) and absolute heading (rad) error of each prediction."""
     if len(segments) == 0:
         return np.zeros(0), np.zeros(0)
     diff = segments.truth - SegmentProblem(model, segments).predict(p)
@@ -102,27 +77,9 @@ class HoldOut:
     """
     Time blocks held out of the fit, to measure how well a model predicts unseen data.
 
-    The driving time (the moving segments, end to end) is cut into blocks of about
-    ``block_length`` seconds; each fold holds out some blocks, and the models are fitted on
-    the segments that do not overlap them (Martinez sec. 6: validation paths other than the
-    training ones). One fold holds out ``fraction`` of the blocks, evenly spaced; when that
-    leaves fewer than :data:`MIN_WINDOWS` held-out windows and :data:`MIN_SEGMENTS` held-out
-    segments (a short recording), the blocks are held out in turn over
-    ``round(1 / fraction)`` folds (cross-validation), so every block is predicted once by
-    models that did not see it.
-
-    Attributes
-    ----------
-    spans : ndarray, shape (R, 4)
-        ``(block, recording, t_start, t_end)``: the time each block covers in each
-        recording (a block of a recording in pieces may cover several recordings).
-    folds : tuple of ndarray
-        The blocks held out by each fold.
-    total_blocks : int
-        Blocks the driving time was cut into.
-    block_length : float
-        Driving time per block, s.
-
+    The driving time is cut into blocks; a fold holds out ``fraction`` of them, evenly spaced, or,
+    when that leaves too few windows, the blocks in turn over ``round(1 / fraction)`` folds.
+    ``spans`` rows are ``(block, recording, t_start, t_end)``.
     """
 
     spans: np.ndarray
@@ -151,28 +108,9 @@ class HoldOut:
         """
         Cut the driving time into blocks and choose the blocks each fold holds out.
 
-        Parameters
-        ----------
-        segments : Segments
-            The moving segments.
-        fraction : float
-            Fraction of the blocks one fold holds out, in (0, 1).
-        block_length : float
-            Longest driving time per block, s. Shorter when the data are short, so that
-            there are :data:`MIN_BLOCKS` blocks, but not shorter than two windows (a block
-            holds three windows overlapping by half) unless that leaves fewer than 3
-            blocks.
-        window : float
-            Evaluation window, s.
-        folds : int, optional
-            Number of folds; default 1, and the caller asks for ``round(1 / fraction)``
-            when one fold gives too few windows (:func:`.procedure.identify`).
-
-        Returns
-        -------
-        HoldOut or None
-            None without segments or with ``fraction <= 0``.
-
+        ``block_length`` (s) is the longest block, shortened on short data to give
+        :data:`MIN_BLOCKS` but not below two ``window`` lengths (s). Returns None without segments
+        or with ``fraction <= 0``.
         """
         if len(segments) == 0 or fraction <= 0.0:
             return None
@@ -224,14 +162,7 @@ class HoldOut:
 
     def windows(self, recordings, length: float, fold: int = 0,
                 stride: float | None = None) -> Segments:
-        """
-        Windows of ``length`` s inside the blocks one fold holds out, and inside the pieces.
-
-        A window starts at a ground-truth sample every ``stride`` s (default half the
-        length, so neighbouring windows overlap by half) from the start of each held-out
-        span, and ends at the first ground-truth sample ``length`` later, within the same
-        piece (:func:`.segments.covered_spans`): windows never span a gap.
-        """
+        """Windows of ``length`` s in held-out blocks, every ``stride`` s, never over gaps."""
         stride = 0.5 * length if stride is None else float(stride)
         phases = max(1, int(math.ceil(length / stride - 1e-9)))
         recordings = list(recordings)
@@ -262,18 +193,7 @@ def _crop(recording: Recording, start: float, end: float) -> Recording:
 
 
 def dead_reckoning(model: MotionModel, p, recording: Recording):
-    """
-    Odometry of a whole recording from its first ground-truth pose, at the ground-truth times.
-
-    The encoder travel is interpolated linearly at the ground-truth times (constant speed
-    between encoder samples) and integrated along arcs, through gaps too.
-
-    Returns
-    -------
-    t, x, y, yaw : ndarray
-        Ground-truth times covered by the encoders and the odometry pose at each.
-
-    """
+    """Odometry ``t, x, y, yaw`` of a recording from its first ground-truth pose, at its times."""
     rec = recording
     inside = np.flatnonzero((rec.gt_t >= rec.enc_t[0]) & (rec.gt_t <= rec.enc_t[-1]))
     if len(inside) == 0:

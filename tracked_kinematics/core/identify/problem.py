@@ -1,36 +1,9 @@
 """
 The least-squares problem of the identification: Martinez eq. (17) and its Jacobian.
 
-Martinez et al. (2005), sec. 4.2, choose the parameters ``p`` that minimise the squared
-differences between the measured pose increment of each segment (:mod:`.segments`) and the
-one the kinematic model predicts from the segment's encoder travel, eq. (17)::
-
-    J(p) = sum_i (dx_i - dx^_i)^2 + (dy_i - dy^_i)^2 + lambda^2 (dphi_i - dphi^_i)^2
-
-where ``lambda`` (m/rad) is the heading weight (the paper sums metres and radians as they
-are, ``lambda = 1``: :data:`DEFAULT_HEADING_WEIGHT`). Martinez searched ``p`` with a genetic
-algorithm; Fink & Stump (sec. III-A, eqs. 4-5) minimise the same kind of cost by nonlinear
-least squares with the sensitivity of the integrated pose to the parameters, which is what
-:class:`SegmentProblem` computes, in closed form and for every segment at once:
-
-- the whole log is integrated once (:func:`..integration.integrate`) and each segment's
-  predicted increment is the relative pose between its end points, exact because relative
-  poses along one integrated path equal integrating each segment from the origin;
-- the sensitivity of a segment's end pose is Fink & Stump eq. (4) unrolled over the encoder
-  steps: each step moves the end through its own chord, and turns everything after it about
-  the point where it happened. For a segment of steps ``k = a..b`` with body increments
-  ``u_k``, chords ``c_k`` and world headings ``th_k`` (before step ``k``), the end position
-  relative to the start is ``sum_k R(th_k) c_k`` and the heading change ``sum_k dth_k``, so::
-
-      d pos / dp = sum_k R(th_k) (dc_k/du_k) (du_k/dp)
-                   + J sum_k (P_b - P_k) d(dth_k)/dp,        J = rot(90 deg)
-
-  (a heading change at step ``k`` turns the rest of the segment about ``P_k``, the position
-  after it). Both sums are per-segment cumulative sums (``np.add.reduceat``), so one
-  evaluation is O(N) and has no Python loop over segments.
-
-:func:`robust_cost` is the cost ``scipy.optimize.least_squares`` minimises with a robust
-loss, for the derivative-free search of :func:`.fitting.fit`.
+``J(p) = sum_i (dx_i - dx^_i)^2 + (dy_i - dy^_i)^2 + lambda^2 (dphi_i - dphi^_i)^2`` over segments,
+with Fink & Stump's sensitivities (eq. 4) in closed form for all segments at once. See
+docs/model.md, "Sensitivities of a segment's end pose".
 """
 
 from __future__ import annotations
@@ -57,16 +30,7 @@ why it is not the noise-balancing ``auto`` weight (None, :func:`.fitting.auto_he
 
 
 def check_heading_weight(heading_weight) -> float:
-    """
-    Return a heading weight as a float, refusing what is not a finite number > 0.
-
-    Raises
-    ------
-    TrackedKinematicsError
-        For 0 (it would drop the heading from eq. 17), a negative, NaN or infinite weight,
-        or something that is not a number.
-
-    """
+    """Return a heading weight as a float; TrackedKinematicsError unless a finite number > 0."""
     try:
         value = float(heading_weight)
     except (TypeError, ValueError):
@@ -79,11 +43,7 @@ def check_heading_weight(heading_weight) -> float:
 
 
 def _chord_coefficients(dtheta):
-    """
-    ``S``, ``C`` of :func:`..integration.arc_chord` and their derivatives in ``dtheta``.
-
-    ``S = sin(t)/t``, ``C = (1 - cos t)/t``; near 0 the derivatives use their series.
-    """
+    """``S``, ``C`` of :func:`..integration.arc_chord` and their derivatives (series near 0)."""
     t = np.asarray(dtheta, dtype=float)
     s = np.sinc(t / np.pi)
     c = 0.5 * t * np.sinc(t / (2.0 * np.pi)) ** 2
@@ -102,22 +62,8 @@ class SegmentProblem:
     """
     Residuals of Martinez eq. (17) over a set of segments, and their Jacobian.
 
-    Parameters
-    ----------
-    model : MotionModel
-        The motion model whose parameters are fitted.
-    segments : Segments
-        Steps and measured increments.
-    heading_weight : float
-        ``lambda`` of eq. (17) as written in the module notes, m/rad: a heading residual of
-        1 rad counts as much as a position residual of ``lambda`` metres. Checked by
-        :func:`check_heading_weight`.
-
-    Notes
-    -----
-    Residuals are ordered ``[dx_0, dy_0, lambda dphi_0, dx_1, ...]`` (measured minus
-    predicted); the heading residual is wrapped to [-pi, pi).
-
+    ``heading_weight`` is ``lambda`` (m/rad). Residuals are ``[dx_0, dy_0, lambda dphi_0, dx_1,
+    ...]``, measured minus predicted, heading wrapped to [-pi, pi).
     """
 
     def __init__(self, model: MotionModel, segments: Segments,
@@ -165,12 +111,7 @@ class SegmentProblem:
         return self._weigh(self.segments.truth - self.predict(p))
 
     def jacobian(self, p) -> np.ndarray:
-        """
-        Jacobian of :meth:`residuals`, shape (3 S, P): Fink & Stump eq. (4), per segment.
-
-        Eq. (4) unrolled over the steps of each segment, as derived in the module notes,
-        expressed in the frame of the segment start.
-        """
+        """Jacobian of :meth:`residuals`, shape (3 S, P): Fink & Stump eq. (4), per segment."""
         p = np.asarray(p, float)
         u, du = self._increments(p, True)
         x, y, th = integrate(u[:, 0], u[:, 1], u[:, 2])
@@ -206,19 +147,7 @@ class SegmentProblem:
 
 
 def robust_cost(residuals, loss: str = 'linear', f_scale: float = 1.0) -> float:
-    """
-    Cost ``0.5 sum f^2 rho((r / f)^2)`` exactly as ``scipy.optimize.least_squares`` defines it.
-
-    Parameters
-    ----------
-    residuals : array_like
-        Residual vector.
-    loss : str
-        One of :data:`LOSSES`.
-    f_scale : float
-        Soft margin between inlier and outlier residuals.
-
-    """
+    """Cost ``0.5 sum f^2 rho((r / f)^2)`` exactly as scipy's ``least_squares`` defines it."""
     z = (np.asarray(residuals, dtype=float) / f_scale) ** 2
     if loss == 'linear':
         rho = z

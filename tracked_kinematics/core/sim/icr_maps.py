@@ -1,11 +1,8 @@
 """
 Tread ICR maps of a vehicle from its stationary dynamics (Martinez et al. 2005, sec. 5.2).
 
-The paper computes the tread ICRs for every pair of equidistant track speeds with the
-stationary track-soil model (:class:`.dynamics.StationarySolver`) and averages them into the
-constant ICRs of its kinematic model. :func:`tread_icrs` turns a body twist into tread ICRs
-(Martinez eqs. 3-6), :func:`icr_map` solves the grid of speed pairs, :func:`averaged_icr`
-averages a map into constant ICRs.
+Tread ICRs of every pair of equidistant track speeds, and their average: the constant ICRs of the
+kinematic model. See docs/simulator.md.
 """
 
 from __future__ import annotations
@@ -21,24 +18,10 @@ from ..kinematics import IcrParams
 
 def tread_icrs(v_left, v_right, twist, min_turn_rate: float = 1e-9):
     """
-    Tread ICRs of a body twist, Martinez eqs. (3)-(6) in ROS axes.
+    Tread ICRs (m) of a body twist, Martinez eqs. (3)-(6) in ROS axes.
 
-    ``y_left = (v_x - V_l) / w``, ``y_right = (v_x - V_r) / w``, ``x = -v_y / w``.
-
-    Parameters
-    ----------
-    v_left, v_right : array_like, shape (N,)
-        Track speeds, m/s.
-    twist : array_like, shape (N, 3)
-        ``(v_x, v_y, w)``.
-    min_turn_rate : float
-        ``|w|`` (rad/s) below which the ICRs are undefined (straight motion): NaN.
-
-    Returns
-    -------
-    y_left, y_right, x : ndarray, shape (N,)
-        m.
-
+    ``y_left = (v_x - V_l) / w``, ``y_right = (v_x - V_r) / w``, ``x = -v_y / w``; NaN where ``|w|
+    < min_turn_rate`` (rad/s).
     """
     twist = np.atleast_2d(np.asarray(twist, float))
     v_x, v_y, w = twist[:, 0], twist[:, 1], twist[:, 2]
@@ -55,20 +38,8 @@ class IcrMap:
     """
     Tread ICRs over a grid of equidistant track speeds (Martinez Figs. 6-7).
 
-    Attributes
-    ----------
-    vehicle : Vehicle
-        The vehicle it was computed for.
-    speeds : ndarray, shape (n,)
-        Track speeds of the grid, m/s, from ``-max_track_speed`` to ``max_track_speed``.
-    v_left, v_right : ndarray, shape (n, n)
-        Track speeds of every pair (``v_left[i, j] = speeds[i]``, ``v_right[i, j] = speeds[j]``).
-    twist : ndarray, shape (n, n, 3)
-        Stationary body twist; NaN where the solver failed.
-    y_left, y_right, x : ndarray, shape (n, n)
-        Tread ICR coordinates in base_link, m; NaN for straight motion (equal speeds), the
-        standstill pair and failed solves.
-
+    ``v_left[i, j] = speeds[i]``, ``v_right[i, j] = speeds[j]`` (m/s); ``twist`` (n, n, 3) and the
+    ICRs (m) are NaN for straight motion, standstill and failed solves.
     """
 
     vehicle: Vehicle
@@ -94,26 +65,9 @@ class IcrMap:
 def icr_map(vehicle: Vehicle, n: int = 21, solver: StationarySolver | None = None,
             max_speed: float | None = None) -> IcrMap:
     """
-    Solve the stationary problem for all pairs of ``n`` equidistant track speeds.
+    Solve the stationary problem for all pairs of ``n`` equidistant speeds (Martinez sec. 5.2).
 
-    Martinez sec. 5.2: "the solution of the stationary problem has been obtained for all the
-    left-right combinations of equidistant track speeds in the (-1, +1) m/s range".
-
-    Parameters
-    ----------
-    vehicle : Vehicle
-        Vehicle and soil.
-    n : int
-        Speeds per track (odd ``n`` includes 0).
-    solver : StationarySolver, optional
-        Solver to use (default: one with the default grid).
-    max_speed : float, optional
-        Range ``(-max_speed, max_speed)``, m/s; default ``vehicle.max_track_speed``.
-
-    Returns
-    -------
-    IcrMap
-
+    The range is ``(-max_speed, max_speed)`` m/s (default ``vehicle.max_track_speed``).
     """
     if n < 2:
         raise ValueError(f'the map needs n >= 2 speeds per track, got {n}')
@@ -135,23 +89,10 @@ def icr_map(vehicle: Vehicle, n: int = 21, solver: StationarySolver | None = Non
 
 def averaged_icr(icr_map_: IcrMap, weighting: str = 'uniform') -> IcrParams:
     """
-    Constant tread ICRs fitted to a map (Martinez sec. 5.2), with chi and e on the result.
+    Constant tread ICRs fitted to a map (Martinez sec. 5.2), unit scales.
 
-    Parameters
-    ----------
-    icr_map_ : IcrMap
-        The map.
-    weighting : {'uniform', 'turn_rate'}
-        ``'uniform'``: the plain mean of every coordinate over the map, as the paper
-        averages it. ``'turn_rate'``: the least-squares fit of the inverse kinematics
-        ``V = v_x - y w`` and of ``v_y = -x w`` over the map, i.e. the mean weighted by
-        ``w^2``, which discounts near-straight pairs whose ICRs matter least for motion.
-
-    Returns
-    -------
-    IcrParams
-        With the vehicle's track width and unit scales.
-
+    ``weighting='uniform'``: the plain mean, as the paper; ``'turn_rate'``: the least-squares fit
+    of the inverse kinematics, a mean weighted by ``w^2``.
     """
     valid = icr_map_.valid
     if not np.any(valid):

@@ -1,13 +1,9 @@
 """
 The heading fit: the turn gain, the veer and the gyro biases from heading increments.
 
-Over any interval the heading change is linear in the nominal travel of the tracks,
-``dpsi = u (D_r - D_l) + v (D_r + D_l)``: Martinez et al. (2005) eq. (9), integrated, with
-the scales of eqs. (20)-(21); the turn gain ``u = s / W`` is their eq. (16) read the other
-way (``chi = track_width u / s``). :func:`_heading_fit` fits ``(u, v)`` and a bias per gyro
-recording to the segments of :mod:`.headings` (weighted robust least squares);
-:func:`_fit_heading` (step 4 of :func:`.calibration.fit_recordings`) holds what the data do
-not determine.
+``dpsi = u (D_r - D_l) + v (D_r + D_l)``: Martinez et al. (2005) eq. (9), integrated, with the
+scales of eqs. (20)-(21); ``u = s / W`` is eq. (16) read the other way. Step 4 of
+:func:`.calibration.fit_recordings`.
 """
 
 from __future__ import annotations
@@ -40,13 +36,7 @@ def _robust_std(r):
 
 
 def _heading_fit(sources, n_rec, hold_u=None, hold_ratio=None):
-    """
-    Weighted robust least squares of the heading: ``(u, v)`` and one bias per gyro recording.
-
-    ``sources``: list of (name, _Segments, has_bias). ``hold_u``: fixed turn gain;
-    ``hold_ratio``: fixed ``v / u``. Returns the parameters, their covariance and per-source
-    residual statistics.
-    """
+    """Weighted robust least squares of ``(u, v)`` and a bias per gyro recording."""
     rows, ys, src = [], [], []
     n_bias = n_rec
     for k, (name, seg, has_bias) in enumerate(sources):
@@ -106,25 +96,7 @@ def _param_std(cov, used, index):
 
 @dataclass
 class _Heading:
-    """
-    The heading fit (step 4 of the calibration).
-
-    Attributes
-    ----------
-    u, v : float
-        Turn gain ``s / W`` and veer ``(s_r - s_l) / (2 W)``, rad per m of travel.
-    rho : float
-        Scale ratio ``s_r / s_l``: ``(u + v) / (u - v)``, or the base's when held.
-    std_u, std_rho : float
-        Their standard errors (``std_u`` 0 when ``u`` is held).
-    biases : list
-        Gyro bias per recording, rad/s (None for a recording without a gyro).
-    stats : dict
-        Residual statistics per heading source.
-    determined, held : list of str
-        Of ``chi`` and ``scale_ratio``.
-
-    """
+    """The heading fit: ``u``, ``v`` (rad/m), ``rho = (u + v) / (u - v)``, errors, gyro biases."""
 
     u: float
     v: float
@@ -138,19 +110,7 @@ class _Heading:
 
 
 def _held_turn_gain(hold, turned: float, straight: bool, base) -> float | None:
-    """
-    Return the turn gain to hold (the base's ``s / W``), or None to fit it.
-
-    It is held when asked (``'chi'`` in ``hold``) or when the drive turns less than
-    :data:`MIN_TURN` and is a straight of measured length; with neither, too little turning
-    is an error.
-
-    Raises
-    ------
-    ExcitationError
-        The heading turns too little to fit chi.
-
-    """
+    """Return the turn gain to hold (the base's) or None to fit it; ExcitationError if unfit."""
     base_s, _, base_w, _ = _quantities(base)
     if 'chi' in hold:
         return base_s / base_w
@@ -163,13 +123,7 @@ def _held_turn_gain(hold, turned: float, straight: bool, base) -> float | None:
 
 
 def _ratio_std(u: float, v: float, cov, used, u_held: bool) -> float:
-    """
-    Return the standard error of the scale ratio ``rho = (u + v) / (u - v)``.
-
-    Delta method: ``d rho / du = -2 v / (u - v)^2``, ``d rho / dv = 2 u / (u - v)^2``;
-    with ``u`` held, only the merged column's error counts (NaN: not fitted). Infinite
-    when ``u <= |v|`` (no finite ratio).
-    """
+    """Return the standard error of ``rho = (u + v) / (u - v)`` by the delta method (inf: none)."""
     rho = (u + v) / (u - v) if u > abs(v) else math.inf
     if math.isfinite(rho) and not u_held:
         g = np.zeros(len(used))
@@ -184,35 +138,9 @@ def _fit_heading(data: _HeadingData, n_rec: int, hold, base, straight: bool) -> 
     """
     Fit the turn gain, the veer and the gyro biases; hold what the heading does not determine.
 
-    The scale ratio is held at the base's (and the fit repeated with ``v / u`` fixed) when
-    asked, when its standard error exceeds :data:`RATIO_STD_LIMIT` or when it comes out
-    infinite or negative; chi (the turn gain) is refused when its relative standard error
-    exceeds :data:`CHI_REL_STD_LIMIT`.
-
-    Parameters
-    ----------
-    data : _HeadingData
-        The segments (step 3).
-    n_rec : int
-        Number of recordings (one bias column each).
-    hold : tuple of str
-        Quantities to hold.
-    base : IcrParams
-        Held values.
-    straight : bool
-        The recordings are a straight of measured length (chi may be held for lack of turns).
-
-    Returns
-    -------
-    _Heading
-
-    Raises
-    ------
-    ExcitationError
-        Too little turning for chi, or chi too uncertain.
-    FitError
-        A turn gain <= 0 (tracks or gyro sign swapped).
-
+    The ratio is held when asked, beyond :data:`RATIO_STD_LIMIT`, or non-finite or negative. Raises
+    ExcitationError (too little turning; chi beyond :data:`CHI_REL_STD_LIMIT`) or FitError (a turn
+    gain <= 0: tracks or gyro sign swapped).
     """
     _, base_rho, _, _ = _quantities(base)
     hold_u = _held_turn_gain(hold, data.turned, straight, base)
