@@ -1,12 +1,9 @@
 """
 The encoder input modes: one decoder each, shared by the nodes and the bag reader.
 
-A decoder knows its mode's topics and message types and turns the fields of its messages
-into per-side readings: one message at a time for a node (the readings go to
-:class:`~.encoders.IncrementTracker`), columns of many messages at once into cumulative
-nominal travel for a bag. Messages are read by field name (``msg.data``), which rclpy's and
-rosbags' messages share. Adding a mode is adding a class to :data:`ENCODER_DECODERS`; see
-docs/nodes/odometry_node.md#encoder-input.
+A decoder turns its messages into per-side readings, one message at a time (nodes) or as columns
+into cumulative nominal travel (bags). Adding a mode is adding a class to :data:`ENCODER_DECODERS`;
+see docs/nodes/odometry_node.md#encoder-input.
 """
 
 from __future__ import annotations
@@ -27,17 +24,7 @@ TICK_TYPES = {'int32': 'std_msgs/msg/Int32', 'int64': 'std_msgs/msg/Int64'}
 
 
 class JointStatesDecoder:
-    """
-    sensor_msgs/JointState: the joints of each side averaged, positions else velocities.
-
-    Parameters
-    ----------
-    left_joints, right_joints : sequence of str
-        Joints of each side.
-    sprocket_radius : float
-        m per rad.
-
-    """
+    """sensor_msgs/JointState: the joints of each side averaged, positions else velocities."""
 
     mode = 'joint_states'
     topics = ('joint_states',)
@@ -73,12 +60,7 @@ class JointStatesDecoder:
         return [j for side in self.joints for j in side if j not in names]
 
     def reading(self, index, count: int, positions, velocities):
-        """
-        Return ``(kind, left, right)`` of one message, for :class:`~.encoders.IncrementTracker`.
-
-        Positions (``'position'``) when the message has them for all ``count`` joints and
-        both side means are finite, else velocities (``'velocity'``); None for neither.
-        """
+        """Return ``(kind, left, right)`` of a message: positions if finite, else velocities."""
         left_index, right_index = index   # the sums written out: a node's hot path
         if len(positions) == count:
             left = sum([positions[i] for i in left_index]) / len(left_index)
@@ -108,11 +90,9 @@ class JointStatesDecoder:
 
     def travel(self, t, pos_l, pos_r, vel_l, vel_r):
         """
-        Return times and the cumulative nominal travel of each side (m) of sorted samples.
+        Return times (ns) and each side's cumulative nominal travel in m, or None.
 
-        Positions (unwrapped, :func:`~.encoders.unwrap_if_wrapped`) when at least two samples
-        and half of them have finite ones, else velocities (trapezoidal rule); None when
-        fewer than two samples have either. ``t`` in ns.
+        Positions (unwrapped) when at least half the samples have them, else velocities.
         """
         radius = self.factor
         positions = np.isfinite(pos_l) & np.isfinite(pos_r)
@@ -169,19 +149,7 @@ class TrackSpeedsDecoder:
 
 
 class EncoderTicksDecoder:
-    """
-    std_msgs/Int32 or Int64 per side: a wrapping tick counter.
-
-    Parameters
-    ----------
-    sprocket_radius : float
-        m.
-    ticks_per_revolution : float
-        Ticks per sprocket revolution.
-    ticks_type : str, optional
-        ``'int32'`` or ``'int64'`` (a node subscribes to one); None accepts both (a bag).
-
-    """
+    """std_msgs/Int32 or Int64 per side: a wrapping tick counter (``ticks_type`` None: either)."""
 
     mode = 'encoder_ticks'
     topics = ('left_track/ticks', 'right_track/ticks')
@@ -226,14 +194,5 @@ ENCODER_DECODERS = {cls.mode: cls for cls in (JointStatesDecoder, TrackSpeedsDec
 
 
 def encoder_decoder(values):
-    """
-    Return the decoder of ``values['input_mode']``, built from the other parameter values.
-
-    Parameters
-    ----------
-    values : mapping
-        The encoder parameters (:data:`tracked_kinematics.params.ENCODER_INPUT_PARAMS`) and
-        ``sprocket_radius``, checked where they entered.
-
-    """
+    """Return the decoder of ``values['input_mode']``, built from the other (checked) values."""
     return ENCODER_DECODERS[values['input_mode']].from_values(values)

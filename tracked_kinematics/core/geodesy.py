@@ -1,20 +1,8 @@
 """
 Latitude/longitude <-> a local east-north-up plane, vectorised (WGS-84).
 
-GNSS receivers report geodetic coordinates (sensor_msgs/NavSatFix: degrees, metres above the
-ellipsoid); the kinematics wants metres in a plane. :func:`geodetic_to_enu` maps fixes to the
-east-north-up (ENU) tangent plane at an origin, exactly through Earth-centred Earth-fixed
-coordinates, and :func:`enu_to_geodetic` is its inverse. In a ROS ``odom``/``map`` frame that
-follows REP-105 and REP-103 (x east, y north, z up), ENU ``(east, north)`` *is* ``(x, y)``.
-
-The core's foundation: the simulator writes fixes with it, identification reads them with
-it, and neither imports the other.
-
-A short example:
->>> origin = GeoOrigin(46.5, 6.6, 400.0)
->>> lat, lon, alt = enu_to_geodetic([10.0], [20.0], [0.0], origin)
->>> east, north, up = geodetic_to_enu(lat, lon, alt, origin)   # back to 10, 20, 0 (< 1e-6 m)
-
+Exact through Earth-centred Earth-fixed coordinates; in a REP-105 ``odom``/``map`` frame ENU
+``(east, north)`` is ``(x, y)``. The simulator writes fixes with it, identification reads them.
 """
 
 from __future__ import annotations
@@ -36,17 +24,7 @@ EP2 = E2 / (1.0 - E2)
 
 @dataclass(frozen=True, slots=True)
 class GeoOrigin:
-    """
-    Origin of a local ENU plane.
-
-    Attributes
-    ----------
-    latitude, longitude : float
-        Degrees (north, east positive); latitude in [-90, 90].
-    altitude : float
-        Metres above the WGS-84 ellipsoid.
-
-    """
+    """Origin of a local ENU plane: latitude, longitude (degrees), altitude (m above WGS-84)."""
 
     latitude: float = 0.0
     longitude: float = 0.0
@@ -75,22 +53,9 @@ def _rotation(origin: GeoOrigin):
 
 def geodetic_to_enu(latitude, longitude, altitude, origin: GeoOrigin):
     """
-    East, north, up of geodetic positions in the tangent plane at ``origin``.
+    East, north, up (m) of geodetic positions (degrees, m) in the tangent plane at ``origin``.
 
-    Parameters
-    ----------
-    latitude, longitude : array_like
-        Degrees.
-    altitude : array_like
-        Metres above the ellipsoid (NaN is taken as the origin's altitude).
-    origin : GeoOrigin
-        Origin of the plane.
-
-    Returns
-    -------
-    east, north, up : ndarray
-        Metres.
-
+    A NaN altitude is taken as the origin's.
     """
     lat = np.asarray(latitude, dtype=float)
     lon = np.asarray(longitude, dtype=float)
@@ -104,25 +69,9 @@ def geodetic_to_enu(latitude, longitude, altitude, origin: GeoOrigin):
 
 def enu_to_geodetic(east, north, up, origin: GeoOrigin):
     """
-    Geodetic positions of points in the tangent plane at ``origin``.
+    Latitude, longitude (degrees) and altitude (m) of points (m) in the plane at ``origin``.
 
-    The inverse of :func:`geodetic_to_enu`; latitude by Bowring's formula with one Newton
-    refinement (micrometres anywhere near the surface).
-
-    Parameters
-    ----------
-    east, north, up : array_like
-        Metres.
-    origin : GeoOrigin
-        Origin of the plane.
-
-    Returns
-    -------
-    latitude, longitude : ndarray
-        Degrees.
-    altitude : ndarray
-        Metres above the ellipsoid.
-
+    The inverse of :func:`geodetic_to_enu`; Bowring's latitude with one Newton refinement.
     """
     enu = np.stack(np.broadcast_arrays(*(np.asarray(v, dtype=float)
                                          for v in (east, north, up))), axis=-1)

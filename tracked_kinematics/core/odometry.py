@@ -1,19 +1,9 @@
 """
 Odometry as a small state machine: nominal track travel in, pose, twist and covariance out.
 
-Each step takes the measured (nominal, encoder) travel of the two tracks and the step's
-duration, corrects the travel by the scales (Martinez eqs. 20-21), maps it to body
-increments through the tread ICRs (eqs. 7-9), moves the pose along the exact arc (the step
-of :func:`.integration.integrate`) and propagates the covariance (:mod:`.covariance`).
-Nothing here knows about ROS: the node feeds it numbers and copies the numbers out. One
-step costs a few microseconds in plain Python floats, which is what a node handling one
-encoder message at a time needs.
-
-The state can never be corrupted into a frozen one: a step whose travel, speed, pose or
-covariance would not be finite is refused whole (no hidden jump: a step is integrated only
-if its twist can be published), the covariance saturates at
-:data:`~.covariance.MAX_VARIANCE`, and the heading stays within a range where a turn still
-registers.
+Scales (Martinez eqs. 20-21), tread ICRs (eqs. 7-9), the exact arc and the covariance, in plain
+floats (microseconds a step). A step that would make anything non-finite is refused whole, so the
+state never freezes. See docs/nodes/odometry_node.md.
 """
 
 from __future__ import annotations
@@ -43,23 +33,8 @@ class Odometry:
     """
     Dead reckoning of a tracked vehicle through its tread ICRs.
 
-    Parameters
-    ----------
-    icr : IcrParams
-        Kinematic model (ICRs and scales).
-    noise : TrackNoise, optional
-        Track travel noise for the covariance; default ``TrackNoise()``.
-
-    Attributes
-    ----------
-    pose : tuple of float
-        ``(x, y, theta)`` in the odometry frame: m, m, rad. ``theta`` is continuous (not
-        wrapped).
-    covariance_upper : tuple of float
-        Upper triangle ``(xx, xy, xt, yy, yt, tt)`` of the pose covariance.
-    steps : int
-        Steps integrated since the start or the last :meth:`reset`.
-
+    ``pose`` is ``(x, y, theta)`` (m, m, rad; theta continuous); ``covariance_upper`` the upper
+    triangle ``(xx, xy, xt, yy, yt, tt)``; ``steps`` those since the start or :meth:`reset`.
     """
 
     def __init__(self, icr: IcrParams, noise: TrackNoise | None = None):
@@ -92,21 +67,10 @@ class Odometry:
 
     def update(self, d_left: float, d_right: float, dt: float) -> bool:
         """
-        Integrate one step of nominal track travel.
+        Integrate nominal travel ``d_left``, ``d_right`` (m) over ``dt`` s; False if refused.
 
-        Parameters
-        ----------
-        d_left, d_right : float
-            Measured (nominal) travel of each track over the step, m.
-        dt : float
-            Duration of the step, s (> 0).
-
-        Returns
-        -------
-        bool
-            False, with the state unchanged, when the input, its speed or the result is not
-            finite, ``dt <= 0``, or a track travels more than :data:`MAX_STEP_TRAVEL`.
-
+        Refused, with the state unchanged: non-finite input, speed or result, ``dt <= 0``, or a
+        track travelling more than :data:`MAX_STEP_TRAVEL`.
         """
         if not (math.isfinite(d_left) and math.isfinite(d_right) and math.isfinite(dt)
                 and dt > 0.0 and abs(d_left) <= MAX_STEP_TRAVEL
@@ -145,24 +109,11 @@ class Odometry:
 
     def take_twist(self):
         """
-        Mean body twist over the steps since the last call, and its covariance.
+        Mean body twist (m/s, m/s, rad/s) since the last call, and its covariance's upper triangle.
 
-        The kinematics are linear in the travel, so the mean twist over a window is the
-        twist of the summed travel divided by the window's duration. Its covariance is
-        ``B Q B^T / tau^2`` with ``Q`` the travel variances of the same noise model over
-        ``tau = TWIST_TIME`` at the window's mean distance rates
-        (:func:`.covariance.twist_variances`): independent of the publish rate. The window
-        then restarts.
-
-        Returns
-        -------
-        twist : tuple of float
-            ``(v_x, v_y, w)`` in base_link: m/s, m/s, rad/s; zeros for an empty window.
-        covariance_upper : tuple of float
-            Upper triangle of its covariance (:func:`.covariance.twist_covariance`, plus the
-            floor on ``v_y``, so that no variance is zero); an empty window gives that of
-            standing still (the floor).
-
+        The twist of the summed travel over the window's duration; the covariance is that of
+        :func:`.covariance.twist_variances` (rate-independent) plus the floor on ``v_y``. The
+        window then restarts.
         """
         d_left, d_right, abs_left, abs_right, samples, duration = self._window
         self._clear_window()

@@ -1,11 +1,8 @@
 """
 Short-horizon motion prediction: roll a slip model forward from track speeds or commands.
 
-The EKF paper (sec. 3, eqs. 13-14) predicts the next seconds of motion by integrating the
-slip model over a sequence of track speeds with the current parameter estimate. Where the
-future track speeds are not known, they come from the commands through the drive-train
-model of Fink & Stump (sec. III-B; :class:`~tracked_kinematics.core.drivetrain.DriveTrain`),
-which is what lets a planner or a safety monitor predict from ``cmd_vel``.
+EKF paper sec. 3, eqs. 13-14; unknown future track speeds come from the commands through the drive
+train of Fink & Stump (sec. III-B).
 """
 
 from __future__ import annotations
@@ -22,19 +19,7 @@ from .models import MotionModel
 
 @dataclass(frozen=True)
 class Prediction:
-    """
-    A predicted path.
-
-    Attributes
-    ----------
-    t : ndarray, shape (N + 1,)
-        Time from the start, s (``t[0] = 0``).
-    poses : ndarray, shape (N + 1, 3)
-        ``(x, y, yaw)`` in the frame of ``pose0``: m, m, rad (yaw unwrapped).
-    v_left, v_right : ndarray, shape (N,)
-        Measured (nominal) track speeds used over each step, m/s.
-
-    """
+    """A predicted path: times ``t`` from 0 (s), ``poses`` in ``pose0``'s frame, speeds used."""
 
     t: np.ndarray
     poses: np.ndarray
@@ -49,23 +34,7 @@ class Prediction:
 
 def predict_path(model: MotionModel, p, v_left, v_right, dt: float,
                  pose0=(0.0, 0.0, 0.0)) -> Prediction:
-    """
-    Integrate the slip model over a sequence of track speeds (EKF paper eq. 14).
-
-    Parameters
-    ----------
-    model : MotionModel
-        Slip model; ``p`` its parameters.
-    p : array_like
-        Parameter vector (e.g. :attr:`SlipEstimator.p`).
-    v_left, v_right : array_like, shape (N,)
-        Nominal track speeds held over each step, m/s.
-    dt : float
-        Step, s (> 0).
-    pose0 : tuple of float
-        Start pose ``(x, y, yaw)``.
-
-    """
+    """Integrate the slip model over track speeds (m/s) held every ``dt`` s (EKF paper eq. 14)."""
     dt = float(dt)
     if not np.isfinite(dt) or dt <= 0.0:
         raise ValueError(f'dt must be a finite number > 0 s, got {dt!r}')
@@ -93,22 +62,8 @@ def predict_from_commands(model: MotionModel, p, drivetrain: DriveTrain, cmd_lef
     """
     Predict from commanded track speeds through the drive-train model, then the slip model.
 
-    Parameters
-    ----------
-    model, p
-        Slip model and its parameters.
-    drivetrain : DriveTrain
-        Delay, acceleration limit and speed loop (Fink & Stump sec. III-B).
-    cmd_left, cmd_right : array_like, shape (N,)
-        Commanded nominal track speeds every ``dt`` (held in between), m/s.
-    dt : float
-        Step, s.
-    speeds0 : tuple of float
-        Track speeds now, taken as the drive train's steady state (the commands of the
-        last ``delay`` seconds are not replayed: an approximation of at most one delay).
-    pose0 : tuple of float
-        Start pose.
-
+    ``speeds0`` (m/s) is taken as the drive train's steady state (the last ``delay`` s of commands
+    are not replayed: an approximation of at most one delay).
     """
     commands = np.column_stack([np.asarray(cmd_left, float), np.asarray(cmd_right, float)])
     if not np.all(np.isfinite(commands)):
@@ -118,11 +73,6 @@ def predict_from_commands(model: MotionModel, p, drivetrain: DriveTrain, cmd_lef
 
 
 def commands_from_twist(v_x: float, w: float, icr: IcrParams, horizon: float, dt: float):
-    """
-    Hold a body-twist command for ``horizon`` s as nominal track commands.
-
-    The inverse kinematics (Martinez eqs. 10-11) with the current ICR estimate and its
-    scales gives the nominal track setpoints ``cmd_vel_translator`` would command.
-    """
+    """Hold a twist for ``horizon`` s as the nominal track commands (Martinez eqs. 10-11)."""
     left, right = track_setpoints(v_x, w, icr)
     return hold_speeds(float(left), float(right), horizon, dt)

@@ -1,15 +1,8 @@
 """
 The icr_estimator's EKF replayed over a recording, as the node would run it.
 
-The node (docs/nodes/icr_estimator.md, ``model: icr``) starts
-:class:`~tracked_kinematics.core.estimate.ekf.SlipEstimator` from the terrain file's tread
-ICRs, feeds it every encoder step scaled by the file's ``scale.*`` and every pose as it
-arrives, and predicts with the estimate it stands behind
-(:attr:`~tracked_kinematics.core.estimate.ekf.SlipEstimator.estimate`). The replay does the
-same in time order: encoder steps at their stamps, each pose at the time it arrived (its
-corrected stamp plus the ground-truth delay, which the filter takes off again as
-``pose_delay``). The estimate in force at a time is the one after the last event before it:
-what a prediction or an odometry step starting then could have used.
+Encoder steps (scaled by the terrain file) at their stamps, each pose when it arrived; the estimate
+in force at a time is the one after the last event before it.
 """
 
 from __future__ import annotations
@@ -28,24 +21,10 @@ from ..models import ConstantIcr
 @dataclass(frozen=True)
 class OnlineRun:
     """
-    The estimates of one replay.
+    The estimates of one replay: ``icr`` (N, 3; m) in force from each ``t`` (s; first -inf).
 
-    Attributes
-    ----------
-    t : ndarray, shape (N,)
-        Times from which each estimate is in force, s (the first is ``-inf``).
-    icr : ndarray, shape (N, 3)
-        ``(y_left, y_right, x)`` in force from each time, m.
-    scales : tuple of float
-        The terrain file's ``(scale_left, scale_right)``, applied to the encoders.
-    outcomes : dict
-        How many pose measurements ended how (``updated``, ``outlier``, ...).
-    noise_scale : float
-        The adaptive noise factor at the end.
-    trusted : float
-        Fraction of the poses after which the filter's state was the estimate (the rest:
-        the start values, see ``fallback``).
-
+    ``trusted`` is the fraction of poses after which the filter's state (not the start values) was
+    the estimate.
     """
 
     t: np.ndarray
@@ -65,20 +44,9 @@ class OnlineRun:
 def replay(recording: Recording, icr: IcrParams, delay: float = 0.0,
            config: EstimatorConfig | None = None) -> OnlineRun:
     """
-    Run the EKF over a recording whose ground-truth stamps are corrected by ``delay``.
+    Run the EKF over a recording from the terrain file ``icr``; poses arrive ``delay`` s late.
 
-    Parameters
-    ----------
-    recording : Recording
-        Ground truth on the encoders' clock (delay taken off).
-    icr : IcrParams
-        The terrain file: start values of the ICRs, and the encoder scales.
-    delay : float
-        The ground-truth delay, s: poses arrive that much after their corrected stamps.
-    config : EstimatorConfig, optional
-        The node's noise, windows and gates (default: its defaults); ``pose_delay`` is set
-        to ``delay``.
-
+    ``config`` defaults to the node's; its ``pose_delay`` is set to ``delay``.
     """
     model = ConstantIcr(icr.track_width, with_scales=False)
     config = replace(config or EstimatorConfig(), pose_delay=float(delay))

@@ -1,11 +1,8 @@
 """
 The heading references of a calibration: the gyro's heading, cut into segments with the pose's.
 
-:func:`_gyro_heading` integrates the gyro's yaw rates (or unwraps its yaw angles);
-:func:`_heading_data` (step 3 of :func:`.calibration.fit_recordings`) cuts the encoders and
-each heading reference into segments of ``segment_length`` s (:func:`_segments`, none across
-a gap of either stream) and refuses too little driving and a "straight" that turns.
-:func:`heading_reference` makes the gyro a heading-only ground truth for scoring.
+Step 3 of :func:`.calibration.fit_recordings`; :func:`heading_reference` makes the gyro a
+heading-only ground truth for scoring.
 """
 
 from __future__ import annotations
@@ -113,18 +110,8 @@ class _HeadingData:
     """
     The heading references of all recordings, cut into segments (step 3 of the calibration).
 
-    Attributes
-    ----------
-    gyro, pose : list
-        Per recording: ``(t, heading)`` of the gyro / the pose, their delays removed, or None.
-    sources : list of tuple
-        ``(name, _Segments, has_bias)`` per heading source: ``imu`` first, then ``pose``.
-    moving : ndarray of bool
-        Segments (of all sources) in which the tracks travel at least ``_MIN_TRAVEL``.
-    turned, driven : float
-        Total absolute heading change (rad) over the moving segments, and travel (m), of
-        the first source.
-
+    ``sources`` are ``(name, _Segments, has_bias)``, ``imu`` first; ``moving`` flags segments with
+    travel; ``turned`` (rad) and ``driven`` (m) are totals of the first source.
     """
 
     gyro: list
@@ -143,29 +130,10 @@ def _moving(seg: _Segments) -> np.ndarray:
 def _heading_data(recs, imu_delay: float, pose_delay: float, segment_length: float,
                   straight: bool) -> _HeadingData:
     """
-    Cut the gyro and pose headings of every recording into segments and check them.
+    Cut the gyro and pose headings of every recording into segments of ``segment_length`` s.
 
-    Parameters
-    ----------
-    recs : list of ReferenceRecording
-        Checked and cleaned (step 1).
-    imu_delay, pose_delay : float
-        s of gyro / pose stamps behind the encoders (step 2), removed here.
-    segment_length : float
-        s.
-    straight : bool
-        The recordings are one straight drive of measured length: refuse one that turns
-        (:func:`_check_straight`).
-
-    Returns
-    -------
-    _HeadingData
-
-    Raises
-    ------
-    ExcitationError
-        Fewer than :data:`MIN_MOVING_SEGMENTS` moving segments; a "straight" that turns.
-
+    The delays (s) are removed here. Raises ExcitationError for fewer than
+    :data:`MIN_MOVING_SEGMENTS` moving segments or a ``straight`` that turns.
     """
     gyro = [_gyro_heading(r, imu_delay) if r.gyro_t is not None else None for r in recs]
     pose = [(r.pose[0] - pose_delay, np.unwrap(r.pose[3])) if r.pose is not None else None
@@ -193,20 +161,8 @@ def heading_reference(rec: ReferenceRecording, delay: float, bias: float,
     """
     Return a Recording whose ground truth is the gyro's heading: to score heading only.
 
-    The gyro heading (``delay`` removed from its stamps, ``bias`` rad/s taken off its rates)
-    at ``rate`` Hz, positions all zero (not measured: a scorer must not report them).
-
-    Parameters
-    ----------
-    rec : ReferenceRecording
-        With a gyro.
-    delay : float
-        s of gyro stamps behind the encoders (:attr:`ReferenceFit.imu_delay`).
-    bias : float
-        rad/s (:attr:`ReferenceFit.biases`).
-    rate : float
-        Samples per second of the reference, Hz.
-
+    The gyro heading at ``rate`` Hz, ``delay`` s taken off its stamps and ``bias`` rad/s off its
+    rates; positions all zero (not measured).
     """
     if rec.gyro_t is None:
         raise ValueError('the recording has no gyro')
