@@ -1,10 +1,4 @@
-"""
-Numerical core of tracked_kinematics: numpy/scipy only, no ROS, no file I/O.
-
-Kinematics (:mod:`.kinematics`), pose integration (:mod:`.integration`) and motion models
-(:mod:`.models`) are the foundation the odometry, translation, identification, estimation and
-simulation modules share.
-"""
+"""Numerical core of tracked_kinematics: numpy/scipy only, no ROS, no file I/O."""
 
 from .integration import arc_chord, compose, integrate, integrate_twist, relative_pose, wrap_angle
 from .kinematics import forward, IcrParams, inverse, nominal_speeds, true_speeds

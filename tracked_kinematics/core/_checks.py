@@ -8,27 +8,10 @@ import math
 
 def require_numbers(obj, finite=(), positive=(), non_negative=(), unbounded=()) -> None:
     """
-    Convert the numeric fields of a frozen dataclass to float and check them.
+    Convert the named numeric fields of a frozen dataclass to float and check them.
 
-    Every named field must be a number, not NaN, and finite unless it is listed in
-    ``unbounded`` (where ``inf`` means "no limit").
-
-    Parameters
-    ----------
-    obj : dataclass instance
-        Frozen; its fields are replaced by their float values.
-    finite : sequence of str
-        Fields that may take any finite value.
-    positive, non_negative : sequence of str
-        Fields that must be > 0, and >= 0.
-    unbounded : sequence of str
-        Fields that may be ``inf`` (checked as > 0 when also in ``positive``).
-
-    Raises
-    ------
-    ValueError
-        Naming the first offending field and its value.
-
+    ``finite``: any finite value; ``positive``: > 0; ``non_negative``: >= 0; ``unbounded``: may
+    also be ``inf``. Raises ValueError naming the first offending field and its value.
     """
     names = {f.name for f in fields(obj)}
     for name in (*finite, *positive, *non_negative, *unbounded):

@@ -1,10 +1,8 @@
 """
 The ROS clock watched from the steady clock: invalid, gone back, or stalled.
 
-Under ``use_sim_time`` every ROS-time watchdog (a deadman's age, a sensor or command timeout)
-trusts /clock, and a /clock that stops while the world runs freezes them all. A node that
-moves a robot feeds :class:`ClockWatch` both clocks at each tick of a steady-clock timer and
-treats a fault as a reason to stop. Reference: docs/nodes/calibration_drive.md (safety).
+A /clock that stops freezes every ROS-time watchdog; a node that moves a robot stops on a fault.
+See docs/nodes/calibration_drive.md, "Safety".
 """
 
 from __future__ import annotations
@@ -13,20 +11,7 @@ import math
 
 
 class ClockWatch:
-    """
-    Faults of a ROS clock seen against the steady clock.
-
-    Parameters
-    ----------
-    stall_timeout : float
-        Steady time, s, the ROS clock may stand still before it counts as stalled (> 0).
-
-    Attributes
-    ----------
-    fault : str
-        The reason of the latest :meth:`update` ('' when healthy).
-
-    """
+    """Faults of a ROS clock against the steady clock (``stall_timeout`` in s)."""
 
     def __init__(self, stall_timeout: float):
         self.stall_timeout = float(stall_timeout)
@@ -38,10 +23,8 @@ class ClockWatch:
         """
         Look at the clocks now; return '' when the ROS clock is healthy, else the reason.
 
-        A ROS time that is None (unreadable), not finite or not positive (no /clock yet) is
-        invalid; one behind the latest is a jump back (reported at this update, then the new
-        time line is followed: the caller latches what it must); one that has not advanced for
-        more than ``stall_timeout`` of steady time is stalled, until it advances again.
+        Invalid: None, not finite or not positive. A jump back is reported once, then the new time
+        line followed. Stalled: not advanced for ``stall_timeout`` steady s, until it advances.
         """
         if ros_s is None or not math.isfinite(ros_s) or ros_s <= 0.0:
             self.fault = 'the ROS clock is invalid (no valid /clock?)'

@@ -1,10 +1,8 @@
 """
 The error types of the numerical core.
 
-Every error the core raises on purpose derives from :class:`TrackedKinematicsError`, so a front
-door (a console script, a node) can tell "the input cannot give what was asked" from a bug:
-it catches these and reports them on one line, and lets anything else surface as a traceback.
-They derive from :class:`ValueError` as well, for callers that only know the builtin.
+All derive from :class:`TrackedKinematicsError` (and ValueError), so a front door reports them on
+one line and lets anything else surface as a traceback.
 """
 
 

@@ -1,12 +1,8 @@
 """
 Evaluation: score terrain models on recordings, the way the field measures them.
 
-The face of the sub-package; the modules behind it hold the definitions: :mod:`.pieces`
-(gap-free, jump-free stretches and odometry along them), :mod:`.metrics` (window errors,
-evo's relative pose error, horizons), :mod:`.prediction` (predictions from the encoders and
-from the commands), :mod:`.online` (the icr_estimator's EKF replayed) and :mod:`.scoring`
-(:func:`evaluate`, the report's figures). The ground-truth delay is identify_icr's
-(:func:`tracked_kinematics.core.identify.estimate_delays`).
+:mod:`.pieces`, :mod:`.metrics`, :mod:`.prediction`, :mod:`.online` and :mod:`.scoring`
+(:func:`evaluate`); see docs/tools/evaluate_model.md.
 """
 
 from .metrics import (evo_path_pairs, horizon_members, relative_errors, rpe, summary,

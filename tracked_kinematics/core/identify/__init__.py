@@ -1,15 +1,9 @@
 """
 Identification: fit motion models and drive trains to logged data.
 
-The face of the sub-package; the modules behind it hold the derivations and references:
-:mod:`.segments` (the data), :mod:`.problem` (Martinez eq. 17 and its Jacobian),
-:mod:`.search_space`, :mod:`.excitation`, :mod:`.fitting`, :mod:`.evaluation`,
-:mod:`.spin` (Martinez eq. 16) and :mod:`.procedure` (:func:`identify`) for the motion
-models, :mod:`.ddc` for the tuned diff_drive_controller they are compared with;
-:mod:`.delay` (the ground-truth stamps' delay behind the encoders, model-free);
-:mod:`.drive_data` and :mod:`.drivetrain` for the drive train; :mod:`.reference`
-(:func:`fit_from_reference`: calibration from a gyro, GNSS or a measured straight, for robots
-without a ground-truth pose).
+Motion models (:func:`identify`, Martinez eq. 17), the ground-truth delay, the drive train, and
+calibration without ground truth (:func:`fit_from_reference`). See docs/tools/identify_icr.md and
+docs/tools/identify_drivetrain.md.
 """
 
 from .ddc import ddc_parameters, DDC_PARAMS, TunedDiffDrive

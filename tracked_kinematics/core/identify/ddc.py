@@ -1,20 +1,9 @@
 """
 The baseline a tracked-robot user already has: ros2_controllers' diff_drive_controller, tuned.
 
-diff_drive_controller (DDC) integrates an ideal differential drive whose geometry the user
-calibrates with three multipliers: the effective wheel separation is
-``wheel_separation x wheel_separation_multiplier`` and each side's radius
-``wheel_radius x *_wheel_radius_multiplier``. With the nominal travel ``D = wheel angle x
-wheel_radius`` (the package's encoder travel), DDC's odometry is::
-
-    v = (m_l D_l + m_r D_r) / 2,     w = (m_r D_r - m_l D_l) / (m_s B)
-
-which is the constant-ICR model (Martinez eqs. 7-9, 20-21) restricted to symmetric tread
-ICRs at ``+-m_s B / 2`` with ``icr.x = 0`` and ``scale.* = m_*``: the mapping the package's
-``convert_diff_drive_params`` uses the other way round. :class:`TunedDiffDrive` fits the
-three multipliers on the same data as the other models, so that the report says what a
-*calibrated* DDC would do, and what a user who stays on DDC should set
-(:func:`ddc_parameters`).
+DDC's odometry ``v = (m_l D_l + m_r D_r) / 2``, ``w = (m_r D_r - m_l D_l) / (m_s B)`` is the
+constant-ICR model (Martinez eqs. 7-9, 20-21) with symmetric ICRs at ``+-m_s B / 2``. See
+docs/migrating-from-diff_drive_controller.md.
 """
 
 from __future__ import annotations
@@ -31,12 +20,7 @@ DDC_PARAMS = ('wheel_separation_multiplier', 'left_wheel_radius_multiplier',
 
 @register_model
 class TunedDiffDrive(MotionModel):
-    """
-    diff_drive_controller's odometry with its three calibration multipliers as parameters.
-
-    ``p = (m_s, m_l, m_r)``: ``wheel_separation_multiplier``, ``left_wheel_radius_multiplier``,
-    ``right_wheel_radius_multiplier`` (the module notes give the twist).
-    """
+    """diff_drive_controller's odometry; ``p = (m_s, m_l, m_r)`` are its multipliers."""
 
     name = 'tuned_ddc'
     # The separation multiplier is the inverse of an effective wheel-base factor (0.05-1).
@@ -83,23 +67,9 @@ class TunedDiffDrive(MotionModel):
 
 def ddc_parameters(p, track_width: float, wheel_radius: float) -> dict[str, float]:
     """
-    Return the diff_drive_controller parameters of a :class:`TunedDiffDrive` fit.
+    Return the diff_drive_controller parameters, by DDC's names, of a :class:`TunedDiffDrive` fit.
 
-    Parameters
-    ----------
-    p : array_like, shape (3,)
-        Fitted multipliers.
-    track_width, wheel_radius : float
-        The nominal ``wheel_separation`` and ``wheel_radius`` the multipliers apply to, m
-        (the package's ``track_width`` and ``sprocket_radius``).
-
-    Returns
-    -------
-    dict
-        ``wheel_separation``, ``wheel_separation_multiplier``, ``wheel_radius``,
-        ``left_wheel_radius_multiplier``, ``right_wheel_radius_multiplier``, as
-        diff_drive_controller names them.
-
+    ``track_width`` and ``wheel_radius`` (m) are the nominal values the multipliers apply to.
     """
     m_s, m_l, m_r = (float(v) for v in np.asarray(p, float))
     return {'wheel_separation': float(track_width), 'wheel_separation_multiplier': m_s,

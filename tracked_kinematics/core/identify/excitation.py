@@ -1,11 +1,8 @@
 """
 Whether the data can identify a model: enough motion, turning and straight driving.
 
-Martinez et al. (2005), sec. 4.2, log paths "in which the vehicle is subject to diverse
-rotational and translational speeds": turning identifies the tread ICRs and any turn-rate
-parameter, straight driving the encoder scales (eqs. 20-21) and the forward-speed
-parameters. :func:`check_excitation` refuses data that lack either before the fit;
-:func:`.fitting.check_identified` checks the fit's own standard errors after it.
+Turning identifies the tread ICRs, straight driving the encoder scales (Martinez et al. 2005, sec.
+4.2, eqs. 20-21).
 """
 
 from __future__ import annotations
@@ -21,22 +18,7 @@ from ..models import MotionModel
 
 @dataclass(frozen=True)
 class Excitation:
-    """
-    How much the data move, turn and drive straight.
-
-    Attributes
-    ----------
-    segments, moving : int
-        Segments, and those whose tracks travel at least ``min_travel``.
-    distance : float
-        Ground-truth distance over moving segments, m.
-    turning : float
-        Sum of absolute ground-truth heading changes over moving segments, rad.
-    straight : float
-        Ground-truth distance over moving segments that are nearly straight (turning
-        radius above 5 m), m.
-
-    """
+    """How much the data move (m), turn (rad) and drive straight (m, turning radius above 5 m)."""
 
     segments: int
     moving: int
@@ -74,11 +56,8 @@ def check_excitation(model: MotionModel, excitation: Excitation) -> None:
     """
     Raise :class:`ExcitationError` when the data cannot identify the model's parameters.
 
-    Turning identifies the ICRs (and any turn-rate parameter); straight driving identifies
-    the encoder scales (the forward-speed parameters): each model's parameters say which
-    (:attr:`..models.Parameter.excited_by`). The thresholds are deliberately low
-    (:data:`MIN_TURNING` rad in total, :data:`MIN_STRAIGHT` m): the fit's own parameter
-    uncertainty is checked afterwards (:func:`.fitting.fit`).
+    Thresholds are deliberately low (:data:`MIN_TURNING`, :data:`MIN_STRAIGHT`): the fit checks its
+    own standard errors afterwards.
     """
     if excitation.moving < MIN_MOVING_SEGMENTS:
         raise ExcitationError(

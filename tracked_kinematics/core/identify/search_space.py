@@ -1,13 +1,9 @@
 """
 The models the identification fits, and where it searches: bounds and starting points.
 
-Each model declares its parameters' bounds and search box (:class:`..models.Parameter`) and
-its starting point (:meth:`..models.MotionModel.guess`); this module reads them. The bounds
-are physical: tread ICRs lie outside the track centrelines (Martinez et al. 2005, sec. 3:
-slip only moves them outwards), so ``0 < chi <= 1``; the encoder scales (Martinez eqs.
-20-21) stay near 1; the effective wheel-base factor (Fink & Stump sec. III-A, Table I) lies
-in (0, 1]. The starting point is the model as a drive of the data's steering efficiency in
-the sense of Martinez eq. (16).
+Reads each model's declared bounds, search box and start. The bounds are physical: slip only moves
+tread ICRs outwards (Martinez et al. 2005, sec. 3), so ``0 < chi <= 1``; scales (eqs. 20-21) stay
+near 1; the effective wheel-base factor (Fink & Stump Table I) is in (0, 1].
 """
 
 from __future__ import annotations
@@ -37,29 +33,12 @@ COMPARE_MODELS = BASELINES + FIT_MODELS
 
 
 def build_model(name: str, track_width: float, scales=(1.0, 1.0)) -> MotionModel:
-    """
-    Motion model by name; a model without scale parameters uses the fixed ``scales`` given.
-
-    Parameters
-    ----------
-    name : str
-        A registered name (:func:`..models.model_names`: ``tuned_ddc`` too).
-    track_width : float
-        m.
-    scales : tuple of float
-        Encoder scales of a model that does not fit them (``icr``).
-
-    """
+    """Motion model by name (``tuned_ddc`` too); one without scale parameters uses ``scales``."""
     return model_class(name).build(track_width, scales)
 
 
 def bounds(model: MotionModel):
-    """
-    Physical bounds for least squares: ``(lower, upper)`` arrays.
-
-    Each parameter's declared :attr:`..models.Parameter.bounds` (in track widths where it
-    says so); undeclared ones are unbounded.
-    """
+    """Physical bounds ``(lower, upper)`` for least squares: declared, else none."""
     b = model.track_width
     lo, hi = [], []
     for name in model.param_names:
@@ -71,12 +50,7 @@ def bounds(model: MotionModel):
 
 
 def search_box(model: MotionModel):
-    """
-    Finite search box for a global method (differential evolution): ``(lower, upper)``.
-
-    Each parameter's declared :attr:`..models.Parameter.box`; else its :func:`bounds`
-    where finite, else +-1.
-    """
+    """Finite box ``(lower, upper)`` for a global search: declared, finite bounds, or +-1."""
     lo, hi = bounds(model)
     b = model.track_width
     for i, name in enumerate(model.param_names):
@@ -90,12 +64,7 @@ def search_box(model: MotionModel):
 
 
 def steering_efficiency_guess(segments: Segments, track_width: float) -> float:
-    """
-    Least-squares ratio of measured to ideal heading change, clipped to [0.2, 1].
-
-    The data's steering efficiency in the sense of Martinez eq. (16), over every segment
-    rather than spins only: a starting point for the fit.
-    """
+    """Least-squares ratio of measured to ideal turning (Martinez eq. 16), clipped to [0.2, 1]."""
     ideal = segments.ideal_turn / track_width
     denom = float(np.dot(ideal, ideal))
     if denom <= 0.0:

@@ -1,10 +1,4 @@
-"""
-Steering efficiency from spin-in-place runs, Martinez et al. (2005) eq. (16).
-
-``chi = L phi / (int V_r dt - int V_l dt)``: the symmetric model of sec. 4.2, with the
-tread ICRs at ``+-L / (2 chi)`` and no eccentricity, which the paper obtains as the average
-of several spin tests (sec. 5.3: ``chi = 0.526``, ICRs at +-0.399 m).
-"""
+"""Steering efficiency from spin-in-place runs, Martinez et al. (2005) eq. (16)."""
 
 from __future__ import annotations
 
@@ -18,20 +12,7 @@ from ..kinematics import IcrParams
 
 @dataclass(frozen=True)
 class SpinResult:
-    """
-    Steering efficiency from spin-in-place runs, Martinez eq. (16).
-
-    Attributes
-    ----------
-    chi : float
-        Mean of the runs' efficiencies (the paper averages several tests).
-    chi_std : float
-        Their standard deviation.
-    runs : list of dict
-        Per run: ``recording``, ``t0``, ``t1`` (s), ``angle`` (rad, ground truth),
-        ``travel_difference`` (m, ``int V_r - int V_l``), ``chi``.
-
-    """
+    """Steering efficiency from spin-in-place runs: mean ``chi``, its std, and the ``runs``."""
 
     chi: float
     chi_std: float
@@ -48,19 +29,10 @@ def spin_in_place(recordings, track_width: float, scales=(1.0, 1.0), min_angle: 
     """
     Steering efficiency from spin-in-place runs, Martinez eq. (16).
 
-    ``chi = L phi / (int V_r dt - int V_l dt)``, with ``phi`` the turned angle from ground
-    truth and ``V`` the true track speeds (nominal travel times ``scales``). A spin run is a
-    stretch where the tracks turn in opposite directions at nearly equal speeds
-    (``|V_l + V_r| <= balance |V_r - V_l|``); it is measured between the first and the last
-    ground-truth sample inside it, and kept when it turns at least ``min_angle`` rad.
-
-    Raises
-    ------
-    ExcitationError
-        When no spin run is found.
-    IdentificationError
-        When the result is outside (0, 1] (the track width or sprocket radius is wrong).
-
+    ``chi = L phi / (int V_r dt - int V_l dt)``, ``phi`` the turned angle from ground truth, ``V``
+    the true track speeds. A run: tracks opposed at nearly equal speeds (``|V_l + V_r| <= balance
+    |V_r - V_l|``), turning at least ``min_angle`` rad. Raises ExcitationError with no run,
+    IdentificationError for chi outside (0, 1].
     """
     runs = []
     for index, rec in enumerate(recordings):

@@ -1,13 +1,8 @@
 """
 Named terrains for the simulator: the soil's Coulomb friction along and across the tracks.
 
-On hard soil the dynamic model (:mod:`.dynamics`) has no motion resistance; what changes
-from one terrain to another is the friction under the belts. Its ratio ``mu_y / mu_x`` sets
-how much a tracked vehicle slips in a turn (the steering efficiency chi), and its size sets
-how far load transfer moves the ICRs in fast turns. The coefficients below are our
-assumptions, chosen to span the chi of the real recordings (docs/simulator.md gives the
-Auriga-alpha's chi on each); they are not measurements. A vehicle file's own
-``friction.terrain`` name takes that file's coefficients instead.
+``mu_y / mu_x`` sets the slip in turns (chi); the coefficients are our assumptions, chosen to span
+the chi of the real recordings, not measurements. See docs/simulator.md.
 """
 
 from __future__ import annotations
@@ -20,19 +15,7 @@ from .._checks import require_numbers
 
 @dataclass(frozen=True, slots=True)
 class Terrain:
-    """
-    Friction of one soil.
-
-    Attributes
-    ----------
-    name : str
-        Terrain name (``hard_floor``).
-    mu_x, mu_y : float
-        Coulomb friction coefficients along and across the tracks (> 0).
-    description : str
-        One line for the docs and the log.
-
-    """
+    """Friction of one soil: ``mu_x``, ``mu_y`` along and across the tracks (> 0)."""
 
     name: str
     mu_x: float

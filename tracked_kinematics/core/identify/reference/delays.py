@@ -1,9 +1,8 @@
 """
 The delays of the gyro and the pose stamps behind the encoders (step 2 of the calibration).
 
-The gyro's delay is estimated by :func:`..delay.estimate_delay` (heading channel) on the
-integrated gyro, exactly as the pose delay is, and removed; ``imu_delay`` > 0 means the
-gyro is stamped late.
+Both by :func:`..delay.estimate_delay` (heading channel; the gyro integrated); ``imu_delay`` > 0
+means the gyro is stamped late.
 """
 
 from __future__ import annotations
@@ -47,22 +46,7 @@ def _delay_of_pose(rec_list, pose_delay):
 
 
 def _delays(recs, imu_delay, pose_delay):
-    """
-    Return the delays of the gyro and of the pose behind the encoders, estimated or given.
-
-    Parameters
-    ----------
-    recs : list of ReferenceRecording
-        The recordings; those with a gyro give its delay, those with a pose the pose's.
-    imu_delay, pose_delay : float or 'auto'
-        s, or 'auto' to estimate (:func:`_delay_of_gyro`, :func:`_delay_of_pose`).
-
-    Returns
-    -------
-    imu, pose : DelayEstimate
-        Zero delays for a reference that no recording has.
-
-    """
+    """Return the gyro's and the pose's :class:`DelayEstimate` ('auto': estimated)."""
     gyro_recs = [r for r in recs if r.gyro_t is not None]
     imu = _delay_of_gyro(gyro_recs, imu_delay) if gyro_recs else fixed_delay(0.0)
     pose_recs = [r for r in recs if r.pose is not None]
