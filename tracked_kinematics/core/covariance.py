@@ -1,10 +1,10 @@
 """
 Linearised error propagation for tracked-vehicle odometry (Kelly 2004).
 
-Each track's travel error has variance ``k |d| + floor`` (a random walk in distance),
-propagated as ``P_k = F P_{k-1} F^T + G Q G^T`` along exact arcs; the twist variance is that
-of the mean speed over :data:`TWIST_TIME` (our choice, not the papers'). See
-docs/nodes/odometry_node.md, "Covariance model".
+Each track's travel error has variance ``k |d| + floor`` (a random walk in distance), propagated as
+``P_k = F P_{k-1} F^T + G Q G^T`` along exact arcs; the twist variance is that of the mean speed
+over :data:`TWIST_TIME` (our choice, not the papers'). See docs/nodes/odometry_node.md, "Covariance
+model".
 """
 
 from __future__ import annotations
@@ -65,8 +65,8 @@ def body_jacobian(icr: IcrParams):
     """
     Jacobian ``B`` (3 x 2) of the body increments ``(dx, dy, dtheta)`` by the nominal travel.
 
-    Martinez eqs. (7)-(9) with the scales of eqs. (20)-(21) are linear in the travel, so ``B``
-    is constant; it also maps nominal track speeds to the body twist.
+    Martinez eqs. (7)-(9) with the scales of eqs. (20)-(21) are linear in the travel, so ``B`` is
+    constant; it also maps nominal track speeds to the body twist.
     """
     span = icr.y_left - icr.y_right
     sl = icr.scale_left / span
@@ -120,8 +120,10 @@ def propagate(p, delta_x, delta_y, g, var_left, var_right):
     """
     One step of linearised covariance propagation, ``F P F^T + G Q G^T``, exactly symmetric.
 
-    ``p`` and the result are upper triangles ``(xx, xy, xt, yy, yt, tt)``; ``delta_x``,
-    ``delta_y`` the step's displacement (m); ``Q = diag(var_left, var_right)`` (m^2).
+    ``F`` is the identity plus the column ``(-delta_y, delta_x, 0)`` on the heading (Kelly 2004).
+
+    ``p`` and the result are upper triangles ``(xx, xy, xt, yy, yt, tt)``; ``delta_x``, ``delta_y``
+    the step's displacement (m); ``Q = diag(var_left, var_right)`` (m^2).
     """
     xx, xy, xt, yy, yt, tt = p
     a = -delta_y
