@@ -1,9 +1,9 @@
 """
 From a body twist command to track speed setpoints, with limits that keep the path.
 
-Inverse ICR kinematics (Martinez et al. 2005, eqs. 10-11) and the encoder scales (eqs. 20-21)
-give nominal setpoints; velocity limits scale ``v_x`` and ``w`` by one factor, ramps move both
-tracks along one segment. See docs/nodes/cmd_vel_translator.md, "Limits and the vehicle envelope".
+Inverse ICR kinematics (Martinez et al. 2005, eqs. 10-11) and the encoder scales (eqs. 20-21) give
+nominal setpoints; velocity limits scale ``v_x`` and ``w`` by one factor, ramps move both tracks
+along one segment. See docs/nodes/cmd_vel_translator.md, "Limits and the vehicle envelope".
 """
 
 from __future__ import annotations
@@ -31,9 +31,8 @@ class CommandLimits:
     """
     Velocity (m/s, rad/s) and rate (m/s^2, rad/s^2) limits of the command path; ``inf`` is none.
 
-    Track limits apply to the nominal setpoints. ``*_decel*`` limits hold changes toward zero;
-    None (the default) is the matching acceleration limit. Raises ValueError on a limit that is
-    not > 0.
+    Track limits apply to the nominal setpoints. ``*_decel*`` limits hold changes toward zero; None
+    (the default) is the matching acceleration limit. Raises ValueError on a limit that is not > 0.
     """
 
     max_track_speed: float = math.inf
@@ -72,8 +71,8 @@ def track_setpoints(v_x, w, icr: IcrParams):
     """
     Nominal track speed setpoints (m/s) that make the vehicle move with twist ``(v_x, w)``.
 
-    Martinez et al. (2005) eqs. (10)-(11) in the ROS frame, then eqs. (20)-(21) undone:
-    ``nominal = true / scale``.
+    Martinez et al. (2005) eqs. (10)-(11) in the ROS frame, then eqs. (20)-(21) undone: ``nominal =
+    true / scale``.
     """
     return nominal_speeds(*inverse(v_x, w, icr), icr)
 
@@ -91,8 +90,8 @@ def envelope_setpoints(v_x, w, icr: IcrParams, max_speed: float = TRACK_SPEED_EN
     Nominal setpoints of a twist, both scaled by one factor <= 1 into ``max_speed`` (m/s).
 
     :func:`track_setpoints` then :func:`saturate_tracks`, finite for every finite command: where
-    the inverse kinematics overflows, it is evaluated on the command divided by
-    ``max(|v_x|, |w|)`` and rescaled; where the model itself overflows, the setpoints are zero.
+    the inverse kinematics overflows, it is evaluated on the command divided by ``max(|v_x|, |w|)``
+    and rescaled; where the model itself overflows, the setpoints are zero.
     """
     v_x = np.asarray(v_x, dtype=float)
     w = np.asarray(w, dtype=float)
@@ -115,7 +114,11 @@ def envelope_setpoints(v_x, w, icr: IcrParams, max_speed: float = TRACK_SPEED_EN
 
 def exceeds_envelope(v_x: float, w: float, icr: IcrParams,
                      envelope: float = TRACK_SPEED_ENVELOPE) -> bool:
-    """Tell whether a twist asks for a nominal track speed beyond ``envelope`` (or overflows)."""
+    """
+    Tell whether a twist asks for a nominal track speed beyond ``envelope`` (or overflows).
+
+    Martinez eqs. (10)-(11) and (20)-(21) on Python floats.
+    """
     peak = max(abs((v_x - icr.y_left * w) / icr.scale_left),
                abs((v_x - icr.y_right * w) / icr.scale_right))
     return not peak <= envelope
@@ -159,9 +162,9 @@ class CommandLimiter:
     """
     Twist commands in, limited nominal track setpoints out, one update per publish period.
 
-    A command older than ``timeout`` (s; or ``steady_timeout`` on the steady clock) is replaced
-    by a stop at the deceleration limits and stays stale until a new one comes. ``icr``,
-    ``limits`` and the timeouts may be replaced between updates; the ramp continues. See
+    A command older than ``timeout`` (s; or ``steady_timeout`` on the steady clock) is replaced by
+    a stop at the deceleration limits and stays stale until a new one comes. ``icr``, ``limits``
+    and the timeouts may be replaced between updates; the ramp continues. See
     docs/nodes/cmd_vel_translator.md.
     """
 

@@ -2,9 +2,9 @@
 Online estimation of the slip-model parameters by an EKF, after the EKF paper (sec. 3).
 
 State: a motion model's parameters as a random walk (eq. 15); measurement: a pose change over a
-window (eqs. 16-18); Jacobian eq. (19) as exact integration sensitivities (Fink & Stump eq. 4);
-Joseph-form update (eqs. 20-21). Gates, re-anchoring and what real pose sources needed:
-docs/nodes/icr_estimator.md, "How it works, and what we reconstructed".
+window (eqs. 16-18); the Jacobian of eq. (19) is lost from the text, we use the exact integration
+sensitivities (Fink & Stump eq. 4); Joseph-form update (eqs. 20-21). Gates, re-anchoring and what
+real pose sources needed: docs/nodes/icr_estimator.md, "How it works, and what we reconstructed".
 """
 
 from __future__ import annotations

@@ -37,8 +37,9 @@ def auto_heading_weight(residuals, lo: float = 0.25, hi: float = 4.0) -> float:
     """
     Heading weight ``lambda`` (m/rad) that puts position and heading residuals on one noise scale.
 
-    ``sigma_position / sigma_heading`` (median absolute deviations of residuals at ``lambda = 1``),
-    clipped to [``lo``, ``hi``]; Martinez's unweighted sum is ``lambda = 1``.
+    Eq. (17) then weighs each residual by its own noise: ``sigma_position / sigma_heading`` (median
+    absolute deviations of residuals at ``lambda = 1``), clipped to [``lo``, ``hi``]; Martinez's
+    unweighted sum is ``lambda = 1``.
     """
     r = np.asarray(residuals, dtype=float).reshape(-1, 3)
     sigma_pos = _mad_sigma(r[:, :2].ravel())

@@ -30,7 +30,7 @@ why it is not the noise-balancing ``auto`` weight (None, :func:`.fitting.auto_he
 
 
 def check_heading_weight(heading_weight) -> float:
-    """Return a heading weight as a float; TrackedKinematicsError unless a finite number > 0."""
+    """Return a heading weight of eq. (17) as a float; TrackedKinematicsError unless finite > 0."""
     try:
         value = float(heading_weight)
     except (TypeError, ValueError):

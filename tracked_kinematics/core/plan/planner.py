@@ -63,7 +63,12 @@ class Plan:
         return np.arange(len(self.commands)) * self.dt
 
     def twists(self, icr: IcrParams):
-        """``cmd_vel`` ``(v_x, w)`` the translator with model ``icr`` turns into these."""
+        """
+        ``cmd_vel`` ``(v_x, w)`` the translator with model ``icr`` turns into these.
+
+        The forward kinematics of ``scale * nominal``, inverting Martinez eqs. (10)-(11),
+        (20)-(21).
+        """
         v_x, _, w = forward(self.commands[:, 0] * icr.scale_left,
                             self.commands[:, 1] * icr.scale_right, icr)
         return np.asarray(v_x, float), np.asarray(w, float)
