@@ -1,13 +1,8 @@
 """
 The terrain file an identification writes: the base file, the fitted model, the fit's record.
 
-identify_icr and identify_drivetrain both start from the terrain file given with
-``--params`` (or nothing), drop what the fit replaces and the record of an older fit, put in
-the fitted values and a record of this fit under one prefix (``identification.*``,
-``drivetrain_fit.*``), check that the result still loads, and write it with a header comment
-as a ``--params-file`` (docs/parameters.md, docs/tools/identify_icr.md,
-docs/tools/identify_drivetrain.md). The tools stage :func:`terrain_text` through
-:class:`~tracked_kinematics.offline.outputs.Outputs` with their other outputs.
+Used by identify_icr and identify_drivetrain; see docs/tools/identify_icr.md and
+docs/tools/identify_drivetrain.md.
 """
 
 from __future__ import annotations
@@ -38,9 +33,7 @@ def terrain_values(base_values: Mapping[str, Any], fitted: Mapping[str, Any], *,
     extras : mapping
         The fit's record, written as ``record.key``; non-finite floats are left out.
     check : callable
-        Builds the model from the values, raising
-        :class:`~tracked_kinematics.core.errors.InvalidParameters` when they are invalid
-        (``tracked_kinematics.params.icr_from_values``).
+        Builds the model from the values, raising ``InvalidParameters`` when they are invalid.
     drop : iterable of str
         Further base values to drop: names, or prefixes ending with ``.``.
 
@@ -73,21 +66,9 @@ def terrain_values(base_values: Mapping[str, Any], fitted: Mapping[str, Any], *,
 def terrain_text(values: Mapping[str, Any], *, tool: str, date: str,
                  contents: str = 'Terrain parameters', note: str = '') -> str:
     """
-    Return terrain values as the text of a ``--params-file``, with a header saying who wrote it.
+    Return terrain values as a ``--params-file``'s text, with a header saying who wrote it.
 
-    Parameters
-    ----------
-    values : mapping
-        From :func:`terrain_values`.
-    tool : str
-        The program that wrote it.
-    date : str
-        When, ISO 8601.
-    contents : str
-        What the file holds, first words of the header.
-    note : str
-        More header lines.
-
+    The header: ``contents`` first, then ``tool``, ``date`` (ISO 8601) and ``note`` lines.
     """
     comment = (f'{contents} written by {tool} (tracked_kinematics) on {date}.\n'
                'Load with: --ros-args --params-file THIS_FILE')
@@ -99,12 +80,7 @@ def terrain_text(values: Mapping[str, Any], *, tool: str, date: str,
 def write_terrain_file(path, values: Mapping[str, Any], *, tool: str, date: str,
                        contents: str = 'Terrain parameters', note: str = '',
                        force: bool = False) -> None:
-    """
-    Write :func:`terrain_text` to ``path`` through :class:`Outputs` (atomically).
-
-    An existing file is replaced only with ``force``; a symbolic link or a special file
-    never is (:class:`~tracked_kinematics.offline.outputs.OutputError`).
-    """
+    """Write :func:`terrain_text` to ``path`` through :class:`Outputs` (atomically, ``force``)."""
     with Outputs(force=force) as out:
         out.add('--output', path)
         out.write_text('--output', terrain_text(values, tool=tool, date=date,
