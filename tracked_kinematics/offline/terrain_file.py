@@ -22,31 +22,11 @@ def terrain_values(base_values: Mapping[str, Any], fitted: Mapping[str, Any], *,
     """
     Merge the values of a terrain file written after a fit, and check them.
 
-    Parameters
-    ----------
-    base_values : mapping
-        The base terrain file's values (dotted names).
-    fitted : mapping
-        The fitted values; they replace the base's (which keep their place in the file).
-    record : str
-        Prefix of the fit's record (``identification``); the base's ``record.*`` is dropped.
-    extras : mapping
-        The fit's record, written as ``record.key``; non-finite floats are left out.
-    check : callable
-        Builds the model from the values, raising ``InvalidParameters`` when they are invalid.
-    drop : iterable of str
-        Further base values to drop: names, or prefixes ending with ``.``.
-
-    Returns
-    -------
-    dict
-        Dotted names to values, in file order.
-
-    Raises
-    ------
-    FitError
-        When the values do not give a valid model: nothing is to be written.
-
+    ``fitted`` replaces the ``base_values`` (dotted names, keeping their place); the base's
+    ``record.*`` and the names or ``prefix.`` entries of ``drop`` are dropped; ``extras`` are
+    written as ``record.key`` (non-finite floats left out). ``check(values)`` builds the model,
+    raising ``InvalidParameters``. Return the values in file order; FitError when they give no
+    valid model (nothing is to be written).
     """
     dropped = (f'{record}.', *drop)
     values = {k: v for k, v in base_values.items()

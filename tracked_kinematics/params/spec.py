@@ -149,14 +149,9 @@ class Derived:
     """
     A default computed from other parameters.
 
-    Attributes
-    ----------
-    text : str
-        The rule as users read it (``+track_width / 2``).
-    value : callable
-        ``value(values) -> default``; a ``KeyError``, ``TypeError`` or ``ValueError`` leaves
-        the default out (the other values' checks report the problem).
-
+    ``text`` is the rule as users read it (``+track_width / 2``); ``value(values) -> default``
+    may raise ``KeyError``, ``TypeError`` or ``ValueError``, which leaves the default out (the
+    other values' checks report the problem).
     """
 
     text: str

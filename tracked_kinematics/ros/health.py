@@ -122,14 +122,8 @@ class Health:
         """
         Watch input topics (:class:`~tracked_kinematics.ros.input_topic.InputTopic`).
 
-        Parameters
-        ----------
-        needed : bool or callable
-            Whether the node needs the input (asked at every update if callable): a missing one is
-            then an ERROR and a warning.
-        silence : float
-            Seconds without a message (or a publisher) before a needed input is missing.
-
+        ``needed`` (a bool, or a callable asked at every update): a missing input is then an ERROR
+        and a warning; ``silence``: seconds without a message or publisher before it is missing.
         """
         for topic in inputs:
             self._inputs.append(_Input(topic.topic_name, (topic.type_name,), topic.count,

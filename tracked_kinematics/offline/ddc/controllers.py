@@ -130,17 +130,9 @@ class Section:
     """
     The DDC section of a controllers file.
 
-    Attributes
-    ----------
-    name : str
-        Node name, with its namespace if the file gives one (``a200/platform_controller``).
-    params : dict
-        Parameters as dotted names; sections of the same node merged in file order, as rcl does.
-    found_by : str
-        How it was found, for the report.
-    any_namespace : bool
-        The file gives it for any namespace (``/**/name`` or under ``/**:``).
-
+    ``name`` with its namespace if given (``a200/platform_controller``); ``params`` as dotted
+    names, sections of one node merged in file order as rcl does; ``found_by`` for the report;
+    ``any_namespace`` when given for any namespace (``/**/name`` or under ``/**:``).
     """
 
     name: str
