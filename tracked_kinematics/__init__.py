@@ -1,20 +1,9 @@
 """
 Slip-aware odometry, velocity control and ICR calibration for tracked robots.
 
-The first code of the package any console script runs is this module (its wrapper imports
-``tracked_kinematics.<ring>.<module>``, and Python runs the package's ``__init__`` first).
-Its first lines take SIGINT and SIGTERM for the process, by the name of the executable and
-before anything is imported (rclpy, numpy, scipy and rosbags take most of a second):
-
-- a node executable (:data:`NODE_EXECUTABLES`, calibration_drive included) quits quietly
-  with status 0 (:func:`exit_quietly`) until :func:`tracked_kinematics.ros.main.run` takes
-  over, as a signal at any later moment ends it;
-- an offline tool (:data:`TOOL_EXECUTABLES`) ends with the signal's status and one line
-  (SIGHUP too) until its run begins (:func:`tracked_kinematics.offline.signals.
-  install_for_tool`; a signal while that module loads is acted on as soon as it has).
-
-Any other process that imports the package (tests, scripts, ``python -m``) is left alone.
-What the interpreter does before this module runs is out of its reach: docs/testing.md.
+Its first lines take SIGINT and SIGTERM by the executable's name, before anything heavy is
+imported: a node quits with status 0, an offline tool with the signal's status and one line.
+See docs/testing.md ("Stops at any instant").
 """
 
 import os as _os

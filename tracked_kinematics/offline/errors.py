@@ -1,12 +1,8 @@
 """
-The error types of the offline ring.
+The error types of the offline ring: bags, options, controllers files.
 
-A bag that cannot give what was asked, a bad option, a controllers file that cannot be
-converted.
-
-All derive from :class:`tracked_kinematics.core.errors.TrackedKinematicsError`, so that
-:func:`tracked_kinematics.offline.cli.common.run_main` reports them, and the core's own
-errors, as one line with an exit status, and lets anything else surface as a traceback.
+All derive from :class:`~tracked_kinematics.core.errors.TrackedKinematicsError`: the tools
+report them as one line with an exit status.
 """
 
 from tracked_kinematics.core.errors import TrackedKinematicsError

@@ -1,20 +1,8 @@
 """
 evaluate_model's report as a library: terrain models scored on recordings.
 
-As evo's ``main_ape.ape`` returns a result that its command line prints and saves, this
-module puts evaluate_model's report together and the command line
-(:mod:`tracked_kinematics.offline.cli.evaluate_model`) only parses, reads the bags, prints,
-writes and plots:
-
-- :func:`read_terrain_models`: the terrain files to score, each named by its file stem;
-- :func:`pose_references` / :func:`gyro_references`: what the bag readers returned, made
-  the recordings to score on: the ground-truth delay taken off (identify_icr's estimate, or
-  the one given), or the gyro timed and de-biased as a heading-only reference;
-- :func:`evaluate_models`: the ideal drive and each file (and, with ``online``, the
-  icr_estimator's EKF replayed from each file) scored on them by
-  :func:`tracked_kinematics.core.evaluate.evaluate`; an :class:`EvaluationReport` holds
-  the JSON content (every key: docs/tools/evaluate_model.md), the table evaluate_model
-  prints, and the pieces and paths for the plot and the TUM files.
+The command line (:mod:`tracked_kinematics.offline.cli.evaluate_model`) parses, reads the
+bags, prints, writes and plots; the report's keys are in docs/tools/evaluate_model.md.
 """
 
 from __future__ import annotations
@@ -41,30 +29,10 @@ TOOL = 'evaluate_model'
 
 class TerrainModel:
     """
-    One terrain file: its values, ICR model and drive train.
+    One terrain file: its ``values`` (ICRs defaulted), ``icr``, ``drivetrain`` and report ``name``.
 
-    Attributes
-    ----------
-    path : str
-        The file.
-    values : dict
-        Its parameters, the tread ICRs defaulted to ``+-track_width / 2`` (docs/model.md,
-        "The terrain parameter file").
-    icr : IcrParams
-    drivetrain : DriveTrain
-        The file's drive train (the default one when it has no ``drivetrain.*`` key).
-    drivetrain_in_file : bool
-        Whether the file has ``drivetrain.*`` keys.
-    name : str
-        Its key in the report: the file stem (:func:`read_terrain_models` makes it unique).
-
-    Raises
-    ------
-    InvalidParameters
-        For invalid values, the message prefixed with the path.
-    OSError
-        For a file that cannot be read.
-
+    ``drivetrain_in_file`` says whether the file has ``drivetrain.*`` keys. Raises
+    InvalidParameters (prefixed with the path) or OSError.
     """
 
     def __init__(self, path):
@@ -86,12 +54,7 @@ class TerrainModel:
 
 
 def read_terrain_models(paths) -> list[TerrainModel]:
-    """
-    Read terrain files; name each by its stem, a stem taken (``ideal``, twice) with a suffix.
-
-    ``a.yaml`` and ``other/a.yaml`` become ``a`` and ``a_2``; a file ``ideal.yaml`` becomes
-    ``ideal_2`` (``ideal`` is the baseline's key), and no name is another's ``online_`` one.
-    """
+    """Read terrain files, each named by its unique stem (``a``, ``a_2``; never ``ideal``)."""
     models = [TerrainModel(path) for path in paths]
     taken = {'ideal'}
     for model in models:
@@ -106,19 +69,9 @@ def read_terrain_models(paths) -> list[TerrainModel]:
 @dataclass(frozen=True)
 class References:
     """
-    The recordings to score on, and how their reference was prepared.
+    The recordings to score on (``data``), their ``records``, delay ``account``, ``reference``.
 
-    Attributes
-    ----------
-    data : tuple of Data
-        Each recording (its reference's delay taken off) and its commands.
-    records : tuple of dict
-        The report's ``recordings`` entry of each (before the pieces are counted).
-    account : str
-        The report's ``ground_truth_delay``: a line on how the delay was found.
-    reference : str
-        ``'pose'`` (a ground-truth pose) or ``'imu'`` (the gyro: heading only).
-
+    ``reference`` is ``'pose'`` (ground truth) or ``'imu'`` (the gyro: heading only).
     """
 
     data: tuple
@@ -128,13 +81,7 @@ class References:
 
 
 def _delays(recordings, delay):
-    """
-    Return the ground-truth delay of each recording and a one-line account, as identify_icr.
-
-    ``auto``: one delay for all bags (:func:`~tracked_kinematics.core.identify.
-    estimate_delays`), or each bag's own when every bag determines its own; when the data do
-    not time the ground truth, none is removed and the account says why.
-    """
+    """Return the ground-truth delay of each recording and a one-line account, as identify_icr."""
     if delay != 'auto':
         given = ident.fixed_delay(delay)
         return [given] * len(recordings), f'{given.delay:g} s (given)'
@@ -156,11 +103,9 @@ def pose_references(bags, found, delay='auto') -> References:
     bags : sequence of path-like
         The bags, for the records.
     found : sequence of (Recording, tuple or None)
-        What :func:`tracked_kinematics.offline.bags.read_evaluation_bag` returned for each:
-        the recording and its commands (``Commands``' fields), or None.
+        What :func:`tracked_kinematics.offline.bags.read_evaluation_bag` returned for each.
     delay : 'auto' or float
-        The ground-truth delay behind the encoders, s; ``'auto'`` estimates it
-        (:func:`_delays`).
+        The ground-truth delay behind the encoders, s; ``'auto'`` estimates it.
 
     """
     recordings = [recording for recording, _ in found]
@@ -188,20 +133,9 @@ def gyro_references(bags, found, track_width: float) -> References:
     """
     Make the gyro of each recording a heading-only reference: its bias and delay removed.
 
-    Parameters
-    ----------
-    bags : sequence of path-like
-        The bags, for the records.
-    found : sequence of ReferenceRecording
-        What :func:`tracked_kinematics.offline.bags.references.read_reference_bag` returned.
-    track_width : float
-        m, of the ideal drive the gyro fit starts from.
-
-    Raises
-    ------
-    ExcitationError
-        When the drives cannot time and de-bias the gyro.
-
+    ``found`` is what :func:`~tracked_kinematics.offline.bags.references.read_reference_bag`
+    returned; ``track_width`` (m) is the ideal drive the gyro fit starts from. Raises
+    ExcitationError when the drives cannot time and de-bias the gyro.
     """
     try:
         gyro = ident.fit_recordings(found, track_width)
@@ -228,20 +162,7 @@ def gyro_references(bags, found, track_width: float) -> References:
 
 @dataclass(frozen=True)
 class EvaluationReport:
-    """
-    What :func:`evaluate_models` returns: the report, its table, and what was scored.
-
-    The command line prints :meth:`table`, writes :meth:`json` and draws the plot and the
-    TUM files from :attr:`evaluation`.
-
-    Attributes
-    ----------
-    content : dict
-        The JSON report: plain numbers, non-finite ones as None (docs/tools/evaluate_model.md).
-    evaluation : Evaluation
-        The pieces scored and each model's odometry over them (for the plot, the TUM files).
-
-    """
+    """The report: its JSON ``content``, its :meth:`table` and the ``evaluation`` scored."""
 
     content: dict
     evaluation: ev.Evaluation
@@ -271,22 +192,20 @@ def evaluate_models(references: References, models, settings: ev.Settings, *,
     references : References
         The recordings (:func:`pose_references`, :func:`gyro_references`).
     models : sequence of TerrainModel
-        The terrain files (:func:`read_terrain_models`), after the ideal drive of
-        ``settings.track_width`` in the report.
+        The terrain files, after the ideal drive of ``settings.track_width``.
     settings : Settings
-        What to score; ``settings.track_width`` is also the ideal drive's.
+        What to score.
     sprocket_radius : float
-        m, the radius the encoders were read with (recorded in the report's settings).
+        m, the radius the encoders were read with (recorded in the report).
     command_source : str
-        How the commands were read (recorded in the report's settings).
+        How the commands were read (recorded in the report).
     online : bool
-        Also replay the icr_estimator's EKF over each recording from each file (``online_``
-        entries); needs a pose reference.
+        Also replay the icr_estimator's EKF from each file (``online_`` entries; pose only).
 
     Raises
     ------
     ExcitationError
-        When no stretch of the recordings has both encoders and a reference without a gap.
+        When no stretch has both encoders and a reference without a gap.
     ValueError
         For ``online`` with a gyro reference.
 
@@ -460,13 +379,7 @@ def _table_rows(report, windows, deltas, sources) -> list:
 
 
 def table_text(report: dict) -> str:
-    """
-    Return the summary of a report that evaluate_model prints (no final newline).
-
-    The data scored, the delay, the window means, drift, RPE and predictions of each model
-    (one line each, ``-`` for a figure not measured), how many windows and horizons were
-    scored, and what each online estimator did.
-    """
+    """Return the summary of a report that evaluate_model prints (no final newline)."""
     recs = report['recordings']
     cut = report['data']
     settings = report['settings']

@@ -1,9 +1,4 @@
-"""
-The picture of evaluate_model: error against window length, and a few paths.
-
-Drawn as :mod:`tracked_kinematics.offline.plots` draws: a plain matplotlib Figure on its own
-Agg canvas, no pyplot.
-"""
+"""The picture of evaluate_model: error against window length, and a few paths (Agg, no pyplot)."""
 
 from __future__ import annotations
 
@@ -18,15 +13,7 @@ from tracked_kinematics.offline.errors import UsageError
 
 
 def check_format(path) -> str:
-    """
-    Return the image format of a plot path (its extension), refusing one matplotlib lacks.
-
-    Raises
-    ------
-    UsageError
-        Naming the supported formats.
-
-    """
+    """Return the image format of a plot path; UsageError when matplotlib lacks it."""
     fmt = str(path).rsplit('.', 1)[-1].lower() if '.' in str(path) else 'png'
     if get_registered_canvas_class(fmt) is None:
         supported = FigureCanvasAgg(Figure()).get_supported_filetypes()
@@ -37,10 +24,9 @@ def check_format(path) -> str:
 
 def error_curves(evaluation, names, lengths, min_speed=None):
     """
-    Mean final position (m) and heading (rad) errors of each model at each window length.
+    Return mean final position (m) and heading (rad) errors per model and window length.
 
-    Over the windows whose mean track speed is at least ``min_speed`` (m/s; None: all), as
-    the report's (:func:`tracked_kinematics.core.evaluate.moving_windows`).
+    Over the windows of mean track speed >= ``min_speed`` (m/s; None: all), as the report's.
     """
     curves = {}
     for name in names:
@@ -74,10 +60,9 @@ def plot_evaluation(path, evaluation, names, windows=(5.0, 10.0), fmt: str = 'pn
     names : sequence of str
         Models to draw, in order.
     windows : sequence of float
-        The windows of the report, marked on the curves (which run to three times the
-        longest, or the longest piece).
+        The report's windows, marked on the curves.
     fmt : str
-        Image format (the target's extension: the path may be a temporary name).
+        Image format (the path may be a temporary name).
     paths : int
         How many pieces to draw (the longest ones).
     dpi : int

@@ -1,44 +1,7 @@
 """
 Output files of the offline tools: checked before any work, written atomically, all or none.
 
-Every tool that writes files (YAML, JSON, CSV, PNG, bags) goes through :class:`Outputs`::
-
-    with Outputs(force=args.force) as out:
-        out.add('--output', args.output)              # checked now, before any work
-        out.add('--report', args.report)
-        out.add('--bag', args.bag, directory=True)     # a bag: a new path the writer creates
-        ...                                           # the work
-        out.write_text('--output', yaml_text)         # staged next to the target
-        with out.path('--plot') as tmp:               # for writers that want a path
-            figure.savefig(tmp)
-    # leaving the block renames every staged file onto its target; an exception instead
-    # removes them all, so a failed run leaves nothing new behind
-
-The rules (docs/output-files.md):
-
-- a target is a regular file or a new path in an existing directory where a file can be
-  created and written: checked by doing it (:data:`PROBE_MARK`), not by ``os.access``, which
-  says yes to root in /proc or on a full disk; a symbolic link (even a dangling one), a
-  directory (unless the output is a directory, as a bag is), a device, a FIFO or a socket
-  is refused with a message naming the flag;
-- an existing file is replaced only with ``--force``; an existing directory or bag never is;
-- two outputs of one run may not be the same file, nor an output one of the run's inputs;
-- data are written to a hidden temporary file in the target's directory
-  (``.NAME.tmp-XXXXXXXX.EXT``; a bag to ``.NAME.tmp-XXXXXXXX/NAME``), flushed and fsynced,
-  and renamed onto the targets only when the whole run succeeded: every target is checked
-  again first, and if a rename still fails the targets already renamed are put back;
-  without ``--force`` the rename never replaces a file that appeared meanwhile;
-- a replaced file keeps its permission bits; a new one gets ``0666 & ~umask``.
-
-Signals (:mod:`tracked_kinematics.offline.signals`): creating a temporary file and
-taking charge of it, the commit and the removal run in held sections, so that a SIGINT or
-SIGTERM never cuts them in half. A signal before the commit's first rename removes
-everything staged; one that arrives once the renames have begun lets them finish (the
-outputs are then complete) and ends the run after. :func:`abort_unfinished` removes what an
-interrupted run left staged wherever the signal landed (``run_main`` calls it at the end of
-every run). A run killed with SIGKILL can leave only such hidden temporary files behind,
-never a truncated file or a bag without its ``metadata.yaml`` at a target path; a rerun
-ignores them (they can be deleted at any time).
+The rules (targets, ``--force``, staging, signals, SIGKILL): docs/output-files.md.
 """
 
 from __future__ import annotations
@@ -75,12 +38,7 @@ _BEGUN = [0]
 
 
 def unfinished(work) -> None:
-    """
-    Register ``work`` (an object with ``abort()``) as begun: undone if the run fails.
-
-    :class:`Outputs` registers itself while it holds staged files; the demo its directory.
-    Call it in a held section together with the step that makes the work need undoing.
-    """
+    """Register ``work`` (with ``abort()``) as begun: undone if the run fails."""
     if id(work) not in _UNFINISHED:
         _BEGUN[0] += 1
         _UNFINISHED[id(work)] = (_BEGUN[0], work)
@@ -100,9 +58,7 @@ def abort_unfinished(since: int = 0) -> None:
     """
     Undo, newest first, the work begun after the mark ``since`` and not finished.
 
-    The safety net of an interrupted run: a signal can land where no ``except`` sees it (as
-    ``Outputs.__exit__`` is entered, before its first line), and what was staged must go
-    all the same. ``run_main`` calls it when a run has ended.
+    The safety net for a signal no ``except`` sees; ``run_main`` calls it when a run has ended.
     """
     with signals.held():
         for order, work in sorted(_UNFINISHED.values(), key=lambda item: -item[0]):
@@ -121,9 +77,6 @@ def check_output(flag: str, path, force: bool = False, directory: bool = False,
     """
     Check one output path before any work; return it as a :class:`~pathlib.Path`.
 
-    The target's directory is tried: a temporary file is created there, one block written
-    and fsynced, and removed again (signals held), as the output's own will be.
-
     Parameters
     ----------
     flag : str
@@ -133,11 +86,9 @@ def check_output(flag: str, path, force: bool = False, directory: bool = False,
     force : bool
         Whether an existing regular file may be replaced.
     directory : bool
-        The output is a bag (a rosbag2 directory or a ROS 1 file) that its writer
-        creates: the path must not exist.
+        The output is a bag its writer creates: the path must not exist.
     probe : bool
-        Whether to try the directory (the commit's second check does not: its staged files
-        lie there already).
+        Whether to try writing a file in the directory (the commit's re-check does not).
 
     Raises
     ------
@@ -218,11 +169,14 @@ class Outputs:
     """
     The outputs of one run: checked together at the start, committed together at the end.
 
-    Parameters
-    ----------
-    force : bool
-        ``--force``: existing regular files may be replaced.
+    ``force`` is ``--force``: existing regular files may be replaced. Use::
 
+        with Outputs(force=args.force) as out:
+            out.add('--output', args.output)           # checked now, before any work
+            out.write_text('--output', yaml_text)      # staged next to the target
+            with out.path('--plot') as tmp:            # for writers that want a path
+                figure.savefig(tmp)
+        # leaving the block renames all onto their targets; an exception removes them all
     """
 
     def __init__(self, force: bool = False):
@@ -234,23 +188,10 @@ class Outputs:
 
     def add(self, flag: str, path, directory: bool = False) -> Path | None:
         """
-        Check an output (``None`` = not asked for) and reserve it; return its path.
+        Check an output (``None`` = not asked for) and reserve it under ``flag``; return its path.
 
-        Parameters
-        ----------
-        flag : str
-            The option that names it (``--output``), in messages and as its key here.
-        path : path-like or None
-            The target.
-        directory : bool
-            A bag, which its writer creates: the path must not exist, and :meth:`path`
-            yields a path that does not exist yet.
-
-        Raises
-        ------
-        OutputError
-            When it may not be written, or another output of the run is the same file.
-
+        ``directory``: a bag its writer creates (the path must not exist). Raises OutputError when
+        it may not be written or another output of the run is the same file.
         """
         if path is None:
             return None
@@ -265,17 +206,9 @@ class Outputs:
 
     def refuse_inputs(self, label: str, paths, allow=()) -> None:
         """
-        Refuse an output that is one of the run's inputs (``paths``, named ``label``).
+        Refuse an output that is (or lies inside) one of the run's inputs (``paths``, ``label``).
 
-        An output inside an input directory (a file of a rosbag2 bag) is refused too.
-        ``allow`` names the outputs that may replace an input (``--output`` may update the
-        ``--params`` file it started from, with ``--force``).
-
-        Raises
-        ------
-        OutputError
-            Naming the output and the input.
-
+        ``allow`` names the outputs that may replace an input (``--output`` its ``--params`` file).
         """
         for path in paths:
             if path is None:
@@ -335,13 +268,7 @@ class Outputs:
 
     @contextlib.contextmanager
     def path(self, flag: str):
-        """
-        Yield a temporary path for ``flag`` for a writer that wants a file name.
-
-        For a file the path exists (empty); for a bag (``directory=True``) it does not, and
-        the writer creates it. It is renamed onto the target when the run commits; an
-        exception inside the block removes it at once.
-        """
+        """Yield a temporary path for ``flag`` (a bag's does not exist yet)."""
         tmp = self._stage(flag)
         try:
             yield tmp
@@ -368,17 +295,8 @@ class Outputs:
         """
         Rename every staged output onto its target; return the targets written.
 
-        Every target is checked again before the first rename; if a rename fails, the
-        targets renamed before it are put back as they were (removed, or the replaced file
-        restored).
-
-        Raises
-        ------
-        OutputError
-            When a target appeared meanwhile (without ``--force``) or turned into something
-            that is not a regular file; nothing is renamed then, and the staged files are
-            removed.
-
+        Targets are re-checked first; a failed rename puts back the ones renamed before it. Raises
+        OutputError when a target appeared meanwhile or is no regular file (staged files removed).
         """
         with signals.held():
             return self._commit()

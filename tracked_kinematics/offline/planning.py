@@ -1,12 +1,9 @@
 """
 Planning with an identified model: the library behind ``plan_trajectory``.
 
-The planning model of a terrain file and the translator limits (:func:`model_from_terrain`,
-:func:`limits_from`), a plan executed on the truth-like dynamic simulator
-(:func:`execute`, :func:`final_error`), the comparison of Fink & Stump Table VI on a
-simulated vehicle (:func:`identify_on_sweep`, :func:`compare`), and a plan as a CSV or as a
-``/cmd_vel`` bag (:func:`csv_text`, :func:`write_csv`, :func:`write_bag`). The planner itself is
-:mod:`tracked_kinematics.core.plan`; the command line, docs/tools/plan_trajectory.md.
+Planning models and limits from a terrain file, plans executed on the dynamic simulator, the
+Fink & Stump Table VI comparison, and plans as CSV or ``/cmd_vel`` bags. The planner is
+:mod:`tracked_kinematics.core.plan`; see docs/tools/plan_trajectory.md.
 """
 
 from __future__ import annotations
@@ -42,19 +39,11 @@ MODELS = tuple(_MODEL_NAMES)
 
 def model_from_terrain(name: str, icr: IcrParams, values=None) -> tuple[MotionModel, np.ndarray]:
     """
-    Build the planning model of a terrain file.
+    Build the planning model ``name`` (:data:`MODELS`) of a terrain file.
 
-    ``name`` is a :data:`MODELS` name. A model with a constant-ICR form takes it from the
-    file's ICRs (:meth:`~tracked_kinematics.core.models.MotionModel.from_icr`: ``ideal`` its
-    track width, ``effective`` ``alpha = chi``, ``icr`` its ICRs and scales); any other reads
-    its ``identification.parameters.*``, which ``identify_icr --model`` writes (``general``:
-    ``alpha1..alpha9``).
-
-    Raises
-    ------
-    UsageError
-        For a model whose parameters the file lacks.
-
+    Constant-ICR models take the file's ICRs (:meth:`~tracked_kinematics.core.models.
+    MotionModel.from_icr`); others its ``identification.parameters.*`` (``identify_icr
+    --model``). UsageError for a model whose parameters the file lacks.
     """
     model = ident.build_model(_MODEL_NAMES[name], icr.track_width)
     p = model.from_icr(icr)
@@ -82,19 +71,8 @@ def limits_from(values, robot: Robot, max_track_speed=None, max_track_accel=None
     """
     Return the translator limits: command line, else terrain file, else drive train.
 
-    The limits mean what they mean to cmd_vel_translator, through the same function
-    (:func:`tracked_kinematics.params.limits_from_values`): 0, NaN (``.nan``) and ``.inf``
-    are no limit, a deceleration of either sign is its magnitude (0 or NaN: the matching
-    acceleration limit), and a value out of its range is refused. ``max_track_speed`` and
-    ``max_track_accel`` that neither the command line nor the file gives are the drive
-    train's.
-
-    Raises
-    ------
-    UsageError
-        For a limit that cmd_vel_translator would refuse; the message names it, after
-        ``source`` (the terrain file) when given.
-
+    Read as cmd_vel_translator reads them (:func:`tracked_kinematics.params.limits_from_values`);
+    UsageError names a limit it would refuse, after ``source`` when given.
     """
     given = {param: values[param] for param in LIMIT_FIELDS if param in values}
     if max_track_speed is not None:
@@ -113,14 +91,7 @@ def limits_from(values, robot: Robot, max_track_speed=None, max_track_accel=None
 
 
 def execute(robot: Robot, plan: Plan, table: TwistTable, start=(0.0, 0.0, 0.0)) -> np.ndarray:
-    """
-    Poses of the truth-like simulator driven by the plan's commands, settling included.
-
-    Returns
-    -------
-    ndarray, shape like ``plan.poses``
-
-    """
+    """Return the poses of the truth-like simulator driven by the plan, settling included."""
     settle = len(plan.poses) - len(plan.commands)
     commands = np.vstack([plan.commands, np.zeros((settle, 2))])
     return simulate(robot, commands, plan.dt, table=table, pose0=tuple(start)).pose
@@ -137,18 +108,10 @@ def final_error(poses, goal) -> tuple[float, float]:
 
 def identify_on_sweep(robot: Robot, table: TwistTable, dt: float = 0.02, seed: int = 0):
     """
-    Planning models of the simulated vehicle, fitted on its Fink & Stump sweep.
+    Return the planning models of the simulated vehicle, fitted on its Fink & Stump sweep.
 
-    Drives the trapezoidal speed x curvature sweep of sec. IV-B on the dynamic simulator
-    (ground truth at 10 Hz with 2 mm / 2 mrad noise), then fits the effective wheel-base,
-    ICR (with scales) and 9-parameter general slip models by the least squares of
-    :func:`tracked_kinematics.core.identify.fit` on 1 s segments of the encoder travel.
-
-    Returns
-    -------
-    dict
-        ``{'ideal' | 'effective' | 'icr' | 'general': (model, p)}``.
-
+    The sweep of sec. IV-B on the dynamic simulator, fitted on 1 s segments: ``{'ideal' |
+    'effective' | 'icr' | 'general': (model, p)}``.
     """
     b = robot.vehicle.track_width
     commands = fink_stump_sweep(dt, b, robot.drivetrain.max_speed)
@@ -174,12 +137,8 @@ def compare(robot: Robot, table: TwistTable, models, limits: CommandLimits, spee
     """
     Plan every canonical trajectory with every model, execute it, tabulate (Table VI).
 
-    Returns
-    -------
-    dict
-        ``{model: {trajectory: (planned position error, executed position error,
-        executed heading error, executed max path deviation, plan seconds)}}``.
-
+    Returns ``{model: {trajectory: (planned position error, executed position error, executed
+    heading error, executed max path deviation, plan seconds)}}``.
     """
     results = {}
     for short, (model, p) in models.items():
@@ -231,12 +190,7 @@ def write_csv(path, plan: Plan, icr: IcrParams, force: bool = False) -> None:
 
 def write_bag(path, plan: Plan, icr: IcrParams, storage: str = 'sqlite3',
               topic: str = '/cmd_vel') -> int:
-    """
-    Write the plan as geometry_msgs/Twist on ``topic``, one per command; return the count.
-
-    ``path`` must not exist; plan_trajectory gives the temporary path of an
-    :class:`Outputs` bag, renamed onto ``--bag`` once the bag is closed.
-    """
+    """Write the plan as geometry_msgs/Twist on ``topic`` to a new ``path``; return the count."""
     v_x, w = plan.twists(icr)
     with BagWriter(path, storage) as bag:
         for k, t in enumerate(plan.t):

@@ -1,17 +1,7 @@
 """
 The pictures of the offline tools, drawn on plain matplotlib Figures with an Agg canvas.
 
-No pyplot: no global figure registry or backend is touched, so the tools (and scripts or
-notebooks that call them) keep their own matplotlib state.
-
-- :func:`plot_identification` (identify_icr): paths like Martinez et al. (2005) Figs. 9-12
-  (ideal drive, tuned diff_drive_controller, the identified model), the residuals of the
-  held-out segments, and the ground-truth delay's profile;
-- :func:`plot_drivetrain` (identify_drivetrain): commanded, measured and simulated track
-  speeds, and the delay profile;
-- :func:`plot_icr_map` (icr_map): the tread ICR map, Martinez Figs. 6-7;
-- :func:`plot_plan` (plan_trajectory): a planned path against the simulated one;
-- :func:`plot_heldout_paths` (tracked_kinematics_demo): the held-out dead reckonings.
+No pyplot: the tools (and scripts or notebooks calling them) keep their matplotlib state.
 """
 
 from __future__ import annotations
@@ -40,15 +30,7 @@ def _figure(**kwargs) -> Figure:
 
 
 def check_format(flag: str, path) -> None:
-    """
-    Check, before any work, that matplotlib can write the format ``path``'s extension names.
-
-    Raises
-    ------
-    UsageError
-        Naming ``flag`` and the supported formats.
-
-    """
+    """Check before any work that matplotlib can write ``path``'s format (UsageError)."""
     if path is None:
         return
     fmt = os.path.splitext(os.fspath(path))[1][1:].lower()
@@ -63,17 +45,9 @@ def check_format(flag: str, path) -> None:
 
 def save(fig: Figure, path, dpi: int) -> None:
     """
-    Write a figure to ``path``, in the format its extension names.
+    Write a figure to ``path`` (a temporary one of :class:`Outputs`) in its extension's format.
 
-    The tools give a temporary path of :class:`~tracked_kinematics.offline.outputs.Outputs`
-    (``.NAME.tmp-XXXXXXXX.png``: the same extension), renamed onto the target when the
-    whole run succeeded.
-
-    Raises
-    ------
-    UsageError
-        When matplotlib cannot write that format (its own message).
-
+    UsageError when matplotlib cannot write that format.
     """
     check_format('plot', path)
     fig.savefig(path, dpi=dpi)
@@ -93,18 +67,18 @@ def plot_identification(path, recordings, result, segments) -> None:
     """
     Draw an identification: dead reckoning against ground truth, residuals, delay profile.
 
+    Paths like Martinez et al. (2005) Figs. 9-12.
+
     Parameters
     ----------
     path : path-like
         Image to write (PNG).
     recordings : sequence of Recording
-        The data the identification used (its ground-truth delay removed:
-        ``result.recordings``).
+        The data the identification used, its ground-truth delay removed (``result.recordings``).
     result : Identification
         Its result (:func:`tracked_kinematics.core.identify.identify`).
     segments : Segments
-        The moving segments it fitted (those of at least its minimum travel); the residuals
-        are those of its held-out ones, or of all when nothing was held out.
+        The moving segments it fitted; residuals of the held-out ones (or all when none was).
 
     """
     track_width = result.icr.track_width
@@ -199,17 +173,7 @@ def _plot_delay(ax, result) -> None:
 
 
 def plot_drivetrain(path, result) -> None:
-    """
-    Draw a drive-train fit: 20 s of commanded, measured and simulated speeds; delay profile.
-
-    Parameters
-    ----------
-    path : path-like
-        Image to write (PNG).
-    result : DriveTrainFit
-        What :func:`tracked_kinematics.core.identify.fit_drivetrain` returned.
-
-    """
+    """Draw a drive-train fit: 20 s of track speeds, and the delay profile."""
     segment = max(result.segments, key=lambda s: len(s.t))
     simulated = result.simulate(segment)
     # Show the 20 s with the most command activity.
@@ -246,22 +210,9 @@ def plot_icr_map(path, spec, the_map, icr) -> None:
     """
     Plot the map: tread ICRs seen from above, and their dependence on the speed pair.
 
-    Left: every turning pair's ICR_l and ICR_r in base_link, drawn as seen from above with
-    the vehicle's front up and its left on the left (like the paper's Figs. 6-7), over the
-    contact patches, the centre of mass and the averaged model. Right: the ICR coordinates
-    against the direction of the track-speed pair, coloured by its magnitude.
-
-    Parameters
-    ----------
-    path : path-like
-        Image to write (PNG).
-    spec : VehicleFile
-        The vehicle.
-    the_map : IcrMap
-        Its ICR map.
-    icr : IcrParams
-        The averaged model.
-
+    Left: each pair's ICRs in base_link, front up (Martinez Figs. 6-7), with the contact patches,
+    centre of mass and averaged model ``icr``. Right: ICR coordinates against the direction of
+    the speed pair, coloured by its magnitude.
     """
     from matplotlib.patches import Rectangle
 
@@ -322,21 +273,9 @@ def plot_icr_map(path, spec, the_map, icr) -> None:
 
 def plot_plan(path, plan, driven, ref, title: str) -> None:
     """
-    Draw a planned path against the path simulated with the dynamic model.
+    Draw a planned path against ``driven``, shape (N, 3): the dynamic simulator's poses.
 
-    Parameters
-    ----------
-    path : path-like
-        Image to write (PNG).
-    plan : Plan
-        The plan (:mod:`tracked_kinematics.core.plan`).
-    driven : ndarray, shape (N, 3)
-        Poses of the dynamic simulator driven by its commands.
-    ref : Reference or None
-        The canonical trajectory followed, if any.
-    title : str
-        Title of the plot.
-
+    ``ref`` is the canonical trajectory followed, or None.
     """
     fig = _figure(figsize=(6.4, 5.6))
     ax = fig.subplots()
@@ -362,19 +301,7 @@ def plot_plan(path, plan, driven, ref, title: str) -> None:
 
 
 def plot_heldout_paths(path, results, title: str) -> None:
-    """
-    Draw each held-out path: truth, ideal and identified dead reckoning, from above.
-
-    Parameters
-    ----------
-    path : path-like
-        Image to write (PNG).
-    results : sequence of PathResult
-        The demo's held-out paths (:mod:`tracked_kinematics.offline.cli.tracked_kinematics_demo`).
-    title : str
-        Title of the figure.
-
-    """
+    """Draw each held-out path of the demo: truth, ideal and identified dead reckoning."""
     cols = 2 if len(results) in (2, 4) else min(3, len(results))
     rows = -(-len(results) // cols)
     fig = _figure(figsize=(5.0 * cols, 4.8 * rows), layout='constrained')

@@ -1,31 +1,9 @@
 """
 Stop signals of the offline tools: a SIGINT, SIGTERM or SIGHUP at any instant ends a run cleanly.
 
-A signal becomes an exception in the main thread (KeyboardInterrupt for SIGINT,
-:class:`Signalled` for SIGTERM and SIGHUP), so that the run unwinds and
-:class:`~tracked_kinematics.offline.outputs.Outputs` removes what it staged. An exception can
-land between any two bytecodes, though, and some steps must not be cut in half: creating a
-temporary file and taking charge of it, renaming the outputs onto their targets, removing
-them again. Four rules keep a signal from landing there:
-
-- **held sections** (:class:`held`): those steps run with the stop signals held. One that
-  arrives meanwhile is recorded and acted on when the outermost section ends, where the
-  state is whole again;
-- **one stop per run**: once a run has acted on a signal, later ones are ignored, so that an
-  impatient second Ctrl-C cannot interrupt the clean-up;
-- **the whole process**: when a console script of the offline tools starts, the package's
-  ``__init__`` (``tracked_kinematics/__init__.py``, its first line of code) calls
-  :func:`install_for_tool`, before numpy, scipy and rosbags are imported (the better part
-  of a second). A signal during the imports or the parsing of the options,
-  before :func:`~tracked_kinematics.offline.cli.common.run_main` has begun and so before
-  anything can have been written, ends the process at once with the signal's exit status
-  and the one line; once the run has ended, signals are ignored, so that the process exits
-  with the run's status and cannot be killed half-way through the interpreter's shutdown;
-- **outside a run** (a Python program calling the library), a held section holds Ctrl-C the
-  same way and raises the KeyboardInterrupt at its end; other signals keep their handlers.
-
-Only the main thread is affected: signals are handled there, and a section held by another
-thread holds nothing.
+A signal becomes an exception in the main thread, except inside held sections (:class:`held`)
+and after the first stop; before a run begins it ends the process at once. What a user sees:
+docs/output-files.md (rule 5).
 """
 
 from __future__ import annotations
@@ -127,11 +105,8 @@ class held:
     """
     Context manager: hold SIGINT, SIGTERM and SIGHUP for the block; act on one at its end.
 
-    For steps that must complete once begun: create a temporary file and take charge of it,
-    rename the outputs, remove them. Sections nest; a signal that arrived during the block
-    raises its exception when the outermost one ends (when the block raised, the signal's
-    exception replaces its exception). Outside a run, only Ctrl-C with Python's default
-    handler is held. No effect outside the main thread.
+    Sections nest; the signal's exception is raised when the outermost ends (replacing the
+    block's). Outside a run only Ctrl-C is held; no effect outside the main thread.
     """
 
     __slots__ = ('_main',)
@@ -165,12 +140,7 @@ class held:
 
 
 def raise_pending() -> None:
-    """
-    Act now, inside a held section, on a signal that arrived during it.
-
-    For a point of a held section where unwinding is safe and better than going on (the
-    commit, before the first rename).
-    """
+    """Act now, inside a held section, on a signal that arrived during it."""
     state = _state
     if _in_main_thread() and state.pending is not None and not state.stopping and (
             state.armed or state.borrowed):
@@ -181,11 +151,9 @@ def install_for_tool(pending: list[int] | None = None) -> None:
     """
     Take the stop signals for the process of an offline tool, at its first import.
 
-    Until the run begins (:func:`start`), a signal ends the process at once with its status
-    and one line: nothing has been written. At exit they are ignored, so that the
-    interpreter's shutdown cannot be killed half-way. ``pending``: a signal that came while
-    this module was loading (the package's ``__init__`` collects them until the handler
-    here is installed, and may append to the list until then), the first acted on at once.
+    Until :func:`start` a signal ends the process at once with its status and one line; at exit
+    signals are ignored. ``pending``: signals that came while this module loaded (the first is
+    acted on at once).
     """
     if not _in_main_thread() or _state.tool:
         return
@@ -205,12 +173,9 @@ def _ignore_signals() -> None:
 
 def start() -> bool:
     """
-    Begin a run (:func:`~tracked_kinematics.offline.cli.common.run_main`), signals held.
+    Begin a run with signals held (:func:`release` lets them in); return whether it is outermost.
 
-    Installs the handler and holds the signals; :func:`release` lets them interrupt the run.
-    Return whether this is the outermost run of the process (a run inside a run, as the demo
-    runs identify_icr, leaves the signals to the outer one and changes nothing here; so does
-    a run outside the main thread).
+    A run inside a run (the demo's identify_icr), or outside the main thread, changes nothing.
     """
     state = _state
     if not _in_main_thread() or state.armed:
@@ -237,12 +202,7 @@ def hold() -> None:
 
 
 def finish() -> None:
-    """
-    End the outermost run: disarm, and restore the handlers (ignore signals in a tool).
-
-    A signal held since the run's work ended is dropped: the run is over, its outputs are
-    as it left them.
-    """
+    """End the outermost run: disarm, restore the handlers, drop a held signal."""
     state = _state
     state.armed = False
     if state.tool:

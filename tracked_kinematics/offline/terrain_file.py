@@ -1,13 +1,8 @@
 """
 The terrain file an identification writes: the base file, the fitted model, the fit's record.
 
-identify_icr and identify_drivetrain both start from the terrain file given with
-``--params`` (or nothing), drop what the fit replaces and the record of an older fit, put in
-the fitted values and a record of this fit under one prefix (``identification.*``,
-``drivetrain_fit.*``), check that the result still loads, and write it with a header comment
-as a ``--params-file`` (docs/parameters.md, docs/tools/identify_icr.md,
-docs/tools/identify_drivetrain.md). The tools stage :func:`terrain_text` through
-:class:`~tracked_kinematics.offline.outputs.Outputs` with their other outputs.
+Used by identify_icr and identify_drivetrain; see docs/tools/identify_icr.md and
+docs/tools/identify_drivetrain.md.
 """
 
 from __future__ import annotations
@@ -27,33 +22,11 @@ def terrain_values(base_values: Mapping[str, Any], fitted: Mapping[str, Any], *,
     """
     Merge the values of a terrain file written after a fit, and check them.
 
-    Parameters
-    ----------
-    base_values : mapping
-        The base terrain file's values (dotted names).
-    fitted : mapping
-        The fitted values; they replace the base's (which keep their place in the file).
-    record : str
-        Prefix of the fit's record (``identification``); the base's ``record.*`` is dropped.
-    extras : mapping
-        The fit's record, written as ``record.key``; non-finite floats are left out.
-    check : callable
-        Builds the model from the values, raising
-        :class:`~tracked_kinematics.core.errors.InvalidParameters` when they are invalid
-        (``tracked_kinematics.params.icr_from_values``).
-    drop : iterable of str
-        Further base values to drop: names, or prefixes ending with ``.``.
-
-    Returns
-    -------
-    dict
-        Dotted names to values, in file order.
-
-    Raises
-    ------
-    FitError
-        When the values do not give a valid model: nothing is to be written.
-
+    ``fitted`` replaces the ``base_values`` (dotted names, keeping their place); the base's
+    ``record.*`` and the names or ``prefix.`` entries of ``drop`` are dropped; ``extras`` are
+    written as ``record.key`` (non-finite floats left out). ``check(values)`` builds the model,
+    raising ``InvalidParameters``. Return the values in file order; FitError when they give no
+    valid model (nothing is to be written).
     """
     dropped = (f'{record}.', *drop)
     values = {k: v for k, v in base_values.items()
@@ -73,21 +46,9 @@ def terrain_values(base_values: Mapping[str, Any], fitted: Mapping[str, Any], *,
 def terrain_text(values: Mapping[str, Any], *, tool: str, date: str,
                  contents: str = 'Terrain parameters', note: str = '') -> str:
     """
-    Return terrain values as the text of a ``--params-file``, with a header saying who wrote it.
+    Return terrain values as a ``--params-file``'s text, with a header saying who wrote it.
 
-    Parameters
-    ----------
-    values : mapping
-        From :func:`terrain_values`.
-    tool : str
-        The program that wrote it.
-    date : str
-        When, ISO 8601.
-    contents : str
-        What the file holds, first words of the header.
-    note : str
-        More header lines.
-
+    The header: ``contents`` first, then ``tool``, ``date`` (ISO 8601) and ``note`` lines.
     """
     comment = (f'{contents} written by {tool} (tracked_kinematics) on {date}.\n'
                'Load with: --ros-args --params-file THIS_FILE')
@@ -99,12 +60,7 @@ def terrain_text(values: Mapping[str, Any], *, tool: str, date: str,
 def write_terrain_file(path, values: Mapping[str, Any], *, tool: str, date: str,
                        contents: str = 'Terrain parameters', note: str = '',
                        force: bool = False) -> None:
-    """
-    Write :func:`terrain_text` to ``path`` through :class:`Outputs` (atomically).
-
-    An existing file is replaced only with ``force``; a symbolic link or a special file
-    never is (:class:`~tracked_kinematics.offline.outputs.OutputError`).
-    """
+    """Write :func:`terrain_text` to ``path`` through :class:`Outputs` (atomically, ``force``)."""
     with Outputs(force=force) as out:
         out.add('--output', path)
         out.write_text('--output', terrain_text(values, tool=tool, date=date,

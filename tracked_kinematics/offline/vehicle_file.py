@@ -1,8 +1,7 @@
 """
 Vehicle files on the command line: the options of simulate_bag and icr_map.
 
-The vehicle table and the loader live in :mod:`tracked_kinematics.params.vehicles` (the
-``tracked_simulator`` node reads vehicles too); they are re-exported here for the tools.
+Re-exports the loader of :mod:`tracked_kinematics.params.vehicles` for the tools.
 """
 
 from __future__ import annotations
@@ -52,13 +51,7 @@ def add_vehicle_arguments(parser, positional: bool = False) -> None:
     """
     Add the vehicle and terrain options to a parser or argument group.
 
-    Parameters
-    ----------
-    parser : argparse.ArgumentParser or argument group
-        Where to add them.
-    positional : bool
-        The vehicle as an optional positional argument instead of ``--vehicle``.
-
+    ``positional``: the vehicle as an optional positional argument instead of ``--vehicle``.
     """
     help_vehicle = 'vehicle YAML file or shipped vehicle name (auriga_alpha, packbot)'
     if positional:

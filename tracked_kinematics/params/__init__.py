@@ -1,10 +1,7 @@
 """
 The parameter ring: one table of every parameter, shared by nodes, command lines and YAML.
 
-:mod:`.spec` defines :class:`ParamSpec` and its checks, :mod:`.tables` the tables (terrain,
-drive train, encoder input, command limits), :mod:`.values` turns values into core objects,
-:mod:`.files` reads and writes parameter files. ``ros/`` and ``offline/`` both import this
-ring; it imports only ``core/``. docs/parameters.md is generated from the tables.
+Imports only ``core/``; docs/parameters.md is generated from :mod:`.tables`.
 """
 
 from .files import flatten, nest, params_text, read_params_file, write_params_file

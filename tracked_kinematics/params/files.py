@@ -38,19 +38,11 @@ def nest(flat: Mapping[str, Any]) -> dict[str, Any]:
 
 def read_params_file(path: str | os.PathLike, node_name: str | None = None) -> dict[str, Any]:
     """
-    Parameters of a ROS 2 params file, flattened to dotted names.
+    Return the parameters of a ROS 2 params file, flattened to dotted names.
 
-    Reads the ``/**`` section and, when ``node_name`` is given, that node's section on top,
-    as ``--params-file`` would. A plain mapping without ``ros__parameters`` is read as is.
-
-    Raises
-    ------
-    InvalidParameters
-        When the file is not UTF-8 text, or not a mapping of parameters (the message names
-        the file, except for a decoding error, which names the byte).
-    OSError
-        When it cannot be read.
-
+    Reads the ``/**`` section and, with ``node_name``, that node's section on top, as
+    ``--params-file`` would; a plain mapping without ``ros__parameters`` is read as is.
+    Raises :class:`InvalidParameters` when the file is not UTF-8 or not a mapping.
     """
     if not stat.S_ISREG(os.stat(path).st_mode) and not os.path.isdir(path):
         # A FIFO or a device would block or stream forever; a directory raises below.
@@ -79,17 +71,7 @@ def read_params_file(path: str | os.PathLike, node_name: str | None = None) -> d
 
 
 def params_text(values: Mapping[str, Any], comment: str | None = None) -> str:
-    """
-    Return parameters as the text of a ``/**: ros__parameters:`` file.
-
-    Parameters
-    ----------
-    values : mapping
-        Dotted parameter names to plain values (numbers, strings, lists, nested mappings).
-    comment : str, optional
-        Lines written as a YAML comment at the top.
-
-    """
+    """Return dotted ``values`` as a ``/**: ros__parameters:`` file's text, ``comment`` on top."""
     text = yaml.safe_dump({'/**': {'ros__parameters': nest(values)}}, sort_keys=False,
                           default_flow_style=False)
     if comment:
@@ -100,22 +82,9 @@ def params_text(values: Mapping[str, Any], comment: str | None = None) -> str:
 def write_params_file(path: str | os.PathLike, values: Mapping[str, Any],
                       comment: str | None = None) -> None:
     """
-    Write parameters as a ``/**: ros__parameters:`` file, atomically.
+    Write dotted ``values`` as a ``/**: ros__parameters:`` file, atomically (temporary + rename).
 
-    The file is written next to its destination and renamed over it, so a reader never
-    sees a half-written file and a failure leaves any old file in place. The offline tools
-    write through ``offline.outputs.Outputs`` instead, which also refuses symbolic links and
-    special files and never replaces a file without ``--force``.
-
-    Parameters
-    ----------
-    path : path-like
-        Destination.
-    values : mapping
-        Dotted parameter names to plain values (numbers, strings, lists, nested mappings).
-    comment : str, optional
-        Lines written as a YAML comment at the top.
-
+    The offline tools write through ``offline.outputs.Outputs`` instead (no ``--force``, no links).
     """
     text = params_text(values, comment)
     directory = os.path.dirname(os.path.abspath(path))

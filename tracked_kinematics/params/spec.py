@@ -1,17 +1,8 @@
 """
-Parameter specifications: :class:`ParamSpec` and the checks its tables use.
+Parameter specifications: :class:`ParamSpec`, its checks and the default rule (:func:`resolve`).
 
-Each :class:`ParamSpec` carries a parameter's ROS name, default, unit, description and check,
-in the spirit of generate_parameter_library's YAML in ros2_controllers. Nodes declare their
-parameters from the tables of :mod:`.tables` (with descriptors, so ``ros2 param describe``
-explains them) and validate with the same checks at start and in their set-parameters
-callback; the command lines validate terrain files with them. Every check carries its rule
-in words (``check.words``, set by :func:`described_as`) for the generated parameter reference.
-
-A parameter has a default, or none (``required``: the user must give it, as
-diff_drive_controller needs ``wheel_separation``), or a default computed from the others
-(``derived``: ``icr.y_left`` is ``+track_width / 2`` unless set). :func:`resolve` applies that
-rule to a mapping of given values, for the nodes and the offline tools alike.
+Nodes declare their parameters from these specs (with descriptors) and validate with the same
+checks at start and at runtime; see docs/parameters.md.
 """
 
 from __future__ import annotations
@@ -25,15 +16,7 @@ from typing import Any
 
 
 def described_as(words: str) -> Callable[[Callable], Callable]:
-    """
-    Return a decorator that attaches a check's rule in words, as the parameter docs show it.
-
-    Parameters
-    ----------
-    words : str
-        The rule, short: ``'> 0'``, ``'>= 0, 0 = no limit'``.
-
-    """
+    """Return a decorator that attaches a check's rule in words (``'> 0'``) for the docs."""
     def mark(check: Callable) -> Callable:
         check.words = words
         return check
@@ -74,11 +57,7 @@ def one_of(choices) -> Callable[[Any], str | None]:
 
 
 def in_range(value, low: float | None, high: float | None, unit: str = '') -> str | None:
-    """
-    Check: a number within ``[low, high]`` (either bound may be None).
-
-    Not a number, and NaN, fail too; the message gives the range with its unit.
-    """
+    """Check: a number within ``[low, high]`` (either bound may be None); NaN fails."""
     problem = finite(value) if not _is_inf(value) else None
     if problem:
         return problem
@@ -132,13 +111,7 @@ _NAME_TOKEN = re.compile(r'[A-Za-z_][A-Za-z0-9_]*\Z')
 
 @described_as('a valid ROS name')
 def ros_name(value) -> str | None:
-    """
-    Check: a valid ROS 2 topic or service name (relative, absolute or private ``~/``).
-
-    The rules of rcl's name validation: tokens of letters, digits and underscores that do
-    not start with a digit, separated by single slashes, no double underscore, no trailing
-    slash.
-    """
+    """Check: a valid ROS 2 topic or service name (rcl's rules; relative, absolute or ``~/``)."""
     if not isinstance(value, str) or not value:
         return f'must be a non-empty ROS name, got {value!r}'
     if value == '~':
@@ -161,12 +134,7 @@ def node_name(value) -> str | None:
 
 @described_as('a tf2 frame id (no leading /, no blanks)')
 def frame_id(value) -> str | None:
-    """
-    Check: a usable tf2 frame id.
-
-    Non-empty, printable, no whitespace, no leading ``/`` (tf2 rejects it) and at most 255
-    characters.
-    """
+    """Check: a usable tf2 frame id (printable, no whitespace, no leading ``/``, <= 255 chars)."""
     if not isinstance(value, str) or not value:
         return f'must be a non-empty frame id, got {value!r}'
     if value.startswith('/'):
@@ -181,15 +149,9 @@ class Derived:
     """
     A default computed from other parameters.
 
-    Attributes
-    ----------
-    text : str
-        The rule as users read it (``+track_width / 2``).
-    value : callable
-        ``value(values) -> default`` from the other (resolved) values; it may raise
-        ``KeyError``, ``TypeError`` or ``ValueError`` when they are missing or invalid, and the
-        default is then left out (the other values' own checks report the problem).
-
+    ``text`` is the rule as users read it (``+track_width / 2``); ``value(values) -> default``
+    may raise ``KeyError``, ``TypeError`` or ``ValueError``, which leaves the default out (the
+    other values' checks report the problem).
     """
 
     text: str
@@ -206,32 +168,20 @@ class ParamSpec:
     name : str
         ROS parameter name, dots for nesting (``icr.y_left``).
     default : bool, int, float, str or list of str
-        Default value; its Python type is the parameter's type. For a ``required`` or
-        ``derived`` parameter it is only an example of the type (never used as a value).
-    description : str
-        What it means, shown by ``ros2 param describe``.
-    unit : str
-        SI unit, or '' for none.
+        Default value; for a ``required`` or ``derived`` parameter only an example of the type.
     check : callable, optional
-        ``check(value) -> message or None``; the message says what is wrong.
+        ``check(value) -> message or None``.
     read_only : bool
         Fixed after start (topics, modes).
     low, high : float, optional
-        Physically meaningful range of a number, inclusive; published as the parameter's
-        ``FloatingPointRange`` / ``IntegerRange`` (``ros2 param describe`` shows it) and
-        checked after ``check``. A value outside is refused at start and at runtime: a rate
-        of 1e-10 Hz or a radius of 5e-324 m is a number, not a vehicle.
+        Inclusive range, published as the descriptor's range and checked after ``check``.
     required : bool
-        No default: a value must be given (a node refuses to start without it).
+        No default: a node refuses to start without a value.
     derived : Derived, optional
-        Default computed from the other parameters unless the parameter is set; a node
-        recomputes it when they change, until the parameter is set explicitly.
+        Default computed from the other parameters until the parameter is set explicitly.
     no_limit : bool
-        A limit whose ``0``, ``NaN`` (diff_drive_controller's ``.NAN``) and ``inf`` say "no
-        limit" (or, for a deceleration, "as the acceleration limit"; the description says
-        which): those three pass the range check (which bounds every other value), and
-        the range is published as the descriptor's ``additional_constraints`` text instead
-        of a ``FloatingPointRange`` (rclpy refuses NaN and inf against one).
+        ``0``, ``NaN`` and ``inf`` mean "no limit" and pass the range check; the range is
+        published as ``additional_constraints`` text (rclpy refuses NaN and inf in a range).
 
     """
 
@@ -299,16 +249,8 @@ def resolve(specs, given: Mapping[str, Any]) -> tuple[dict[str, Any], list[str]]
     """
     Apply the default rule of ``specs`` to the values ``given``.
 
-    Given values are kept as they are (unchecked); a missing parameter takes its default,
-    or its derived default computed from the others; a missing required one is reported.
-    Names that no spec declares are left out.
-
-    Parameters
-    ----------
-    specs : iterable of ParamSpec
-        The parameters; derived defaults are computed from the values of the others.
-    given : mapping
-        Parameter names to values (a params file, a node's overrides, ...).
+    Given values are kept unchecked; missing ones take their (derived) default; names no spec
+    declares are left out.
 
     Returns
     -------
@@ -351,30 +293,11 @@ def unknown_parameters(given: Iterable[str], known: Iterable[ParamSpec | str], *
                        only_close: bool = False, ignored: str = ' ignored',
                        what: str = 'unknown parameter') -> list[str]:
     """
-    One message per name in ``given`` that ``known`` does not hold, with the closest known name.
+    Return one message per name in ``given`` that ``known`` does not hold, with the closest name.
 
-    The nodes call it for the names a params file or ``-p`` sets (ROS would ignore an
-    undeclared one silently); the offline tools for the keys of a terrain file.
-
-    Parameters
-    ----------
-    given : iterable of str
-        Names set (dotted: ``icr.y_left``); repeated names are reported once.
-    known : iterable of ParamSpec or str
-        The names that are known.
-    only_close : bool
-        Report only the names that have a close known name (a typo): for files that may
-        also hold other programs' parameters.
-    ignored : str
-        What happens to such a name, after it in the message.
-    what : str
-        The words before the name.
-
-    Returns
-    -------
-    list of str
-        ``unknown parameter 'track_widht' ignored (did you mean 'track_width'?)``.
-
+    With ``only_close``, only names close to a known one (a typo) are reported: for files that may
+    also hold other programs' parameters. ``ignored`` and ``what`` are the words after and before
+    the name: ``unknown parameter 'track_widht' ignored (did you mean 'track_width'?)``.
     """
     names = [k if isinstance(k, str) else k.name for k in known]
     known_set = set(names)
@@ -393,28 +316,10 @@ def unknown_parameters(given: Iterable[str], known: Iterable[ParamSpec | str], *
 def typos(given: Iterable[str], own: Iterable[ParamSpec | str],
           others: Iterable[str] = ()) -> list[str]:
     """
-    One message per name in ``given`` that is a misspelling of a name in ``own``.
+    Return one message per name in ``given`` that is a misspelling of a name in ``own``.
 
-    A name is a misspelling when neither ``own`` nor ``others`` holds it and it lies in a
-    namespace of ``own`` (``icr.y_lft`` beside ``icr.y_left``) or is close to one of its names
-    (``track_widht``). A node refuses to start on one: a misspelt key leaves its parameter at
-    the default (a lopsided ICR model, a wrong frame) as silently as a missing one.
-
-    Parameters
-    ----------
-    given : iterable of str
-        Names set (dotted); repeated names are reported once.
-    own : iterable of ParamSpec or str
-        The names the node declares.
-    others : iterable of str
-        Names that are not misspellings although ``own`` does not hold them (other nodes'
-        parameters, records of a terrain file).
-
-    Returns
-    -------
-    list of str
-        ``unknown 'icr.y_lft' (did you mean 'icr.y_left'?)``.
-
+    A misspelling is held by neither ``own`` nor ``others`` and lies in a namespace of ``own``
+    (``icr.y_lft``) or is close to one of its names (``track_widht``).
     """
     names = [k if isinstance(k, str) else k.name for k in own]
     known = set(names) | set(others)

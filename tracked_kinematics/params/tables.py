@@ -1,21 +1,8 @@
 """
 The parameter tables: one vocabulary for nodes, command lines, YAML files and the docs.
 
-The terrain YAML (docs/parameters.md)::
-
-    /**:
-      ros__parameters:
-        track_width: 0.42
-        sprocket_radius: 0.1
-        icr: {y_left: 0.353, y_right: -0.425, x: 0.032}
-        scale: {left: 1.0072, right: 1.0275}
-        drivetrain: {loop: first_order, delay: 0.03, max_accel: 1.5, time_constant: 0.15}
-
-The ``drivetrain.*`` keys (:data:`DRIVETRAIN_PARAMS`, optional) describe the response of the
-tracks to their setpoints (Fink & Stump sec. III-B); vehicle files use the same keys.
-:data:`ENCODER_INPUT_PARAMS` name the encoder inputs the nodes subscribe to and the offline
-tools read from bags; :data:`COMMAND_LIMIT_PARAMS` the limits of cmd_vel_translator, which
-plan_trajectory reads from a terrain file too.
+Terrain and drive train (Fink & Stump sec. III-B), encoder inputs and command limits; the
+terrain file's keys are listed in docs/parameters.md (generated from these tables).
 """
 
 from __future__ import annotations
@@ -150,13 +137,7 @@ ENCODER_INPUT_DEFAULTS: dict[str, Any] = {spec.name: spec.default
 
 @described_as('>= 0; 0, NaN (.NAN) or .inf = no limit')
 def limit_value(value) -> str | None:
-    """
-    Check: a limit, a number >= 0 where 0, NaN (``.NAN``) or ``.inf`` means no limit.
-
-    NaN is diff_drive_controller's "no limit" (and default), so its YAML carries over;
-    :func:`~tracked_kinematics.params.values.limits_from_values` turns all three into
-    ``inf`` before any maths sees them.
-    """
+    """Check: a limit, a number >= 0; 0, NaN (diff_drive_controller's ``.NAN``) or inf is none."""
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         return f'must be a number, got {value!r}'
     if math.isnan(value):
@@ -168,13 +149,7 @@ def limit_value(value) -> str | None:
 
 @described_as('either sign (its magnitude); 0, NaN or .inf = as the acceleration limit')
 def deceleration_value(value) -> str | None:
-    """
-    Check: a deceleration limit, a number of either sign (its magnitude is the limit).
-
-    diff_drive_controller writes ``max_deceleration`` as a negative number (the lower bound
-    of the speed change); a positive one is what the word means. 0 or NaN: the matching
-    acceleration limit applies; ``.inf``: decelerations are not limited.
-    """
+    """Check: a deceleration limit of either sign (diff_drive_controller writes it negative)."""
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         return f'must be a number, got {value!r}'
     if value == -math.inf:
@@ -263,13 +238,10 @@ _TERRAIN_GROUPS = ('icr.', 'scale.', 'drivetrain.', 'linear.', 'angular.')
 
 def unknown_terrain_parameters(values) -> list[str]:
     """
-    Warnings for the names of a terrain file that look like typos of its known ones.
+    Return warnings for the names of a terrain file that look like typos of the known ones.
 
-    Known: the terrain, drive-train, encoder-input and command-limit tables, the records and
-    notes the tools write. A terrain file may also carry node parameters (``odom_frame``)
-    that an offline tool does not know, so a name outside the groups of the tables is
-    reported only when it is close to a known one (``track_widht``); inside a group
-    (``icr.yleft``) every unknown name is reported.
+    Outside the tables' groups only names close to a known one are reported (a terrain file may
+    carry node parameters); inside a group (``icr.yleft``) every unknown name is.
     """
     known = [spec.name for spec in (*TERRAIN_PARAMS, *DRIVETRAIN_PARAMS,
                                     *ENCODER_INPUT_PARAMS, *COMMAND_LIMIT_PARAMS)]

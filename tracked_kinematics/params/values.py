@@ -1,11 +1,4 @@
-"""
-Parameter values <-> core objects: the kinematic model, the drive train, the command limits.
-
-Values are mappings of dotted ROS parameter names (``icr.y_left``) to plain values, as
-:func:`tracked_kinematics.params.files.read_params_file` returns them and nodes hold them;
-the functions here validate them against :mod:`.tables` and build the core's immutable
-parameter objects, with errors in ROS names.
-"""
+"""Parameter values (dotted ROS names to plain values) to core objects, and back."""
 
 from __future__ import annotations
 
@@ -38,23 +31,8 @@ def drivetrain_from_values(values: Mapping[str, Any], max_speed: float = math.in
     """
     Build and validate the drive-train model from ``drivetrain.*`` parameter values.
 
-    Parameters
-    ----------
-    values : mapping
-        Dotted parameter names to values; missing ``drivetrain.*`` ones take their defaults,
-        other names are ignored.
-    max_speed : float
-        Speed limit of the commands, m/s (a vehicle's ``max_track_speed``).
-
-    Returns
-    -------
-    DriveTrain
-
-    Raises
-    ------
-    InvalidParameters
-        With every problem found, in ROS parameter names (also an unstable PID loop).
-
+    ``max_speed`` is the command speed limit in m/s (a vehicle's ``max_track_speed``). Raises
+    :class:`InvalidParameters` with every problem, in ROS names (also an unstable PID loop).
     """
     v = {**DRIVETRAIN_DEFAULTS,
          **{k: val for k, val in values.items() if k in DRIVETRAIN_DEFAULTS}}
@@ -84,12 +62,7 @@ def drivetrain_from_values(values: Mapping[str, Any], max_speed: float = math.in
 
 
 def values_from_drivetrain(drive: DriveTrain) -> dict[str, Any]:
-    """
-    Return the ``drivetrain.*`` parameter values of a drive-train model.
-
-    The inverse of :func:`drivetrain_from_values` (the speed limit is a vehicle parameter and
-    is not written); no acceleration limit is written as 0.
-    """
+    """Return the ``drivetrain.*`` values of a drive-train model (no acceleration limit is 0)."""
     values: dict[str, Any] = {
         'drivetrain.delay': float(drive.delay),
         'drivetrain.max_accel': float(drive.max_accel) if math.isfinite(drive.max_accel)
@@ -121,26 +94,8 @@ def icr_from_values(values: Mapping[str, Any]) -> IcrParams:
     """
     Build and validate the kinematic model from terrain parameter values.
 
-    The vehicle rule of every node and tool (docs/parameters.md): ``track_width`` has no
-    default; ``icr.y_left`` / ``icr.y_right`` default to ``+-track_width / 2`` (ideal drive
-    for the given width) and ``icr.x`` to 0 unless set; the scales default to 1.
-    ``sprocket_radius`` is not part of the model: it is checked when given.
-
-    Parameters
-    ----------
-    values : mapping
-        ROS parameter names (``track_width``, ``icr.y_left``, ...) to values; other names
-        are ignored.
-
-    Returns
-    -------
-    IcrParams
-
-    Raises
-    ------
-    InvalidParameters
-        With every problem found, in ROS parameter names (also a missing ``track_width``).
-
+    ``track_width`` is required; the ICRs default to ideal drive, the scales to 1 (see
+    docs/parameters.md). Raises :class:`InvalidParameters` with every problem, in ROS names.
     """
     merged, missing = resolve(TERRAIN_PARAMS, values)
     if 'track_width' in missing:
@@ -169,19 +124,11 @@ def values_from_icr(icr: IcrParams, sprocket_radius: float) -> dict[str, float]:
 
 def limits_from_values(values: Mapping[str, Any]) -> CommandLimits:
     """
-    Command limits from cmd_vel_translator parameter values.
+    Return the command limits of cmd_vel_translator parameter values.
 
-    0, NaN (diff_drive_controller's ``.NAN``), ``.inf`` or a missing name is no limit, and
-    becomes ``inf`` here: no NaN reaches the command path. A deceleration limit may be
-    written with either sign (diff_drive_controller writes it negative) and means its
-    magnitude; 0, NaN or a missing one is the matching acceleration limit.
-
-    Raises
-    ------
-    InvalidParameters
-        When a limit is not a number (message in ROS names), or one of the checks of
-        :data:`~tracked_kinematics.params.tables.COMMAND_LIMIT_PARAMS` fails.
-
+    0, NaN, ``inf`` or a missing limit becomes ``inf``; a deceleration limit of either sign means
+    its magnitude, and 0/NaN/missing means the acceleration limit. Raises
+    :class:`InvalidParameters` when a limit is not a number or a table check fails.
     """
     problems = check_values(COMMAND_LIMIT_PARAMS, values)
     if problems:

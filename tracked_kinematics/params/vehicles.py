@@ -1,25 +1,8 @@
 """
 Vehicle description files for the simulator: one table of parameters, YAML in, Robot out.
 
-A vehicle file is plain YAML (a ROS ``/**: ros__parameters:`` file is read too) with the
-keys of :data:`VEHICLE_PARAMS`, in ROS axes (x forward, y left, z up; base_link at the centre
-of the two contact patches)::
-
-    name: auriga_alpha
-    track_width: 0.42
-    contact_length: 0.70
-    contact_width: 0.15
-    mass: 258.0
-    centre_of_mass: {x: 0.04, y: 0.015, z: 0.3}
-    max_track_speed: 1.0
-    friction: {terrain: hard_floor, mu_x: 0.6, mu_y: 0.75}
-    drivetrain: {loop: first_order, delay: 0.03, max_accel: 1.5, time_constant: 0.15}
-    encoders: {sprocket_radius: 0.1, ticks_per_revolution: 76000,
-               scale: {left: 1.0072, right: 1.0275}}
-
-Shipped files live in ``config/vehicles/`` and can be named without path or extension
-(``auriga_alpha``, ``packbot``). The table lives in the parameter ring so that the offline
-tools (simulate_bag, icr_map) and the ``tracked_simulator`` node read vehicles alike.
+Shared by the offline tools and the ``tracked_simulator`` node; the format and shipped files
+(``config/vehicles/``) are in docs/simulator.md.
 """
 
 from __future__ import annotations
@@ -87,19 +70,7 @@ VEHICLE_DEFAULTS: dict[str, Any] = {spec.name: spec.default for spec in VEHICLE_
 
 @dataclass(frozen=True)
 class VehicleFile:
-    """
-    A loaded vehicle description.
-
-    Attributes
-    ----------
-    robot : Robot
-        What the simulator needs.
-    values : dict
-        Every parameter (dotted names), defaults filled in.
-    path : Path or None
-        The file it came from.
-
-    """
+    """A loaded vehicle: its ``robot``, ``values`` (dotted, defaults filled) and ``path``."""
 
     robot: Robot
     values: dict
@@ -126,15 +97,7 @@ def shipped_vehicles() -> list[str]:
 
 
 def resolve(name_or_path: str | os.PathLike) -> Path:
-    """
-    Path of a vehicle file given as a path or as the name of a shipped one.
-
-    Raises
-    ------
-    FileNotFoundError
-        Naming the shipped vehicles when neither exists.
-
-    """
+    """Return the path of a vehicle file or of a shipped vehicle named without path."""
     path = Path(name_or_path)
     if path.is_file():
         return path
@@ -159,15 +122,7 @@ def vehicle_path(name_or_path: str | os.PathLike) -> Path | None:
 
 
 def robot_from_values(values: Mapping[str, Any]) -> Robot:
-    """
-    Build the simulated robot from vehicle parameter values (dotted names).
-
-    Raises
-    ------
-    InvalidParameters
-        With every problem found, naming the parameters.
-
-    """
+    """Build the simulated robot from dotted vehicle values (InvalidParameters names them)."""
     unknown = sorted(set(values) - set(VEHICLE_DEFAULTS))
     if unknown:
         raise InvalidParameters(f'unknown vehicle parameter(s) {", ".join(unknown)}; known: '
@@ -216,24 +171,8 @@ def load_vehicle(name_or_path: str | os.PathLike,
     """
     Read a vehicle file (or a shipped vehicle by name) and build its robot.
 
-    Parameters
-    ----------
-    name_or_path : str or path-like
-        A YAML file, or the name of a shipped vehicle (``auriga_alpha``, ``packbot``).
-    overrides : mapping, optional
-        Dotted parameter names to values that replace the file's (``friction.mu_y``).
-
-    Returns
-    -------
-    VehicleFile
-
-    Raises
-    ------
-    FileNotFoundError
-        No such file or shipped vehicle.
-    InvalidParameters
-        Invalid YAML or values; the message names the file and the parameters.
-
+    ``overrides`` maps dotted names to values that replace the file's (``friction.mu_y``). Raises
+    FileNotFoundError, or InvalidParameters naming the file and the parameters.
     """
     path = resolve(name_or_path)
     try:

@@ -1,13 +1,9 @@
 """
 calibration_deadman: hold calibration_drive's deadman from the keyboard and show its status.
 
-For a venv without the ``ros2`` command line (rclpy from wheels): what
-``ros2 topic pub -r 20 /deadman std_msgs/msg/Bool "{data: true}"`` and
-``ros2 topic echo /calibration_drive/status`` do on a ROS install, in one terminal. The
-space bar is the deadman: held (the terminal's auto-repeat keeps it coming) the tool publishes
-``true`` on ``deadman`` at 20 Hz, let go (or any other key) ``false``. ``--hold`` holds it
-without a keyboard, for the simulator and scripts. One line per change of the drive's status;
-the tool ends when the drive is done. Reference: docs/calibrate-in-five-minutes.md.
+The space bar (held, via auto-repeat) publishes ``true`` on ``deadman`` at 20 Hz, any other
+key ``false``; ``--hold`` holds it without a keyboard. Ends when the drive is done.
+See docs/nodes/calibration_deadman.md.
 """
 
 from __future__ import annotations

@@ -1,27 +1,10 @@
 """
 calibration_drive: drive a calibration protocol on cmd_vel, safely, then fit the terrain.
 
-A thin adapter around the protocol (:func:`~tracked_kinematics.core.plan.calibration.
-protocol`) and the safety supervisor (:class:`~tracked_kinematics.core.plan.supervisor.
-Supervisor`, where every safety rule lives and is tested). At a fixed ``rate`` it gives the
-supervisor the time, the deadman, the freshness of the encoders and of the reference and the
-pose in the geofence frame, and publishes the command it returns on ``cmd_vel``
-(geometry_msgs/Twist, for cmd_vel_translator, whose limits stay the second barrier; a zero
-Twist whenever the vehicle must not move). A deadman release is acted on when its message
-arrives, not at the next tick. It records the encoders (as odometry_node reads them:
-:class:`~tracked_kinematics.ros.encoder_input.EncoderInput`), the reference (``imu_topic``
-or ``pose_topic``) and its own commands; when the protocol is done it hands the recording to
-its finisher, which writes ``output`` (a terrain file), the report beside it and, with
-``bag``, the recording as an MCAP bag, then sets the fitted values in the nodes of
-``push_to`` and ends the node with the finisher's exit status (0 on success).
-
-Services ``~/start``, ``~/pause``, ``~/stop`` (std_srvs/Trigger); status on ``~/status``
-(std_msgs/String, one JSON object per message: docs/nodes/calibration_drive.md). On
-shutdown (SIGINT, SIGTERM, the end) a zero command is published before the node goes.
-
-The node writes no file itself: the ``ros`` ring imports no ``offline`` code. The console
-script (:mod:`tracked_kinematics.apps.calibration_drive`) gives it the finisher of
-:mod:`tracked_kinematics.offline.calibration_files`. Reference: docs/nodes/calibration_drive.md.
+A thin adapter around :mod:`tracked_kinematics.core.plan.calibration` and the safety
+:class:`~tracked_kinematics.core.plan.supervisor.Supervisor`; the finisher that writes the
+files comes from the console script (the ``ros`` ring imports no ``offline`` code).
+See docs/nodes/calibration_drive.md.
 """
 
 from __future__ import annotations
@@ -160,15 +143,7 @@ PARAMS = TERRAIN_PARAMS + ENCODER_INPUT_PARAMS + CALIBRATION_PARAMS
 
 
 def validate(values: Mapping[str, Any]) -> None:
-    """
-    Check the node's parameters as a whole.
-
-    Raises
-    ------
-    ValueError
-        For an invalid kinematic model, encoder setup, or no deadman at all.
-
-    """
+    """Check the parameters as a whole; ValueError for a bad model, encoders or no deadman."""
     icr_from_values(values)
     check_encoder_values(values)
     if not values['deadman_topic'] and not values['joy_topic']:
@@ -181,12 +156,10 @@ def _seconds(stamp) -> int:
 
 class LinkAge:
     """
-    Age of a message at its arrival, from its publication time (DDS source timestamp).
+    Age of a message at its arrival, from its DDS source timestamp, clock skew removed.
 
-    The publisher's clock may be another machine's: the age is the arrival less the source
-    stamp, less the smallest such offset of the last :data:`OFFSET_WINDOW` s (the clock skew
-    plus the fastest delivery), so that a message delivered late (after a stall of this node
-    or of the link) is old, however fresh its arrival.
+    The skew is the smallest arrival-less-stamp of the last :data:`OFFSET_WINDOW` s, so a message
+    delivered late is old however fresh its arrival (docs/nodes/calibration_drive.md).
     """
 
     def __init__(self):
@@ -208,20 +181,16 @@ class LinkAge:
 
 class CalibrationDriveNode(TableNode):
     """
-    The calibration drive.
-
-    A :class:`~tracked_kinematics.ros.parameters.TableNode` of :data:`PARAMS`.
+    The calibration drive: a :class:`~.parameters.TableNode` of :data:`PARAMS`.
 
     Parameters
     ----------
     finisher : callable, optional
-        ``finisher(values)`` called at start with the parameter values; it checks the output
-        paths (raising on a path that may not be written) and returns
-        ``finish(recording, topics, log) -> (status, fitted values or None)``, run in a
-        callback of the node when the protocol is done. None: nothing is written (tests).
+        ``finisher(values)``, called at start, checks the output paths and returns
+        ``finish(recording, topics, log) -> (status, fitted values or None)``, run when the
+        protocol is done. None: nothing is written (tests).
     on_exit : callable, optional
-        ``on_exit(status)`` called, in a callback of the node, when the node is done; the
-        console script raises SystemExit there. Default: only record ``exit_status``.
+        ``on_exit(status)``, called when the node is done (the console script exits there).
     **kwargs
         Passed to :class:`rclpy.node.Node`.
 
@@ -628,12 +597,7 @@ class CalibrationDriveNode(TableNode):
                 self._done(0)
 
     def _run_finish(self, recording, topics):
-        """
-        Write the results, in this callback; :meth:`cancel` (a signal) ends the fit cleanly.
-
-        The fit takes seconds; the command stays zero (cmd_vel_translator's timeout zeroes
-        the tracks too). A cancelled fit writes nothing and the node ends with status 0.
-        """
+        """Write the results in this callback; a cancelled fit writes nothing."""
         self.get_logger().info(
             f'protocol done: fitting {len(recording.encoder_t)} encoder steps and '
             f'{len(recording.pose_t) + len(recording.imu_t)} reference samples')

@@ -1,11 +1,8 @@
 """
 calibration_drive's health on ``/diagnostics``: which inputs it needs, and when.
 
-Its encoders and its reference (pose or IMU) are needed from the start (without them the
-drive cannot start); the deadman (topic or joystick) while the drive moves the robot
-(``running`` or ``returning``), and with ``auto_start`` also before it starts (it waits for
-the deadman). The supervisor's state and reason are added as key/values.
-Kept apart from the node, whose module holds the drive's safety.
+Encoders and reference from the start; the deadman while the drive moves the robot (and
+before, with ``auto_start``). See docs/diagnostics.md.
 """
 
 from __future__ import annotations
@@ -22,18 +19,8 @@ def watch_calibration_inputs(node, encoder_inputs: Sequence, reference,
     """
     Return the calibration drive's :class:`Health` and the counts of its deadman topics.
 
-    Parameters
-    ----------
-    node : CalibrationDriveNode
-        The node (its ``supervisor`` is read at every update).
-    encoder_inputs : sequence of InputTopic
-        The encoder topics.
-    reference : InputTopic
-        The pose or IMU topic.
-    deadmen : iterable of (str, str)
-        Topic and type name of each deadman subscription (plain subscriptions: their
-        callbacks must tick the returned counts, in the same order).
-
+    ``deadmen`` holds (topic, type name) of each deadman subscription; their callbacks must tick
+    the returned counts, in the same order.
     """
     health = Health(node)
     health.watch(*encoder_inputs, reference)

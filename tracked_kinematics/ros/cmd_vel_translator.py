@@ -1,55 +1,9 @@
 """
 cmd_vel_translator: body twist commands to track speed setpoints through the tread ICRs.
 
-What runs between navigation (Nav2, teleop) and the track motor drivers, in place of the
-command path of diff_drive_controller. The maths is :mod:`tracked_kinematics.core.command`;
-this node converts messages, keeps time and publishes at a fixed rate.
-
-Topics
-------
-``cmd_vel`` (in)
-    geometry_msgs/Twist or TwistStamped: the node follows the type the publishers on the
-    topic use (``cmd_vel_type: auto``, the default) and says so at start and on a change;
-    ``cmd_vel_type`` (or its alias ``use_stamped``) can force one. A publisher of any other
-    type gets a throttled warning naming it.
-``left_track/setpoint``, ``right_track/setpoint`` (out, at ``rate``)
-    std_msgs/Float64, nominal track speed in m/s (true speed / scale).
-``joint_velocity_topic`` (out, at ``rate``, when the parameter is not empty)
-    std_msgs/Float64MultiArray ``[left, right]``: sprocket speeds in rad/s, for a
-    ros2_control ``velocity_controllers/JointGroupVelocityController``.
-``~/cmd_vel_out`` (out, at ``rate``, while someone subscribes; ``publish_limited_velocity``)
-    geometry_msgs/TwistStamped: the command as limited, i.e. the twist the published
-    setpoints make (diff_drive_controller's ``publish_limited_velocity``).
-
-Time
-----
-Ramps and the command timeout run on the node's clock (``use_sim_time`` works). A command
-is in force from its arrival; a TwistStamped one from its header stamp when that is older
-(a zero stamp means "now"; a stamp from the future counts as its arrival). It is stale when
-older than ``cmd_timeout`` on the node's clock OR on the steady clock since its arrival
-(``cmd_timeout`` in real time, ``cmd_timeout / SLOWEST_SIM_RATE`` under simulated time),
-and stays stale until a new command comes. Under simulated time the node's clock is watched
-(:class:`~tracked_kinematics.core.clock_watch.ClockWatch`): invalid, gone back, or standing
-still for ``clock_stall_timeout`` of steady time is a fault that drops the command and ramps
-the setpoints to zero at the deceleration limits in steady time; a new command after the
-clock is healthy again is followed. ``cmd_timeout: 0`` disables the timeout (not the clock
-faults). The rule: docs/nodes/cmd_vel_translator.md, "Timeout and stamps".
-
-Output guard
-------------
-Every setpoint pair is checked before it leaves (:func:`~tracked_kinematics.core.command.
-setpoint_problem`: finite, within the limits and the vehicle envelope; joint commands
-finite). A pair that fails is not published: zero is, and a throttled warning says why.
-
-The fixed-rate publishing runs in a thread of its own, paced on the steady clock, not in an
-rclpy timer: each wake-up of rclpy's Python executor cost most of a millisecond of CPU on
-the 2-core test machine, several per cent of a core at 50 Hz; the thread costs a fraction
-of that. The executor only handles what arrives (commands, parameter requests). A lock
-keeps the two apart. The thread also looks at the graph (the types of the cmd_vel
-publishers, subscribers of ~/cmd_vel_out) twice a second; a change of the cmd_vel type is
-applied in the executor, woken by a guard condition. An error in the thread is logged and
-zero is published; publishing that keeps failing for a second stops the node (exit 1),
-it never just goes silent.
+Converts messages, keeps time and publishes at a fixed rate from a thread paced on the steady
+clock; the maths is :mod:`tracked_kinematics.core.command`. Topics, the timeout and stamp
+rule, clock faults and the output guard: docs/nodes/cmd_vel_translator.md.
 """
 
 from __future__ import annotations
@@ -131,13 +85,9 @@ TRANSLATOR_PARAMS: tuple[ParamSpec, ...] = TERRAIN_PARAMS + (
 
 def forced_type(values: Mapping[str, Any]):
     """
-    Return the message class ``cmd_vel_type`` / ``use_stamped`` force, or None for auto.
+    Return the message class ``cmd_vel_type`` / ``use_stamped`` force, None for auto.
 
-    Raises
-    ------
-    ValueError
-        When the two contradict each other.
-
+    ValueError when the two contradict each other.
     """
     kind = values.get('cmd_vel_type', 'auto')
     if values.get('use_stamped', False):
@@ -149,16 +99,7 @@ def forced_type(values: Mapping[str, Any]):
 
 
 def model_from_values(values: Mapping[str, Any]) -> tuple[IcrParams, CommandLimits]:
-    """
-    Kinematic model and command limits from the node's parameter values.
-
-    Raises
-    ------
-    ValueError
-        When the terrain parameters do not make a valid model, or the limits or the
-        cmd_vel type are invalid (message in ROS names).
-
-    """
+    """Return the kinematic model and command limits (ValueError in ROS names)."""
     forced_type(values)
     return icr_from_values(values), limits_from_values(values)
 
@@ -186,15 +127,8 @@ class CmdVelTranslator(LoopNode):
     """
     Subscribe to twist commands, publish limited track speed setpoints at a fixed rate.
 
-    A :class:`~tracked_kinematics.ros.loop_thread.LoopNode` of :data:`TRANSLATOR_PARAMS`:
-    ``**kwargs`` go to :class:`rclpy.node.Node`; ``ParameterError`` when the parameters given
-    at start are invalid.
-
-    Attributes
-    ----------
-    failure : Exception or None
-        Why the publishing thread gave up and stopped the node, if it did.
-
+    A :class:`~tracked_kinematics.ros.loop_thread.LoopNode` of :data:`TRANSLATOR_PARAMS`;
+    ``ParameterError`` when the parameters given at start are invalid.
     """
 
     def __init__(self, **kwargs):
@@ -336,12 +270,7 @@ class CmdVelTranslator(LoopNode):
         return self.get_publishers_info_by_topic(self._topic)
 
     def _publisher_type(self, infos):
-        """
-        Return the message class to subscribe with for these publishers (None: keep).
-
-        Warns (throttled) about publishers this node cannot receive: of another type, of
-        the twist type a forced setting excludes, or of both twist types at once.
-        """
+        """Return the class to subscribe with (None: keep); warn about the rest."""
         by_type: dict[str, list[str]] = {}
         for info in infos:
             node = f'{info.node_namespace.rstrip("/")}/{info.node_name}'
@@ -454,12 +383,7 @@ class CmdVelTranslator(LoopNode):
             pass
 
     def _read_clock(self, steady: float) -> tuple[int | None, bool, str]:
-        """
-        Return the node's clock now (ns, or None), whether it is simulated, and its fault.
-
-        Never raises: a clock that cannot be read is a fault. Under simulated time the clock
-        is judged by :attr:`_watch` (invalid, gone back, standing still).
-        """
+        """Return the clock now (ns or None), whether simulated, and its fault."""
         try:
             clock = self.get_clock()
             now_ns = clock.now().nanoseconds
@@ -573,10 +497,5 @@ class CmdVelTranslator(LoopNode):
 
 
 def main(args=None):
-    """
-    Run the node (console script ``cmd_vel_translator``).
-
-    Exit status 0 after a signal (at any moment, see :mod:`tracked_kinematics.ros`), 2 when
-    it cannot start, 1 when it had to give up publishing.
-    """
+    """Run the node: exit 0 after a signal, 2 when it cannot start, 1 when it gave up."""
     raise SystemExit(run(CmdVelTranslator, NODE_NAME, args, TRANSLATOR_PARAMS, __doc__))

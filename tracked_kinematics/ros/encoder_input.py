@@ -1,36 +1,10 @@
 """
 Track encoders in, steps of nominal track travel out: the encoder side of any node.
 
-:class:`EncoderInput` subscribes in one of three modes, chosen by the read-only parameter
-``input_mode``, turns each message into readings and leaves the arithmetic and the checks
-to :class:`tracked_kinematics.core.encoders.IncrementTracker`. The owner gets a callback
-``callback(stamp_s, d_left_m, d_right_m, dt_s)`` for every step that passed all checks, and
-a throttled warning is logged for every input that did not. Nothing here knows what the
-travel is used for: odometry_node and the ICR estimator both use it.
-
-Modes and topics (relative names, remap as usual):
-
-``joint_states``
-    ``joint_states`` (sensor_msgs/JointState). The joints of ``left_joints`` and
-    ``right_joints`` are averaged per side; positions (rad, exact travel) when the message
-    has finite ones for those joints, velocities (rad/s, trapezoidal rule) otherwise;
-    times from ``header.stamp``.
-``track_speeds``
-    ``left_track/speed`` and ``right_track/speed`` (std_msgs/Float64, m/s of nominal track
-    speed), paired by arrival, timed by the node's clock (so ``use_sim_time`` applies).
-``encoder_ticks``
-    ``left_track/ticks`` and ``right_track/ticks`` (std_msgs/Int32 or Int64 by
-    ``ticks_type``), wrapping counters of ``ticks_per_revolution`` per sprocket turn,
-    paired by arrival, timed by the node's clock.
-
-Every input topic follows its publishers' QoS (:class:`~tracked_kinematics.ros.input_topic.
-InputTopic`: reliable publishers lose no sample, sensor-data ones still match). Once a second
-the input is checked: a side that stays silent in the per-side modes, and publishers of
-another message type on an input topic, are named in a throttled warning.
-
-JointState is taken as the bytes DDS delivered and read by :class:`JointStateReader`: rclpy's
-conversion into a Python message costs 20-25 us of the 130-150 us a message costs the node
-here, more than all the node's arithmetic.
+:class:`EncoderInput` subscribes in the mode ``input_mode`` chooses (``joint_states``,
+``track_speeds``, ``encoder_ticks``) and leaves the arithmetic and the checks to
+:class:`tracked_kinematics.core.encoders.IncrementTracker`. See docs/nodes/odometry_node.md
+("Encoder input").
 """
 
 from __future__ import annotations
@@ -61,15 +35,7 @@ _SIDES = ('left', 'right')
 
 
 def check_encoder_values(values: Mapping[str, Any]) -> None:
-    """
-    Check the encoder parameters as a whole.
-
-    Raises
-    ------
-    ValueError
-        When a joint is listed on both sides.
-
-    """
+    """Check the encoder parameters as a whole; ValueError when a joint is listed on both sides."""
     both = set(values.get('left_joints', ())) & set(values.get('right_joints', ()))
     if both:
         raise ValueError(f'left_joints and right_joints both list {sorted(both)}')
@@ -93,17 +59,11 @@ def _doubles(count: int) -> struct.Struct:
 
 class JointStateReader:
     """
-    The fields of a serialised sensor_msgs/JointState that the encoder input reads.
+    Read the fields of a serialised sensor_msgs/JointState in place, once its layout is known.
 
-    A driver sends the same frame id and joint names in every message, so the layout of
-    its bytes repeats: where the positions and velocities lie depends only on those and on
-    the lengths of the arrays. The first message of a layout is deserialised by rclpy, the
-    layout is worked out from the CDR rules and checked against rclpy's values (any
-    mismatch, another encoding, a big-endian writer: no layout, and rclpy reads every such
-    message); each later message with the same encoding, frame id, names and array lengths
-    (the same bytes there; CDR's padding, which is not initialised, is not compared) is read
-    in place with :func:`struct.unpack_from`.
-
+    The first message of a layout (encoding, frame id, names, array lengths) is read by rclpy and
+    its layout checked against the CDR rules; later ones are read with :func:`struct.unpack_from`.
+    Why and how: docs/nodes/odometry_node.md ("Encoder input").
     """
 
     def __init__(self):
@@ -111,14 +71,9 @@ class JointStateReader:
 
     def read(self, data: bytes):
         """
-        Return ``(sec, nanosec, names, positions, velocities)`` of a serialised JointState.
+        Return ``(sec, nanosec, names, positions, velocities)`` of a JointState, or None.
 
-        Returns
-        -------
-        tuple or None
-            ``names`` a list of str (not to be changed), ``positions`` and ``velocities``
-            sequences of float; None for bytes that are no JointState.
-
+        ``names`` is not to be changed.
         """
         layout = self._layout
         if layout is not None:
@@ -157,14 +112,7 @@ def _string_end(data: bytes, offset: int, text: str) -> int:
 
 
 def _layout(data: bytes, msg):
-    """
-    Return where the fields of ``msg`` lie in ``data`` (rclpy read the one from the other).
-
-    None unless every field is where the CDR rules put it and holds the value rclpy read.
-    The layout holds the size, the parts of ``data`` that every message of the layout has
-    (``(offset, bytes)``: the encapsulation, the strings and the counts, not the padding),
-    the names, and the format and offset of the positions and of the velocities.
-    """
+    """Return where the fields of ``msg`` lie in ``data``; None unless CDR's rules hold."""
     if not data.startswith(_CDR_LE):
         return None
     parts = [(0, _HEAD)]  # (start, end) in data
@@ -248,35 +196,23 @@ class EncoderInput:
 
     Parameters
     ----------
-    node : rclpy.node.Node
-        Node that owns the subscriptions, the check timer and the logger.
     values : mapping
-        Parameter values: those of :data:`tracked_kinematics.params.ENCODER_INPUT_PARAMS`
-        and ``sprocket_radius``.
+        Values of :data:`tracked_kinematics.params.ENCODER_INPUT_PARAMS` and ``sprocket_radius``.
     callback : callable
         ``callback(stamp_s, d_left, d_right, dt)``: nominal travel of each track (m) over a
         step of ``dt`` s ending at ``stamp_s``.
     check_timer : bool
-        Run :meth:`check` once a second on a timer of its own; False when the owner calls it
-        from its own timer (each timer costs every turn of rclpy's executor a little).
+        Run :meth:`check` once a second on a timer of its own; False when the owner calls it.
 
     Attributes
     ----------
-    mode : str
-        The input mode (fixed for the node's life).
-    stamp : builtin_interfaces.msg.Time
-        Exact stamp of the sample of the latest step, for output headers.
-    stamp_fields : tuple of int
-        The same as ``(sec, nanosec)``.
-    stamp_ns : int
-        The same in nanoseconds.
+    stamp, stamp_fields, stamp_ns
+        Exact stamp of the sample of the latest step: Time, ``(sec, nanosec)``, ns.
     received : int
         Encoder messages received (of any side, valid or not).
     counts : collections.Counter
         Samples seen per :class:`~tracked_kinematics.core.encoders.Status` (and
         ``'missing_joints'``, ``'no_readings'``, ``'zero_stamp'``, ``'unreadable'``).
-    inputs : tuple of InputTopic
-        The input topics (one, or left and right).
 
     """
 
@@ -435,11 +371,7 @@ class EncoderInput:
         self._stamp = None
 
     def _note(self, status, kind, left, right, d_left, d_right, dt) -> None:
-        """
-        Log what happened to a sample that was not a plain step, once per WARN_PERIOD per kind.
-
-        A long step that was integrated exactly is information; every other kind a warning.
-        """
+        """Log a sample that was not a plain step, once per WARN_PERIOD per kind."""
         now = time.monotonic()
         last = self._noted.get(status)
         if last is not None and now - last < WARN_PERIOD:

@@ -1,17 +1,8 @@
 """
 Node health: its inputs on ``/diagnostics``, and a throttled warning naming a missing one.
 
-What diagnostic_updater's ``Updater`` publishes (it is not on PyPI, hence this small
-equivalent): a ``diagnostic_msgs/DiagnosticArray`` on the absolute topic ``/diagnostics``
-(depth 1) once a second, with one ``DiagnosticStatus`` per node named ``"<node name>:
-health"``, so rqt_robot_monitor, Foxglove and the diagnostic_aggregator show it. Per input
-the status carries its topic's publishers, rate (Hz, over the last few seconds), age of the
-last message (s, steady clock) and message count. An input the node needs (``needed``: a
-bool, or a callable asked at every update) that has no message for ``silence`` seconds makes
-the status ERROR and is named in a warning once per :data:`WARN_PERIOD`: ``"/joint_states:
-no publisher"`` or ``"/joint_states: no message for 6 s (1 publisher)"``. A node adds its own
-key/values and level with :meth:`Health.add` (see :class:`Report`). Counting costs a message
-an increment and a read of the steady clock (:class:`MessageCount`). docs/diagnostics.md.
+A small equivalent of diagnostic_updater's ``Updater`` (not on PyPI): one status per node,
+``"<node name>: health"``, once a second. See docs/diagnostics.md.
 """
 
 from __future__ import annotations
@@ -36,11 +27,7 @@ LEVEL_NAMES = {OK: 'OK', WARN: 'WARN', ERROR: 'ERROR', STALE: 'STALE'}
 
 
 class MessageCount:
-    """
-    Messages of one input: how many, and the steady time of the last one (ns).
-
-    O(1) per message: :meth:`tick` adds one and reads ``time.monotonic_ns``.
-    """
+    """Messages of one input: how many, and the steady time of the last one (ns); O(1) per tick."""
 
     __slots__ = ('count', 'last_ns')
 
@@ -63,19 +50,7 @@ class MessageCount:
 
 
 class Report:
-    """
-    What a node adds to its status: a level with a message, and key/values.
-
-    Attributes
-    ----------
-    level : bytes
-        The worst level merged so far (:data:`OK` ... :data:`ERROR`).
-    messages : list of str
-        The messages of that level.
-    values : list of diagnostic_msgs.msg.KeyValue
-        The key/values, in order.
-
-    """
+    """What a node adds: the worst ``level`` so far, its ``messages``, key/``values``."""
 
     def __init__(self):
         self.level = OK
@@ -124,19 +99,11 @@ class Health:
 
     Parameters
     ----------
-    node : rclpy.node.Node
-        The node: its name, logger, clock (for the header stamp) and graph.
     hardware_id : str
         ``hardware_id`` of the status ('' as diagnostic_updater's default).
     timer : bool
-        Update every :data:`PERIOD` s on a steady timer of its own; False when the node
-        calls :meth:`update` from a timer it has anyway (each timer costs every turn of
-        the executor a little).
-
-    Attributes
-    ----------
-    name : str
-        The status name, ``'<node name>: health'``.
+        Update every :data:`PERIOD` s on a steady timer of its own; False when the node calls
+        :meth:`update` from a timer it has anyway.
 
     """
 
@@ -155,16 +122,8 @@ class Health:
         """
         Watch input topics (:class:`~tracked_kinematics.ros.input_topic.InputTopic`).
 
-        Parameters
-        ----------
-        *inputs : InputTopic
-            Anything with ``topic_name``, ``type_name`` and ``count`` (a MessageCount).
-        needed : bool or callable
-            Whether the node needs the input (now): a missing one is then an ERROR and a
-            warning. A callable is asked at every update.
-        silence : float
-            Seconds without a message (or a publisher) before a needed input is missing.
-
+        ``needed`` (a bool, or a callable asked at every update): a missing input is then an ERROR
+        and a warning; ``silence``: seconds without a message or publisher before it is missing.
         """
         for topic in inputs:
             self._inputs.append(_Input(topic.topic_name, (topic.type_name,), topic.count,
@@ -175,8 +134,7 @@ class Health:
         """
         Watch a plain subscription's topic; return the count its callback must tick.
 
-        ``type_names`` (``'std_msgs/msg/Float64'``, ...) are the types whose publishers count;
-        None counts every publisher. ``needed`` and ``silence`` as in :meth:`watch`.
+        Only publishers of ``type_names`` (``'std_msgs/msg/Float64'``) count; None: every one.
         """
         count = MessageCount()
         self._inputs.append(_Input(

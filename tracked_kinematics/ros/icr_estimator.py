@@ -2,24 +2,8 @@
 icr_estimator: online ICR estimation (EKF) and short-horizon prediction, as a node.
 
 A thin adapter around :class:`~tracked_kinematics.core.estimate.ekf.SlipEstimator` and
-:mod:`~tracked_kinematics.core.prediction`. It reads the track encoders exactly as
-``odometry_node`` does (:class:`~tracked_kinematics.ros.encoder_input.EncoderInput`, same
-parameters) and a pose source (nav_msgs/Odometry, geometry_msgs/PoseStamped or
-PoseWithCovarianceStamped, or sensor_msgs/Imu for heading only), and publishes
-
-* ``icr_estimate`` (std_msgs/Float64MultiArray): ``[y_left, y_right, x, chi, e]`` (m, m, m,
-  -, -) of the current estimate, at the current track speeds;
-* ``predicted_path`` (nav_msgs/Path): the next ``prediction.horizon`` seconds from the
-  current pose, holding the current track speeds or following the latest ``cmd_vel``
-  through the drive-train model;
-
-and, when ``push_to`` names nodes, sets their ``icr.*`` parameters (``odometry_node``,
-``cmd_vel_translator``) through their ``set_parameters_atomically`` services.
-
-``track_width`` and ``sprocket_radius`` must be given (there is no default vehicle); the
-initial ICRs default to the ideal drive of that width. Every numeric parameter has a range
-(``ros2 param describe``); an input the core refuses is skipped with a throttled warning and
-never stops the node. Reference: docs/nodes/icr_estimator.md.
+:mod:`~tracked_kinematics.core.prediction`, with odometry_node's encoder input and a pose
+source. See docs/nodes/icr_estimator.md.
 """
 
 from __future__ import annotations
@@ -186,15 +170,7 @@ PARAMS = TERRAIN_PARAMS + DRIVETRAIN_PARAMS + ENCODER_INPUT_PARAMS + ESTIMATOR_P
 
 
 def validate(values: Mapping[str, Any]) -> None:
-    """
-    Check the node's parameters as a whole.
-
-    Raises
-    ------
-    ValueError
-        For an invalid initial ICR model, encoder setup or estimator windows.
-
-    """
+    """Check the parameters as a whole; ValueError for a bad ICR model, encoders or windows."""
     icr_from_values(values)
     drivetrain_from_values(values)
     check_encoder_values(values)
@@ -231,9 +207,8 @@ class IcrEstimatorNode(TableNode):
     """
     Online ICR estimation and motion prediction for a tracked vehicle.
 
-    A :class:`~tracked_kinematics.ros.parameters.TableNode` of :data:`PARAMS`: ``**kwargs``
-    go to :class:`rclpy.node.Node`; ``ParameterError`` when the parameters given at start are
-    invalid.
+    A :class:`~tracked_kinematics.ros.parameters.TableNode` of :data:`PARAMS`; ``ParameterError``
+    when the parameters given at start are invalid.
     """
 
     def __init__(self, **kwargs):
@@ -289,12 +264,7 @@ class IcrEstimatorNode(TableNode):
         return SlipEstimator(AdaptiveIcr(icr.track_width), None, _config(values))
 
     def _apply(self, values: Mapping[str, Any]) -> None:
-        """
-        Take (new) parameter values into use.
-
-        A new ``track_width`` restarts the estimate; new ``icr.*`` values are the start
-        values of the next ``~/reset``; the rest applies from the next measurement.
-        """
+        """Take new values into use (a new ``track_width`` restarts the estimate)."""
         icr = icr_from_values(values)
         self._scales = (icr.scale_left, icr.scale_right)
         self._drivetrain = drivetrain_from_values(values)

@@ -1,18 +1,9 @@
 """
 An input subscription that follows its publishers: reliability, depth, wrong types.
 
-DDS matches a subscription to a publisher only when their QoS are compatible: a reliable
-subscription receives nothing from a best-effort (sensor-data) publisher, and a best-effort
-subscription to a reliable publisher lets the middleware drop samples whenever the node falls
-behind. :class:`InputTopic` subscribes with the reliability its publishers offer, reliable when
-they all are (joint_state_broadcaster, most drivers: then no sample they send is lost) and
-best effort as soon as one is not (sensor-data publishers keep working), and with a queue deep
-enough for a second of input at 1 kHz. :meth:`InputTopic.check`, called about once a second,
-re-subscribes when the publishers change, and names publishers of another message type on the
-topic, whose messages DDS silently never delivers. A new subscription is made before the
-old one is destroyed, and for stamped messages the two are merged by stamp until the old one
-has caught up, so the switch neither loses nor repeats a sample. Every message passed on is
-counted (:class:`~tracked_kinematics.ros.health.MessageCount`) for the node's health.
+Reliable when all publishers are, best effort otherwise; re-subscribes without losing or
+repeating a sample. See docs/nodes/odometry_node.md ("QoS: no sample lost from a reliable
+publisher").
 """
 
 from __future__ import annotations
@@ -64,23 +55,10 @@ class InputTopic:
 
     Parameters
     ----------
-    node : rclpy.node.Node
-        Owner of the subscription and the logger.
-    msg_type : type
-        Message class.
-    topic : str
-        Topic name (relative names are resolved as usual).
-    callback : callable
-        Message callback.
-    depth : int
-        Queue depth.
     order_key : callable, optional
-        ``order_key(msg) -> int`` that tells samples apart (the stamp in ns). During a
-        switch the old subscription delivers until it has passed on a message the new one
-        holds too (a subscription delivers in order, so nothing is left only in the old
-        one); the new one's messages are held back until then, and each sample is passed
-        on once. Without it, the old one delivers until the new one has matched (a sample
-        or two in flight at that moment may be lost).
+        ``order_key(msg) -> int`` telling samples apart (the stamp in ns). During a switch the
+        old subscription delivers until it has passed on a message the new one holds too, and
+        each sample is passed on once. Without it a sample or two in flight may be lost.
 
     Attributes
     ----------
@@ -89,8 +67,7 @@ class InputTopic:
     reliability : rclpy.qos.ReliabilityPolicy
         Reliability of the current subscription.
     count : MessageCount
-        Messages passed on, and when the last one was (for
-        :class:`~tracked_kinematics.ros.health.Health`).
+        Messages passed on, and when the last one was (for the node's health).
 
     """
 

@@ -1,15 +1,9 @@
 """
 A node's own loop in a thread: stopped with the node or its context, alive through errors.
 
-cmd_vel_translator publishes its setpoints and tracked_simulator takes its steps in a thread
-of their own, paced on the steady clock rather than by the executor. :class:`LoopThread` is
-what the two share around such a loop: the ``stop`` and ``wake`` events (the context's
-shutdown sets both), the start and the join, and what happens when a pass of the loop
-raises. An error is logged (throttled) and the loop goes on; passes that keep failing for
-:data:`FAILURE_LIMIT` seconds make the node give up: one FATAL line, :attr:`LoopThread.failure`
-set and the context shut down, so that the console script exits with status 1 instead of
-going silent. :class:`LoopNode` is a :class:`~tracked_kinematics.ros.parameters.TableNode`
-with such a loop, which it stops before the node is destroyed.
+Used by cmd_vel_translator and tracked_simulator, paced on the steady clock. Errors are logged
+(throttled); passes failing for :data:`FAILURE_LIMIT` s make the node give up (one FATAL
+line, exit status 1).
 """
 
 from __future__ import annotations
@@ -28,29 +22,18 @@ class LoopThread:
     """
     The thread of a node's loop, its stop and wake events, and its failure accounting.
 
-    The loop (``target``) ends when :attr:`stop` is set; :attr:`wake` cuts its waits short
-    (a stop, a new rate). It calls :meth:`succeeded` after each good pass and
-    :meth:`failed` with the exception of each bad one.
+    ``target`` runs until :attr:`stop` is set; :attr:`wake` cuts its waits short. It calls
+    :meth:`succeeded` after each good pass and :meth:`failed` after each bad one.
 
     Parameters
     ----------
-    node : rclpy.node.Node
-        The owner: its context stops the loop, its logger reports the errors.
-    target : callable
-        The loop, run in the thread.
-    name : str
-        Name of the thread.
     what : str
-        What a pass does, as logged: ``f'{what} failed: ...'`` for each error (throttled).
+        What a pass does, as logged: ``f'{what} failed: ...'`` (throttled by ``warn_period`` s).
     giving_up : str
         The same for the FATAL line: ``f'{giving_up} has failed for 1 s (last error: ...)'``.
-    warn_period : float
-        Seconds between two logged errors.
 
     Attributes
     ----------
-    stop, wake : threading.Event
-        Stop the loop; wake it from a wait.
     failure : Exception or None
         The last error, once the loop gave up and shut the context down.
 
@@ -90,13 +73,7 @@ class LoopThread:
         self._failing_since = None
 
     def failed(self, err: Exception) -> bool:
-        """
-        Handle the error of a pass; return whether the loop is to end.
-
-        It ends when it is being stopped (:attr:`stop`, or the context is gone), or when
-        the passes have failed for :data:`FAILURE_LIMIT` seconds: then the node gives up
-        (:attr:`failure`). Otherwise the error is logged and the loop goes on.
-        """
+        """Handle the error of a pass; return whether the loop is to end (stopped, or given up)."""
         node = self._node
         if self.stop.is_set() or not node.context.ok():
             return True
@@ -126,14 +103,8 @@ class LoopNode(TableNode):
     """
     A :class:`~tracked_kinematics.ros.parameters.TableNode` with a loop thread of its own.
 
-    The subclass starts the loop in its ``_start`` (:meth:`_start_loop`); the loop is
-    stopped and joined when the start fails after that and before the node is destroyed.
-
-    Attributes
-    ----------
-    failure : Exception or None
-        Why the loop gave up and stopped the node, if it did (the console script exits 1).
-
+    The subclass starts it in ``_start`` (:meth:`_start_loop`); it is stopped before the node is
+    destroyed. ``failure``: why the loop gave up, if it did (the console script exits 1).
     """
 
     _loop_thread: LoopThread | None = None

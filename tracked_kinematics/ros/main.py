@@ -1,31 +1,9 @@
 """
 The ``main`` of every node: arguments, init, construct, spin, shut down, exit status.
 
-What a user sees at the edges of a node's life is decided here, once for the three nodes:
-
-- ``--help`` / ``-h`` (before any ``--ros-args``) prints the usage, the parameters and the
-  docs page, and exits 0 without starting ROS.
-- Every start-up failure is one FATAL line naming the problem, exit status 2: a params file
-  that is missing, a directory, not YAML, not a mapping or without ``ros__parameters``;
-  arguments rcl refuses; invalid parameter values (:class:`ParameterError`); a topic or
-  service name rclpy refuses; any other error while the node is built.
-- ``-p NAME:=`` (what the shell leaves of ``-p NAME:=''``) is the empty string, as
-  documented; rcl alone would refuse the argument.
-- A misspelling of a parameter the node declares (``track_widht``, ``icr.y_lft``) refuses
-  the start (:class:`~tracked_kinematics.ros.parameters.ParameterTable`). Other names a
-  params file or ``-p`` sets that no node of this package declares are named in a warning;
-  ROS would ignore them silently. A shared parameter (the vehicle, the joints) that a
-  params file sets only in another node's section, and a ``-p`` that a section naming this
-  node overrides (rcl gives such a section precedence), are warnings too.
-- A node that gave up on its own (a :class:`~tracked_kinematics.ros.loop_thread.LoopThread`
-  whose passes kept failing sets the node's ``failure`` and shuts the context down) exits
-  with status 1.
-- SIGINT and SIGTERM at any moment end the node cleanly with exit status 0. They are a
-  request (:class:`StopRequest`), never an exception raised inside rclpy: the node spins in
-  a thread of its own while the main thread waits for a signal, then stops the executor,
-  destroys the node and shuts the context down, in that order. A second signal while
-  stopping is one more request. Before :func:`run` starts (the imports),
-  :mod:`tracked_kinematics.ros` makes a signal an immediate exit 0.
+``--help`` without ROS; every start-up failure one FATAL line and status 2; misspelt
+parameters refuse the start; a node that gave up exits 1; SIGINT/SIGTERM stop it cleanly with
+0. See docs/nodes/odometry_node.md ("Start-up and shutdown") and docs/testing.md.
 """
 
 from __future__ import annotations
@@ -73,20 +51,11 @@ def _ros_args(argv: Sequence[str]) -> list[str]:
 
 def params_file_sections(path: str) -> list[tuple[str, list[str]]]:
     """
-    Check a ``--params-file`` the way rcl will read it; return its sections and their names.
+    Check a ``--params-file`` as rcl will read it; return ``[(node, names set)]`` per section.
 
-    Returns
-    -------
-    list of (str, list of str)
-        The node of each ``ros__parameters`` section (the last part of its key: ``**``,
-        ``*`` or a node name) and the names it sets, in file order.
-
-    Raises
-    ------
-    StartupError
-        When the file is missing, not a regular file, unreadable, not YAML, not a mapping,
-        or has no ``ros__parameters`` section.
-
+    The node is the last part of the section's key (``**``, ``*`` or a name), in file order.
+    Raises :class:`StartupError` for a missing, unreadable or non-YAML file, or one that is not
+    a mapping or has no ``ros__parameters`` section.
     """
     if not os.path.exists(path):
         raise StartupError(f'params file {path!r} does not exist')
@@ -132,13 +101,10 @@ def _flat_names(tree, prefix: str = '') -> Iterable[str]:
 
 def unknown_parameters(given: Iterable[str], specs: Iterable[ParamSpec]) -> list[str]:
     """
-    One message per name in ``given`` that no node of this package declares.
+    Return one message per name in ``given`` that no node of this package declares.
 
-    ``use_sim_time`` and other parameters every rclpy node declares are known, and so are the
-    parameters of the package's other nodes (one terrain file serves them all). The records
-    and notes this package's tools write into a terrain file (``identification.*``,
-    ``terrain``, ...) are not parameters and not typos: they are passed over, so that a
-    file from identify_icr loads without a warning per line of its provenance.
+    rclpy's own parameters and the records the tools write into a terrain file
+    (``identification.*``, ``terrain``) are passed over.
     """
     specs = list(specs)
     own = {spec.name for spec in specs}
@@ -149,12 +115,7 @@ def unknown_parameters(given: Iterable[str], specs: Iterable[ParamSpec]) -> list
 
 
 def normalised_arguments(argv: Sequence[str]) -> list[str]:
-    """
-    Return ``argv`` with ``-p NAME:=`` inside ``--ros-args`` as ``-p NAME:=''``.
-
-    The shell turns the documented ``-p deadman_topic:=''`` into ``deadman_topic:=``, which
-    rcl refuses; the YAML empty string is what the user wrote.
-    """
+    """Return ``argv`` with ``-p NAME:=`` (the shell's ``-p NAME:=''``) as ``-p NAME:=''``."""
     out, inside, after_p = [], False, False
     for arg in argv:
         if arg == '--ros-args':
@@ -171,13 +132,10 @@ def normalised_arguments(argv: Sequence[str]) -> list[str]:
 
 def _settings_notices(name: str, specs: Sequence[ParamSpec], settings) -> list[str]:
     """
-    Warnings about values a user set that this node will not use.
+    Return warnings about values a user set that this node will not use.
 
-    ``settings`` lists, in command-line order, ``('file', path, sections)`` for each
-    ``--params-file`` and ``('p', NAME)`` for each ``-p``. Said: a ``-p`` that a section
-    naming this node overrides (rcl's precedence) or that a later file sets again, and a
-    shared parameter (one spec in both nodes: the vehicle, the joints) that a file sets only
-    in the section of another node of this package.
+    ``settings``: ``('file', path, sections)`` per ``--params-file`` and ``('p', NAME)`` per
+    ``-p``, in command-line order.
     """
     own = {spec.name: spec for spec in specs}
     mine = ('**', '*', name)
@@ -289,10 +247,7 @@ class StopRequest:
     """
     SIGINT and SIGTERM as a request to stop, acted upon by the main thread in its own time.
 
-    The handler only sets a flag: it takes no lock and calls nothing of rclpy, so a signal
-    that lands while the main thread is inside rclpy (building a Task, taking a message,
-    shutting down) cannot leave anything half done. rclpy's own handlers are not installed
-    (``SignalHandlerOptions.NO``); a second signal is one more request, and is harmless.
+    The handler only sets a flag (no lock, no rclpy call); rclpy's handlers are not installed.
     """
 
     def __init__(self) -> None:
@@ -377,14 +332,7 @@ def _run(node_factory, name, user_args, argv, specs, stop: StopRequest) -> int:
 
 
 def _spin_until_stopped(node, stop: StopRequest) -> None:
-    """
-    Spin ``node`` in a thread of its own until a signal or the node's context stops it.
-
-    The main thread only waits: the signal handler therefore never runs inside rclpy. On a
-    stop request the executor is woken and its thread joined before the node is destroyed
-    and the context shut down, in that order. An exception a callback raises (a bug) is
-    raised again here, after the spinning thread has ended.
-    """
+    """Spin ``node`` in a thread until stopped; re-raise a callback's error."""
     executor = rclpy.executors.SingleThreadedExecutor(context=node.context)
     executor.add_node(node)
     done = threading.Event()

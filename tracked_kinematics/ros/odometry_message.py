@@ -1,15 +1,9 @@
 """
 nav_msgs/Odometry, serialised by patching a template: the odometry node's hot path.
 
-Filling a Python Odometry message and letting rclpy convert it costs about 50 us per
-message here, half of the node's whole callback. The message's layout never changes while
-the frame ids stay the same, so :class:`OdometrySerializer` serialises one template with
-rclpy, finds where each field that changes lies in the bytes, and from then on writes the
-numbers in place with :func:`struct.pack_into`; the publisher sends the bytes as they are.
-A field is located by serialising the template twice with two distinct values in that field
-only: it is the one place holding the first value's bytes in the first and the second's in
-the second, so no frame id (whatever its text) and no CDR padding can be mistaken for it.
-The test suite checks the result against rclpy's own serialisation of the same message.
+rclpy's conversion cost about half of the node's callback; :class:`OdometrySerializer`
+serialises one template, locates each changing field, and writes the numbers in place with
+:func:`struct.pack_into`. The tests compare it with rclpy's own serialisation.
 """
 
 from __future__ import annotations
@@ -41,24 +35,9 @@ def _mark_first(with_covariance, value) -> None:
 
 class OdometrySerializer:
     """
-    Serialised nav_msgs/Odometry with fixed frame ids, written field by field.
+    Serialised nav_msgs/Odometry with fixed frame ids (any text), written field by field.
 
-    Parameters
-    ----------
-    frame_id, child_frame_id : str
-        ``header.frame_id`` and ``child_frame_id``.
-
-    Attributes
-    ----------
-    frames : tuple of str
-        ``(frame_id, child_frame_id)``.
-
-    Raises
-    ------
-    RuntimeError
-        If a field cannot be located in the template (a layout this class does not know).
-        Any frame ids work, whatever their text.
-
+    RuntimeError if a field cannot be located in the template.
     """
 
     def __init__(self, frame_id: str, child_frame_id: str):
@@ -106,12 +85,9 @@ class OdometrySerializer:
 
     def _locate(self, name: str, change, form: struct.Struct, values) -> int:
         """
-        Return the offset of a field: where the bytes of each of two values written into it are.
+        Return a field's offset: the one place holding each of two values written into it.
 
-        The template is serialised once with each value; the field is the one place that
-        holds the first value's bytes in the first and the second's in the second. Text in
-        a frame id that happens to equal a value is the same in both, and the padding bytes
-        of CDR (not initialised) hold neither, so neither can be mistaken for the field.
+        Frame id text and CDR padding are the same in both templates: never mistaken.
         """
         serialised = []
         for value in values:
@@ -152,8 +128,8 @@ class OdometrySerializer:
         qz, qw : float
             Orientation (a yaw), ``x = y = 0``.
         pose_covariance, twist_covariance : tuple of float, 6
-            Planar upper triangles ``(xx, xy, xt, yy, yt, tt)``; the other entries keep the
-            layout of :func:`~tracked_kinematics.core.covariance.ros_covariance`.
+            Planar upper triangles ``(xx, xy, xt, yy, yt, tt)``; the other entries as
+            :func:`~tracked_kinematics.core.covariance.ros_covariance` lays them out.
         twist : tuple of float, 3
             ``(v_x, v_y, w)``.
 

@@ -1,17 +1,9 @@
 """
 odometry_node: track encoders to nav_msgs/Odometry through the tread-ICR kinematics.
 
-A thin adapter. :class:`~tracked_kinematics.ros.encoder_input.EncoderInput` turns encoder
-messages into steps of nominal track travel; :class:`~tracked_kinematics.core.odometry.
-Odometry` integrates them and propagates the covariance; this node copies the numbers into
-``odom`` (and the odom -> base_link transform) and answers ``~/reset``. Documented in
-docs/nodes/odometry_node.md (topics, input modes, bad input, covariance).
-
-``track_width`` and ``sprocket_radius`` must be given (there is no default vehicle); the
-tread ICRs default to the ideal drive of that width. Once a second the node checks its input
-(:meth:`EncoderInput.check`) and its output topic: another publisher of odometry there (a
-second instance) is named in a warning; and it publishes its health on ``/diagnostics``
-(:class:`~tracked_kinematics.ros.health.Health`).
+A thin adapter: :class:`~tracked_kinematics.ros.encoder_input.EncoderInput` gives travel
+steps, :class:`~tracked_kinematics.core.odometry.Odometry` integrates them, this node fills
+``odom`` and the transform. See docs/nodes/odometry_node.md.
 """
 
 from __future__ import annotations
@@ -74,16 +66,7 @@ def _noise(values: Mapping[str, Any]) -> TrackNoise:
 
 
 def validate(values: Mapping[str, Any]) -> None:
-    """
-    Check the node's parameters as a whole.
-
-    Raises
-    ------
-    ValueError
-        For an invalid kinematic model (``y_left <= y_right``, chi outside (0, 1], ...),
-        a joint on both sides, or equal frames; the message names the parameters.
-
-    """
+    """Check the parameters as a whole; ValueError names the parameters at fault."""
     icr_from_values(values)
     check_encoder_values(values)
     if values['odom_frame'] == values['base_frame']:
@@ -95,18 +78,8 @@ class OdometryNode(TableNode):
     """
     Odometry of a tracked vehicle from its track encoders.
 
-    Its parameters are :data:`PARAMS` (a :class:`~tracked_kinematics.ros.parameters.TableNode`).
-
-    Parameters
-    ----------
-    **kwargs
-        Passed to :class:`rclpy.node.Node` (``context``, ``parameter_overrides``, ...).
-
-    Raises
-    ------
-    tracked_kinematics.ros.parameters.ParameterError
-        When the parameters given at start are invalid.
-
+    A :class:`~tracked_kinematics.ros.parameters.TableNode` of :data:`PARAMS`; ``ParameterError``
+    when the parameters given at start are invalid.
     """
 
     def __init__(self, **kwargs):

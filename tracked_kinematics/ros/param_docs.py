@@ -1,16 +1,8 @@
 """
 The parameter reference, docs/parameters.md, generated from the parameter tables.
 
-Every table a node declares is rendered: the shared ones of :mod:`tracked_kinematics.params`
-(terrain, drive train, encoder input, command limits) and each node's own. It lives in the
-``ros`` ring because the node tables live in the node modules, which import rclpy; the
-``params`` ring must not import ``ros``.
-
-Regenerate after changing a table (test/package/test_docs.py fails while the file is
-stale)::
-
-    python -m tracked_kinematics.ros.param_docs            # writes docs/parameters.md
-    python -m tracked_kinematics.ros.param_docs --check    # exit 1 when it is stale
+In the ``ros`` ring because the node tables live in the node modules. Regenerate with
+``python -m tracked_kinematics.ros.param_docs`` (``--check``: exit 1 when stale).
 """
 
 from __future__ import annotations
@@ -160,12 +152,8 @@ def parameters_markdown() -> str:
     """
     Return docs/parameters.md: every parameter table, shared and per node.
 
-    Raises
-    ------
-    ValueError
-        When a parameter's check has no words (:func:`~tracked_kinematics.params.
-        described_as`), or a node declares a name twice.
-
+    ValueError when a check has no words (:func:`~tracked_kinematics.params.described_as`) or a
+    node declares a name twice.
     """
     out = [
         '# Parameter reference',

@@ -1,17 +1,9 @@
 """
 Declare a node's parameters from a table of :class:`~tracked_kinematics.params.ParamSpec`.
 
-The same table gives ``ros2 param describe`` its text, checks the values at start, and
-answers runtime ``set_parameters`` requests: a change that fails a check, or the node's own
-cross-parameter validator, is refused with the reason and the old values stay in force.
-
-The default rule of the specs (:func:`tracked_kinematics.params.resolve`) holds here too: a
-``required`` parameter that is not given stops the node at start, naming it; a ``derived``
-one not given takes its computed value (``ros2 param get`` shows it) and follows the
-parameters it is derived from at runtime until it is set explicitly.
-
-:class:`TableNode` is the start of a node built on such a table: declare, check, build, and
-destroy the half-built node when any of it fails.
+One table gives ``ros2 param describe`` its text, checks the values at start and answers
+runtime changes (refused with the reason); ``required`` and ``derived`` defaults follow
+:func:`tracked_kinematics.params.resolve`. See docs/parameters.md.
 """
 
 from __future__ import annotations
@@ -77,13 +69,8 @@ def describe(spec: ParamSpec, ranges: bool = True) -> ParameterDescriptor:
     """
     Build the descriptor of a parameter: its text, read-only flag and range.
 
-    A numeric spec with ``low``/``high`` gets a ``FloatingPointRange`` (doubles) or an
-    ``IntegerRange`` (integers), so ``ros2 param describe`` shows the range and rclpy itself
-    refuses a value outside it; doubles accept integers (``dynamic_typing``), which the
-    table's own check then bounds. A limit (``spec.no_limit``) states its range in
-    ``additional_constraints``, since its "no limit" values NaN and inf lie outside any range.
-    ``ranges=False`` leaves the range out (ParameterTable declares with it and words a refused
-    start value by its own check).
+    A limit (``spec.no_limit``) states its range in ``additional_constraints`` (NaN and inf lie
+    outside any range); ``ranges=False`` leaves the range out.
     """
     descriptor = ParameterDescriptor(
         description=spec.full_description, read_only=spec.read_only,
@@ -115,21 +102,16 @@ class ParameterTable:
 
     Parameters
     ----------
-    node : rclpy.node.Node
-        The node to declare on.
-    specs : iterable of ParamSpec
-        Its parameters.
     validate : callable, optional
-        ``validate(values)`` raising ``ValueError`` for an invalid combination (for example
-        the ICR model as a whole); called at start and before every change.
+        ``validate(values)`` raising ``ValueError`` for an invalid combination (the ICR model as
+        a whole); called at start and before every change.
     on_change : callable, optional
         ``on_change(values)`` called after a valid runtime change was accepted.
 
     Raises
     ------
     ParameterError
-        When the values given at start (defaults, ``--params-file``, ``-p``) are invalid;
-        the message lists every problem.
+        When the values given at start are invalid; the message lists every problem.
 
     """
 
@@ -195,15 +177,7 @@ class ParameterTable:
         node.add_post_set_parameters_callback(self._post_set)
 
     def _typos(self) -> list[str]:
-        """
-        Name the given parameters that are misspellings of the node's own: each refuses the start.
-
-        ``icr.y_lft`` (in the node's ``icr.`` namespace) or ``track_widht`` (close to
-        ``track_width``) would leave the parameter at its default as silently as a missing
-        one. A name another node of this package declares, or a record the tools write into
-        a terrain file, is no misspelling; other unknown names are left to the warning the
-        node logs once it runs (:func:`tracked_kinematics.params.typos`).
-        """
+        """Name the given parameters that misspell the node's own: each refuses the start."""
         given = [name for name in getattr(self._node, '_parameter_overrides', {})
                  if not is_terrain_file_record(name)]
         return typos(given, [*self.specs, *NODE_PARAMETERS], package_parameter_names())
@@ -308,11 +282,9 @@ class ParameterTable:
 @contextlib.contextmanager
 def destroyed_on_failure(node: Node):
     """
-    Destroy ``node`` when the block that builds it raises (refused parameters, a bad name).
+    Destroy ``node`` when the block that builds it raises, before its context can be shut down.
 
-    A half-built node is otherwise left to the garbage collector, which may destroy it later,
-    after its context has been shut down, where rcl can hang. The base class's
-    ``destroy_node`` is used: the subclass's may need what was never built.
+    Left to the garbage collector, it could be destroyed after the context, where rcl can hang.
     """
     try:
         yield node
@@ -323,12 +295,9 @@ def destroyed_on_failure(node: Node):
 
 def _guard_clock(node: 'TableNode') -> None:
     """
-    Refuse /clock messages rclpy cannot take (a negative time) instead of raising in spin.
+    Refuse /clock messages rclpy cannot take (``sec < 0``) instead of raising in spin.
 
-    rclpy's TimeSource converts every /clock message with ``Time.from_msg``, which raises for
-    ``sec < 0``: inside the executor that ends the node, tracks moving. It offers no hook, so
-    its callback is wrapped (also for a /clock subscription made later, when ``use_sim_time``
-    is set at runtime). A refused message leaves the clock where it was and sets
+    rclpy's TimeSource offers no hook, so its callback is wrapped; a refused message sets
     :meth:`TableNode.clock_fault` until a valid one arrives.
     """
     source = node._time_source
@@ -352,28 +321,10 @@ class TableNode(Node):
     """
     A node whose parameters are one table: declared and checked, then the node is built.
 
-    A subclass builds itself from the checked values in :meth:`_start` and takes valid runtime
-    changes into use in :meth:`_apply`. When the start fails (refused parameters, a topic name
-    rclpy refuses, any error), the half-built node is destroyed before the error propagates:
-    nothing is left for the garbage collector to destroy after its context is gone.
-
-    Parameters
-    ----------
-    name : str
-        Node name.
-    specs : iterable of ParamSpec
-        The node's parameters (:attr:`params` holds them).
-    validate : callable, optional
-        ``validate(values)`` raising ``ValueError`` for an invalid combination
-        (:class:`ParameterTable`).
-    **kwargs
-        Passed to :class:`rclpy.node.Node` (``context``, ``parameter_overrides``, ...).
-
-    Raises
-    ------
-    ParameterError
-        When the parameters given at start are invalid.
-
+    A subclass builds itself in :meth:`_start` and takes valid runtime changes in :meth:`_apply`;
+    a failed start destroys the half-built node. ``specs`` and ``validate`` as in
+    :class:`ParameterTable`; ``**kwargs`` go to :class:`rclpy.node.Node`. Raises
+    ``ParameterError`` when the parameters given at start are invalid.
     """
 
     def __init__(self, name: str, specs: Iterable[ParamSpec],

@@ -1,46 +1,9 @@
 """
 tracked_simulator: the package's simulator as a live robot, in simulated time.
 
-The chain of ``simulate_bag`` (drive train, encoder scales, stationary track-soil dynamics,
-exact arc integration; docs/simulator.md) stepped at a fixed ``rate`` as the track setpoints
-come in (:class:`~tracked_kinematics.core.sim.live.LiveSimulator`), with the sensors of a
-real robot. The maths is the core's; this node keeps time, converts messages and publishes.
-
-Topics
-------
-``left_track/setpoint``, ``right_track/setpoint`` (in)
-    std_msgs/Float64, nominal track speed in m/s, as cmd_vel_translator publishes them. A
-    setpoint older than ``setpoint_timeout`` (in both simulated and wall time) is zero; a
-    non-finite one is ignored and a huge one clamped, with a throttled warning.
-``/clock`` (out, once per wake-up of the stepping thread, at most ``clock_rate`` per second)
-    rosgraph_msgs/Clock: simulated time, from 0, advancing ``real_time_factor`` times as fast
-    as the wall clock. The other nodes run with ``use_sim_time:=true``.
-``joint_states`` (out, at ``encoder_rate``)
-    sensor_msgs/JointState of ``left_joint`` and ``right_joint``: sprocket angles (ticks,
-    noise, optional wrap) and speeds, rad and rad/s.
-``imu/data`` (out, at ``gyro_rate``)
-    sensor_msgs/Imu with the yaw rate of a gyro (bias, noise, latency); no orientation and no
-    acceleration (their covariances' first element is -1).
-``ground_truth/odom`` (out, at ``ground_truth_rate``)
-    nav_msgs/Odometry ``odom_frame`` -> ``base_frame``: the true pose and body twist.
-``lidar/pose`` (out, at ``lidar_pose_rate``, with ``lidar_pose:=true``)
-    geometry_msgs/PoseStamped: delayed, noisy, with occasional jumps, as lidar ICP gives.
-``~/terrain`` (out, latched)
-    std_msgs/String: the terrain the dynamics currently use (a change of ``terrain`` at
-    runtime is applied between two steps, then announced here).
-
-Time
-----
-Stepping runs in a thread of its own, paced on the wall (steady) clock, not in the
-executor: simulated time is ``real_time_factor`` times the wall time since start, and each
-wake-up takes the steps that are due, then publishes /clock at the last one's time and then
-what the sensors sampled on the way (no message is stamped ahead of the clock). When the
-machine cannot keep up for more than :data:`MAX_LAG` of wall time, the simulation drops the
-backlog and runs on from where it is (it slows down, as Gazebo does, instead of bursting),
-so the achieved factor can be lower than the one asked; the node says so in a throttled
-warning. A new ``terrain`` is tabulated in a thread of its own, so that neither the steps
-nor the setpoints wait for it. Given the seed and the setpoints in force at each step, a
-run is deterministic.
+The chain of ``simulate_bag`` (:class:`~tracked_kinematics.core.sim.live.LiveSimulator`)
+stepped in a thread paced on the steady clock as setpoints come in, publishing /clock and a
+real robot's sensors. See docs/nodes/tracked_simulator.md and docs/simulator.md.
 """
 
 from __future__ import annotations
@@ -199,15 +162,7 @@ SIMULATOR_PARAMS: tuple[ParamSpec, ...] = (
 
 
 class Terrains:
-    """
-    The terrains of one vehicle and their dynamics tables (built once, on first use).
-
-    Parameters
-    ----------
-    spec : VehicleFile
-        The loaded vehicle; its ``friction.terrain`` names its own coefficients.
-
-    """
+    """The terrains of one vehicle (a VehicleFile) and their tables, built on first use."""
 
     def __init__(self, spec: VehicleFile):
         self.spec = spec
@@ -240,23 +195,9 @@ class TrackedSimulator(LoopNode):
     """
     Step the simulated vehicle at a fixed rate in simulated time; publish its sensors.
 
-    A :class:`~tracked_kinematics.ros.loop_thread.LoopNode` of :data:`SIMULATOR_PARAMS`.
-
-    Parameters
-    ----------
-    **kwargs
-        Forwarded to :class:`rclpy.node.Node` (``context``, ``parameter_overrides``, ...).
-
-    Attributes
-    ----------
-    failure : Exception or None
-        Why the stepping thread gave up and stopped the node, if it did.
-
-    Raises
-    ------
-    tracked_kinematics.ros.parameters.ParameterError
-        When the parameters given at start are invalid (an unknown vehicle or terrain too).
-
+    A :class:`~tracked_kinematics.ros.loop_thread.LoopNode` of :data:`SIMULATOR_PARAMS`;
+    ``ParameterError`` when the parameters given at start are invalid (also an unknown vehicle
+    or terrain).
     """
 
     def __init__(self, **kwargs):
@@ -423,12 +364,7 @@ class TrackedSimulator(LoopNode):
     _rescheduled = False
 
     def _steps(self, count: int) -> None:
-        """
-        Take ``count`` steps, then publish /clock and what the sensors sampled.
-
-        /clock goes first, at the last step's time, so that no message is ever stamped
-        ahead of the clock.
-        """
+        """Take ``count`` steps, then publish /clock (first) and the sensors."""
         pending = []
         with self._lock:
             wall = time.monotonic()
@@ -538,10 +474,5 @@ class TrackedSimulator(LoopNode):
 
 
 def main(args=None):
-    """
-    Run the node (console script ``tracked_simulator``).
-
-    Exit status 0 after a signal, 2 when it cannot start (invalid parameters, unknown vehicle
-    or terrain), 1 when the simulation had to give up.
-    """
+    """Run the node: exit 0 after a signal, 2 when it cannot start, 1 when it gave up."""
     raise SystemExit(run(TrackedSimulator, NODE_NAME, args, SIMULATOR_PARAMS, __doc__))

@@ -1,11 +1,9 @@
 """
 diff_drive_controller parameters -> the parameters of tracked_kinematics' nodes.
 
-:mod:`.controllers` reads a ros2_control controllers file and finds its DDC section,
-:mod:`.mapping` maps that section's keys to ours (the kinematics, and why DDC's is a
-tread-ICR model), :mod:`.conversion` holds the result and renders the parameter file and the
-report, :mod:`.values` reads DDC values as rcl does. ``convert_diff_drive_params`` is the
-command line; docs/tools/convert_diff_drive_params.md lists the mapping.
+:mod:`.controllers` finds the DDC section, :mod:`.mapping` maps its keys, :mod:`.conversion`
+renders the file and report, :mod:`.values` reads values as rcl does.
+See docs/tools/convert_diff_drive_params.md.
 """
 
 from tracked_kinematics.offline.errors import DdcError

@@ -1,10 +1,8 @@
 """
 Reading a ros2_control controllers file and finding its diff_drive_controller section.
 
-:func:`load_controllers` reads the file as rcl would (no anchors or aliases);
-:func:`find_controller` finds the DDC section: the ``<name>: ros__parameters:`` sections of
-ros2_control, wildcard and nested namespaces such as ROSbot's ``/**:`` block, and the plain
-forms without ``ros__parameters``.
+As rcl reads it (no anchors or aliases), in every section form (``<name>: ros__parameters:``,
+wildcards, nested namespaces, plain).
 """
 
 from __future__ import annotations
@@ -25,12 +23,7 @@ _MARKERS = ('wheel_separation', 'left_wheel_names', 'right_wheel_names')
 
 
 class _NoAliasLoader(yaml.SafeLoader):
-    """
-    Safe loader that refuses anchors and aliases, as rcl's parameter file parser does.
-
-    Without this a recursive alias (``a: &x {b: *x}``) would send every walk of the tree
-    into endless recursion, and a chain of aliases could make it exponentially large.
-    """
+    """Safe loader that refuses anchors and aliases, as rcl does (recursive aliases)."""
 
     def compose_node(self, parent, index):
         if self.check_event(yaml.AliasEvent):
@@ -42,16 +35,7 @@ class _NoAliasLoader(yaml.SafeLoader):
 
 
 def load_controllers(path: str | os.PathLike) -> Any:
-    """
-    Read a controllers YAML file.
-
-    Raises
-    ------
-    DdcError
-        When it does not exist, is not a regular file, cannot be read, is not YAML or is
-        not a mapping; one line naming the file.
-
-    """
+    """Read a controllers YAML file; DdcError naming it when unreadable or no mapping."""
     path = os.fspath(path)
     if not os.path.exists(path):
         raise DdcError(f'{path}: no such file')
@@ -77,12 +61,7 @@ def load_controllers(path: str | os.PathLike) -> Any:
 
 
 def _normal_name(path: list) -> tuple[str, bool]:
-    """
-    Section key path -> ``(node name, applies in any namespace)``.
-
-    ``['/**', 'ddc'] -> ('ddc', True)``, ``['/r1/ddc'] -> ('r1/ddc', False)``,
-    ``['ddc'] -> ('ddc', False)`` (rcl reads a name without a namespace as the root's).
-    """
+    """Map a section key path to ``(node name, applies in any namespace)``: ``['/**', 'ddc']``."""
     name = '/'.join(str(part).strip('/') for part in path if str(part).strip('/'))
     wildcard = '*' in name
     while name.startswith('**/') or name.startswith('*/'):
@@ -151,18 +130,9 @@ class Section:
     """
     The DDC section of a controllers file.
 
-    Attributes
-    ----------
-    name : str
-        Node name, with its namespace if the file gives one (``a200/platform_controller``).
-    params : dict
-        Parameters, flattened to dotted names; sections of the same node are merged in file
-        order, as rcl merges them.
-    found_by : str
-        How it was found, for the report.
-    any_namespace : bool
-        The file gives it for any namespace (``/**/name`` or under ``/**:``).
-
+    ``name`` with its namespace if given (``a200/platform_controller``); ``params`` as dotted
+    names, sections of one node merged in file order as rcl does; ``found_by`` for the report;
+    ``any_namespace`` when given for any namespace (``/**/name`` or under ``/**:``).
     """
 
     name: str
@@ -178,19 +148,10 @@ class Section:
 
 def find_controller(doc: Mapping, controller: str | None = None, source: str = '') -> Section:
     """
-    Find the DDC section of a controllers file.
+    Find the DDC section of a controllers file: ``controller``, or the one of DDC type or keys.
 
-    By ``controller`` when given; otherwise the controllers whose type is declared as
-    diff_drive_controller/DiffDriveController (by the controller_manager or by their own
-    ``type``), and the sections of undeclared type that have DDC keys (``wheel_separation``,
-    ``left_wheel_names``, ``right_wheel_names``).
-
-    Raises
-    ------
-    DdcError
-        No section, several without ``controller``, or ``controller`` not found or of
-        another type.
-
+    DdcError for no section, several without ``controller``, or a ``controller`` not found or of
+    another type.
     """
     where = f'{source}: ' if source else ''
     groups: dict[str, dict[str, Any]] = {}

@@ -1,10 +1,4 @@
-"""
-The result of converting a DDC section: our values, the parameter file and the report.
-
-:class:`Conversion` holds the values with a line for every DDC key saying what became of it;
-:meth:`Conversion.yaml_text` renders the parameter file (the vehicle for every node, the rest
-for the node that declares it), :func:`report_lines` the report.
-"""
+"""The result of converting a DDC section: our values, the parameter file and the report."""
 
 from __future__ import annotations
 
@@ -41,19 +35,14 @@ class Conversion:
 
     Attributes
     ----------
-    controller : str
-        Name of the DDC section (``diff_drive_base_controller``).
-    found_by : str
-        How the section was found, for the report.
     values : dict
         Our parameter names (dotted) to values.
     mapped : list of (str, str)
         ``(DDC side, our side)`` texts, one per mapping.
     not_mapped : list of (str, str)
-        ``(DDC key = value, reason)`` for every key of the section that has no counterpart.
+        ``(DDC key = value, reason)`` for every key without a counterpart.
     warnings : list of str
-        Things the user must know: the converted robot differs from the DDC one, or the DDC
-        file itself is suspicious.
+        Where the converted robot differs from DDC's, or DDC's file is suspicious.
     narrowed : bool
         ``wheel_separation_multiplier < 1``: ``track_width`` is DDC's effective separation.
 
@@ -96,12 +85,7 @@ class Conversion:
 
 
 def report_lines(conv: Conversion, width: int = 46) -> list[str]:
-    """
-    Return the human-readable report of a conversion: what was mapped, what not and why.
-
-    One line per mapping, ``DDC side -> our side``, aligned at ``width``; a DDC side longer
-    than that puts our side on the next line.
-    """
+    """Return the report of a conversion: what was mapped, what not and why."""
     lines = [f'diff_drive_controller section {conv.controller!r} ({conv.found_by})', '',
              'mapped (diff_drive_controller -> tracked_kinematics):']
     for ddc, ours in conv.mapped:

@@ -1,33 +1,10 @@
 """
 diff_drive_controller parameters -> the parameters of tracked_kinematics' nodes.
 
-ros2_controllers' diff_drive_controller (DDC) computes its odometry in ``odometry.cpp`` from
-the mean joint position of each side, with the effective geometry it builds in
-``on_configure``::
-
-    separation = wheel_separation * wheel_separation_multiplier
-    r_left     = wheel_radius * left_wheel_radius_multiplier     (r_right likewise)
-    d_left     = r_left * delta(left position)                  (d_right likewise)
-    linear     = (d_left + d_right) / 2
-    angular    = (d_right - d_left) / separation
-
-That is the tread-ICR model of docs/model.md (section Kinematics) with symmetric ICRs at
-``+-separation / 2`` (``icr.x = 0``), ``sprocket_radius = wheel_radius`` and ``scale.* =
-*_wheel_radius_multiplier``: ``w = (V_r - V_l) / (y_left - y_right)`` and ``v_x = (V_r +
-V_l) / 2`` give the same numbers, and the steering efficiency is ``chi = wheel_separation /
-separation = 1 / multiplier``.
-
-A multiplier below 1 (a robot that turns faster than its wheel separation says) would put
-the ICRs inside the tracks, ``chi > 1``, which no tread model allows and every node refuses.
-The conversion then writes ``track_width = separation`` (the effective separation DDC used)
-with ideal ICRs: the odometry and the commands stay DDC's, exactly, and a warning says that
-``track_width`` is no longer the measured one. Refusing would leave the user with nothing;
-clamping to ``chi = 1`` would silently change the odometry.
-
-:func:`convert` maps one DDC section; :func:`convert_file` reads a ros2_control controllers
-file, finds its DDC section (:mod:`.controllers`) and converts it into a
-:class:`~.conversion.Conversion`: the values, which node section each belongs in, and a line
-for every DDC key saying what became of it.
+DDC's odometry is the tread-ICR model with ICRs at ``+-separation / 2`` and
+``chi = 1 / wheel_separation_multiplier``; a multiplier below 1 is written as
+``track_width = separation`` with ideal ICRs. The derivation and the mapping:
+docs/tools/convert_diff_drive_params.md.
 """
 
 from __future__ import annotations
@@ -103,23 +80,15 @@ def convert(params: Mapping[str, Any], controller: str = '', found_by: str = '',
     ----------
     params : mapping
         The section's parameters, flattened to dotted names.
-    controller : str
-        The section's name, for the report.
-    found_by : str
-        How it was found, for the report.
+    controller, found_by : str
+        The section's name and how it was found, for the report.
     namespace : str or None
-        The controller's namespace ('' = root; None = any, unknown): DDC prefixes its frames
-        with it unless told otherwise.
-
-    Returns
-    -------
-    Conversion
+        The controller's namespace ('' = root; None = any): DDC prefixes its frames with it.
 
     Raises
     ------
     DdcError
-        Without ``wheel_separation`` or ``wheel_radius``, or for a value that is not what
-        DDC accepts (a radius <= 0, a list where a number belongs, no joint names, ...).
+        Without ``wheel_separation`` or ``wheel_radius``, or for a value DDC would not accept.
 
     """
     conv = Conversion(controller, found_by)
@@ -239,12 +208,7 @@ def _joints_of(p: dict, conv: Conversion) -> None:
 
 
 def _frames(p: dict, conv: Conversion, namespace: str | None) -> None:
-    """
-    Frames as DDC publishes them: ``prefix/odom_frame_id``, ``prefix/base_frame_id``.
-
-    DDC's prefix (``on_configure``): none when ``tf_frame_prefix_enable`` is false, else
-    ``tf_frame_prefix`` when set, else the controller's namespace.
-    """
+    """Return the frames as DDC publishes them (its ``on_configure`` prefix rule)."""
     odom = read_text('odom_frame_id', p['odom_frame_id']) if 'odom_frame_id' in p else None
     base = read_text('base_frame_id', p['base_frame_id']) if 'base_frame_id' in p else None
     enable = read_bool('tf_frame_prefix_enable', p['tf_frame_prefix_enable']) \
@@ -370,13 +334,7 @@ _UNITS = {('linear.x', 'velocity'): 'm/s', ('linear.x', 'acceleration'): 'm/s^2'
 
 
 def _limits(p: dict, conv: Conversion, axis: str, kind: str) -> None:
-    """
-    One of our limits from DDC's bounds of one axis and kind.
-
-    cmd_vel_translator limits ``|v|`` (or ``|dv/dt|``) by one number, 0 = none; DDC bounds
-    each direction. The tighter of DDC's active bounds is written, so the translator never
-    commands more than DDC would, and a warning says when the bounds differ.
-    """
+    """Return one of our limits from DDC's bounds of one axis: the tighter of its active bounds."""
     switch, bounds = _BOUNDS[kind]
     has_key = f'{axis}.{switch}'
     names = [name for name, _ in bounds]
@@ -451,15 +409,7 @@ def _jerk(p: dict, conv: Conversion, axis: str) -> None:
 
 
 def _the_rest(p: dict, conv: Conversion) -> None:
-    """
-    Say what became of the other keys; refuse a misspelling of a key that is mapped.
-
-    ``wheel_seperation_multiplier`` is ignored by DDC and would be ignored here: the robot
-    would be converted with a multiplier of 1 and the file written as if nothing were
-    wrong. A near miss of a key this tool maps, whose right spelling is absent, stops the
-    conversion with a did-you-mean; one of a key without counterpart gets the hint in its
-    line.
-    """
+    """Say what became of the other keys; refuse a misspelling of a key that is mapped."""
     known = sorted(_HANDLED | set(_NO_COUNTERPART))
     misspelt = []
     for key, value in p.items():

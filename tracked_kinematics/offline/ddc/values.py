@@ -1,9 +1,4 @@
-"""
-Reading DDC values as rcl reads them, and writing ours as the report shows them.
-
-Every reader raises :class:`~tracked_kinematics.offline.errors.DdcError` with the key and the
-value it refuses, in one line.
-"""
+"""Reading DDC values as rcl reads them (DdcError names the key and value), writing ours."""
 
 from __future__ import annotations
 
