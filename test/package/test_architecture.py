@@ -133,3 +133,75 @@ def test_a_right_arrow_is_allowed(tmp_path):
     probe.write_text('from ..kinematics import IcrParams\nimport numpy as np\n')
     where = PACKAGE / 'core' / 'identify' / 'fit.py'
     assert not violations(probe, package_parts_of(where), list(rules_for(where)))
+
+
+# One module's private names stay its own: a name another module of the package needs is
+# public (no leading underscore), or lives where both use it. A private module (``_checks``)
+# may be imported: its underscore says "not for users", not "not for the package".
+
+def _is_module(module: str, name: str) -> bool:
+    """Whether ``module.name`` is a module or a package of the package."""
+    parts = f'{module}.{name}'.split('.')
+    if parts[0] != PKG:
+        return False
+    path = PACKAGE.joinpath(*parts[1:])
+    return path.with_suffix('.py').is_file() or (path / '__init__.py').is_file()
+
+
+def private_imports(path: Path, package_parts):
+    """Return the underscore names ``path`` takes from another module of the package."""
+    tree = ast.parse(path.read_text(), filename=str(path))
+    modules = {}   # local name -> module of the package it stands for
+    found = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = package_parts[:len(package_parts) - node.level + 1]
+                module = '.'.join(base + ([node.module] if node.module else []))
+            else:
+                module = node.module or ''
+            if module != PKG and not module.startswith(PKG + '.'):
+                continue
+            for alias in node.names:
+                if _is_module(module, alias.name):
+                    modules[alias.asname or alias.name] = f'{module}.{alias.name}'
+                elif alias.name.startswith('_') and not alias.name.startswith('__'):
+                    found.append(f'{path.name}:{node.lineno} imports {alias.name} from {module}')
+        elif isinstance(node, ast.Import):
+            for alias in node.names:
+                if alias.name.startswith(PKG + '.') and alias.asname:
+                    modules[alias.asname] = alias.name
+    for node in ast.walk(tree):
+        if (isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name)
+                and node.value.id in modules and node.attr.startswith('_')
+                and not node.attr.startswith('__')):
+            found.append(f'{path.name}:{node.lineno} uses {modules[node.value.id]}.{node.attr}')
+    return found
+
+
+@pytest.mark.parametrize('path', [pytest.param(p, id=str(p.relative_to(PACKAGE)))
+                                  for p in sorted(PACKAGE.rglob('*.py'))])
+def test_no_private_name_crosses_modules(path):
+    assert not private_imports(path, package_parts_of(path))
+
+
+@pytest.mark.parametrize('source', [
+    'from .heading_fit import _Heading\n',
+    'from tracked_kinematics.offline.bags.opening import _connections\n',
+    'from . import recordings\nrecordings._clean_gyro(None)\n',
+    'from .. import reference as ref\nref._fit(None)\n',
+])
+def test_private_import_checker_can_fail(tmp_path, source):
+    probe = tmp_path / 'probe.py'
+    probe.write_text(source)
+    where = PACKAGE / 'core' / 'identify' / 'reference' / 'calibration.py'
+    assert private_imports(probe, package_parts_of(where))
+
+
+def test_private_import_checker_allows_public_names_and_private_modules(tmp_path):
+    probe = tmp_path / 'probe.py'
+    probe.write_text('from ..._checks import require_numbers\nfrom ... import _checks\n'
+                     'from .heading_fit import HeadingFit\nimport numpy as np\nnp._x\n'
+                     'from os import _exit\n')
+    where = PACKAGE / 'core' / 'identify' / 'reference' / 'calibration.py'
+    assert not private_imports(probe, package_parts_of(where))

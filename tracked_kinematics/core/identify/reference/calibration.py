@@ -13,12 +13,12 @@ import math
 
 import numpy as np
 
-from .delays import _delay_report, _delays
-from .heading_fit import _fit_heading, _Heading
-from .headings import _heading_data, _HeadingData
-from .positions import _Distance, _fit_distance
-from .recordings import (_clean_gyro, _quantities, check_gyro, check_saturation, QUANTITIES,
-                         ReferenceFit, ReferenceRecording)
+from .delays import delay_report, sensor_delays
+from .heading_fit import fit_heading, HeadingFit
+from .headings import heading_data, HeadingData
+from .positions import DistanceFit, fit_distance
+from .recordings import (calibration_quantities, check_gyro, check_saturation, clean_gyro,
+                         QUANTITIES, ReferenceFit, ReferenceRecording)
 from ...errors import FitError, SensorDataError
 from ...kinematics import IcrParams
 
@@ -31,7 +31,7 @@ def _checked_recordings(recordings, track_width: float, hold, gnss_antenna,
     Returns
     -------
     recs : list of ReferenceRecording
-        The recordings, their gyros cleaned (:func:`.recordings._clean_gyro`).
+        The recordings, their gyros cleaned (:func:`.recordings.clean_gyro`).
     hold : tuple of str
     gnss_antenna : tuple of float
 
@@ -69,14 +69,14 @@ def _checked_recordings(recordings, track_width: float, hold, gnss_antenna,
                              what)
         elif not np.any(np.isfinite(r.gyro_yaw)):
             raise SensorDataError(f'{r.name or "recording"}: the orientation has no yaw')
-    recs = [_clean_gyro(r) if r.gyro_t is not None else r for r in recs]
+    recs = [clean_gyro(r) if r.gyro_t is not None else r for r in recs]
     if straight_distance is not None and not (math.isfinite(straight_distance)
                                               and straight_distance > 0):
         raise ValueError(f'straight_distance must be > 0 m, got {straight_distance!r}')
     return recs, hold, gnss_antenna
 
 
-def _model(track_width: float, heading: _Heading, distance: _Distance, determined,
+def _model(track_width: float, heading: HeadingFit, distance: DistanceFit, determined,
            base: IcrParams) -> IcrParams:
     """
     Return the ICR model of the fitted quantities (the base's where held).
@@ -92,7 +92,7 @@ def _model(track_width: float, heading: _Heading, distance: _Distance, determine
 
     """
     s, u, rho, c = distance.s, heading.u, heading.rho, distance.c
-    width = s / u if 'chi' in determined else _quantities(base)[2]
+    width = s / u if 'chi' in determined else calibration_quantities(base)[2]
     s_left, s_right = 2.0 * s / (1.0 + rho), 2.0 * s * rho / (1.0 + rho)
     try:
         return IcrParams(track_width, c + 0.5 * width, c - 0.5 * width, distance.x, s_left,
@@ -110,14 +110,14 @@ def _reference_name(recs, straight_distance) -> str:
     return '+'.join(names)
 
 
-def _report(icr: IcrParams, reference: str, determined, held, heading: _Heading,
-            distance: _Distance, headings: _HeadingData, delays, segment_length: float,
+def _report(icr: IcrParams, reference: str, determined, held, heading: HeadingFit,
+            distance: DistanceFit, headings: HeadingData, delays, segment_length: float,
             n_rec: int) -> dict:
     """
     Return the report of a calibration: the model, what is determined, errors, statistics.
 
     JSON-ready; the standard errors of what is held are None. ``delays``: the gyro's and
-    the pose's (:func:`.delays._delays`).
+    the pose's (:func:`.delays.sensor_delays`).
     """
     imu, pose_delay = delays
     std_rho = heading.std_rho if 'scale_ratio' in determined else None
@@ -142,8 +142,8 @@ def _report(icr: IcrParams, reference: str, determined, held, heading: _Heading,
             'noise_rad_per_sqrt_s': heading.stats['imu']['residual_std_rad']
             / math.sqrt(segment_length),
         },
-        'imu_delay': _delay_report(imu) if gyro else None,
-        'pose_delay': _delay_report(pose_delay) if pose else None,
+        'imu_delay': delay_report(imu) if gyro else None,
+        'pose_delay': delay_report(pose_delay) if pose else None,
         'straight': distance.straight,
         'data': {'recordings': n_rec, 'moving_segments': int(np.count_nonzero(headings.moving)),
                  'turned_rad': headings.turned, 'driven_m': headings.driven},
@@ -162,16 +162,16 @@ def fit_recordings(recordings, track_width: float, *, base: IcrParams | None = N
        :func:`check_saturation`: a gyro that reads nothing or is stuck at its range is
        refused) and drop the few non-finite gyro readings.
     2. Estimate (or take) the delays of the gyro and of the pose stamps behind the
-       encoders (:func:`.delays._delays`: :func:`..delay.estimate_delay` on the integrated
+       encoders (:func:`.delays.sensor_delays`: :func:`..delay.estimate_delay` on the integrated
        gyro, as on the pose) and remove them.
     3. Cut the encoders and each heading reference into segments of ``segment_length`` s
-       (:func:`.headings._heading_data`); refuse fewer than
+       (:func:`.headings.heading_data`); refuse fewer than
        :data:`.headings.MIN_MOVING_SEGMENTS` moving ones and a "straight" that turns.
     4. Fit the turn gain ``u``, the veer ``v`` and one gyro bias per recording to the
-       heading increments (:func:`.heading_fit._fit_heading`, Martinez et al. 2005 eqs. (9)
+       heading increments (:func:`.heading_fit.fit_heading`, Martinez et al. 2005 eqs. (9)
        and (16) with the scales of eqs. (20)-(21)), robustly; hold the scale ratio, or chi,
        where they are not determined.
-    5. Find the distance scale (:func:`.positions._fit_distance`): from a straight drive of
+    5. Find the distance scale (:func:`.positions.fit_distance`): from a straight drive of
        measured length, or from the positions by dead reckoning on the gyro heading (eqs.
        (7)-(8)), with ``icr.x`` and the ICR offset where they are determined; else hold it.
     6. Build the ICR model: ``W = s / u``, the scales from ``s`` and ``rho``
@@ -217,14 +217,14 @@ def fit_recordings(recordings, track_width: float, *, base: IcrParams | None = N
     base = base or IcrParams.ideal(track_width)
     straight = straight_distance is not None
     # 2. The delays.
-    imu, pose = _delays(recs, imu_delay, pose_delay)
+    imu, pose = sensor_delays(recs, imu_delay, pose_delay)
     # 3. The heading segments.
-    headings = _heading_data(recs, imu.delay, pose.delay, segment_length, straight)
+    headings = heading_data(recs, imu.delay, pose.delay, segment_length, straight)
     # 4. The heading: u, v and the biases.
-    heading = _fit_heading(headings, len(recs), hold, base, straight)
+    heading = fit_heading(headings, len(recs), hold, base, straight)
     # 5. The distance: positions, a straight drive, or held.
-    distance = _fit_distance(recs, headings, heading, base, hold, straight_distance,
-                             pose.delay, position_window, gnss_antenna)
+    distance = fit_distance(recs, headings, heading, base, hold, straight_distance,
+                            pose.delay, position_window, gnss_antenna)
     # 6. The model and its report.
     determined = heading.determined + distance.determined
     held = heading.held + [q for q in ('distance_scale', 'icr.x', 'icr_offset')

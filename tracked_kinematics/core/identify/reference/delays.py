@@ -12,7 +12,7 @@ import math
 
 import numpy as np
 
-from .headings import _gyro_heading
+from .headings import gyro_heading
 from ..delay import DelayEstimate, estimate_delay, fixed_delay
 from ..segments import Recording
 from ...integration import wrap_angle
@@ -26,7 +26,7 @@ def _delay_of_gyro(rec_list, imu_delay):
         raise ValueError(f"imu_delay must be seconds or 'auto', got {imu_delay!r}")
     fake = []
     for rec in rec_list:
-        t, heading = _gyro_heading(rec, 0.0)
+        t, heading = gyro_heading(rec, 0.0)
         # Headings every ~0.1 s: the estimator regresses increments between samples.
         step = max(1, int(round(0.1 / max(float(np.median(np.diff(t))), 1e-6))))
         t, heading = t[::step], heading[::step]
@@ -46,7 +46,7 @@ def _delay_of_pose(rec_list, pose_delay):
                            for r in rec_list])
 
 
-def _delays(recs, imu_delay, pose_delay):
+def sensor_delays(recs, imu_delay, pose_delay):
     """
     Return the delays of the gyro and of the pose behind the encoders, estimated or given.
 
@@ -70,7 +70,7 @@ def _delays(recs, imu_delay, pose_delay):
     return imu, pose
 
 
-def _delay_report(d: DelayEstimate) -> dict:
+def delay_report(d: DelayEstimate) -> dict:
     """Return a delay as the report gives it (JSON-ready; no infinite standard error)."""
     std = float(d.std)
     return {'delay': float(d.delay), 'std': std if math.isfinite(std) else None,

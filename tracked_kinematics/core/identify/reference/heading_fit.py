@@ -6,7 +6,7 @@ Over any interval the heading change is linear in the nominal travel of the trac
 the scales of eqs. (20)-(21); the turn gain ``u = s / W`` is their eq. (16) read the other
 way (``chi = track_width u / s``). :func:`_heading_fit` fits ``(u, v)`` and a bias per gyro
 recording to the segments of :mod:`.headings` (weighted robust least squares);
-:func:`_fit_heading` (step 4 of :func:`.calibration.fit_recordings`) holds what the data do
+:func:`fit_heading` (step 4 of :func:`.calibration.fit_recordings`) holds what the data do
 not determine.
 """
 
@@ -17,8 +17,8 @@ import math
 
 import numpy as np
 
-from .headings import _HeadingData
-from .recordings import _quantities
+from .headings import HeadingData
+from .recordings import calibration_quantities
 from ...errors import ExcitationError, FitError
 
 HUBER_K = 2.0
@@ -31,7 +31,7 @@ MIN_TURN = 1.0
 """Least total absolute turning, rad, over the moving segments to fit chi."""
 
 
-def _robust_std(r):
+def robust_std(r):
     """Return the robust standard deviation (1.4826 MAD) of residuals; inf for none."""
     r = np.asarray(r)
     if r.size == 0:
@@ -81,7 +81,7 @@ def _heading_fit(sources, n_rec, hold_u=None, hold_ratio=None):
         p, *_ = np.linalg.lstsq(design * sw[:, None], y * sw, rcond=None)
         res = y - design @ p
         for k in range(len(sources)):
-            sigma[k] = _robust_std(res[src == k])
+            sigma[k] = robust_std(res[src == k])
         z = np.abs(res) / sigma[src]
         weights = np.minimum(1.0, HUBER_K / np.maximum(z, 1e-12)) / sigma[src] ** 2
     cov = np.linalg.pinv(design.T @ (design * weights[:, None]))
@@ -105,7 +105,7 @@ def _param_std(cov, used, index):
 
 
 @dataclass
-class _Heading:
+class HeadingFit:
     """
     The heading fit (step 4 of the calibration).
 
@@ -151,7 +151,7 @@ def _held_turn_gain(hold, turned: float, straight: bool, base) -> float | None:
         The heading turns too little to fit chi.
 
     """
-    base_s, _, base_w, _ = _quantities(base)
+    base_s, _, base_w, _ = calibration_quantities(base)
     if 'chi' in hold:
         return base_s / base_w
     if turned < MIN_TURN:
@@ -180,7 +180,7 @@ def _ratio_std(u: float, v: float, cov, used, u_held: bool) -> float:
     return math.inf
 
 
-def _fit_heading(data: _HeadingData, n_rec: int, hold, base, straight: bool) -> _Heading:
+def fit_heading(data: HeadingData, n_rec: int, hold, base, straight: bool) -> HeadingFit:
     """
     Fit the turn gain, the veer and the gyro biases; hold what the heading does not determine.
 
@@ -191,7 +191,7 @@ def _fit_heading(data: _HeadingData, n_rec: int, hold, base, straight: bool) -> 
 
     Parameters
     ----------
-    data : _HeadingData
+    data : HeadingData
         The segments (step 3).
     n_rec : int
         Number of recordings (one bias column each).
@@ -204,7 +204,7 @@ def _fit_heading(data: _HeadingData, n_rec: int, hold, base, straight: bool) -> 
 
     Returns
     -------
-    _Heading
+    HeadingFit
 
     Raises
     ------
@@ -214,7 +214,7 @@ def _fit_heading(data: _HeadingData, n_rec: int, hold, base, straight: bool) -> 
         A turn gain <= 0 (tracks or gyro sign swapped).
 
     """
-    _, base_rho, _, _ = _quantities(base)
+    _, base_rho, _, _ = calibration_quantities(base)
     hold_u = _held_turn_gain(hold, data.turned, straight, base)
     determined, held = [], []
     p, cov, used, stats = _heading_fit(data.sources, n_rec, hold_u=hold_u)
@@ -245,4 +245,4 @@ def _fit_heading(data: _HeadingData, n_rec: int, hold, base, straight: bool) -> 
     else:
         held.insert(0, 'chi')
     biases = [float(p[2 + k]) if g is not None else None for k, g in enumerate(data.gyro)]
-    return _Heading(u, v, rho, std_u, std_rho, biases, stats, determined, held)
+    return HeadingFit(u, v, rho, std_u, std_rho, biases, stats, determined, held)

@@ -7,7 +7,7 @@ with the scales of eqs. (20)-(21) (``c`` the ICR offset, ``x = icr.x``), rotated
 heading. :func:`_dead_reckoning_basis` sums its three parts, so that the dead-reckoned
 position is linear in ``(s, c, x)``; :func:`_position_fit` compares it with the positions in
 windows, each centred on its mean, after a rotation per recording and source.
-:func:`_fit_distance` (step 5 of :func:`.calibration.fit_recordings`) takes the scale from a
+:func:`fit_distance` (step 5 of :func:`.calibration.fit_recordings`) takes the scale from a
 straight drive of measured length instead, or holds it.
 """
 
@@ -19,9 +19,9 @@ import math
 import numpy as np
 from scipy.optimize import least_squares
 
-from .heading_fit import _Heading, _robust_std, HUBER_K
-from .headings import _HeadingData, MAX_STRAIGHT_TURN
-from .recordings import _quantities
+from .heading_fit import HeadingFit, HUBER_K, robust_std
+from .headings import HeadingData, MAX_STRAIGHT_TURN
+from .recordings import calibration_quantities
 from ...errors import ExcitationError, FitError
 
 DISTANCE_STD_LIMIT = 0.05
@@ -147,7 +147,7 @@ def _position_fit(blocks, free, fixed, sigma):
         cov = np.full((len(p0), len(p0)), np.inf)
     # Scale the covariance by the residual spread (the sigma given is a first guess).
     res = sol.fun
-    spread = _robust_std(res) ** 2
+    spread = robust_std(res) ** 2
     std = np.sqrt(np.maximum(np.diag(cov), 0.0) * spread)
     raw = residuals(sol.x)
     per_source = {}
@@ -156,14 +156,14 @@ def _position_fit(blocks, free, fixed, sigma):
         n = 2 * blk.t.size
         per_source.setdefault(blk.source, []).append(raw[offset:offset + n] * sigma[blk.source])
         offset += n
-    noise = {k: _robust_std(np.concatenate(v)) for k, v in per_source.items()}
+    noise = {k: robust_std(np.concatenate(v)) for k, v in per_source.items()}
     return unpack(sol.x), dict(zip(names, std[:n_shared])), noise
 
 
 # The steps of fit_recordings that concern the distance --------------------------------------
 
 @dataclass
-class _Distance:
+class DistanceFit:
     """
     The distance step of the calibration (step 5): scale, ICR offset and ``icr.x``.
 
@@ -193,7 +193,7 @@ class _Distance:
     determined: list = field(default_factory=list)
 
 
-def _bases(recs, headings: _HeadingData, heading: _Heading):
+def _bases(recs, headings: HeadingData, heading: HeadingFit):
     """
     Return the dead-reckoning basis of every recording (None where too short).
 
@@ -283,7 +283,7 @@ def _position_blocks(recs, bases, pose_delay: float, position_window, gnss_anten
     return blocks
 
 
-def _fit_positions(blocks, hold, base) -> _Distance:
+def _fit_positions(blocks, hold, base) -> DistanceFit:
     """
     Fit the distance scale, and ``icr.x`` and the ICR offset where determined, to positions.
 
@@ -301,7 +301,7 @@ def _fit_positions(blocks, hold, base) -> _Distance:
         The position fit does not converge.
 
     """
-    base_s, _, _, base_c = _quantities(base)
+    base_s, _, _, base_c = calibration_quantities(base)
     sigma = dict.fromkeys({b.source for b in blocks}, 1.0)
     pose_grade = any(b.source == 'pose' for b in blocks)
     free = [n for n, q in (('s', 'distance_scale'), ('x', 'icr.x'), ('c', 'icr_offset'))
@@ -330,12 +330,12 @@ def _fit_positions(blocks, hold, base) -> _Distance:
     stats = {k: {'residual_std_m': float(v)} for k, v in sigma.items()}
     for k in stats:
         stats[k]['samples'] = int(sum(b.t.size for b in blocks if b.source == k))
-    return _Distance(s, c, x, std_s, std_x, std_c, stats, determined=determined)
+    return DistanceFit(s, c, x, std_s, std_x, std_c, stats, determined=determined)
 
 
-def _fit_distance(recs, headings: _HeadingData, heading: _Heading, base, hold,
-                  straight_distance: float | None, pose_delay: float, position_window,
-                  gnss_antenna) -> _Distance:
+def fit_distance(recs, headings: HeadingData, heading: HeadingFit, base, hold,
+                 straight_distance: float | None, pose_delay: float, position_window,
+                 gnss_antenna) -> DistanceFit:
     """
     Find the distance scale: from a measured straight, from positions, or held at the base's.
 
@@ -343,7 +343,7 @@ def _fit_distance(recs, headings: _HeadingData, heading: _Heading, base, hold,
     ----------
     recs : list of ReferenceRecording
         Checked and cleaned (step 1).
-    headings, heading : _HeadingData, _Heading
+    headings, heading : HeadingData, HeadingFit
         The heading references (step 3) and their fit (step 4).
     base : IcrParams
         Held values.
@@ -358,7 +358,7 @@ def _fit_distance(recs, headings: _HeadingData, heading: _Heading, base, hold,
 
     Returns
     -------
-    _Distance
+    DistanceFit
 
     Raises
     ------
@@ -366,9 +366,9 @@ def _fit_distance(recs, headings: _HeadingData, heading: _Heading, base, hold,
         See :func:`_straight_scale` and :func:`_fit_positions`.
 
     """
-    base_s, _, _, base_c = _quantities(base)
+    base_s, _, _, base_c = calibration_quantities(base)
     bases = _bases(recs, headings, heading)
-    distance = _Distance(base_s, base_c, base.x)
+    distance = DistanceFit(base_s, base_c, base.x)
     if straight_distance is not None:
         distance.s, distance.straight = _straight_scale(bases, straight_distance)
         distance.determined.append('distance_scale')
