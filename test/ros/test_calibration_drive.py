@@ -12,10 +12,10 @@ import pytest
 from rclpy.parameter import Parameter
 from std_msgs.msg import String
 from std_srvs.srv import Trigger
-from tracked_kinematics.core.plan.calibration import protocol
+from tracked_kinematics.core.plan.calibration_protocol import protocol
 from tracked_kinematics.offline.calibration_files import CalibrationFiles, FITTED_KEYS
 from tracked_kinematics.params import read_params_file
-from tracked_kinematics.ros.calibration_drive import CalibrationDriveNode
+from tracked_kinematics.ros.calibration_drive_node import CalibrationDriveNode
 from tracked_kinematics.ros.odometry_node import OdometryNode
 from tracked_kinematics.ros.parameters import ParameterError
 import yaml

@@ -5,7 +5,7 @@ import math
 from hypothesis import given, settings, strategies as st
 import numpy as np
 import pytest
-from tracked_kinematics.core.plan.calibration import (
+from tracked_kinematics.core.plan.calibration_protocol import (
     ARC_YAW_FRACTIONS, fence_exit, FenceOdometry, predict_step, protocol, Step, total_duration)
 from tracked_kinematics.core.plan.supervisor import (
     cap, Inputs, pose_jump, STATES, Supervisor, SupervisorConfig)

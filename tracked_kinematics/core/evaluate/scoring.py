@@ -2,7 +2,7 @@
 The whole evaluation of terrain models on recordings, as one dictionary per model.
 
 :func:`evaluate` cuts every recording into pieces (:mod:`.pieces`), dead-reckons each model
-over them, and scores it (:mod:`.metrics`, :mod:`.prediction`):
+over them, and scores it (:mod:`.metrics`, :mod:`.horizons`):
 
 - ``odometry.windows.<seconds>``: final position and heading errors of the odometry started
   at every ground-truth sample, after windows of that length (mean, p90), and the drift in
@@ -26,9 +26,9 @@ import math
 
 import numpy as np
 
+from .horizons import command_horizons, Commands, encoder_horizons, HorizonErrors
 from .metrics import relative_errors, rpe, summary
 from .pieces import cut, moving_windows, odometry, Piece
-from .prediction import command_horizons, Commands, encoder_horizons, HorizonErrors
 from ..drivetrain import DriveTrain
 from ..identify import Recording
 from ..kinematics import IcrParams

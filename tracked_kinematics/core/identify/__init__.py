@@ -3,29 +3,28 @@ Identification: fit motion models and drive trains to logged data.
 
 The face of the sub-package; the modules behind it hold the derivations and references:
 :mod:`.segments` (the data), :mod:`.problem` (Martinez eq. 17 and its Jacobian),
-:mod:`.search_space`, :mod:`.excitation`, :mod:`.fitting`, :mod:`.evaluation`,
+:mod:`.search_space`, :mod:`.excitation`, :mod:`.fitting`, :mod:`.holdout`,
 :mod:`.spin` (Martinez eq. 16) and :mod:`.procedure` (:func:`identify`) for the motion
-models, :mod:`.ddc` for the tuned diff_drive_controller they are compared with;
+models, :mod:`.tuned_diff_drive` for the tuned diff_drive_controller they are compared with;
 :mod:`.delay` (the ground-truth stamps' delay behind the encoders, model-free);
-:mod:`.drive_data` and :mod:`.drivetrain` for the drive train; :mod:`.reference`
+:mod:`.drive_data` and :mod:`.drivetrain_fit` for the drive train; :mod:`.reference`
 (:func:`fit_from_reference`: calibration from a gyro, GNSS or a measured straight, for robots
 without a ground-truth pose).
 """
 
-from .ddc import ddc_parameters, DDC_PARAMS, TunedDiffDrive
 from .delay import (
     correct_ground_truth, DelayEstimate, estimate_delay, estimate_delay_arrays, estimate_delays,
     fixed_delay)
 from .drive_data import DriveData, resample
-from .drivetrain import DriveTrainFit, fit_drivetrain
-from .evaluation import (
-    dead_reckoning, ErrorStats, HoldOut, MIN_BLOCKS, MIN_SEGMENTS, MIN_WINDOWS,
-    prediction_errors)
+from .drivetrain_fit import DriveTrainFit, fit_drivetrain
 from .excitation import (
     check_excitation, Excitation, MIN_MOVING_SEGMENTS, MIN_STRAIGHT, MIN_TURNING)
 from .fitting import (
     auto_heading_weight, check_identified, fit, FitResult, METHODS, REFERENCE_RESIDUAL,
     STD_LIMITS, Uncertain, UncertainError)
+from .holdout import (
+    dead_reckoning, ErrorStats, HoldOut, MIN_BLOCKS, MIN_SEGMENTS, MIN_WINDOWS,
+    prediction_errors)
 from .problem import (
     check_heading_weight, DEFAULT_HEADING_WEIGHT, LOSSES, robust_cost, SegmentProblem)
 from .procedure import DataTime, Identification, identify, ModelEvaluation
@@ -39,6 +38,7 @@ from .search_space import (
 from .segments import (
     build_segments, covered_spans, gap_threshold, Recording, Segments, stretches)
 from .spin import spin_in_place, SpinResult
+from .tuned_diff_drive import ddc_parameters, DDC_PARAMS, TunedDiffDrive
 from ..errors import ExcitationError, FitError, IdentificationError, SensorDataError
 
 __all__ = [

@@ -30,7 +30,7 @@ instead of an infeasible iterate. A plan whose predicted final pose misses the g
 than the tolerance is returned with ``success = False`` and a message; a goal beyond what
 the limits allow within the horizon is refused before optimising.
 
-Canonical reference inputs (Fink & Stump Table V) are in :mod:`.references`.
+Canonical reference inputs (Fink & Stump Table V) are in :mod:`.trajectories`.
 """
 
 from __future__ import annotations
@@ -43,7 +43,7 @@ import numpy as np
 from scipy import optimize
 from scipy.spatial import cKDTree
 
-from .references import Reference
+from .trajectories import Reference
 from ..command import CommandLimits
 from ..drivetrain import DriveTrain
 from ..errors import PlanningError

@@ -14,7 +14,7 @@ encoders and the reference last delivered, the pose in the geofence frame) and p
    deadman is held again. A return towards the centre resumes where it was.
 2. **Geofence.** A circle of ``geofence_radius`` around the pose at start. Before a step is
    driven it is predicted with the ideal kinematics from the current pose
-   (:func:`.calibration.fence_exit`) and must stay within ``plan_fraction`` of the radius;
+   (:func:`.calibration_protocol.fence_exit`) and must stay within ``plan_fraction`` of the radius;
    otherwise a return towards the centre is driven first (state ``returning``), and a step
    that still does not fit from there is cut where it would leave. While driving, a vehicle
    whose real path (it slips: an uncalibrated vehicle turns less than commanded) is past
@@ -60,7 +60,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field, replace
 import math
 
-from .calibration import fence_exit, Step
+from .calibration_protocol import fence_exit, Step
 from .._checks import require_numbers
 from ..integration import wrap_angle
 
@@ -299,7 +299,7 @@ class Supervisor:
     Parameters
     ----------
     steps : sequence of Step
-        The protocol (:func:`.calibration.protocol`).
+        The protocol (:func:`.calibration_protocol.protocol`).
     config : SupervisorConfig
         Limits and timeouts.
 

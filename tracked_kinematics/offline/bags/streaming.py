@@ -3,7 +3,8 @@ The one message loop: the encoder messages to their decoder, the others to a sec
 
 :func:`read_streams` serves every reader of the sub-package: the second stream is the ground truth
 for :func:`.reader.read_bag`, the commands for :func:`.reader.read_drive_bag`, both for
-:func:`.reader.read_evaluation_bag`, the references for :func:`.references.read_reference_bag`.
+:func:`.reader.read_evaluation_bag`, the references for
+:func:`.reference_reader.read_reference_bag`.
 """
 
 from __future__ import annotations

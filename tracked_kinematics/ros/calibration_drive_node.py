@@ -1,7 +1,7 @@
 """
 calibration_drive: drive a calibration protocol on cmd_vel, safely, then fit the terrain.
 
-A thin adapter around the protocol (:func:`~tracked_kinematics.core.plan.calibration.
+A thin adapter around the protocol (:func:`~tracked_kinematics.core.plan.calibration_protocol.
 protocol`) and the safety supervisor (:class:`~tracked_kinematics.core.plan.supervisor.
 Supervisor`, where every safety rule lives and is tested). At a fixed ``rate`` it gives the
 supervisor the time, the deadman, the freshness of the encoders and of the reference and the
@@ -46,7 +46,7 @@ from std_msgs.msg import Bool, String
 from std_srvs.srv import Trigger
 from tracked_kinematics.core.clock_watch import ClockWatch
 from tracked_kinematics.core.integration import stamp_ns, yaw_from_quaternion
-from tracked_kinematics.core.plan.calibration import (
+from tracked_kinematics.core.plan.calibration_protocol import (
     CalibrationRecording, FenceOdometry, MAX_DURATION, MIN_DURATION, protocol, total_duration)
 from tracked_kinematics.core.plan.supervisor import (
     Inputs, pose_jump, Supervisor, SupervisorConfig)
