@@ -39,12 +39,11 @@ never the inf of an overflow nor the ``0 * inf = NaN`` of a ramp that would latc
 
 from __future__ import annotations
 
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 import math
 
 import numpy as np
 
-from ._checks import require_numbers
 from .kinematics import IcrParams, inverse, nominal_speeds
 
 #: Largest nominal track speed setpoint the command path ever gives, m/s, limits or none.
@@ -76,10 +75,8 @@ class CommandLimits:
         Largest rate of change toward zero of a track setpoint, ``v_x`` and ``w``; None (the
         default) is the matching acceleration limit.
 
-    Raises
-    ------
-    ValueError
-        On a limit that is not a number > 0 (``inf`` allowed); the message names it.
+    Each limit is a number > 0 (``inf`` allowed), checked where it enters
+    (:func:`tracked_kinematics.params.values.limits_from_values`), not here.
 
     """
 
@@ -97,8 +94,6 @@ class CommandLimits:
         for decel, accel in _DECELERATION_OF.items():
             if getattr(self, decel) is None:
                 object.__setattr__(self, decel, getattr(self, accel))
-        names = tuple(f.name for f in fields(self))
-        require_numbers(self, positive=names, unbounded=names)
 
 
 def _factor(magnitude, limit):

@@ -49,7 +49,7 @@ variance there (keeping the matrix positive semi-definite).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 import math
 
 import numpy as np
@@ -87,25 +87,14 @@ class TrackNoise:
         Variance added per sample and per track, m^2, so the covariance stays positive
         definite when the vehicle stands still.
 
-    Raises
-    ------
-    ValueError
-        When any value is non-finite or negative (the message names it).
+    Each is finite and >= 0, checked where it enters (odometry_node's ``covariance.*``
+    parameters), not here.
 
     """
 
     k_left: float = 1e-3
     k_right: float = 1e-3
     floor: float = 1e-9
-
-    def __post_init__(self):
-        for f in fields(self):
-            value = getattr(self, f.name)
-            if isinstance(value, bool) or not isinstance(value, (int, float)):
-                raise ValueError(f'{f.name} must be a number, got {value!r}')
-            if not math.isfinite(value) or value < 0.0:
-                raise ValueError(f'{f.name} must be finite and >= 0, got {value!r}')
-            object.__setattr__(self, f.name, float(value))
 
     def travel_variances(self, abs_left, abs_right, samples=1):
         """
