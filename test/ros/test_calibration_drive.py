@@ -122,6 +122,18 @@ def drive(ros_context, executor):
         d.robot.node.destroy_node()
 
 
+@pytest.mark.parametrize('name, value, message', [
+    ('max_speed', math.nan, 'max_speed must be finite, got nan'),
+    ('geofence_radius', True, 'geofence_radius must be a number, got True'),
+    ('deadman_timeout', 0.0, 'deadman_timeout must be > 0, got 0.0'),
+])
+def test_supervisor_settings_are_checked_where_they_enter(name, value, message):
+    # SupervisorConfig trusts them: the node's parameter table is the one check.
+    from tracked_kinematics.params.spec import check_values
+    from tracked_kinematics.ros.calibration_drive_node import CALIBRATION_PARAMS
+    assert check_values(CALIBRATION_PARAMS, {name: value}) == [message]
+
+
 def test_idle_until_start_and_zero_meanwhile(drive):
     d = drive()
     d.run(0.5)
