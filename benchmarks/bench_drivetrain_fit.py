@@ -9,6 +9,7 @@ setpoints at 50 Hz, encoder speeds at 100 Hz with 1 mm/s white noise):
 - ``identify_drivetrain`` end to end (bag reading included) on a 60 s simulated bag.
 """
 
+import contextlib
 from dataclasses import replace
 import io
 import tempfile
@@ -72,8 +73,11 @@ def main():
     with tempfile.TemporaryDirectory() as tmp:
         sim = simulate_bag(f'{tmp}/run', 'auriga_alpha', duration=60.0, seed=1)
         start = time.perf_counter()
-        out = io.StringIO()
-        cli._run(cli.build_parser().parse_args([str(sim.bag), '-o', f'{tmp}/d.yaml']), out)
+        with contextlib.redirect_stdout(io.StringIO()):
+            radius = load_vehicle('auriga_alpha').robot.encoders.sprocket_radius
+            status = cli.main([str(sim.bag), '-o', f'{tmp}/d.yaml',
+                               '--sprocket-radius', str(radius)])
+        assert status == 0, status
         print(f'identify_drivetrain on a 60 s bag ({sum(sim.messages.values())} messages), '
               f'end to end: {time.perf_counter() - start:.2f} s')
 

@@ -228,13 +228,3 @@ def test_ros_covariance_layout():
     np.testing.assert_array_equal(full[np.ix_([0, 1, 5], [0, 1, 5])], full_matrix(upper))
     assert full[2, 2] == full[3, 3] == full[4, 4] == UNOBSERVED_VARIANCE
     assert np.count_nonzero(full) == 9 + 3
-
-
-@pytest.mark.parametrize('kwargs, match', [
-    ({'k_left': -1.0}, 'k_left must be finite and >= 0'),
-    ({'floor': float('nan')}, 'floor must be finite'),
-    ({'k_right': 'a'}, 'k_right must be a number'),
-])
-def test_track_noise_is_validated(kwargs, match):
-    with pytest.raises(ValueError, match=match):
-        TrackNoise(**kwargs)

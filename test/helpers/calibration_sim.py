@@ -12,14 +12,14 @@ simulator's (auriga_alpha on hard floor by default: it turns about half as fast 
 from dataclasses import dataclass
 import math
 
-from tracked_kinematics.core.plan.calibration import FenceOdometry
+from tracked_kinematics.core.plan.calibration_protocol import FenceOdometry
 from tracked_kinematics.core.plan.supervisor import Inputs, Supervisor, SupervisorConfig
 from tracked_kinematics.core.sim.live import LiveSimulator
 from tracked_kinematics.core.sim.simulation import TwistTable
 from tracked_kinematics.core.sim.terrains import TERRAINS
 from tracked_kinematics.params.vehicles import load_vehicle
 
-#: The node's tighter fence fractions with the IMU (ros/calibration_drive.py, IMU_FENCE).
+#: The node's tighter fence fractions with the IMU (ros/calibration_drive_node.py, IMU_FENCE).
 IMU_FENCE = {'plan_fraction': 0.8, 'guard_fraction': 0.87}
 DT = 0.01           # s, the simulator's step
 TICKS = 5           # simulator steps per supervisor tick (20 Hz)

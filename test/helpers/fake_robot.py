@@ -9,7 +9,7 @@ from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from std_msgs.msg import Bool
 from tracked_kinematics.core.kinematics import forward, IcrParams, inverse
-from tracked_kinematics.core.plan.calibration import predict_step
+from tracked_kinematics.core.plan.calibration_protocol import predict_step
 
 RADIUS = 0.1
 B = 0.42

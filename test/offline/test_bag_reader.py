@@ -177,15 +177,15 @@ def test_quaternion_yaw():
         def __init__(self, yaw):
             self.x, self.y, self.z, self.w = 0.0, 0.0, math.sin(yaw / 2), math.cos(yaw / 2)
     for yaw in (-3.0, -0.5, 0.0, 1.2, 3.1):
-        assert columns._yaw(Q(yaw)) == pytest.approx(yaw)
+        assert columns.quaternion_yaw(Q(yaw)) == pytest.approx(yaw)
 
 
 def test_a_topic_of_the_wrong_type_is_one_grammatical_line():
     # Issue 31: "the IMU need sensor_msgs/msg/Imu".
     from types import SimpleNamespace
-    from tracked_kinematics.offline.bags.opening import _connections
+    from tracked_kinematics.offline.bags.opening import topic_connections
     reader = SimpleNamespace(connections=[SimpleNamespace(topic='/imu', msgtype='std_msgs/msg/X')])
     with pytest.raises(BagError) as raised:
-        _connections(reader, 'run1', '/imu', ('sensor_msgs/msg/Imu',), 'IMU')
+        topic_connections(reader, 'run1', '/imu', ('sensor_msgs/msg/Imu',), 'IMU')
     assert str(raised.value) == ('run1: topic /imu has type std_msgs/msg/X; the IMU must be '
                                  'sensor_msgs/msg/Imu')

@@ -246,12 +246,12 @@ def test_existing_outputs_need_force_and_are_checked_first(sim, tmp_path, capsys
 
 
 def test_a_failure_after_the_work_leaves_nothing_behind(sim, tmp_path, capsys, monkeypatch):
-    from tracked_kinematics.offline import evaluation_plot
+    from tracked_kinematics.offline import model_evaluation_plot
 
     def broken(*args, **kwargs):
         raise OSError(28, 'No space left on device')
 
-    monkeypatch.setattr(evaluation_plot, 'plot_evaluation', broken)
+    monkeypatch.setattr(model_evaluation_plot, 'plot_evaluation', broken)
     status, _, err = run([sim['bag'], '--ground-truth-topic', GT, '--params', sim['truth'],
                           '--report', tmp_path / 'r.json', '--plot', tmp_path / 'p.png'], capsys)
     assert status == 2

@@ -14,7 +14,7 @@ from tracked_kinematics.core import evaluate as ev
 from tracked_kinematics.core import identify as ident
 from tracked_kinematics.core.kinematics import IcrParams
 from tracked_kinematics.offline.bags import EncoderSource, GroundTruthSource, read_bags
-from tracked_kinematics.offline.bags.references import read_reference_bag
+from tracked_kinematics.offline.bags.reference_reader import read_reference_bag
 from tracked_kinematics.offline.cli import identify_icr
 from tracked_kinematics.params import read_params_file
 

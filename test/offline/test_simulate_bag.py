@@ -210,6 +210,15 @@ def test_cli_errors_are_one_line(tmp_path, capsys, argv, message):
     (['--seed', '-1'], '--seed: must be in [0, 4,294,967,295], got -1'),
     (['--gt-noise-xy', 'inf'], '--gt-noise-xy: must be a finite number in [0, 1] m'),
     (['--mu-y', '0'], '--mu-y: must be in [0.01, 5], got 0'),
+    # The gyro's and the GNSS receiver's values: checked here, trusted by the core's models.
+    (['--imu', '--imu-rate', '0'], '--imu-rate: must be in [1, 2000] Hz, got 0'),
+    (['--imu', '--imu-noise', '-1'], '--imu-noise: must be in [0, 1] rad/s, got -1'),
+    (['--imu', '--imu-bias', 'nan'], '--imu-bias: must be a finite number'),
+    (['--imu', '--imu-saturation', '0'], '--imu-saturation: must be in [0.01, 100] rad/s'),
+    (['--gnss', '--gnss-dropout', '1.5'], '--gnss-dropout: must be in [0, 1], got 1.5'),
+    (['--gnss', '--gnss-rate', '-1'], '--gnss-rate: must be in [0.1, 100] Hz, got -1'),
+    (['--gnss', '--gnss-noise', 'inf'], '--gnss-noise: must be a finite number'),
+    (['--gnss', '--gnss-status', 'none'], "--gnss-status: invalid choice: 'none'"),
 ])
 def test_absurd_numbers_are_one_line_before_any_work(tmp_path, capsys, argv, message):
     with pytest.raises(SystemExit) as exc:

@@ -1,4 +1,10 @@
-"""The rings: imports point inwards only (STYLE.md sec. 1; README "Layout")."""
+"""
+The package's layout, kept by tests (README "Layout").
+
+Imports point inwards only: core/ imports neither params/, offline/ nor ros/; offline/ and
+ros/ import core/ and params/, never each other. No module takes another module's
+underscore names, and no two modules share a name.
+"""
 
 import ast
 from pathlib import Path
@@ -113,7 +119,7 @@ def test_every_ring_has_modules():
     ('offline/bags/reader.py', 'from tracked_kinematics.offline.cli import common\n',
      'offline/bags'),
     ('params/tables.py', 'from tracked_kinematics.ros import odometry_node\n', 'params'),
-    ('ros/calibration_drive.py', 'from tracked_kinematics.apps import calibration_drive\n',
+    ('ros/calibration_drive_node.py', 'from tracked_kinematics.apps import calibration_drive\n',
      'ros'),
     ('offline/cli/identify_icr.py', 'from ...apps import calibration_drive\n', 'offline'),
 ])
@@ -133,3 +139,132 @@ def test_a_right_arrow_is_allowed(tmp_path):
     probe.write_text('from ..kinematics import IcrParams\nimport numpy as np\n')
     where = PACKAGE / 'core' / 'identify' / 'fit.py'
     assert not violations(probe, package_parts_of(where), list(rules_for(where)))
+
+
+# One module's private names stay its own: a name another module of the package needs is
+# public (no leading underscore), or lives where both use it. A private module (``_checks``)
+# may be imported: its underscore says "not for users", not "not for the package".
+
+def _is_module(module: str, name: str) -> bool:
+    """Whether ``module.name`` is a module or a package of the package."""
+    parts = f'{module}.{name}'.split('.')
+    if parts[0] != PKG:
+        return False
+    path = PACKAGE.joinpath(*parts[1:])
+    return path.with_suffix('.py').is_file() or (path / '__init__.py').is_file()
+
+
+def private_imports(path: Path, package_parts):
+    """Return the underscore names ``path`` takes from another module of the package."""
+    tree = ast.parse(path.read_text(), filename=str(path))
+    modules = {}   # local name -> module of the package it stands for
+    found = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = package_parts[:len(package_parts) - node.level + 1]
+                module = '.'.join(base + ([node.module] if node.module else []))
+            else:
+                module = node.module or ''
+            if module != PKG and not module.startswith(PKG + '.'):
+                continue
+            for alias in node.names:
+                if _is_module(module, alias.name):
+                    modules[alias.asname or alias.name] = f'{module}.{alias.name}'
+                elif alias.name.startswith('_') and not alias.name.startswith('__'):
+                    found.append(f'{path.name}:{node.lineno} imports {alias.name} from {module}')
+        elif isinstance(node, ast.Import):
+            for alias in node.names:
+                if alias.name.startswith(PKG + '.') and alias.asname:
+                    modules[alias.asname] = alias.name
+    for node in ast.walk(tree):
+        if (isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name)
+                and node.value.id in modules and node.attr.startswith('_')
+                and not node.attr.startswith('__')):
+            found.append(f'{path.name}:{node.lineno} uses {modules[node.value.id]}.{node.attr}')
+    return found
+
+
+@pytest.mark.parametrize('path', [pytest.param(p, id=str(p.relative_to(PACKAGE)))
+                                  for p in sorted(PACKAGE.rglob('*.py'))])
+def test_no_private_name_crosses_modules(path):
+    assert not private_imports(path, package_parts_of(path))
+
+
+@pytest.mark.parametrize('source', [
+    'from .heading_fit import _Heading\n',
+    'from tracked_kinematics.offline.bags.opening import _connections\n',
+    'from . import recordings\nrecordings._clean_gyro(None)\n',
+    'from .. import reference as ref\nref._fit(None)\n',
+])
+def test_private_import_checker_can_fail(tmp_path, source):
+    probe = tmp_path / 'probe.py'
+    probe.write_text(source)
+    where = PACKAGE / 'core' / 'identify' / 'reference' / 'calibration.py'
+    assert private_imports(probe, package_parts_of(where))
+
+
+def test_private_import_checker_allows_public_names_and_private_modules(tmp_path):
+    probe = tmp_path / 'probe.py'
+    probe.write_text('from ..._checks import require_numbers\nfrom ... import _checks\n'
+                     'from .heading_fit import HeadingFit\nimport numpy as np\nnp._x\n'
+                     'from os import _exit\n')
+    where = PACKAGE / 'core' / 'identify' / 'reference' / 'calibration.py'
+    assert not private_imports(probe, package_parts_of(where))
+
+
+# One meaning per module name: no two modules (or sub-packages) of the package share a stem,
+# so that ``prediction`` or ``evaluation`` names one thing wherever it is read. Exempt: the
+# ``__init__`` files, the console scripts of offline/cli/ (named after their executables), and
+# ``errors`` at the top of a ring (core/errors.py, offline/errors.py): each ring's error
+# types, one meaning.
+RING_STEMS = {'errors'}
+
+
+def module_stems(root: Path):
+    """Return {stem: [paths]} of the modules and sub-packages under ``root``."""
+    stems = {}
+    for path in sorted(root.rglob('*.py')):
+        rel = path.relative_to(root)
+        if path.name == '__init__.py':
+            if rel.parent != Path('.'):
+                stems.setdefault(rel.parent.name, []).append(str(rel.parent) + '/')
+            continue
+        if rel.parts[:2] == ('offline', 'cli'):
+            continue
+        if path.stem in RING_STEMS and len(rel.parts) == 2:
+            # The rings' files of that name count as one module.
+            ring_files = [p for p in stems.get(path.stem, []) if p.count('/') == 1]
+            if ring_files:
+                continue
+        stems.setdefault(path.stem, []).append(str(rel))
+    return stems
+
+
+def shared_stems(root: Path):
+    return {stem: paths for stem, paths in module_stems(root).items() if len(paths) > 1}
+
+
+def test_no_two_modules_share_a_name():
+    assert not shared_stems(PACKAGE)
+
+
+@pytest.mark.parametrize('files, shared', [
+    (('core/prediction.py', 'core/evaluate/prediction.py'), 'prediction'),
+    (('core/identify/ddc.py', 'offline/ddc/__init__.py'), 'ddc'),
+    (('core/errors.py', 'core/identify/errors.py'), 'errors'),
+])
+def test_shared_name_checker_can_fail(tmp_path, files, shared):
+    for rel in files:
+        (tmp_path / rel).parent.mkdir(parents=True, exist_ok=True)
+        (tmp_path / rel).write_text('')
+    assert list(shared_stems(tmp_path)) == [shared]
+
+
+def test_shared_name_checker_exemptions(tmp_path):
+    for rel in ('core/__init__.py', 'offline/__init__.py', 'offline/cli/__init__.py',
+                'offline/cli/identify_icr.py', 'offline/identify_icr.py', 'core/errors.py',
+                'offline/errors.py'):
+        (tmp_path / rel).parent.mkdir(parents=True, exist_ok=True)
+        (tmp_path / rel).write_text('')
+    assert not shared_stems(tmp_path)

@@ -71,11 +71,11 @@ def test_parameters_md_is_current():
 
 
 def test_parameters_md_lists_every_parameter_of_every_node():
-    from tracked_kinematics.ros import (calibration_drive, cmd_vel_translator, icr_estimator,
+    from tracked_kinematics.ros import (calibration_drive_node, cmd_vel_translator, icr_estimator,
                                         odometry_node)
     text = (DOCS / 'parameters.md').read_text()
     for table in (odometry_node.PARAMS, cmd_vel_translator.TRANSLATOR_PARAMS,
-                  icr_estimator.PARAMS, calibration_drive.PARAMS):
+                  icr_estimator.PARAMS, calibration_drive_node.PARAMS):
         for spec in table:
             assert f'| `{spec.name}` |' in text, spec.name
 

@@ -1,4 +1,9 @@
-"""The package installs as ament_python with colcon and with pip (STYLE.md sec. 6)."""
+"""
+The package installs as ament_python with colcon and with pip.
+
+The house rule: package.xml of format 3, setup.py ``data_files`` for resource/, config/ and
+launch/, and setup.cfg script directories so that ``ros2 run`` finds the console scripts.
+"""
 
 import importlib
 import os

@@ -38,6 +38,8 @@ def test_deceleration_sign_and_default():
     ('max_track_speed', -1.0, 'max_track_speed must be >= 0'),
     ('max_track_speed', -math.inf, 'max_track_speed must be >= 0'),
     ('max_track_accel', 1e300, 'max_track_accel must be in [0, 100] m/s^2'),
+    ('max_track_accel', -1.0, 'max_track_accel must be >= 0'),
+    ('angular.z.max_acceleration', 'fast', 'angular.z.max_acceleration must be a number'),
     ('angular.z.max_velocity', 51.0, 'angular.z.max_velocity must be in [0, 50] rad/s'),
     ('linear.x.max_deceleration', -101.0, 'must be in [-100, 100] m/s^2'),
     ('max_track_decel', -math.inf, 'must not be -inf'),

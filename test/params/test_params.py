@@ -5,7 +5,8 @@ import os
 import pytest
 from tracked_kinematics.core.errors import InvalidParameters
 from tracked_kinematics.params import (
-    check_values, Derived, ENCODER_INPUT_PARAMS, flatten, icr_from_values, nest, ParamSpec,
+    check_values, Derived, drivetrain_from_values, ENCODER_INPUT_PARAMS, flatten,
+    icr_from_values, nest, ParamSpec,
     read_params_file, resolve, TERRAIN_DEFAULTS, TERRAIN_PARAMS, values_from_icr,
     write_params_file)
 from tracked_kinematics.share import config_file
@@ -173,3 +174,24 @@ def test_a_fifo_is_not_read_as_a_params_file(tmp_path):
     os.mkfifo(fifo)
     with pytest.raises(InvalidParameters, match='params.yaml: not a regular file'):
         read_params_file(fifo)
+
+
+@pytest.mark.parametrize('name, value, message', [
+    ('drivetrain.delay', -0.1, 'drivetrain.delay must be >= 0'),
+    ('drivetrain.max_accel', -1.0, 'drivetrain.max_accel must be >= 0'),
+    ('drivetrain.time_constant', 0.0, 'drivetrain.time_constant must be > 0'),
+    ('drivetrain.motor.inertia', 0.0, 'drivetrain.motor.inertia must be > 0'),
+    ('drivetrain.pid.kd', -1.0, 'drivetrain.pid.kd must be >= 0'),
+])
+def test_drive_train_values_are_checked_where_they_enter(name, value, message):
+    # DriveTrain, FirstOrderLag and PidMotor trust their ranges: this is the one check.
+    loop = 'pid_dc_motor' if name.startswith(('drivetrain.motor', 'drivetrain.pid')) \
+        else 'first_order'
+    with pytest.raises(InvalidParameters, match=message):
+        drivetrain_from_values({'drivetrain.loop': loop, name: value})
+
+
+def test_a_pid_loop_without_gain_is_refused_in_ros_names():
+    with pytest.raises(InvalidParameters, match='drivetrain.pid: at least one of'):
+        drivetrain_from_values({'drivetrain.loop': 'pid_dc_motor', 'drivetrain.pid.kp': 0.0,
+                                'drivetrain.pid.ki': 0.0, 'drivetrain.pid.kd': 0.0})

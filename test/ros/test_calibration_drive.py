@@ -12,10 +12,10 @@ import pytest
 from rclpy.parameter import Parameter
 from std_msgs.msg import String
 from std_srvs.srv import Trigger
-from tracked_kinematics.core.plan.calibration import protocol
+from tracked_kinematics.core.plan.calibration_protocol import protocol
 from tracked_kinematics.offline.calibration_files import CalibrationFiles, FITTED_KEYS
 from tracked_kinematics.params import read_params_file
-from tracked_kinematics.ros.calibration_drive import CalibrationDriveNode
+from tracked_kinematics.ros.calibration_drive_node import CalibrationDriveNode
 from tracked_kinematics.ros.odometry_node import OdometryNode
 from tracked_kinematics.ros.parameters import ParameterError
 import yaml
@@ -120,6 +120,18 @@ def drive(ros_context, executor):
     for d in made:
         d.node.destroy_node()
         d.robot.node.destroy_node()
+
+
+@pytest.mark.parametrize('name, value, message', [
+    ('max_speed', math.nan, 'max_speed must be finite, got nan'),
+    ('geofence_radius', True, 'geofence_radius must be a number, got True'),
+    ('deadman_timeout', 0.0, 'deadman_timeout must be > 0, got 0.0'),
+])
+def test_supervisor_settings_are_checked_where_they_enter(name, value, message):
+    # SupervisorConfig trusts them: the node's parameter table is the one check.
+    from tracked_kinematics.params.spec import check_values
+    from tracked_kinematics.ros.calibration_drive_node import CALIBRATION_PARAMS
+    assert check_values(CALIBRATION_PARAMS, {name: value}) == [message]
 
 
 def test_idle_until_start_and_zero_meanwhile(drive):

@@ -13,7 +13,7 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy
 from tracked_kinematics.offline.cli.convert_diff_drive_params import main
 from tracked_kinematics.offline.ddc import NODE_KEYS, TERRAIN_KEYS
 from tracked_kinematics.params import flatten, read_params_file
-from tracked_kinematics.ros import (calibration_drive, cmd_vel_translator, icr_estimator,
+from tracked_kinematics.ros import (calibration_drive_node, cmd_vel_translator, icr_estimator,
                                     odometry_node, tracked_simulator)
 from tracked_kinematics.ros.main import params_file_keys, unknown_parameters
 from tracked_kinematics.ros.parameters import package_parameters
@@ -65,7 +65,7 @@ def test_each_node_gets_the_vehicle_and_its_own_section(context):
 
 
 @pytest.mark.parametrize('module', [odometry_node, icr_estimator, cmd_vel_translator,
-                                    calibration_drive, tracked_simulator])
+                                    calibration_drive_node, tracked_simulator])
 def test_no_node_is_given_a_parameter_no_node_declares(converted, module):
     # One file for every node of the package: a key another node declares is not unknown.
     specs = getattr(module, 'PARAMS', None) or getattr(module, 'TRANSLATOR_PARAMS', None) \
@@ -76,8 +76,8 @@ def test_no_node_is_given_a_parameter_no_node_declares(converted, module):
 
 def test_calibration_drive_reads_the_joints_of_the_converted_file(converted):
     # Issue 31 item 1: calibration_drive fell back to left_sprocket_joint.
-    assert read_params_file(converted, calibration_drive.NODE_NAME)['left_joints'] == LEFT
-    assert read_params_file(converted, calibration_drive.NODE_NAME)['right_joints'] == RIGHT
+    assert read_params_file(converted, calibration_drive_node.NODE_NAME)['left_joints'] == LEFT
+    assert read_params_file(converted, calibration_drive_node.NODE_NAME)['right_joints'] == RIGHT
 
 
 def test_a_node_section_holds_only_what_another_node_reads_otherwise():

@@ -17,7 +17,7 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile
 from std_msgs.msg import Float64
-from tracked_kinematics.ros.calibration_drive import CalibrationDriveNode
+from tracked_kinematics.ros.calibration_drive_node import CalibrationDriveNode
 from tracked_kinematics.ros.cmd_vel_translator import CmdVelTranslator
 from tracked_kinematics.ros.health import ERROR, Health, OK
 from tracked_kinematics.ros.icr_estimator import IcrEstimatorNode

@@ -272,6 +272,31 @@ def test_an_estimator_setting_out_of_range_refuses_to_start(ros_context, name):
             Parameter(k, value=v) for k, v in {**BASE, name: REFUSED[name]}.items()])
 
 
+@pytest.mark.parametrize('name, value, message', [
+    ('pose_std_xy', 0.0, 'pose_std_xy must be > 0'),
+    ('process_std', -1.0, 'process_std must be >= 0'),
+    ('gate_probability', 1.0, 'gate_probability must be < 1'),
+    ('max_outliers', 0, 'max_outliers must be > 0'),
+    ('pose_delay', math.nan, 'pose_delay must be finite'),
+    ('noise_memory', 5, 'noise_memory must be in [20, 100000]'),
+    ('prior_std', 0.0, 'prior_std must be > 0'),
+    ('fallback_span', 0.0, 'fallback_span must be > 0'),
+    ('fallback_margin', 1.0, 'fallback_margin must be < 1'),
+])
+def test_estimator_settings_are_checked_where_they_enter(name, value, message):
+    # EstimatorConfig trusts its fields: the node's parameter table checks each, once.
+    from tracked_kinematics.params.spec import check_values
+    from tracked_kinematics.ros.icr_estimator import ESTIMATOR_PARAMS
+    assert check_values(ESTIMATOR_PARAMS, {name: value}) == [f'{message}, got {value!r}']
+
+
+@pytest.mark.parametrize('name, value', [('adaptive_noise', 1), ('fallback', 'yes')])
+def test_an_estimator_switch_that_is_not_a_bool_refuses_to_start(ros_context, name, value):
+    with pytest.raises(ParameterError, match=name):
+        IcrEstimatorNode(context=ros_context, parameter_overrides=[
+            Parameter(k, value=v) for k, v in {**BASE, name: value}.items()])
+
+
 def test_pose_delay_reaches_the_filter(ros_context):
     # Issue 16: the ground-truth delay identify_icr finds applies to the node's pose stream.
     node = IcrEstimatorNode(context=ros_context, parameter_overrides=[

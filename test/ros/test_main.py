@@ -260,7 +260,7 @@ def test_settings_a_node_will_not_use_are_said(tmp_path):
     assert notices[0].startswith(f'-p track_width has no effect: {path}, given after it')
     assert notices[1].startswith("-p publish_tf has no effect: the section 'odometry_node' of")
     # Issue 31 item 1: the joints of an odometry_node section do not reach calibration_drive.
-    from tracked_kinematics.ros.calibration_drive import PARAMS as CALIBRATION
+    from tracked_kinematics.ros.calibration_drive_node import PARAMS as CALIBRATION
     notices = _settings_notices('calibration_drive', CALIBRATION,
                                 [('file', str(path), sections)])
     assert notices == [f'{path} sets left_joints only for odometry_node; calibration_drive '

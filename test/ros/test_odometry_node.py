@@ -20,7 +20,9 @@ from tracked_kinematics.core.integration import integrate
 from tracked_kinematics.core.kinematics import forward, true_speeds
 from tracked_kinematics.core.odometry import Odometry
 from tracked_kinematics.params import icr_from_values, read_params_file
-from tracked_kinematics.ros.odometry_node import OdometryNode
+from tracked_kinematics.params.spec import check_values
+from tracked_kinematics.ros import odometry_node
+from tracked_kinematics.ros.odometry_node import ODOMETRY_PARAMS, OdometryNode
 from tracked_kinematics.ros.parameters import ParameterError
 from tracked_kinematics.share import config_file
 
@@ -506,3 +508,31 @@ def test_console_script_refuses_to_start_without_a_vehicle(tmp_path):
                            'publish_rate:=1e-300', tmp_path=tmp_path)
     assert script.wait(30.0) == 2
     assert 'publish_rate must be 0 or >= 0.01 Hz' in script.output
+
+
+@pytest.mark.parametrize('name, value, message', [
+    ('covariance.k_left', -1.0, 'covariance.k_left must be >= 0'),
+    ('covariance.floor', math.nan, 'covariance.floor must be finite'),
+    ('covariance.k_right', 'a', 'covariance.k_right must be a number'),
+])
+def test_track_noise_is_checked_where_it_enters(name, value, message):
+    # TrackNoise trusts its values: odometry_node's parameter table checks them, once.
+    assert check_values(ODOMETRY_PARAMS, {name: value}) == [f'{message}, got {value!r}']
+
+
+def test_the_model_is_built_once_at_start(ros_context, monkeypatch):
+    # validate builds the kinematic model; the start takes that one into use.
+    calls = []
+
+    def counted(values):
+        calls.append(values)
+        return icr_from_values(values)
+    monkeypatch.setattr(odometry_node, 'icr_from_values', counted)
+    node = OdometryNode(context=ros_context, parameter_overrides=VEHICLE)
+    try:
+        assert len(calls) == 1
+        assert node.odometry.icr == icr_from_values(calls[0])
+        assert node.set_parameters([Parameter('icr.x', value=-0.1)])[0].successful
+        assert len(calls) == 2 and node.odometry.icr.x == -0.1
+    finally:
+        node.destroy_node()

@@ -1,7 +1,7 @@
 """
 calibration_drive (console script): the node of ``ros/`` with the finisher of ``offline/``.
 
-The node (:class:`tracked_kinematics.ros.calibration_drive.CalibrationDriveNode`) drives the
+The node (:class:`tracked_kinematics.ros.calibration_drive_node.CalibrationDriveNode`) drives the
 protocol and records; :class:`tracked_kinematics.offline.calibration_files.CalibrationFiles`
 checks the output paths at start and writes the bag, the terrain file and the report at the
 end. The node ends the process with the finisher's exit status (0: written; 2: an output or
@@ -17,7 +17,7 @@ import signal
 import sys
 
 from tracked_kinematics.offline.calibration_files import CalibrationFiles
-from tracked_kinematics.ros import calibration_drive as node
+from tracked_kinematics.ros import calibration_drive_node as node
 from tracked_kinematics.ros.main import run
 
 

@@ -8,12 +8,11 @@ along one segment. See docs/nodes/cmd_vel_translator.md, "Limits and the vehicle
 
 from __future__ import annotations
 
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 import math
 
 import numpy as np
 
-from ._checks import require_numbers
 from .kinematics import IcrParams, inverse, nominal_speeds
 
 #: Largest nominal track speed setpoint the command path ever gives, m/s, limits or none.
@@ -49,8 +48,6 @@ class CommandLimits:
         for decel, accel in _DECELERATION_OF.items():
             if getattr(self, decel) is None:
                 object.__setattr__(self, decel, getattr(self, accel))
-        names = tuple(f.name for f in fields(self))
-        require_numbers(self, positive=names, unbounded=names)
 
 
 def _factor(magnitude, limit):

@@ -9,7 +9,7 @@ model".
 
 from __future__ import annotations
 
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 import math
 
 import numpy as np
@@ -45,15 +45,6 @@ class TrackNoise:
     k_left: float = 1e-3
     k_right: float = 1e-3
     floor: float = 1e-9
-
-    def __post_init__(self):
-        for f in fields(self):
-            value = getattr(self, f.name)
-            if isinstance(value, bool) or not isinstance(value, (int, float)):
-                raise ValueError(f'{f.name} must be a number, got {value!r}')
-            if not math.isfinite(value) or value < 0.0:
-                raise ValueError(f'{f.name} must be finite and >= 0, got {value!r}')
-            object.__setattr__(self, f.name, float(value))
 
     def travel_variances(self, abs_left, abs_right, samples=1):
         """Variances (m^2) of the tracks' travel over distances ``abs_*`` (m), ``samples``."""

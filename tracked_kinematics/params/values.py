@@ -39,6 +39,7 @@ def drivetrain_from_values(values: Mapping[str, Any], max_speed: float = math.in
     problems = check_values(DRIVETRAIN_PARAMS, v)
     if problems:
         raise InvalidParameters('; '.join(problems))
+    v = {k: float(val) if type(val) is int else val for k, val in v.items()}  # YAML's 1 is 1.0
     try:
         loop = None
         if v['drivetrain.loop'] == 'first_order':

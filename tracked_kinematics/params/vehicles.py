@@ -131,6 +131,7 @@ def robot_from_values(values: Mapping[str, Any]) -> Robot:
     problems = check_values(VEHICLE_PARAMS, v)
     if problems:
         raise InvalidParameters('; '.join(problems))
+    v = {k: float(val) if type(val) is int else val for k, val in v.items()}  # YAML's 1 is 1.0
     try:
         vehicle = Vehicle(
             track_width=v['track_width'], contact_length=v['contact_length'],

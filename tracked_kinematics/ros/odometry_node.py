@@ -19,6 +19,7 @@ from nav_msgs.msg import Odometry as OdometryMsg
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from tracked_kinematics.core.covariance import TrackNoise
 from tracked_kinematics.core.integration import quaternion_from_yaw
+from tracked_kinematics.core.kinematics import IcrParams
 from tracked_kinematics.core.odometry import Odometry
 from tracked_kinematics.params import (ENCODER_INPUT_PARAMS, frame_id, icr_from_values,
                                        non_negative, ParamSpec, TERRAIN_PARAMS,
@@ -65,13 +66,27 @@ def _noise(values: Mapping[str, Any]) -> TrackNoise:
                       values['covariance.floor'])
 
 
-def validate(values: Mapping[str, Any]) -> None:
-    """Check the parameters as a whole; ValueError names the parameters at fault."""
-    icr_from_values(values)
+def validate(values: Mapping[str, Any]) -> IcrParams:
+    """
+    Check the node's parameters as a whole; return the kinematic model they give.
+
+    Raises
+    ------
+    ValueError
+        For an invalid kinematic model (``y_left <= y_right``, chi outside (0, 1], ...),
+        a joint on both sides, or equal frames; the message names the parameters.
+
+    """
+    icr = icr_from_values(values)
     check_encoder_values(values)
     if values['odom_frame'] == values['base_frame']:
         raise ValueError(f'odom_frame and base_frame must differ, both are '
                          f'{values["odom_frame"]!r}')
+    return icr
+
+
+def _terrain(values: Mapping[str, Any]) -> tuple:
+    return tuple(values.get(spec.name) for spec in TERRAIN_PARAMS)
 
 
 class OdometryNode(TableNode):
@@ -82,11 +97,24 @@ class OdometryNode(TableNode):
     when the parameters given at start are invalid.
     """
 
+    # The model validate built, with the terrain values it came from: the start and every
+    # accepted change build it once, in validate, and take that one into use.
+    _validated: tuple | None = None
+
     def __init__(self, **kwargs):
-        super().__init__(NODE_NAME, PARAMS, validate, **kwargs)
+        super().__init__(NODE_NAME, PARAMS, self._validate, **kwargs)
+
+    def _validate(self, values: Mapping[str, Any]) -> None:
+        self._validated = (_terrain(values), validate(values))
+
+    def _icr(self, values: Mapping[str, Any]) -> IcrParams:
+        terrain = _terrain(values)
+        if self._validated is None or self._validated[0] != terrain:
+            self._validated = (terrain, icr_from_values(values))
+        return self._validated[1]
 
     def _start(self, values: Mapping[str, Any]) -> None:
-        self.odometry = Odometry(icr_from_values(values), _noise(values))
+        self.odometry = Odometry(self._icr(values), _noise(values))
         self._publisher = self.create_publisher(
             OdometryMsg, 'odom', QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE))
         self._serializer = None
@@ -145,7 +173,7 @@ class OdometryNode(TableNode):
 
     def _apply(self, values: Mapping[str, Any]) -> None:
         """Take (new) parameter values into use from the next encoder step on."""
-        self.odometry.set_model(icr_from_values(values), _noise(values))
+        self.odometry.set_model(self._icr(values), _noise(values))
         if self.encoder is not None:
             self.encoder.configure(values)
         rate = values['publish_rate']

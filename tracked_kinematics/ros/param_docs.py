@@ -14,7 +14,7 @@ import sys
 
 from tracked_kinematics.params import (COMMAND_LIMIT_PARAMS, DRIVETRAIN_PARAMS,
                                        ENCODER_INPUT_PARAMS, ParamSpec, TERRAIN_PARAMS)
-from tracked_kinematics.ros import (calibration_drive, cmd_vel_translator, icr_estimator,
+from tracked_kinematics.ros import (calibration_drive_node, cmd_vel_translator, icr_estimator,
                                     odometry_node, tracked_simulator)
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -64,7 +64,7 @@ NODES = (
     ('tracked_simulator', tracked_simulator.SIMULATOR_PARAMS,
      'Checked together: the vehicle file loads (every problem of it named) and `terrain` is '
      "one of the shipped terrains or the vehicle file's own `friction.terrain`."),
-    ('calibration_drive', calibration_drive.PARAMS,
+    ('calibration_drive', calibration_drive_node.PARAMS,
      'Checked together: the terrain and encoder checks above, and a deadman '
      '(`deadman_topic` or `joy_topic`). `output`, the report beside it and `bag` are checked '
      'as files at start ([output files](output-files.md)).'),

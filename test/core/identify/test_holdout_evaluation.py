@@ -1,4 +1,4 @@
-"""core.identify.evaluation: held-out time blocks, folds, windows inside pieces."""
+"""core.identify.holdout: held-out time blocks, folds, windows inside pieces."""
 
 from helpers.recordings import pieces
 from helpers.vehicle_sim import AURIGA, B, simulate

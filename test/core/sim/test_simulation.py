@@ -133,7 +133,3 @@ def test_bad_inputs(tables):
         simulate(robot, np.full((10, 2), np.nan), DT, tables[AURIGA])
     with pytest.raises(ValueError, match='another vehicle'):
         simulate(robot, np.zeros((10, 2)), DT, tables[LOADED])
-    with pytest.raises(ValueError, match='ticks_per_revolution'):
-        Encoders(ticks_per_revolution=-1)
-    with pytest.raises(ValueError, match='rate'):
-        GroundTruth(rate=0.0)

@@ -5,12 +5,12 @@ Evaluation: score terrain models on recordings, the way the field measures them.
 (:func:`evaluate`); see docs/tools/evaluate_model.md.
 """
 
+from .horizons import command_horizons, Commands, encoder_horizons, HorizonErrors
 from .metrics import (evo_path_pairs, horizon_members, relative_errors, rpe, summary,
                       window_pairs)
 from .online import OnlineRun, replay
 from .pieces import (Cut, cut, icr_increments, mean_track_speeds, moving_windows, odometry,
                      Piece)
-from .prediction import command_horizons, Commands, encoder_horizons, HorizonErrors
 from .scoring import Candidate, Data, evaluate, Evaluation, rpe_key, Settings, window_key
 
 __all__ = [

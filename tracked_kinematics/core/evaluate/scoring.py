@@ -13,9 +13,9 @@ import math
 
 import numpy as np
 
+from .horizons import command_horizons, Commands, encoder_horizons, HorizonErrors
 from .metrics import relative_errors, rpe, summary
 from .pieces import cut, moving_windows, odometry, Piece
-from .prediction import command_horizons, Commands, encoder_horizons, HorizonErrors
 from ..drivetrain import DriveTrain
 from ..identify import Recording
 from ..kinematics import IcrParams

@@ -6,20 +6,19 @@ calibration without ground truth (:func:`fit_from_reference`). See docs/tools/id
 docs/tools/identify_drivetrain.md.
 """
 
-from .ddc import ddc_parameters, DDC_PARAMS, TunedDiffDrive
 from .delay import (
     correct_ground_truth, DelayEstimate, estimate_delay, estimate_delay_arrays, estimate_delays,
     fixed_delay)
 from .drive_data import DriveData, resample
-from .drivetrain import DriveTrainFit, fit_drivetrain
-from .evaluation import (
-    dead_reckoning, ErrorStats, HoldOut, MIN_BLOCKS, MIN_SEGMENTS, MIN_WINDOWS,
-    prediction_errors)
+from .drivetrain_fit import DriveTrainFit, fit_drivetrain
 from .excitation import (
     check_excitation, Excitation, MIN_MOVING_SEGMENTS, MIN_STRAIGHT, MIN_TURNING)
 from .fitting import (
     auto_heading_weight, check_identified, fit, FitResult, METHODS, REFERENCE_RESIDUAL,
     STD_LIMITS, Uncertain, UncertainError)
+from .holdout import (
+    dead_reckoning, ErrorStats, HoldOut, MIN_BLOCKS, MIN_SEGMENTS, MIN_WINDOWS,
+    prediction_errors)
 from .problem import (
     check_heading_weight, DEFAULT_HEADING_WEIGHT, LOSSES, robust_cost, SegmentProblem)
 from .procedure import DataTime, Identification, identify, ModelEvaluation
@@ -33,6 +32,7 @@ from .search_space import (
 from .segments import (
     build_segments, covered_spans, gap_threshold, Recording, Segments, stretches)
 from .spin import spin_in_place, SpinResult
+from .tuned_diff_drive import ddc_parameters, DDC_PARAMS, TunedDiffDrive
 from ..errors import ExcitationError, FitError, IdentificationError, SensorDataError
 
 __all__ = [

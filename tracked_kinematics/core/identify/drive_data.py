@@ -1,7 +1,7 @@
 """
 Drive-train data: commanded and measured track speeds, put on one grid (Fink & Stump sec. IV-A).
 
-The drive-train fit (:mod:`.drivetrain`) compares the simulated response to the commands with
+The drive-train fit (:mod:`.drivetrain_fit`) compares the simulated response to the commands with
 the measured speeds sample by sample, so both series are first resampled onto a common grid
 of period ``dt``: the commands as held setpoints (the one in force at each grid time), the
 measured speeds linearly. Gaps longer than ``max_gap`` in either stream cut the data into

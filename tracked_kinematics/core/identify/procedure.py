@@ -5,9 +5,9 @@ The whole identification: time, check, fit, hold out, compare (Martinez et al. 2
 removes it (:mod:`.delay`), cuts the recordings into segments inside their pieces
 (:mod:`.segments`), checks that they excite what is fitted (:mod:`.excitation`), fits the
 requested model by the least squares of eq. (17) (:mod:`.fitting`), fits the baseline a user
-already has, diff_drive_controller tuned (:mod:`.ddc`), and measures every compared model on
-held-out time blocks (:mod:`.evaluation`), the comparison of Martinez sec. 6 and Fink &
-Stump sec. IV-B.
+already has, diff_drive_controller tuned (:mod:`.tuned_diff_drive`), and measures every
+compared model on held-out time blocks (:mod:`.holdout`), the comparison of Martinez sec. 6
+and Fink & Stump sec. IV-B.
 """
 
 from __future__ import annotations
@@ -18,9 +18,9 @@ import time
 import numpy as np
 
 from .delay import correct_ground_truth, DelayEstimate, estimate_delays, fixed_delay
-from .evaluation import ErrorStats, HoldOut, MIN_SEGMENTS, MIN_WINDOWS, prediction_errors
 from .excitation import check_excitation, Excitation
 from .fitting import check_identified, fit, FitResult
+from .holdout import ErrorStats, HoldOut, MIN_SEGMENTS, MIN_WINDOWS, prediction_errors
 from .problem import DEFAULT_HEADING_WEIGHT
 from .search_space import build_model, COMPARE_MODELS
 from .segments import build_segments, covered_spans, ground_truth_jumps, over_jumps, Segments
@@ -210,10 +210,11 @@ def identify(recordings, model: str = 'icr_scales', track_width: float = 0.42, *
     3. Fit ``model`` on all moving segments, starting from ``base`` when given, and check
        its standard errors (:func:`.fitting.check_identified`: a parameter determined but
        uncertain is refused unless ``accept_uncertain``).
-    4. Fit the tuned diff_drive_controller (:class:`.ddc.TunedDiffDrive`) on the same data.
+    4. Fit the tuned diff_drive_controller (:class:`.tuned_diff_drive.TunedDiffDrive`) on the
+       same data.
     5. Hold out time blocks (:class:`HoldOut`: cross-validated when one fold would give
-       fewer than :data:`.evaluation.MIN_WINDOWS` scored windows and
-       :data:`.evaluation.MIN_SEGMENTS` segments), fit every model of ``compare``
+       fewer than :data:`.holdout.MIN_WINDOWS` scored windows and
+       :data:`.holdout.MIN_SEGMENTS` segments), fit every model of ``compare``
        on the rest with the heading weight of step 3 (one round of robust least squares
        each) and measure each on the held-out segments and on the held-out windows of
        ``window`` s in which the vehicle moves (:func:`moving`; ``min_speed=None``: every

@@ -10,8 +10,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .ddc import TunedDiffDrive  # noqa: F401 (registers tuned_ddc)
 from .segments import Segments
+from .tuned_diff_drive import TunedDiffDrive  # noqa: F401 (registers tuned_ddc)
 from ..models import model_class, model_names, MotionModel
 
 

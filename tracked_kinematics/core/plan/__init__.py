@@ -1,7 +1,7 @@
 """Trajectory generation: the canonical references (Fink & Stump Table V) and the planner."""
 
 from .planner import path_deviation, Plan, Planner, reach
-from .references import (
+from .trajectories import (
     CANONICAL, canonical, curvature_profile, Reference, reference, trapezoid_profile)
 from ..errors import PlanningError
 

@@ -16,7 +16,7 @@ import numpy as np
 from scipy import optimize
 from scipy.spatial import cKDTree
 
-from .references import Reference
+from .trajectories import Reference
 from ..command import CommandLimits
 from ..drivetrain import DriveTrain
 from ..errors import PlanningError

@@ -12,7 +12,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field, replace
 import math
 
-from .calibration import fence_exit, Step
+from .calibration_protocol import fence_exit, Step
 from .._checks import require_numbers
 from ..integration import wrap_angle
 
@@ -67,10 +67,10 @@ class SupervisorConfig:
     outside_fraction: float = 1.15
 
     def __post_init__(self):
-        require_numbers(self, positive=('geofence_radius', 'max_speed', 'max_yaw_rate',
-                                        'deadman_timeout', 'encoder_timeout',
-                                        'reference_timeout', 'return_timeout',
-                                        'heading_tolerance', 'track_width', 'check_window',
+        # geofence_radius, max_speed, max_yaw_rate, the three timeouts and track_width are
+        # checked where they enter (calibration_drive's parameters); the settings no
+        # parameter sets are checked here.
+        require_numbers(self, positive=('return_timeout', 'heading_tolerance', 'check_window',
                                         'follow_fraction', 'reference_fraction',
                                         'return_progress_time', 'outside_fraction'),
                         non_negative=('settle_time', 'start_grace', 'rearm_time', 'reaction_time'))

@@ -13,7 +13,6 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import optimize
 
-from .._checks import require_numbers
 
 GRAVITY = 9.81
 """Standard gravity, m/s^2."""
@@ -58,10 +57,8 @@ class Vehicle:
     name: str = ''
 
     def __post_init__(self):
-        require_numbers(self, finite=('com_x', 'com_y'),
-                        positive=('track_width', 'contact_length', 'contact_width', 'mass',
-                                  'mu_x', 'mu_y', 'max_track_speed'),
-                        non_negative=('com_height',))
+        # Each value's range is checked where it enters (a vehicle file: VEHICLE_PARAMS);
+        # what no single range says, the geometry as a whole, is checked here.
         if self.contact_width >= self.track_width:
             raise ValueError(
                 f'contact_width ({self.contact_width!r} m) must be smaller than track_width '

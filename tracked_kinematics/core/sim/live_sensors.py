@@ -13,7 +13,6 @@ import math
 
 import numpy as np
 
-from .._checks import require_numbers
 from ..integration import wrap_angle
 
 
@@ -101,11 +100,6 @@ class PoseModel:
     jump_rate: float = 0.02
     jump_size: float = 0.2
     jump_yaw: float = 0.02
-
-    def __post_init__(self):
-        require_numbers(self, positive=('rate',),
-                        non_negative=('delay', 'position_noise', 'yaw_noise', 'jump_rate',
-                                      'jump_size', 'jump_yaw'))
 
 
 class PoseStream:

@@ -16,7 +16,6 @@ from scipy.interpolate import CubicSpline, RectBivariateSpline
 
 from .dynamics import StationarySolver, Vehicle
 from .icr_maps import averaged_icr, icr_map
-from .._checks import require_numbers
 from ..drivetrain import DriveTrain
 from ..integration import arc_chord, compose, integrate_twist, wrap_angle
 from ..kinematics import IcrParams
@@ -116,11 +115,6 @@ class Encoders:
     position_noise: float = 0.0
     velocity_noise: float = 0.0
 
-    def __post_init__(self):
-        require_numbers(self, positive=('sprocket_radius', 'scale_left', 'scale_right'),
-                        non_negative=('ticks_per_revolution', 'position_noise',
-                                      'velocity_noise'))
-
 
 @dataclass(frozen=True, slots=True)
 class GroundTruth:
@@ -129,9 +123,6 @@ class GroundTruth:
     rate: float = 10.0
     position_noise: float = 0.0
     yaw_noise: float = 0.0
-
-    def __post_init__(self):
-        require_numbers(self, positive=('rate',), non_negative=('position_noise', 'yaw_noise'))
 
 
 @dataclass(frozen=True)

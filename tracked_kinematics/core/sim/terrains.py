@@ -10,7 +10,6 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 
 from .dynamics import Vehicle
-from .._checks import require_numbers
 
 
 @dataclass(frozen=True, slots=True)
@@ -21,9 +20,6 @@ class Terrain:
     mu_x: float
     mu_y: float
     description: str = ''
-
-    def __post_init__(self):
-        require_numbers(self, positive=('mu_x', 'mu_y'))
 
     def apply(self, vehicle: Vehicle) -> Vehicle:
         """Return ``vehicle`` on this terrain: the same geometry, this friction."""

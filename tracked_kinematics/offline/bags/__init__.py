@@ -2,7 +2,7 @@
 Reading and writing rosbags as plain arrays (rosbags, no ROS install).
 
 The face of the sub-package: :mod:`.sources` says what to read, :mod:`.reader` reads it,
-:mod:`.references` reads a gyro, GNSS or pose reference instead of ground truth,
+:mod:`.reference_reader` reads a gyro, GNSS or pose reference instead of ground truth,
 :mod:`.writer` writes bags. Behind the readers: :mod:`.opening` (the bag and its topics),
 :mod:`.streaming` (the one message loop), the decoders :mod:`.joint_states`,
 :mod:`.side_streams`, :mod:`.ground_truth`, :mod:`.commands`, and :mod:`.columns` (the

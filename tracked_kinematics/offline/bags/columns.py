@@ -1,7 +1,7 @@
 """
 Growing numeric columns and the small conversions every message decoder of a bag uses.
 
-Each message is reduced to a few numbers appended to a :class:`_Columns`, so that memory grows
+Each message is reduced to a few numbers appended to a :class:`Columns`, so that memory grows
 with the number of samples (tens of bytes each), never with the size of the bag.
 """
 
@@ -11,7 +11,7 @@ import numpy as np
 from tracked_kinematics.core.integration import stamp_ns, yaw_from_quaternion
 
 
-class _Columns:
+class Columns:
     """Growing float64 columns, doubled in place: appends are amortised O(1)."""
 
     def __init__(self, width: int, capacity: int = 1024):
@@ -35,17 +35,18 @@ class _Columns:
         return self._data[:self.n]
 
 
-def _stamp(header, receive_ns: int, ref_ns: int) -> float:
+def header_stamp(header, receive_ns: int, ref_ns: int) -> float:
     """Header stamp in ns after ``ref_ns`` (receive time when the stamp was never filled)."""
     ns = stamp_ns(header.stamp.sec, header.stamp.nanosec)
     return float((ns if ns > 0 else receive_ns) - ref_ns)
 
 
-def _yaw(q) -> float:
+def quaternion_yaw(q) -> float:
+    """Return the yaw, rad, of a quaternion message."""
     return yaw_from_quaternion(q.x, q.y, q.z, q.w)
 
 
-def _sort_unique(columns: np.ndarray) -> np.ndarray:
+def sort_unique(columns: np.ndarray) -> np.ndarray:
     """Rows sorted by their first column (time), the first of equal times kept."""
     if len(columns) == 0:
         return columns
@@ -54,5 +55,6 @@ def _sort_unique(columns: np.ndarray) -> np.ndarray:
     return columns[keep]
 
 
-def _strip(frame: str) -> str:
+def strip_frame(frame: str) -> str:
+    """Return a frame id without its leading slashes."""
     return frame.lstrip('/')

@@ -9,12 +9,12 @@ import numpy as np
 from rosbags.highlevel import AnyReader
 from tracked_kinematics.offline.errors import BagError
 
-from .columns import _Columns, _sort_unique, _stamp
-from .opening import _connections, _topic_list
+from .columns import Columns, header_stamp, sort_unique
+from .opening import topic_connections, topic_list
 from .sources import CMD_VEL_TYPES, CommandSource
 
 
-class _Commands:
+class Commands:
     """
     Setpoints per side, or cmd_vel through the ideal inverse -> track commands held until next.
 
@@ -28,8 +28,8 @@ class _Commands:
         self.ref_ns = ref_ns
         self.required = required
         self.kind = None      # 'setpoints' or 'cmd_vel' once chosen
-        self.sides = {topic: _Columns(2) for topic in source.setpoint_topics}
-        self.twists = _Columns(3)
+        self.sides = {topic: Columns(2) for topic in source.setpoint_topics}
+        self.twists = Columns(3)
 
     def _choose(self, reader: AnyReader) -> str | None:
         src = self.source
@@ -44,7 +44,7 @@ class _Commands:
             missing = next(t for t in src.setpoint_topics if t not in present)
             raise BagError(f'{self.path}: no topic {missing} for the setpoints (nor '
                            f'{src.cmd_vel_topic} for cmd_vel); topics present: '
-                           f'{_topic_list(reader)}')
+                           f'{topic_list(reader)}')
         return None
 
     def connections(self, reader: AnyReader):
@@ -52,15 +52,15 @@ class _Commands:
         self.kind = self._choose(reader)
         if self.kind == 'setpoints':
             return [c for topic in self.source.setpoint_topics
-                    for c in _connections(reader, self.path, topic, ('std_msgs/msg/Float64',),
-                                          'setpoints')]
+                    for c in topic_connections(reader, self.path, topic,
+                                               ('std_msgs/msg/Float64',), 'setpoints')]
         if self.kind == 'cmd_vel':
             if not math.isfinite(self.source.track_width) or self.source.track_width <= 0:
                 raise BagError(f'{self.path}: the commands on {self.source.cmd_vel_topic} are '
                                'body twists; turning them into track speeds needs the track '
                                'width (--track-width or --params)')
-            return _connections(reader, self.path, self.source.cmd_vel_topic, CMD_VEL_TYPES,
-                                'commands')
+            return topic_connections(reader, self.path, self.source.cmd_vel_topic,
+                                     CMD_VEL_TYPES, 'commands')
         return []
 
     def add(self, conn, msg, receive_ns) -> None:
@@ -71,7 +71,7 @@ class _Commands:
         t = float(receive_ns - self.ref_ns)
         if conn.msgtype == 'geometry_msgs/msg/TwistStamped':
             twist = msg.twist
-            t = _stamp(msg.header, receive_ns, self.ref_ns)
+            t = header_stamp(msg.header, receive_ns, self.ref_ns)
         self.twists.append((t, float(twist.linear.x), float(twist.angular.z)))
 
     def commands(self):
@@ -82,7 +82,7 @@ class _Commands:
         """
         if self.kind == 'cmd_vel':
             data = self.twists.array
-            data = _sort_unique(data[np.all(np.isfinite(data), axis=1)])
+            data = sort_unique(data[np.all(np.isfinite(data), axis=1)])
             if len(data) < 2:
                 raise BagError(f'{self.path}: fewer than two finite messages on '
                                f'{self.source.cmd_vel_topic}')
@@ -94,7 +94,7 @@ class _Commands:
             return None
         # Setpoints of both sides on the union of their stamps.
         topics = self.source.setpoint_topics
-        data = [_sort_unique(self.sides[topic].array) for topic in topics]
+        data = [sort_unique(self.sides[topic].array) for topic in topics]
         for topic, side in zip(topics, data):
             if len(side) < 2:
                 raise BagError(f'{self.path}: fewer than two messages on {topic}')

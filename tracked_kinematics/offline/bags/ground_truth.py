@@ -10,53 +10,54 @@ from rosbags.highlevel import AnyReader
 from tracked_kinematics.core.integration import compose
 from tracked_kinematics.offline.errors import BagError
 
-from .columns import _Columns, _sort_unique, _stamp, _strip, _yaw
-from .opening import _connections
+from .columns import Columns, header_stamp, quaternion_yaw, sort_unique, strip_frame
+from .opening import topic_connections
 from .sources import GROUND_TRUTH_TYPES, GroundTruthSource
 
 
-class _GroundTruth:
+class GroundTruth:
     """Pose messages -> time, x, y, yaw of base_link."""
 
     def __init__(self, source: GroundTruthSource, path: Path, ref_ns: int):
         self.source = source
         self.path = path
         self.ref_ns = ref_ns
-        self.columns = _Columns(4)
+        self.columns = Columns(4)
         self.pairs: set[tuple[str, str]] = set()
-        self._parent = _strip(source.parent_frame) or None
+        self._parent = strip_frame(source.parent_frame) or None
 
     def connections(self, reader: AnyReader):
         """Return the bag connections of the ground-truth topic (checked)."""
-        return _connections(reader, self.path, self.source.topic, GROUND_TRUTH_TYPES,
-                            'ground truth')
+        return topic_connections(reader, self.path, self.source.topic, GROUND_TRUTH_TYPES,
+                                 'ground truth')
 
     def add(self, conn, msg, receive_ns) -> None:
         msgtype = conn.msgtype
         if msgtype == 'tf2_msgs/msg/TFMessage':
-            child = _strip(self.source.child_frame)
+            child = strip_frame(self.source.child_frame)
             for tf in msg.transforms:
-                parent = _strip(tf.header.frame_id)
-                self.pairs.add((parent, _strip(tf.child_frame_id)))
-                if _strip(tf.child_frame_id) != child:
+                parent = strip_frame(tf.header.frame_id)
+                self.pairs.add((parent, strip_frame(tf.child_frame_id)))
+                if strip_frame(tf.child_frame_id) != child:
                     continue
                 if self._parent is None:
                     self._parent = parent
                 if parent == self._parent:
                     tr = tf.transform
-                    self.columns.append((_stamp(tf.header, receive_ns, self.ref_ns),
-                                         tr.translation.x, tr.translation.y, _yaw(tr.rotation)))
+                    self.columns.append((header_stamp(tf.header, receive_ns, self.ref_ns),
+                                         tr.translation.x, tr.translation.y,
+                                         quaternion_yaw(tr.rotation)))
             return
         pose = msg.pose.pose if msgtype in ('nav_msgs/msg/Odometry',
                                             'geometry_msgs/msg/PoseWithCovarianceStamped') \
             else msg.pose
-        self.columns.append((_stamp(msg.header, receive_ns, self.ref_ns), pose.position.x,
-                             pose.position.y, _yaw(pose.orientation)))
+        self.columns.append((header_stamp(msg.header, receive_ns, self.ref_ns), pose.position.x,
+                             pose.position.y, quaternion_yaw(pose.orientation)))
 
     def poses(self):
         """Return the times (ns), x, y, yaw of base_link."""
         src = self.source
-        child = _strip(src.child_frame)
+        child = strip_frame(src.child_frame)
         parents = sorted({p for p, c in self.pairs if c == child})
         pairs = ', '.join(f'{p} -> {c}' for p, c in sorted(self.pairs))
         if len(parents) > 1 and not src.parent_frame:
@@ -64,7 +65,7 @@ class _GroundTruth:
                 f'{self.path}: several transforms to {child} on {src.topic} ({", ".join(parents)}'
                 ' are parents); choose one with --ground-truth-parent-frame')
         data = self.columns.array
-        data = _sort_unique(data[np.all(np.isfinite(data), axis=1)])
+        data = sort_unique(data[np.all(np.isfinite(data), axis=1)])
         if len(data) < 2:
             what = f'transforms {src.parent_frame or "?"} -> {child}' if self.pairs else 'poses'
             raise BagError(f'{self.path}: fewer than two ground-truth {what} on {src.topic}'

@@ -17,7 +17,7 @@ from tracked_kinematics.core.encoder_modes import JointStatesDecoder
 from tracked_kinematics.core.integration import stamp_ns
 from tracked_kinematics.offline.errors import BagError
 
-from .columns import _Columns, _sort_unique, _stamp
+from .columns import Columns, header_stamp, sort_unique
 from .sources import EncoderSource
 
 
@@ -82,7 +82,7 @@ class _Layout:
         return len(raw) == self.length and all(raw[o:o + len(b)] == b for o, b in self.checks)
 
     def decode(self, raws, receive_ns, ref_ns, index) -> np.ndarray:
-        """Rows ``(t, pos_l, pos_r, vel_l, vel_r)`` of many messages, as :class:`_JointStates`."""
+        """Rows ``(t, pos_l, pos_r, vel_l, vel_r)`` of many messages, as :class:`JointStates`."""
         rows = np.frombuffer(b''.join(raws), dtype=np.uint8).reshape(-1, self.length)
 
         def column(offset, dtype, width=1):
@@ -101,7 +101,7 @@ class _Layout:
         return out
 
 
-class _JointStates:
+class JointStates:
     """JointState messages -> time, per-side mean position and velocity, for the decoder."""
 
     BATCH = 20_000
@@ -112,7 +112,7 @@ class _JointStates:
         self.path = path
         self.ref_ns = ref_ns
         self.ros2 = ros2
-        self.columns = _Columns(5)
+        self.columns = Columns(5)
         self.names_seen: set[str] = set()
         self._index_cache: dict[tuple, tuple | None] = {}
         self._layout = None
@@ -162,14 +162,14 @@ class _JointStates:
         index = self._index(msg.name)
         if index is None:
             return None
-        return [_stamp(msg.header, receive_ns, self.ref_ns),
+        return [header_stamp(msg.header, receive_ns, self.ref_ns),
                 *self.decoder.row(index, len(msg.name), msg.position, msg.velocity)]
 
     def _samples(self):
         """Return the rows sorted by time, raising the missing-joint error when there are none."""
         if self._layout:
             self.flush()
-        data = _sort_unique(self.columns.array)
+        data = sort_unique(self.columns.array)
         if len(data) == 0:
             src = self.source
             missing = [j for j in src.left_joints + src.right_joints if j not in self.names_seen]

@@ -2,7 +2,7 @@
 Opening a bag, checking the topics asked for, and a progress bar while it is read.
 
 rosbag2 directories (sqlite3, mcap) and ROS 1 ``.bag`` files are opened with
-``rosbags.highlevel.AnyReader``; :func:`_guarded` turns any failure of the reader into one
+``rosbags.highlevel.AnyReader``; :func:`guarded` turns any failure of the reader into one
 :class:`~tracked_kinematics.offline.errors.BagError` line.
 """
 
@@ -15,7 +15,7 @@ from tracked_kinematics.core.errors import SensorDataError
 from tracked_kinematics.offline.errors import BagError
 
 
-class _Progress:
+class Progress:
     """A progress bar on stderr when it is a terminal (tqdm), else nothing."""
 
     def __init__(self, total: int, description: str, enabled: bool):
@@ -53,16 +53,16 @@ def _open(path: Path) -> AnyReader:
     return AnyReader([path])
 
 
-def _topic_list(reader: AnyReader) -> str:
+def topic_list(reader: AnyReader) -> str:
     topics = sorted((c.topic, c.msgtype) for c in reader.connections)
     return ', '.join(f'{t} ({m})' for t, m in dict(topics).items()) or 'none'
 
 
-def _connections(reader: AnyReader, path: Path, topic: str, allowed, what: str):
+def topic_connections(reader: AnyReader, path: Path, topic: str, allowed, what: str):
     conns = [c for c in reader.connections if c.topic == topic]
     if not conns:
         raise BagError(f'{path}: no topic {topic} for the {what}; topics present: '
-                       f'{_topic_list(reader)}')
+                       f'{topic_list(reader)}')
     bad = sorted({c.msgtype for c in conns if c.msgtype not in allowed})
     if bad:
         raise BagError(f'{path}: topic {topic} has type {", ".join(bad)}; the {what} must be '
@@ -70,7 +70,7 @@ def _connections(reader: AnyReader, path: Path, topic: str, allowed, what: str):
     return conns
 
 
-def _guarded(path: Path, read, *args):
+def guarded(path: Path, read, *args):
     """Open a bag and ``read(reader, path, *args)`` it; any reader failure is a BagError."""
     try:
         reader = _open(path)

@@ -5,7 +5,7 @@ rosbag2 directories (sqlite3, mcap) and ROS 1 ``.bag`` files are read one bag at
 streaming only the topics asked for (:mod:`.opening`), each message reduced to a few numbers
 in growing columns (:mod:`.columns`).
 
-One message loop (:func:`.streaming._read`) serves every reader: it feeds the encoder
+One message loop (:func:`.streaming.read_streams`) serves every reader: it feeds the encoder
 messages to their decoder (:mod:`.joint_states`, :mod:`.side_streams`) and the others to the
 decoder of the second stream, the ground truth (:mod:`.ground_truth`) for :func:`read_bag`,
 the commands (:mod:`.commands`) for :func:`read_drive_bag`, both for
@@ -21,11 +21,11 @@ from rosbags.highlevel import AnyReader
 from tracked_kinematics.core.identify import DriveData, Recording
 from tracked_kinematics.offline.errors import BagError
 
-from .commands import _Commands
-from .ground_truth import _GroundTruth
-from .opening import _guarded
+from .commands import Commands
+from .ground_truth import GroundTruth
+from .opening import guarded
 from .sources import CommandSource, EncoderSource, GroundTruthSource, SETPOINT_TOPICS
-from .streaming import _read
+from .streaming import read_streams
 
 
 class _GroundTruthAndCommands:
@@ -33,8 +33,8 @@ class _GroundTruthAndCommands:
 
     def __init__(self, sources, path: Path, ref_ns: int):
         ground_truth, commands = sources
-        self.ground_truth = _GroundTruth(ground_truth, path, ref_ns)
-        self.commands = _Commands(commands, path, ref_ns, required=commands.kind != 'auto')
+        self.ground_truth = GroundTruth(ground_truth, path, ref_ns)
+        self.commands = Commands(commands, path, ref_ns, required=commands.kind != 'auto')
         self._command_ids: set = set()
 
     def connections(self, reader: AnyReader):
@@ -76,11 +76,11 @@ def read_bag(path, encoders: EncoderSource, ground_truth: GroundTruthSource,
         samples; the message is one line.
 
     """
-    return _guarded(Path(path), _read_recording, encoders, ground_truth, progress)
+    return guarded(Path(path), _read_recording, encoders, ground_truth, progress)
 
 
 def _read_recording(reader, path, encoders, ground_truth, progress) -> Recording:
-    enc, gt = _read(reader, path, encoders, _GroundTruth, ground_truth, progress)
+    enc, gt = read_streams(reader, path, encoders, GroundTruth, ground_truth, progress)
     enc_t, left, right = enc.travel()
     gt_t, x, y, yaw = gt.poses()
     t0 = min(enc_t[0], gt_t[0])
@@ -131,11 +131,11 @@ def read_drive_bag(path, encoders: EncoderSource, setpoint_topics=SETPOINT_TOPIC
         commands = CommandSource('setpoints', tuple(setpoint_topics))
     elif commands.kind == 'none':
         raise ValueError('a drive-train bag needs commands')
-    return _guarded(Path(path), _read_drive, encoders, commands, progress)
+    return guarded(Path(path), _read_drive, encoders, commands, progress)
 
 
 def _read_drive(reader, path, encoders, commands, progress) -> DriveData:
-    enc, setpoints = _read(reader, path, encoders, _Commands, commands, progress)
+    enc, setpoints = read_streams(reader, path, encoders, Commands, commands, progress)
     speeds = enc.velocities()
     if speeds is None:
         t, left, right = enc.travel()
@@ -173,11 +173,11 @@ def read_evaluation_bag(path, encoders: EncoderSource, ground_truth: GroundTruth
         without a track width.
 
     """
-    return _guarded(Path(path), _read_evaluation, encoders, (ground_truth, commands), progress)
+    return guarded(Path(path), _read_evaluation, encoders, (ground_truth, commands), progress)
 
 
 def _read_evaluation(reader, path, encoders, sources, progress):
-    enc, other = _read(reader, path, encoders, _GroundTruthAndCommands, sources, progress)
+    enc, other = read_streams(reader, path, encoders, _GroundTruthAndCommands, sources, progress)
     enc_t, left, right = enc.travel()
     gt_t, x, y, yaw = other.ground_truth.poses()
     t0 = min(enc_t[0], gt_t[0])

@@ -7,11 +7,11 @@ from pathlib import Path
 import numpy as np
 from tracked_kinematics.offline.errors import BagError
 
-from .columns import _Columns
+from .columns import Columns
 from .sources import EncoderSource
 
 
-class _SideStream:
+class SideStream:
     """Per-side messages -> cumulative travel, by the mode's decoder (one value a message)."""
 
     def __init__(self, source: EncoderSource, path: Path, ref_ns: int):
@@ -19,7 +19,7 @@ class _SideStream:
         self.decoder = source.decoder()
         self.path = path
         self.ref_ns = ref_ns
-        self.columns = {source.left_topic: _Columns(2), source.right_topic: _Columns(2)}
+        self.columns = {source.left_topic: Columns(2), source.right_topic: Columns(2)}
         self.types = {}
         self.first = {}
 

@@ -1,28 +1,30 @@
 """
 The one message loop: the encoder messages to their decoder, the others to a second decoder.
 
-:func:`_read` serves every reader of the sub-package: the second stream is the ground truth
+:func:`read_streams` serves every reader of the sub-package: the second stream is the ground truth
 for :func:`.reader.read_bag`, the commands for :func:`.reader.read_drive_bag`, both for
-:func:`.reader.read_evaluation_bag`, the references for :func:`.references.read_reference_bag`.
+:func:`.reader.read_evaluation_bag`, the references for
+:func:`.reference_reader.read_reference_bag`.
 """
 
 from __future__ import annotations
 
-from .joint_states import _JointStates
-from .opening import _connections, _Progress
-from .side_streams import _SideStream
+from .joint_states import JointStates
+from .opening import Progress, topic_connections
+from .side_streams import SideStream
 
 
 def _encoder_stream(reader, path, encoders, ref_ns):
     """Return the collector of the encoder messages and the bag connections it reads."""
     decoder = encoders.decoder()
-    enc = (_SideStream(encoders, path, ref_ns) if decoder.per_side
-           else _JointStates(encoders, path, ref_ns, reader.is2))
+    enc = (SideStream(encoders, path, ref_ns) if decoder.per_side
+           else JointStates(encoders, path, ref_ns, reader.is2))
     return enc, [c for topic in encoders.topics()
-                 for c in _connections(reader, path, topic, decoder.message_types, 'encoders')]
+                 for c in topic_connections(reader, path, topic, decoder.message_types,
+                                            'encoders')]
 
 
-def _read(reader, path, encoders, kind, source, progress):
+def read_streams(reader, path, encoders, kind, source, progress):
     """
     Stream the encoder messages and those of one other stream: the one message loop.
 
@@ -55,7 +57,7 @@ def _read(reader, path, encoders, kind, source, progress):
     other_conns = other.connections(reader)
     other_ids = {id(c) for c in other_conns}
     conns = enc_conns + [c for c in other_conns if c not in enc_conns]
-    bar = _Progress(sum(c.msgcount for c in conns), path.name, progress)
+    bar = Progress(sum(c.msgcount for c in conns), path.name, progress)
     try:
         for conn, receive_ns, raw in reader.messages(connections=conns):
             if id(conn) in other_ids:

@@ -35,13 +35,13 @@ import sys
 import numpy as np
 from tracked_kinematics.core import evaluate as ev
 from tracked_kinematics.offline.bags import read_evaluation_bag
-from tracked_kinematics.offline.bags.references import read_reference_bag
+from tracked_kinematics.offline.bags.reference_reader import read_reference_bag
 from tracked_kinematics.offline.cli.common import (
     add_command_arguments, add_ground_truth_arguments, add_vehicle_groups,
     add_window_selection_arguments, command_source, encoder_source, ground_truth_source,
     identification_parser, positive, require_vehicle, run_main)
 from tracked_kinematics.offline.errors import UsageError
-from tracked_kinematics.offline.evaluation import (
+from tracked_kinematics.offline.model_evaluation import (
     evaluate_models, gyro_references, pose_references, read_terrain_models, References)
 from tracked_kinematics.offline.outputs import Outputs
 from tracked_kinematics.params import positive as check_positive
@@ -186,7 +186,7 @@ def _write_tum(directory: Path, evaluation, names) -> None:
 
 def _run(args, out) -> int:
     _check_options(args)
-    from tracked_kinematics.offline.evaluation_plot import check_format, plot_evaluation
+    from tracked_kinematics.offline.model_evaluation_plot import check_format, plot_evaluation
     fmt = check_format(args.plot) if args.plot else None
     with Outputs(force=args.force) as outputs:
         outputs.add('--report', args.report)

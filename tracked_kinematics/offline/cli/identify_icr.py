@@ -28,7 +28,7 @@ from tracked_kinematics.core import identify as ident
 from tracked_kinematics.core.errors import InvalidParameters
 from tracked_kinematics.core.kinematics import IcrParams
 from tracked_kinematics.offline.bags import read_bags
-from tracked_kinematics.offline.bags.references import read_reference_bag
+from tracked_kinematics.offline.bags.reference_reader import read_reference_bag
 from tracked_kinematics.offline.cli.common import (
     add_base_file_argument, add_ground_truth_arguments, add_output_argument,
     add_report_arguments, add_vehicle_groups, add_window_selection_arguments, bounded,

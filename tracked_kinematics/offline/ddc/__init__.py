@@ -11,7 +11,7 @@ from tracked_kinematics.offline.errors import DdcError
 from .controllers import DDC_TYPE, find_controller, load_controllers, Section
 from .conversion import Conversion, NODE_KEYS, report_lines, TERRAIN_KEYS
 from .mapping import convert, convert_file
-from .values import fmt
+from .rcl_values import fmt
 
 __all__ = ['Conversion', 'DDC_TYPE', 'DdcError', 'NODE_KEYS', 'Section', 'TERRAIN_KEYS',
            'convert', 'convert_file', 'find_controller', 'fmt', 'load_controllers',

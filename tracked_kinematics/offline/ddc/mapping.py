@@ -21,7 +21,7 @@ from tracked_kinematics.params import (check_values, COMMAND_LIMIT_PARAMS, ENCOD
 
 from .controllers import find_controller, load_controllers
 from .conversion import AXES, Conversion
-from .values import clean, fmt, read_bool, read_joints, read_number, read_positive, read_text
+from .rcl_values import clean, fmt, read_bool, read_joints, read_number, read_positive, read_text
 
 _AXIS_KEYS = tuple(f'{axis}.{name}' for axis in AXES for name in (
     'has_velocity_limits', 'has_acceleration_limits', 'has_jerk_limits', 'max_velocity',

@@ -13,12 +13,12 @@ import math
 
 import numpy as np
 
-from .delays import _delay_report, _delays
-from .heading_fit import _fit_heading, _Heading
-from .headings import _heading_data, _HeadingData
-from .positions import _Distance, _fit_distance
-from .recordings import (_clean_gyro, _quantities, check_gyro, check_saturation, QUANTITIES,
-                         ReferenceFit, ReferenceRecording)
+from .delays import delay_report, sensor_delays
+from .heading_fit import fit_heading, HeadingFit
+from .headings import heading_data, HeadingData
+from .positions import DistanceFit, fit_distance
+from .recordings import (calibration_quantities, check_gyro, check_saturation, clean_gyro,
+                         QUANTITIES, ReferenceFit, ReferenceRecording)
 from ...errors import FitError, SensorDataError
 from ...kinematics import IcrParams
 
@@ -56,14 +56,14 @@ def _checked_recordings(recordings, track_width: float, hold, gnss_antenna,
                              what)
         elif not np.any(np.isfinite(r.gyro_yaw)):
             raise SensorDataError(f'{r.name or "recording"}: the orientation has no yaw')
-    recs = [_clean_gyro(r) if r.gyro_t is not None else r for r in recs]
+    recs = [clean_gyro(r) if r.gyro_t is not None else r for r in recs]
     if straight_distance is not None and not (math.isfinite(straight_distance)
                                               and straight_distance > 0):
         raise ValueError(f'straight_distance must be > 0 m, got {straight_distance!r}')
     return recs, hold, gnss_antenna
 
 
-def _model(track_width: float, heading: _Heading, distance: _Distance, determined,
+def _model(track_width: float, heading: HeadingFit, distance: DistanceFit, determined,
            base: IcrParams) -> IcrParams:
     """
     Return the ICR model of the fitted quantities (the base's where held); FitError if invalid.
@@ -72,7 +72,7 @@ def _model(track_width: float, heading: _Heading, distance: _Distance, determine
     rho)``.
     """
     s, u, rho, c = distance.s, heading.u, heading.rho, distance.c
-    width = s / u if 'chi' in determined else _quantities(base)[2]
+    width = s / u if 'chi' in determined else calibration_quantities(base)[2]
     s_left, s_right = 2.0 * s / (1.0 + rho), 2.0 * s * rho / (1.0 + rho)
     try:
         return IcrParams(track_width, c + 0.5 * width, c - 0.5 * width, distance.x, s_left,
@@ -90,8 +90,8 @@ def _reference_name(recs, straight_distance) -> str:
     return '+'.join(names)
 
 
-def _report(icr: IcrParams, reference: str, determined, held, heading: _Heading,
-            distance: _Distance, headings: _HeadingData, delays, segment_length: float,
+def _report(icr: IcrParams, reference: str, determined, held, heading: HeadingFit,
+            distance: DistanceFit, headings: HeadingData, delays, segment_length: float,
             n_rec: int) -> dict:
     """Return the JSON-ready report: model, what is determined, errors (None where held), stats."""
     imu, pose_delay = delays
@@ -117,8 +117,8 @@ def _report(icr: IcrParams, reference: str, determined, held, heading: _Heading,
             'noise_rad_per_sqrt_s': heading.stats['imu']['residual_std_rad']
             / math.sqrt(segment_length),
         },
-        'imu_delay': _delay_report(imu) if gyro else None,
-        'pose_delay': _delay_report(pose_delay) if pose else None,
+        'imu_delay': delay_report(imu) if gyro else None,
+        'pose_delay': delay_report(pose_delay) if pose else None,
         'straight': distance.straight,
         'data': {'recordings': n_rec, 'moving_segments': int(np.count_nonzero(headings.moving)),
                  'turned_rad': headings.turned, 'driven_m': headings.driven},
@@ -170,14 +170,14 @@ def fit_recordings(recordings, track_width: float, *, base: IcrParams | None = N
     base = base or IcrParams.ideal(track_width)
     straight = straight_distance is not None
     # 2. The delays.
-    imu, pose = _delays(recs, imu_delay, pose_delay)
+    imu, pose = sensor_delays(recs, imu_delay, pose_delay)
     # 3. The heading segments.
-    headings = _heading_data(recs, imu.delay, pose.delay, segment_length, straight)
+    headings = heading_data(recs, imu.delay, pose.delay, segment_length, straight)
     # 4. The heading: u, v and the biases.
-    heading = _fit_heading(headings, len(recs), hold, base, straight)
+    heading = fit_heading(headings, len(recs), hold, base, straight)
     # 5. The distance: positions, a straight drive, or held.
-    distance = _fit_distance(recs, headings, heading, base, hold, straight_distance,
-                             pose.delay, position_window, gnss_antenna)
+    distance = fit_distance(recs, headings, heading, base, hold, straight_distance,
+                            pose.delay, position_window, gnss_antenna)
     # 6. The model and its report.
     determined = heading.determined + distance.determined
     held = heading.held + [q for q in ('distance_scale', 'icr.x', 'icr_offset')

@@ -11,7 +11,7 @@ import math
 
 import numpy as np
 
-from .headings import _gyro_heading
+from .headings import gyro_heading
 from ..delay import DelayEstimate, estimate_delay, fixed_delay
 from ..segments import Recording
 from ...integration import wrap_angle
@@ -25,7 +25,7 @@ def _delay_of_gyro(rec_list, imu_delay):
         raise ValueError(f"imu_delay must be seconds or 'auto', got {imu_delay!r}")
     fake = []
     for rec in rec_list:
-        t, heading = _gyro_heading(rec, 0.0)
+        t, heading = gyro_heading(rec, 0.0)
         # Headings every ~0.1 s: the estimator regresses increments between samples.
         step = max(1, int(round(0.1 / max(float(np.median(np.diff(t))), 1e-6))))
         t, heading = t[::step], heading[::step]
@@ -45,8 +45,23 @@ def _delay_of_pose(rec_list, pose_delay):
                            for r in rec_list])
 
 
-def _delays(recs, imu_delay, pose_delay):
-    """Return the gyro's and the pose's :class:`DelayEstimate` ('auto': estimated)."""
+def sensor_delays(recs, imu_delay, pose_delay):
+    """
+    Return the delays of the gyro and of the pose behind the encoders, estimated or given.
+
+    Parameters
+    ----------
+    recs : list of ReferenceRecording
+        The recordings; those with a gyro give its delay, those with a pose the pose's.
+    imu_delay, pose_delay : float or 'auto'
+        s, or 'auto' to estimate (:func:`_delay_of_gyro`, :func:`_delay_of_pose`).
+
+    Returns
+    -------
+    imu, pose : DelayEstimate
+        Zero delays for a reference that no recording has.
+
+    """
     gyro_recs = [r for r in recs if r.gyro_t is not None]
     imu = _delay_of_gyro(gyro_recs, imu_delay) if gyro_recs else fixed_delay(0.0)
     pose_recs = [r for r in recs if r.pose is not None]
@@ -54,7 +69,7 @@ def _delays(recs, imu_delay, pose_delay):
     return imu, pose
 
 
-def _delay_report(d: DelayEstimate) -> dict:
+def delay_report(d: DelayEstimate) -> dict:
     """Return a delay as the report gives it (JSON-ready; no infinite standard error)."""
     std = float(d.std)
     return {'delay': float(d.delay), 'std': std if math.isfinite(std) else None,

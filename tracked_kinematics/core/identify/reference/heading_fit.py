@@ -1,9 +1,13 @@
 """
 The heading fit: the turn gain, the veer and the gyro biases from heading increments.
 
-``dpsi = u (D_r - D_l) + v (D_r + D_l)``: Martinez et al. (2005) eq. (9), integrated, with the
-scales of eqs. (20)-(21); ``u = s / W`` is eq. (16) read the other way. Step 4 of
-:func:`.calibration.fit_recordings`.
+Over any interval the heading change is linear in the nominal travel of the tracks,
+``dpsi = u (D_r - D_l) + v (D_r + D_l)``: Martinez et al. (2005) eq. (9), integrated, with
+the scales of eqs. (20)-(21); the turn gain ``u = s / W`` is their eq. (16) read the other
+way (``chi = track_width u / s``). :func:`_heading_fit` fits ``(u, v)`` and a bias per gyro
+recording to the segments of :mod:`.headings` (weighted robust least squares);
+:func:`fit_heading` (step 4 of :func:`.calibration.fit_recordings`) holds what the data do
+not determine.
 """
 
 from __future__ import annotations
@@ -13,8 +17,8 @@ import math
 
 import numpy as np
 
-from .headings import _HeadingData
-from .recordings import _quantities
+from .headings import HeadingData
+from .recordings import calibration_quantities
 from ...errors import ExcitationError, FitError
 
 HUBER_K = 2.0
@@ -27,7 +31,7 @@ MIN_TURN = 1.0
 """Least total absolute turning, rad, over the moving segments to fit chi."""
 
 
-def _robust_std(r):
+def robust_std(r):
     """Return the robust standard deviation (1.4826 MAD) of residuals; inf for none."""
     r = np.asarray(r)
     if r.size == 0:
@@ -71,7 +75,7 @@ def _heading_fit(sources, n_rec, hold_u=None, hold_ratio=None):
         p, *_ = np.linalg.lstsq(design * sw[:, None], y * sw, rcond=None)
         res = y - design @ p
         for k in range(len(sources)):
-            sigma[k] = _robust_std(res[src == k])
+            sigma[k] = robust_std(res[src == k])
         z = np.abs(res) / sigma[src]
         weights = np.minimum(1.0, HUBER_K / np.maximum(z, 1e-12)) / sigma[src] ** 2
     cov = np.linalg.pinv(design.T @ (design * weights[:, None]))
@@ -95,8 +99,26 @@ def _param_std(cov, used, index):
 
 
 @dataclass
-class _Heading:
-    """The heading fit: ``u``, ``v`` (rad/m), ``rho = (u + v) / (u - v)``, errors, gyro biases."""
+class HeadingFit:
+    """
+    The heading fit (step 4 of the calibration).
+
+    Attributes
+    ----------
+    u, v : float
+        Turn gain ``s / W`` and veer ``(s_r - s_l) / (2 W)``, rad per m of travel.
+    rho : float
+        Scale ratio ``s_r / s_l``: ``(u + v) / (u - v)``, or the base's when held.
+    std_u, std_rho : float
+        Their standard errors (``std_u`` 0 when ``u`` is held).
+    biases : list
+        Gyro bias per recording, rad/s (None for a recording without a gyro).
+    stats : dict
+        Residual statistics per heading source.
+    determined, held : list of str
+        Of ``chi`` and ``scale_ratio``.
+
+    """
 
     u: float
     v: float
@@ -110,8 +132,20 @@ class _Heading:
 
 
 def _held_turn_gain(hold, turned: float, straight: bool, base) -> float | None:
-    """Return the turn gain to hold (the base's) or None to fit it; ExcitationError if unfit."""
-    base_s, _, base_w, _ = _quantities(base)
+    """
+    Return the turn gain to hold (the base's ``s / W``), or None to fit it.
+
+    It is held when asked (``'chi'`` in ``hold``) or when the drive turns less than
+    :data:`MIN_TURN` and is a straight of measured length; with neither, too little turning
+    is an error.
+
+    Raises
+    ------
+    ExcitationError
+        The heading turns too little to fit chi.
+
+    """
+    base_s, _, base_w, _ = calibration_quantities(base)
     if 'chi' in hold:
         return base_s / base_w
     if turned < MIN_TURN:
@@ -134,15 +168,41 @@ def _ratio_std(u: float, v: float, cov, used, u_held: bool) -> float:
     return math.inf
 
 
-def _fit_heading(data: _HeadingData, n_rec: int, hold, base, straight: bool) -> _Heading:
+def fit_heading(data: HeadingData, n_rec: int, hold, base, straight: bool) -> HeadingFit:
     """
     Fit the turn gain, the veer and the gyro biases; hold what the heading does not determine.
 
-    The ratio is held when asked, beyond :data:`RATIO_STD_LIMIT`, or non-finite or negative. Raises
-    ExcitationError (too little turning; chi beyond :data:`CHI_REL_STD_LIMIT`) or FitError (a turn
-    gain <= 0: tracks or gyro sign swapped).
+    The scale ratio is held at the base's (and the fit repeated with ``v / u`` fixed) when
+    asked, when its standard error exceeds :data:`RATIO_STD_LIMIT` or when it comes out
+    infinite or negative; chi (the turn gain) is refused when its relative standard error
+    exceeds :data:`CHI_REL_STD_LIMIT`.
+
+    Parameters
+    ----------
+    data : HeadingData
+        The segments (step 3).
+    n_rec : int
+        Number of recordings (one bias column each).
+    hold : tuple of str
+        Quantities to hold.
+    base : IcrParams
+        Held values.
+    straight : bool
+        The recordings are a straight of measured length (chi may be held for lack of turns).
+
+    Returns
+    -------
+    HeadingFit
+
+    Raises
+    ------
+    ExcitationError
+        Too little turning for chi, or chi too uncertain.
+    FitError
+        A turn gain <= 0 (tracks or gyro sign swapped).
+
     """
-    _, base_rho, _, _ = _quantities(base)
+    _, base_rho, _, _ = calibration_quantities(base)
     hold_u = _held_turn_gain(hold, data.turned, straight, base)
     determined, held = [], []
     p, cov, used, stats = _heading_fit(data.sources, n_rec, hold_u=hold_u)
@@ -173,4 +233,4 @@ def _fit_heading(data: _HeadingData, n_rec: int, hold, base, straight: bool) -> 
     else:
         held.insert(0, 'chi')
     biases = [float(p[2 + k]) if g is not None else None for k, g in enumerate(data.gyro)]
-    return _Heading(u, v, rho, std_u, std_rho, biases, stats, determined, held)
+    return HeadingFit(u, v, rho, std_u, std_rho, biases, stats, determined, held)

@@ -12,7 +12,7 @@ import math
 
 import numpy as np
 
-from .recordings import _clean_gyro, ReferenceRecording
+from .recordings import clean_gyro, ReferenceRecording
 from ..segments import gap_threshold, Recording
 from ...errors import ExcitationError
 from ...integration import wrap_angle
@@ -24,7 +24,7 @@ MIN_MOVING_SEGMENTS = 10
 _MIN_TRAVEL = 0.01
 
 
-def _gyro_heading(rec: ReferenceRecording, delay: float):
+def gyro_heading(rec: ReferenceRecording, delay: float):
     """Return the gyro's stamps (``delay`` removed) and its continuous heading, rad."""
     t = rec.gyro_t - delay
     if rec.gyro_rate is not None:
@@ -106,7 +106,7 @@ def _check_straight(seg: _Segments) -> None:
 
 
 @dataclass
-class _HeadingData:
+class HeadingData:
     """
     The heading references of all recordings, cut into segments (step 3 of the calibration).
 
@@ -127,15 +127,15 @@ def _moving(seg: _Segments) -> np.ndarray:
     return 0.5 * (np.abs(seg.d_left) + np.abs(seg.d_right)) >= _MIN_TRAVEL
 
 
-def _heading_data(recs, imu_delay: float, pose_delay: float, segment_length: float,
-                  straight: bool) -> _HeadingData:
+def heading_data(recs, imu_delay: float, pose_delay: float, segment_length: float,
+                 straight: bool) -> HeadingData:
     """
     Cut the gyro and pose headings of every recording into segments of ``segment_length`` s.
 
     The delays (s) are removed here. Raises ExcitationError for fewer than
     :data:`MIN_MOVING_SEGMENTS` moving segments or a ``straight`` that turns.
     """
-    gyro = [_gyro_heading(r, imu_delay) if r.gyro_t is not None else None for r in recs]
+    gyro = [gyro_heading(r, imu_delay) if r.gyro_t is not None else None for r in recs]
     pose = [(r.pose[0] - pose_delay, np.unwrap(r.pose[3])) if r.pose is not None else None
             for r in recs]
     sources = []
@@ -153,7 +153,7 @@ def _heading_data(recs, imu_delay: float, pose_delay: float, segment_length: flo
     driven = float(np.sum(0.5 * np.abs(first.d_left + first.d_right)))
     if straight:
         _check_straight(first)
-    return _HeadingData(gyro, pose, sources, moving, turned, driven)
+    return HeadingData(gyro, pose, sources, moving, turned, driven)
 
 
 def heading_reference(rec: ReferenceRecording, delay: float, bias: float,
@@ -166,8 +166,8 @@ def heading_reference(rec: ReferenceRecording, delay: float, bias: float,
     """
     if rec.gyro_t is None:
         raise ValueError('the recording has no gyro')
-    rec = _clean_gyro(rec)
-    t, heading = _gyro_heading(rec, delay)
+    rec = clean_gyro(rec)
+    t, heading = gyro_heading(rec, delay)
     heading = heading - bias * (t - t[0])
     grid = np.arange(t[0], t[-1], 1.0 / rate)
     # Only inside gap-free gyro stretches: a gap leaves the heading unknown.

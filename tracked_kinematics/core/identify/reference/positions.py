@@ -1,9 +1,14 @@
 """
 The distance: positions (GNSS, a pose) or a measured straight give the distance scale.
 
-The body step ``(s m + c dpsi, -x dpsi)``, ``m = (D_l + rho D_r) / (1 + rho)`` (Martinez et al.
-2005 eqs. 7-8 in the ROS frame, scales of eqs. 20-21), rotated by the gyro heading, is linear in
-``(s, c, x)`` and fitted to the positions in windows (step 5 of the calibration).
+With positions, the body step over each short interval is ``(s m + c dpsi, -x dpsi)`` with
+``m = (D_l + rho D_r) / (1 + rho)``: Martinez et al. (2005) eqs. (7)-(8) in the ROS frame,
+with the scales of eqs. (20)-(21) (``c`` the ICR offset, ``x = icr.x``), rotated by the gyro
+heading. :func:`_dead_reckoning_basis` sums its three parts, so that the dead-reckoned
+position is linear in ``(s, c, x)``; :func:`_position_fit` compares it with the positions in
+windows, each centred on its mean, after a rotation per recording and source.
+:func:`fit_distance` (step 5 of :func:`.calibration.fit_recordings`) takes the scale from a
+straight drive of measured length instead, or holds it.
 """
 
 from __future__ import annotations
@@ -14,9 +19,9 @@ import math
 import numpy as np
 from scipy.optimize import least_squares
 
-from .heading_fit import _Heading, _robust_std, HUBER_K
-from .headings import _HeadingData, MAX_STRAIGHT_TURN
-from .recordings import _quantities
+from .heading_fit import HeadingFit, HUBER_K, robust_std
+from .headings import HeadingData, MAX_STRAIGHT_TURN
+from .recordings import calibration_quantities
 from ...errors import ExcitationError, FitError
 
 DISTANCE_STD_LIMIT = 0.05
@@ -133,7 +138,7 @@ def _position_fit(blocks, free, fixed, sigma):
         cov = np.full((len(p0), len(p0)), np.inf)
     # Scale the covariance by the residual spread (the sigma given is a first guess).
     res = sol.fun
-    spread = _robust_std(res) ** 2
+    spread = robust_std(res) ** 2
     std = np.sqrt(np.maximum(np.diag(cov), 0.0) * spread)
     raw = residuals(sol.x)
     per_source = {}
@@ -142,15 +147,31 @@ def _position_fit(blocks, free, fixed, sigma):
         n = 2 * blk.t.size
         per_source.setdefault(blk.source, []).append(raw[offset:offset + n] * sigma[blk.source])
         offset += n
-    noise = {k: _robust_std(np.concatenate(v)) for k, v in per_source.items()}
+    noise = {k: robust_std(np.concatenate(v)) for k, v in per_source.items()}
     return unpack(sol.x), dict(zip(names, std[:n_shared])), noise
 
 
 # The steps of fit_recordings that concern the distance --------------------------------------
 
 @dataclass
-class _Distance:
-    """The distance step of the calibration: ``s``, ``c``, ``x`` (fitted or the base's), errors."""
+class DistanceFit:
+    """
+    The distance step of the calibration (step 5): scale, ICR offset and ``icr.x``.
+
+    Attributes
+    ----------
+    s, c, x : float
+        Distance scale, ICR offset (m) and ``icr.x`` (m): fitted, or the base's.
+    std_s, std_x, std_c : float or None
+        Standard errors of the position fit (None without one).
+    stats : dict
+        Residual spread (m) and samples per position source.
+    straight : dict or None
+        The measured straight: length, encoder chord, largest heading excursion.
+    determined : list of str
+        Of ``distance_scale``, ``icr.x`` and ``icr_offset``.
+
+    """
 
     s: float
     c: float
@@ -163,8 +184,13 @@ class _Distance:
     determined: list = field(default_factory=list)
 
 
-def _bases(recs, headings: _HeadingData, heading: _Heading):
-    """Return the dead-reckoning basis of every recording (None where too short)."""
+def _bases(recs, headings: HeadingData, heading: HeadingFit):
+    """
+    Return the dead-reckoning basis of every recording (None where too short).
+
+    Each is rotated by the gyro's heading with its fitted bias removed, or by the pose's
+    heading on a recording without a gyro, at the scale ratio of the heading fit.
+    """
     out = []
     for k, r in enumerate(recs):
         gyro = headings.gyro[k] is not None
@@ -225,14 +251,14 @@ def _position_blocks(recs, bases, pose_delay: float, position_window, gnss_anten
     return blocks
 
 
-def _fit_positions(blocks, hold, base) -> _Distance:
+def _fit_positions(blocks, hold, base) -> DistanceFit:
     """
     Fit the distance scale, and ``icr.x`` and the ICR offset where determined, to positions.
 
     Noise per source from a first fit's residuals; ``x`` and ``c`` beyond :data:`X_STD_LIMIT` are
     held. Raises ExcitationError (scale beyond :data:`DISTANCE_STD_LIMIT`) or FitError.
     """
-    base_s, _, _, base_c = _quantities(base)
+    base_s, _, _, base_c = calibration_quantities(base)
     sigma = dict.fromkeys({b.source for b in blocks}, 1.0)
     pose_grade = any(b.source == 'pose' for b in blocks)
     free = [n for n, q in (('s', 'distance_scale'), ('x', 'icr.x'), ('c', 'icr_offset'))
@@ -261,16 +287,45 @@ def _fit_positions(blocks, hold, base) -> _Distance:
     stats = {k: {'residual_std_m': float(v)} for k, v in sigma.items()}
     for k in stats:
         stats[k]['samples'] = int(sum(b.t.size for b in blocks if b.source == k))
-    return _Distance(s, c, x, std_s, std_x, std_c, stats, determined=determined)
+    return DistanceFit(s, c, x, std_s, std_x, std_c, stats, determined=determined)
 
 
-def _fit_distance(recs, headings: _HeadingData, heading: _Heading, base, hold,
-                  straight_distance: float | None, pose_delay: float, position_window,
-                  gnss_antenna) -> _Distance:
-    """Find the distance scale: from a measured straight, from positions, or held at the base's."""
-    base_s, _, _, base_c = _quantities(base)
+def fit_distance(recs, headings: HeadingData, heading: HeadingFit, base, hold,
+                 straight_distance: float | None, pose_delay: float, position_window,
+                 gnss_antenna) -> DistanceFit:
+    """
+    Find the distance scale: from a measured straight, from positions, or held at the base's.
+
+    Parameters
+    ----------
+    recs : list of ReferenceRecording
+        Checked and cleaned (step 1).
+    headings, heading : HeadingData, HeadingFit
+        The heading references (step 3) and their fit (step 4).
+    base : IcrParams
+        Held values.
+    hold : tuple of str
+        Quantities to hold.
+    straight_distance : float or None
+        m of a straight drive; it then gives the scale (positions are not fitted).
+    pose_delay : float
+        s of pose stamps behind the encoders (step 2).
+    position_window, gnss_antenna
+        As :func:`.calibration.fit_recordings`.
+
+    Returns
+    -------
+    DistanceFit
+
+    Raises
+    ------
+    ExcitationError, FitError
+        See :func:`_straight_scale` and :func:`_fit_positions`.
+
+    """
+    base_s, _, _, base_c = calibration_quantities(base)
     bases = _bases(recs, headings, heading)
-    distance = _Distance(base_s, base_c, base.x)
+    distance = DistanceFit(base_s, base_c, base.x)
     if straight_distance is not None:
         distance.s, distance.straight = _straight_scale(bases, straight_distance)
         distance.determined.append('distance_scale')

@@ -190,7 +190,7 @@ def check_saturation(gyro_t, rates, enc_t, left, right, track_width: float,
                               'turn slower or set a wider gyro range')
 
 
-def _clean_gyro(rec: ReferenceRecording) -> ReferenceRecording:
+def clean_gyro(rec: ReferenceRecording) -> ReferenceRecording:
     """Drop non-finite readings (a few; :func:`check_gyro` refuses many)."""
     values = rec.gyro_rate if rec.gyro_rate is not None else rec.gyro_yaw
     ok = np.isfinite(values)
@@ -202,7 +202,7 @@ def _clean_gyro(rec: ReferenceRecording) -> ReferenceRecording:
                               name=rec.name)
 
 
-def _quantities(icr: IcrParams):
+def calibration_quantities(icr: IcrParams):
     """
     Return the quantities a calibration fits, as a model gives them.
 

@@ -1,5 +1,5 @@
 """
-evaluate_model's report as a library (offline/evaluation.py): no command line, no bag.
+evaluate_model's report as a library (offline/model_evaluation.py): no command line, no bag.
 
 The command line end to end: test_evaluate_model.py; the figures themselves:
 test/core/evaluate/.
@@ -18,7 +18,7 @@ from tracked_kinematics.core.identify import Recording
 from tracked_kinematics.core.identify.reference import ReferenceRecording
 from tracked_kinematics.core.kinematics import IcrParams
 from tracked_kinematics.core.models import ConstantIcr
-from tracked_kinematics.offline.evaluation import (
+from tracked_kinematics.offline.model_evaluation import (
     evaluate_models, gyro_references, pose_references, read_terrain_models, References,
     table_text)
 

@@ -9,7 +9,7 @@ from tracked_kinematics.core.drivetrain import DriveTrain, FirstOrderLag
 from tracked_kinematics.core.evaluate import (
     command_horizons, Commands, cut, encoder_horizons, horizon_members, odometry,
     relative_errors)
-from tracked_kinematics.core.evaluate.prediction import start_speeds
+from tracked_kinematics.core.evaluate.horizons import start_speeds
 from tracked_kinematics.core.identify import dead_reckoning, Recording
 from tracked_kinematics.core.kinematics import IcrParams
 from tracked_kinematics.core.models import ConstantIcr

@@ -22,11 +22,11 @@ from tracked_kinematics.core.geodesy import geodetic_to_enu, GeoOrigin
 from tracked_kinematics.core.identify import ReferenceRecording
 from tracked_kinematics.offline.errors import BagError
 
-from .columns import _Columns, _sort_unique, _stamp
-from .ground_truth import _GroundTruth
-from .opening import _connections, _guarded
+from .columns import Columns, header_stamp, sort_unique
+from .ground_truth import GroundTruth
+from .opening import guarded, topic_connections
 from .sources import GroundTruthSource
-from .streaming import _read
+from .streaming import read_streams
 
 IMU_TYPES = ('sensor_msgs/msg/Imu',)
 GNSS_TYPES = ('sensor_msgs/msg/NavSatFix', 'nav_msgs/msg/Odometry')
@@ -39,20 +39,20 @@ class _References:
         self.imu_topic, self.gnss_topic, ground_truth = sources
         self.path = path
         self.ref_ns = ref_ns
-        self.imu = _Columns(4)          # t, wz, yaw, orientation given
-        self.gnss = _Columns(5)         # t, a, b, c, status (lat, lon, alt or x, y, nan)
+        self.imu = Columns(4)          # t, wz, yaw, orientation given
+        self.gnss = Columns(5)         # t, a, b, c, status (lat, lon, alt or x, y, nan)
         self.gnss_kind = ''
-        self.pose = _GroundTruth(ground_truth, path, ref_ns) if ground_truth else None
+        self.pose = GroundTruth(ground_truth, path, ref_ns) if ground_truth else None
         self._kind = {}
 
     def connections(self, reader):
         conns = []
         if self.imu_topic:
-            found = _connections(reader, self.path, self.imu_topic, IMU_TYPES, 'IMU')
+            found = topic_connections(reader, self.path, self.imu_topic, IMU_TYPES, 'IMU')
             conns += found
             self._kind.update({id(c): 'imu' for c in found})
         if self.gnss_topic:
-            found = _connections(reader, self.path, self.gnss_topic, GNSS_TYPES, 'GNSS')
+            found = topic_connections(reader, self.path, self.gnss_topic, GNSS_TYPES, 'GNSS')
             conns += found
             self._kind.update({id(c): 'gnss' for c in found})
         if self.pose is not None:
@@ -69,10 +69,10 @@ class _References:
                 and (q.x, q.y, q.z, q.w) != (0.0, 0.0, 0.0, 0.0)
             yaw = float(np.arctan2(2.0 * (q.w * q.z + q.x * q.y),
                                    1.0 - 2.0 * (q.y * q.y + q.z * q.z))) if given else np.nan
-            self.imu.append((_stamp(msg.header, receive_ns, self.ref_ns),
+            self.imu.append((header_stamp(msg.header, receive_ns, self.ref_ns),
                              float(msg.angular_velocity.z), yaw, float(given)))
         elif kind == 'gnss':
-            t = _stamp(msg.header, receive_ns, self.ref_ns)
+            t = header_stamp(msg.header, receive_ns, self.ref_ns)
             if conn.msgtype == 'sensor_msgs/msg/NavSatFix':
                 self.gnss_kind = 'navsatfix'
                 self.gnss.append((t, msg.latitude, msg.longitude, msg.altitude,
@@ -89,7 +89,7 @@ class _References:
         data = self.imu.array
         if len(data) == 0:
             raise SensorDataError(f'{self.path}: no Imu messages on {self.imu_topic}')
-        data = _sort_unique(data)
+        data = sort_unique(data)
         t, wz, yaw, given = data.T
         # An orientation that never turns (a driver filling identity with covariance 0 instead
         # of -1) is no heading: the rates are used then.
@@ -100,7 +100,7 @@ class _References:
 
     def positions(self):
         """Return times (ns), x, y in a local plane; the no-fix samples dropped."""
-        data = _sort_unique(self.gnss.array)
+        data = sort_unique(self.gnss.array)
         if self.gnss_kind == 'navsatfix':
             fix = (data[:, 4] >= 0) & np.all(np.isfinite(data[:, 1:3]), axis=1)
             if not np.any(fix):
@@ -149,12 +149,12 @@ def read_reference_bag(path, encoders, imu_topic: str | None = None,
     """
     if not (imu_topic or gnss_topic or ground_truth):
         raise ValueError('read_reference_bag needs an IMU, GNSS or ground-truth topic')
-    return _guarded(Path(path), _read_references, encoders,
-                    (imu_topic, gnss_topic, ground_truth), progress)
+    return guarded(Path(path), _read_references, encoders,
+                   (imu_topic, gnss_topic, ground_truth), progress)
 
 
 def _read_references(reader, path, encoders, sources, progress) -> ReferenceRecording:
-    enc, refs = _read(reader, path, encoders, _References, sources, progress)
+    enc, refs = read_streams(reader, path, encoders, _References, sources, progress)
     enc_t, left, right = enc.travel()
     starts = [enc_t[0]]
     gyro = positions = pose = None

@@ -1,4 +1,4 @@
-"""core.plan.references: the canonical reference inputs of Fink & Stump Table V."""
+"""core.plan.trajectories: the canonical reference inputs of Fink & Stump Table V."""
 
 import numpy as np
 import pytest

@@ -5,7 +5,7 @@ import math
 from helpers.calibration_sim import config, drive
 import numpy as np
 import pytest
-from tracked_kinematics.core.plan.calibration import (
+from tracked_kinematics.core.plan.calibration_protocol import (
     MIN_STEP, predict_step, protocol, REACH_FRACTION, reach_time, total_duration)
 
 

@@ -29,7 +29,7 @@ from std_msgs.msg import Bool, String
 from std_srvs.srv import Trigger
 from tracked_kinematics.core.clock_watch import ClockWatch
 from tracked_kinematics.core.integration import stamp_ns, yaw_from_quaternion
-from tracked_kinematics.core.plan.calibration import (
+from tracked_kinematics.core.plan.calibration_protocol import (
     CalibrationRecording, FenceOdometry, MAX_DURATION, MIN_DURATION, protocol, total_duration)
 from tracked_kinematics.core.plan.supervisor import (
     Inputs, pose_jump, Supervisor, SupervisorConfig)
