@@ -133,7 +133,7 @@ def gyro_references(bags, found, track_width: float) -> References:
     """
     Make the gyro of each recording a heading-only reference: its bias and delay removed.
 
-    ``found`` is what :func:`~tracked_kinematics.offline.bags.references.read_reference_bag`
+    ``found`` is what :func:`~tracked_kinematics.offline.bags.reference_reader.read_reference_bag`
     returned; ``track_width`` (m) is the ideal drive the gyro fit starts from. Raises
     ExcitationError when the drives cannot time and de-bias the gyro.
     """

@@ -1,7 +1,7 @@
 """
 calibration_drive: drive a calibration protocol on cmd_vel, safely, then fit the terrain.
 
-A thin adapter around :mod:`tracked_kinematics.core.plan.calibration` and the safety
+A thin adapter around :mod:`tracked_kinematics.core.plan.calibration_protocol` and the safety
 :class:`~tracked_kinematics.core.plan.supervisor.Supervisor`; the finisher that writes the
 files comes from the console script (the ``ros`` ring imports no ``offline`` code).
 See docs/nodes/calibration_drive.md.

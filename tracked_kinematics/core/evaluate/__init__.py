@@ -1,7 +1,7 @@
 """
 Evaluation: score terrain models on recordings, the way the field measures them.
 
-:mod:`.pieces`, :mod:`.metrics`, :mod:`.prediction`, :mod:`.online` and :mod:`.scoring`
+:mod:`.pieces`, :mod:`.metrics`, :mod:`.horizons`, :mod:`.online` and :mod:`.scoring`
 (:func:`evaluate`); see docs/tools/evaluate_model.md.
 """
 
