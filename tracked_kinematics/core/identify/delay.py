@@ -46,7 +46,7 @@ likelihood at its minimum, ``sqrt(2 / cost'')``, which is optimistic.
 
 The estimator is a public function with a stable signature for every tool that meets ground
 truth and encoders (identify_icr, evaluate_model, the online estimator's pose stream):
-:func:`estimate_delay` on :class:`.segments.Recording` objects, or
+:func:`estimate_delay` on :class:`..recording.Recording` objects, or
 :func:`estimate_delay_arrays` on plain arrays.
 """
 
@@ -57,8 +57,9 @@ import math
 
 import numpy as np
 
-from .segments import JUMP_MARGIN, MAX_HEADING_STEP, Recording, stretches
+from .segments import JUMP_MARGIN, MAX_HEADING_STEP, stretches
 from ..integration import wrap_angle
+from ..recording import Recording
 
 CHANNELS = ('heading', 'forward')
 """Channels correlated: heading changes and forward displacements."""

@@ -16,7 +16,7 @@ imu_delay='auto', pose_delay='auto', segment_length=1.0, position_window=None, h
 gnss_antenna=(0, 0)) -> ReferenceFit``
 
 Plain arrays in (one recording; :func:`fit_recordings` takes several
-:class:`ReferenceRecording`): encoder times (s) and cumulative nominal track travel (m);
+:class:`~tracked_kinematics.core.recording.Recording`): encoder times (s) and cumulative nominal track travel (m);
 gyro stamps (s) and yaw rates (rad/s, REP-103), or yaw angles from an orientation; an
 optional pose ``(t, x, y, yaw)`` and optional positions ``(t, x, y)`` in a local plane
 (GNSS, :mod:`tracked_kinematics.core.geodesy`). Out: :class:`ReferenceFit`, with ``.icr``
@@ -84,12 +84,11 @@ from .heading_fit import CHI_REL_STD_LIMIT, HUBER_K, MIN_TURN, RATIO_STD_LIMIT
 from .headings import heading_reference, MAX_STRAIGHT_TURN, MIN_MOVING_SEGMENTS
 from .positions import DISTANCE_STD_LIMIT, POSITION_WINDOW, X_STD_LIMIT
 from .recordings import (
-    check_gyro, check_saturation, QUANTITIES, ReferenceFit, ReferenceRecording,
-    SATURATION_SHARE)
+    check_gyro, check_saturation, QUANTITIES, ReferenceFit, SATURATION_SHARE)
 
 __all__ = [
     'CHI_REL_STD_LIMIT', 'DISTANCE_STD_LIMIT', 'HUBER_K', 'MAX_STRAIGHT_TURN',
     'MIN_MOVING_SEGMENTS', 'MIN_TURN', 'POSITION_WINDOW', 'QUANTITIES', 'RATIO_STD_LIMIT',
-    'ReferenceFit', 'ReferenceRecording', 'SATURATION_SHARE', 'X_STD_LIMIT', 'check_gyro',
+    'ReferenceFit', 'SATURATION_SHARE', 'X_STD_LIMIT', 'check_gyro',
     'check_saturation', 'fit_from_reference', 'fit_recordings', 'heading_reference',
 ]

@@ -18,9 +18,10 @@ from .heading_fit import _fit_heading, _Heading
 from .headings import _heading_data, _HeadingData
 from .positions import _Distance, _fit_distance
 from .recordings import (_clean_gyro, _quantities, check_gyro, check_saturation, QUANTITIES,
-                         ReferenceFit, ReferenceRecording)
+                         ReferenceFit)
 from ...errors import FitError, SensorDataError
 from ...kinematics import IcrParams
+from ...recording import Recording
 
 
 def _checked_recordings(recordings, track_width: float, hold, gnss_antenna,
@@ -30,7 +31,7 @@ def _checked_recordings(recordings, track_width: float, hold, gnss_antenna,
 
     Returns
     -------
-    recs : list of ReferenceRecording
+    recs : list of Recording
         The recordings, their gyros cleaned (:func:`.recordings._clean_gyro`).
     hold : tuple of str
     gnss_antenna : tuple of float
@@ -179,7 +180,7 @@ def fit_recordings(recordings, track_width: float, *, base: IcrParams | None = N
 
     Parameters
     ----------
-    recordings : sequence of ReferenceRecording
+    recordings : sequence of Recording
         On one vehicle and terrain; each needs a gyro or a pose (a heading reference).
     track_width : float
         m.
@@ -280,7 +281,10 @@ def fit_from_reference(enc_t, left, right, *, track_width: float, gyro_t=None, g
         ``.icr`` and ``.report`` (JSON-ready dict) among others.
 
     """
-    rec = ReferenceRecording(enc_t, left, right, gyro_t, gyro_rate, gyro_yaw, pose, positions)
+    pose = (None,) * 4 if pose is None else pose
+    gnss = {} if positions is None else dict(zip(('gnss_t', 'gnss_x', 'gnss_y'), positions))
+    rec = Recording(enc_t, left, right, *pose, gyro_t=gyro_t, gyro_rate=gyro_rate,
+                    gyro_yaw=gyro_yaw, **gnss)
     return fit_recordings([rec], track_width, base=base, imu_delay=imu_delay,
                           pose_delay=pose_delay, segment_length=segment_length,
                           straight_distance=straight_distance,

@@ -15,10 +15,11 @@ import math
 
 import numpy as np
 
-from .recordings import _clean_gyro, ReferenceRecording
-from ..segments import gap_threshold, Recording
+from .recordings import _clean_gyro
+from ..segments import gap_threshold
 from ...errors import ExcitationError
 from ...integration import wrap_angle
+from ...recording import Recording
 
 MAX_STRAIGHT_TURN = math.radians(15.0)
 """Largest heading excursion, rad, of a drive that counts as straight."""
@@ -27,7 +28,7 @@ MIN_MOVING_SEGMENTS = 10
 _MIN_TRAVEL = 0.01
 
 
-def _gyro_heading(rec: ReferenceRecording, delay: float):
+def _gyro_heading(rec: Recording, delay: float):
     """Return the gyro's stamps (``delay`` removed) and its continuous heading, rad."""
     t = rec.gyro_t - delay
     if rec.gyro_rate is not None:
@@ -147,7 +148,7 @@ def _heading_data(recs, imu_delay: float, pose_delay: float, segment_length: flo
 
     Parameters
     ----------
-    recs : list of ReferenceRecording
+    recs : list of Recording
         Checked and cleaned (step 1).
     imu_delay, pose_delay : float
         s of gyro / pose stamps behind the encoders (step 2), removed here.
@@ -188,7 +189,7 @@ def _heading_data(recs, imu_delay: float, pose_delay: float, segment_length: flo
     return _HeadingData(gyro, pose, sources, moving, turned, driven)
 
 
-def heading_reference(rec: ReferenceRecording, delay: float, bias: float,
+def heading_reference(rec: Recording, delay: float, bias: float,
                       rate: float = 10.0) -> Recording:
     """
     Return a Recording whose ground truth is the gyro's heading: to score heading only.
@@ -198,7 +199,7 @@ def heading_reference(rec: ReferenceRecording, delay: float, bias: float,
 
     Parameters
     ----------
-    rec : ReferenceRecording
+    rec : Recording
         With a gyro.
     delay : float
         s of gyro stamps behind the encoders (:attr:`ReferenceFit.imu_delay`).

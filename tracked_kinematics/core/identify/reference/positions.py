@@ -255,7 +255,7 @@ def _position_blocks(recs, bases, pose_delay: float, position_window, gnss_anten
 
     Parameters
     ----------
-    recs : list of ReferenceRecording
+    recs : list of Recording
         The recordings (checked and cleaned).
     bases : list
         Their dead-reckoning bases (:func:`_bases`).
@@ -341,7 +341,7 @@ def _fit_distance(recs, headings: _HeadingData, heading: _Heading, base, hold,
 
     Parameters
     ----------
-    recs : list of ReferenceRecording
+    recs : list of Recording
         Checked and cleaned (step 1).
     headings, heading : _HeadingData, _Heading
         The heading references (step 3) and their fit (step 4).
