@@ -173,7 +173,8 @@ def from_stamped_rows(encoder=(), pose=(), imu=(), cmd=(), name: str = '') -> Re
     Build a recording from rows ``(stamp_ns, values...)`` as a node records them.
 
     ``encoder`` rows ``(t, left, right)``, ``pose`` rows ``(t, x, y, yaw)``, ``imu`` rows
-    ``(t, yaw_rate, qx, qy, qz, qw, orientation_covariance0)``, ``cmd`` rows ``(t, v, w)`` (cmd_vel).
+    ``(t, yaw_rate, qx, qy, qz, qw, orientation_covariance0)``, ``cmd`` rows ``(t, v, w)``
+    (cmd_vel).
     Time 0 is the earliest stamp; a stream without rows is None (the encoders: empty). The
     sensor rows are sorted by stamp, the first of equal stamps kept (as a bag is read).
     """

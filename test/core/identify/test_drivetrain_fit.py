@@ -35,7 +35,7 @@ def steps(duration, dt, rng, hold=(0.5, 3.0), top=1.0):
 
 
 def drive_data(command_t, commands, speed_t, speeds, name=''):
-    """A Recording of setpoints and measured speeds (travel: the speeds integrated)."""
+    """Return a Recording of setpoints and measured speeds (travel: the speeds integrated)."""
     speed_t = np.asarray(speed_t, dtype=float)
     step = 0.5 * (speeds[1:] + speeds[:-1]) * np.diff(speed_t)[:, None]
     travel = np.vstack([np.zeros(2), np.cumsum(np.nan_to_num(step), axis=0)])
@@ -80,11 +80,11 @@ def test_setpoints_stamped_late_shorten_the_delay_and_none_is_flagged():
     # a sample: the discrete model is a sample off the continuous truth).
     data = recording(AURIGA, duration=30.0, seed=1)
     early = fit_drivetrain(drive_data(data.command_t - 0.1, data.commands, data.speed_t,
-                                     data.speeds), dt=0.01)
+                                      data.speeds), dt=0.01)
     assert early.parameters['delay'] == pytest.approx(0.13, abs=0.011)
     assert not early.delay_at_zero
     ahead = fit_drivetrain(drive_data(data.command_t + 0.05, data.commands, data.speed_t,
-                                     data.speeds), dt=0.01)
+                                      data.speeds), dt=0.01)
     assert ahead.parameters['delay'] == 0.0 and ahead.delay_at_zero
 
 

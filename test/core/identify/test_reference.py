@@ -33,7 +33,7 @@ def gyro_of(rec, bias=0.0, noise=0.0, latency=0.0, seed=0):
 
 
 def gnss(positions):
-    """The GNSS fields of a Recording from ``(t, x, y)``."""
+    """Return the GNSS fields of a Recording from ``(t, x, y)``."""
     return dict(zip(('gnss_t', 'gnss_x', 'gnss_y'), positions))
 
 
@@ -158,7 +158,8 @@ def test_heading_reference_removes_bias_and_delay_and_skips_gaps(drive):
     from tracked_kinematics.core.identify.reference import heading_reference
     gyro_t, rate = gyro_of(drive, bias=0.02, latency=0.1)
     keep = (gyro_t < 100.0) | (gyro_t > 103.0)     # a 3-s gap in the gyro
-    rec = Recording(drive.enc_t, drive.left, drive.right, gyro_t=gyro_t[keep], gyro_rate=rate[keep])
+    rec = Recording(drive.enc_t, drive.left, drive.right, gyro_t=gyro_t[keep],
+                    gyro_rate=rate[keep])
     ref = heading_reference(rec, 0.1, 0.02)
     assert not np.any((ref.gt_t > 100.2) & (ref.gt_t < 102.9))
     before = ref.gt_t < 99.0

@@ -16,12 +16,12 @@ imu_delay='auto', pose_delay='auto', segment_length=1.0, position_window=None, h
 gnss_antenna=(0, 0)) -> ReferenceFit``
 
 Plain arrays in (one recording; :func:`fit_recordings` takes several
-:class:`~tracked_kinematics.core.recording.Recording`): encoder times (s) and cumulative nominal track travel (m);
-gyro stamps (s) and yaw rates (rad/s, REP-103), or yaw angles from an orientation; an
-optional pose ``(t, x, y, yaw)`` and optional positions ``(t, x, y)`` in a local plane
-(GNSS, :mod:`tracked_kinematics.core.geodesy`). Out: :class:`ReferenceFit`, with ``.icr``
-(the :class:`~tracked_kinematics.core.kinematics.IcrParams` to write), ``.determined`` and
-``.held`` (lists of ``chi``, ``scale_ratio``, ``distance_scale``, ``icr.x``, ``icr_offset``),
+:class:`~tracked_kinematics.core.recording.Recording`): encoder times (s) and cumulative
+nominal track travel (m); gyro stamps (s) and yaw rates (rad/s, REP-103), or yaw angles from
+an orientation; an optional pose ``(t, x, y, yaw)`` and optional positions ``(t, x, y)`` in a
+local plane (GNSS, :mod:`tracked_kinematics.core.geodesy`). Out: :class:`ReferenceFit`, with
+``.icr`` (the :class:`~tracked_kinematics.core.kinematics.IcrParams` to write), ``.determined``
+and ``.held`` (lists of ``chi``, ``scale_ratio``, ``distance_scale``, ``icr.x``, ``icr_offset``),
 ``.reference`` (``'imu'``, ``'imu+gnss'``, ...) and ``.report`` (a JSON-ready dict).
 Errors: :class:`~tracked_kinematics.core.errors.SensorDataError` for unusable sensor data
 (a gyro all zero or NaN, saturated), ``ExcitationError`` for data that cannot determine
