@@ -192,7 +192,7 @@ def gyro_references(bags, found, track_width: float) -> References:
     ----------
     bags : sequence of path-like
         The bags, for the records.
-    found : sequence of ReferenceRecording
+    found : sequence of Recording
         What :func:`tracked_kinematics.offline.bags.references.read_reference_bag` returned.
     track_width : float
         m, of the ideal drive the gyro fit starts from.
