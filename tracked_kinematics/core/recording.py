@@ -11,15 +11,15 @@ from dataclasses import dataclass, KW_ONLY
 
 import numpy as np
 
-# Streams: (times, values...), whether the values must be finite, value columns (1: 1-D).
-_STREAMS = {
-    'enc': (('enc_t', 'left', 'right'), True, 1),
-    'speed': (('speed_t', 'speeds'), False, 2),
-    'gt': (('gt_t', 'gt_x', 'gt_y', 'gt_yaw'), True, 1),
-    'gnss': (('gnss_t', 'gnss_x', 'gnss_y'), True, 1),
-    'command': (('command_t', 'commands'), False, 2),
-    'cmd_vel': (('cmd_vel_t', 'cmd_vel'), False, 2),
-}
+# Streams: (times, values...), whether finite and strictly increasing, value columns.
+_STREAMS = (
+    (('enc_t', 'left', 'right'), True, 1),
+    (('speed_t', 'speeds'), False, 2),
+    (('gt_t', 'gt_x', 'gt_y', 'gt_yaw'), True, 1),
+    (('gnss_t', 'gnss_x', 'gnss_y'), True, 1),
+    (('command_t', 'commands'), False, 2),
+    (('cmd_vel_t', 'cmd_vel'), False, 2),
+)
 _GYRO = ('gyro_rate', 'gyro_yaw', 'gyro_quaternion', 'gyro_quaternion_cov0')
 
 
@@ -86,7 +86,7 @@ class Recording:
     name: str = ''
 
     def __post_init__(self):
-        for names, finite, columns in _STREAMS.values():
+        for names, finite, columns in _STREAMS:
             self._check(names, finite, columns, increasing=finite)
         given = [n for n in _GYRO if getattr(self, n) is not None]
         if self.gyro_t is None:

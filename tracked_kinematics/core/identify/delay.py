@@ -46,7 +46,7 @@ likelihood at its minimum, ``sqrt(2 / cost'')``, which is optimistic.
 
 The estimator is a public function with a stable signature for every tool that meets ground
 truth and encoders (identify_icr, evaluate_model, the online estimator's pose stream):
-:func:`estimate_delay` on :class:`..recording.Recording` objects, or
+:func:`estimate_delay` on :class:`~tracked_kinematics.core.recording.Recording` objects, or
 :func:`estimate_delay_arrays` on plain arrays.
 """
 

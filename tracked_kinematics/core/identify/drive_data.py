@@ -2,10 +2,11 @@
 Drive-train data: commanded and measured track speeds, put on one grid (Fink & Stump sec. IV-A).
 
 The drive-train fit (:mod:`.drivetrain`) compares the simulated response to the commands of a
-:class:`..recording.Recording` with its measured speeds (:meth:`.Recording.track_speeds`)
-sample by sample, so both series are first resampled onto a common grid of period ``dt``: the
-commands as held setpoints (the one in force at each grid time), the measured speeds
-linearly. Gaps longer than ``max_gap`` in either stream cut the data into segments.
+:class:`~tracked_kinematics.core.recording.Recording` with its measured speeds
+(``Recording.track_speeds``) sample by sample, so both series are first resampled onto a
+common grid of period ``dt``: the commands as held setpoints (the one in force at each grid
+time), the measured speeds linearly. Gaps longer than ``max_gap`` in either stream cut the
+data into segments.
 """
 
 from __future__ import annotations
