@@ -17,7 +17,7 @@ import time
 
 import numpy as np
 
-from tracked_kinematics.core.identify import DriveData, fit_drivetrain
+from tracked_kinematics.core.identify import fit_drivetrain, Recording
 from tracked_kinematics.core.sim.manoeuvres import manoeuvre
 from tracked_kinematics.offline.cli import identify_drivetrain as cli
 from tracked_kinematics.offline.cli.simulate_bag import simulate_bag
@@ -36,7 +36,10 @@ def drive_data(robot, duration, seed=0):
     held = np.minimum(np.arange(n) // int(RATE / SETPOINT_RATE), len(cmd) - 1)
     speeds = robot.drivetrain.simulate(cmd[held], 1.0 / RATE)
     speeds = speeds + rng.normal(0.0, NOISE, size=speeds.shape)
-    return DriveData(np.arange(len(cmd)) / SETPOINT_RATE, cmd, np.arange(n) / RATE, speeds)
+    t = np.arange(n) / RATE
+    travel = np.vstack([np.zeros(2), np.cumsum(0.5 * (speeds[1:] + speeds[:-1]) / RATE, axis=0)])
+    return Recording(t, travel[:, 0], travel[:, 1], speed_t=t, speeds=speeds,
+                     command_t=np.arange(len(cmd)) / SETPOINT_RATE, commands=cmd)
 
 
 def describe(drive):

@@ -126,8 +126,8 @@ def simulated(label, overrides) -> None:
         train = _runs(tmp, table, overrides, (101, 102, 103, 104), 240.0)
         test = _runs(tmp, table, overrides, (201, 202, 203, 204), 60.0)
         refs = [read_reference_bag(b, encoders, '/imu/data', '/gnss/fix') for b in train]
-        gyro_only = [ident.ReferenceRecording(r.enc_t, r.left, r.right, r.gyro_t, r.gyro_rate,
-                                              name=r.name) for r in refs]
+        gyro_only = [ident.Recording(r.enc_t, r.left, r.right, gyro_t=r.gyro_t,
+                                     gyro_rate=r.gyro_rate, name=r.name) for r in refs]
         poses = read_bags(train, encoders, GroundTruthSource('/ground_truth/pose'))
         truth = read_bags(test, encoders, GroundTruthSource('/ground_truth/pose'))
         fits = {'gyro': ident.fit_recordings(gyro_only, width).icr}

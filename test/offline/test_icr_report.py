@@ -5,7 +5,7 @@ import json
 from helpers.vehicle_sim import AURIGA, B, simulate
 import numpy as np
 import pytest
-from tracked_kinematics.core.identify import ReferenceRecording
+from tracked_kinematics.core.identify import Recording
 from tracked_kinematics.core.identify.procedure import MIN_SPEED
 from tracked_kinematics.core.models import ConstantIcr, EffectiveWheelBase
 from tracked_kinematics.offline.identification import (
@@ -131,8 +131,8 @@ def test_spin_in_place_runs():
 
 def test_reference_calibration_from_a_gyro(standing):
     # An ideal orientation estimate (the simulated yaw) as the heading reference.
-    gyro = ReferenceRecording(standing.enc_t, standing.left, standing.right,
-                              gyro_t=standing.gt_t, gyro_yaw=standing.gt_yaw, name='gyro')
+    gyro = Recording(standing.enc_t, standing.left, standing.right,
+                     gyro_t=standing.gt_t, gyro_yaw=standing.gt_yaw, name='gyro')
     found = icr_from_references([gyro], ['/data/gyro'], B, 0.1, terrain='floor', date=DATE)
     values = found.values
     icr_from_values(values)

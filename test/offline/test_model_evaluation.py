@@ -15,7 +15,6 @@ import pytest
 from tracked_kinematics.core import evaluate as ev
 from tracked_kinematics.core.errors import ExcitationError, InvalidParameters
 from tracked_kinematics.core.identify import Recording
-from tracked_kinematics.core.identify.reference import ReferenceRecording
 from tracked_kinematics.core.kinematics import IcrParams
 from tracked_kinematics.core.models import ConstantIcr
 from tracked_kinematics.offline.model_evaluation import (
@@ -205,7 +204,7 @@ def gyro_drive():
     yaw = np.unwrap(rec.gt_yaw)
     rate = np.diff(yaw) / np.diff(rec.gt_t) + 0.01
     stamps = 0.5 * (rec.gt_t[1:] + rec.gt_t[:-1]) + 0.1
-    return ReferenceRecording(rec.enc_t, rec.left, rec.right, stamps, rate)
+    return Recording(rec.enc_t, rec.left, rec.right, gyro_t=stamps, gyro_rate=rate)
 
 
 def test_a_gyro_reference_scores_heading_only(gyro_drive, models, tmp_path):

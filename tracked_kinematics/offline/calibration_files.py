@@ -223,8 +223,8 @@ def write_bag(path, recording, topics, sprocket_radius: float) -> None:
     ----------
     path : path-like
         New rosbag2 directory.
-    recording : CalibrationRecording
-        The arrays.
+    recording : Recording
+        What the drive recorded (:func:`~tracked_kinematics.core.recording.from_stamped_rows`).
     topics : mapping
         ``joint_states``, ``joint_names`` (left, right), ``reference``, ``reference_kind``
         (``pose`` or ``imu``), ``cmd_vel``.
@@ -232,30 +232,36 @@ def write_bag(path, recording, topics, sprocket_radius: float) -> None:
         m; joint position = travel / radius.
 
     """
+    rec = recording
     with BagWriter(path, 'mcap') as bag:
         names = list(topics['joint_names'])
-        for t, (left, right) in zip(recording.encoder_t.tolist(),
-                                    (recording.encoder / sprocket_radius).tolist()):
+        for t, left, right in zip(rec.stamps_ns(rec.enc_t).tolist(),
+                                  (rec.left / sprocket_radius).tolist(),
+                                  (rec.right / sprocket_radius).tolist()):
             bag.write(topics['joint_states'], t, bag.joint_state(t, names, (left, right)))
         if topics['reference_kind'] == 'pose':
-            for t, (x, y, yaw) in zip(recording.pose_t.tolist(), recording.pose.tolist()):
+            for t, x, y, yaw in zip(*([] if rec.gt_t is None else [
+                    rec.stamps_ns(rec.gt_t).tolist(), rec.gt_x.tolist(), rec.gt_y.tolist(),
+                    rec.gt_yaw.tolist()])):
                 bag.write(topics['reference'], t, bag.odometry(t, x, y, yaw))
-        else:
+        elif rec.gyro_t is not None:
             imu_type = bag.typestore.types['sensor_msgs/msg/Imu']
             types = bag.typestore.types
             vec = types['geometry_msgs/msg/Vector3']
             quat = types['geometry_msgs/msg/Quaternion']
-            for t, row, cov0 in zip(recording.imu_t.tolist(), recording.imu.tolist(),
-                                    recording.imu_orientation_covariance0.tolist()):
+            for t, rate, q, cov0 in zip(rec.stamps_ns(rec.gyro_t).tolist(),
+                                        rec.gyro_rate.tolist(), rec.gyro_quaternion.tolist(),
+                                        rec.gyro_quaternion_cov0.tolist()):
                 covariance = np.zeros(9)
                 covariance[0] = cov0
                 msg = imu_type(header=bag.header(t, 'base_link'),
-                               orientation=quat(x=row[1], y=row[2], z=row[3], w=row[4]),
+                               orientation=quat(x=q[0], y=q[1], z=q[2], w=q[3]),
                                orientation_covariance=covariance,
-                               angular_velocity=vec(x=0.0, y=0.0, z=row[0]),
+                               angular_velocity=vec(x=0.0, y=0.0, z=rate),
                                angular_velocity_covariance=np.zeros(9),
                                linear_acceleration=vec(x=0.0, y=0.0, z=0.0),
                                linear_acceleration_covariance=np.zeros(9))
                 bag.write(topics['reference'], t, msg)
-        for t, (v, w) in zip(recording.cmd_t.tolist(), recording.cmd.tolist()):
-            bag.write(topics['cmd_vel'], t, bag.twist(v, w))
+        if rec.cmd_vel_t is not None:
+            for t, (v, w) in zip(rec.stamps_ns(rec.cmd_vel_t).tolist(), rec.cmd_vel.tolist()):
+                bag.write(topics['cmd_vel'], t, bag.twist(v, w))

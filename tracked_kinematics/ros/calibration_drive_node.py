@@ -30,9 +30,10 @@ from std_srvs.srv import Trigger
 from tracked_kinematics.core.clock_watch import ClockWatch
 from tracked_kinematics.core.integration import stamp_ns, yaw_from_quaternion
 from tracked_kinematics.core.plan.calibration_protocol import (
-    CalibrationRecording, FenceOdometry, MAX_DURATION, MIN_DURATION, protocol, total_duration)
+    FenceOdometry, MAX_DURATION, MIN_DURATION, protocol, total_duration)
 from tracked_kinematics.core.plan.supervisor import (
     Inputs, pose_jump, Supervisor, SupervisorConfig)
+from tracked_kinematics.core.recording import from_stamped_rows, Recording
 from tracked_kinematics.params import (
     described_as, each, ENCODER_INPUT_PARAMS, icr_from_values, node_name, one_of, ParamSpec,
     positive, ros_name, TERRAIN_PARAMS)
@@ -557,9 +558,9 @@ class CalibrationDriveNode(TableNode):
 
     # --- the end ------------------------------------------------------------------------
 
-    def recording(self) -> CalibrationRecording:
+    def recording(self) -> Recording:
         """Return what was recorded so far, as arrays."""
-        return CalibrationRecording.of(**self._rows)
+        return from_stamped_rows(**self._rows)
 
     def topics(self) -> dict:
         """Return the resolved topic names of the recording (for the bag)."""
@@ -599,8 +600,9 @@ class CalibrationDriveNode(TableNode):
     def _run_finish(self, recording, topics):
         """Write the results in this callback; a cancelled fit writes nothing."""
         self.get_logger().info(
-            f'protocol done: fitting {len(recording.encoder_t)} encoder steps and '
-            f'{len(recording.pose_t) + len(recording.imu_t)} reference samples')
+            f'protocol done: fitting {len(recording.enc_t)} encoder steps and '
+            f'{sum(len(t) for t in (recording.gt_t, recording.gyro_t) if t is not None)} '
+            'reference samples')
         try:
             status, fitted = self._finish(recording, topics, self.get_logger())
         except (ValueError, OSError) as err:   # the package's errors, a full disk

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from tracked_kinematics.core.drivetrain import DriveTrain, FirstOrderLag, PidMotor
 from tracked_kinematics.core.identify import (
-    DriveData, ExcitationError, fit_drivetrain, FitError, resample)
+    ExcitationError, fit_drivetrain, FitError, Recording, resample)
 from tracked_kinematics.offline.bags import EncoderSource, read_drive_bag
 from tracked_kinematics.offline.bags.writer import BagWriter
 from tracked_kinematics.offline.cli import identify_drivetrain as cli
@@ -34,6 +34,15 @@ def steps(duration, dt, rng, hold=(0.5, 3.0), top=1.0):
     return cmd
 
 
+def drive_data(command_t, commands, speed_t, speeds, name=''):
+    """Return a Recording of setpoints and measured speeds (travel: the speeds integrated)."""
+    speed_t = np.asarray(speed_t, dtype=float)
+    step = 0.5 * (speeds[1:] + speeds[:-1]) * np.diff(speed_t)[:, None]
+    travel = np.vstack([np.zeros(2), np.cumsum(np.nan_to_num(step), axis=0)])
+    return Recording(speed_t, travel[:, 0], travel[:, 1], command_t=command_t,
+                     commands=commands, speed_t=speed_t, speeds=speeds, name=name)
+
+
 def recording(drive, duration=30.0, noise=0.0, seed=0, jitter=0.0):
     """Setpoints at 50 Hz, speeds at 100 Hz (stamps optionally jittered), as in a bag."""
     rng = np.random.default_rng(seed)
@@ -46,7 +55,7 @@ def recording(drive, duration=30.0, noise=0.0, seed=0, jitter=0.0):
     t_meas = np.sort(t_meas + rng.uniform(-jitter, jitter, size=len(t_meas)))
     meas = np.column_stack([np.interp(t_meas, t_fine, speeds[:, j]) for j in range(2)])
     meas += rng.normal(0.0, noise, size=meas.shape)
-    return DriveData(np.arange(len(cmd)) * 0.02, cmd, t_meas, meas, name='synthetic')
+    return drive_data(np.arange(len(cmd)) * 0.02, cmd, t_meas, meas, name='synthetic')
 
 
 # Core ------------------------------------------------------------------------------------
@@ -70,12 +79,12 @@ def test_setpoints_stamped_late_shorten_the_delay_and_none_is_flagged():
     # true 0.03 s, 0.05 s late put the best delay at the lower end of the search (within
     # a sample: the discrete model is a sample off the continuous truth).
     data = recording(AURIGA, duration=30.0, seed=1)
-    early = fit_drivetrain(DriveData(data.command_t - 0.1, data.commands, data.speed_t,
-                                     data.speeds), dt=0.01)
+    early = fit_drivetrain(drive_data(data.command_t - 0.1, data.commands, data.speed_t,
+                                      data.speeds), dt=0.01)
     assert early.parameters['delay'] == pytest.approx(0.13, abs=0.011)
     assert not early.delay_at_zero
-    ahead = fit_drivetrain(DriveData(data.command_t + 0.05, data.commands, data.speed_t,
-                                     data.speeds), dt=0.01)
+    ahead = fit_drivetrain(drive_data(data.command_t + 0.05, data.commands, data.speed_t,
+                                      data.speeds), dt=0.01)
     assert ahead.parameters['delay'] == 0.0 and ahead.delay_at_zero
 
 
@@ -132,7 +141,7 @@ def test_pid_gains_with_fixed_motor_constants():
 def test_gaps_cut_the_data_into_segments():
     data = recording(AURIGA, duration=30.0)
     keep = (data.speed_t < 12.0) | (data.speed_t > 14.0)
-    cut = DriveData(data.command_t, data.commands, data.speed_t[keep], data.speeds[keep])
+    cut = drive_data(data.command_t, data.commands, data.speed_t[keep], data.speeds[keep])
     assert len(resample(cut, 0.01, 0.5)) == 2
     fit = fit_drivetrain(cut, dt=0.01)
     assert len(fit.segments) == 2
@@ -141,29 +150,29 @@ def test_gaps_cut_the_data_into_segments():
 
 def test_bad_inputs_give_clear_errors():
     data = recording(AURIGA, duration=10.0)
-    with pytest.raises(ValueError, match='times but'):
-        fit_drivetrain(DriveData(data.command_t[:-1], data.commands, data.speed_t, data.speeds))
-    with pytest.raises(ValueError, match=r'shape \(N, 2\)'):
-        fit_drivetrain(DriveData(data.command_t, data.commands[:, 0], data.speed_t,
-                                 data.speeds))
+    with pytest.raises(ValueError, match=r'command_t, commands must have the shapes \(N,\), '
+                       r'\(N, 2\), got \(499,\), \(500, 2\)'):
+        drive_data(data.command_t[:-1], data.commands, data.speed_t, data.speeds)
+    with pytest.raises(ValueError, match=r'shapes \(N,\), \(N, 2\), got \(500,\), \(500,\)'):
+        drive_data(data.command_t, data.commands[:, 0], data.speed_t, data.speeds)
     with pytest.raises(ValueError, match='do not overlap'):
-        fit_drivetrain(DriveData(data.command_t + 100.0, data.commands, data.speed_t,
-                                 data.speeds))
+        fit_drivetrain(drive_data(data.command_t + 100.0, data.commands, data.speed_t,
+                                  data.speeds))
     with pytest.raises(ValueError, match='loop must be one of'):
         fit_drivetrain(data, loop='pid')
     with pytest.raises(ExcitationError, match='hardly change'):
-        fit_drivetrain(DriveData(data.command_t, np.full_like(data.commands, 0.4),
-                                 data.speed_t, np.full_like(data.speeds, 0.4)))
+        fit_drivetrain(drive_data(data.command_t, np.full_like(data.commands, 0.4),
+                                  data.speed_t, np.full_like(data.speeds, 0.4)))
     with pytest.raises(ExcitationError, match='do not follow'):
-        fit_drivetrain(DriveData(data.command_t, data.commands, data.speed_t,
-                                 np.zeros_like(data.speeds)))
+        fit_drivetrain(drive_data(data.command_t, data.commands, data.speed_t,
+                                  np.zeros_like(data.speeds)))
     with pytest.raises(ExcitationError, match='too little data'):
-        fit_drivetrain(DriveData(data.command_t[:50], data.commands[:50], data.speed_t[:150],
-                                 data.speeds[:150]))
+        fit_drivetrain(drive_data(data.command_t[:50], data.commands[:50], data.speed_t[:150],
+                                  data.speeds[:150]))
     nan = data.speeds.copy()
     nan[::2] = np.nan     # non-finite samples are dropped, not propagated
-    assert np.isfinite(fit_drivetrain(DriveData(data.command_t, data.commands, data.speed_t,
-                                                nan), dt=0.01).rms)
+    assert np.isfinite(fit_drivetrain(drive_data(data.command_t, data.commands, data.speed_t,
+                                                 nan), dt=0.01).rms)
 
 
 def test_delay_at_the_search_bound_is_refused():
@@ -246,7 +255,9 @@ def test_positions_only_joint_states_and_plot(sim_bag, tmp_path):
                 writer.write('/left_track/setpoint', stamp, writer.float64(run.commands[i, 0]))
                 writer.write('/right_track/setpoint', stamp, writer.float64(run.commands[i, 1]))
     data = read_drive_bag(bag, EncoderSource(sprocket_radius=0.1))
-    assert data.commands.shape[1] == data.speeds.shape[1] == 2
+    t, speeds = data.track_speeds()
+    assert data.speeds is None and data.commands.shape[1] == speeds.shape[1] == 2
+    np.testing.assert_allclose(t, 0.5 * (data.enc_t[1:] + data.enc_t[:-1]), atol=1e-9)
     plot = tmp_path / 'drive.png'
     status = cli.main([str(bag), '-o', str(tmp_path / 'out.yaml'), '--plot', str(plot),
                        '--sprocket-radius', '0.1'])

@@ -12,7 +12,7 @@ P_TRUE = np.array(AURIGA)
 
 
 def with_ground_truth(rec, x, y, yaw):
-    return ident.Recording(rec.enc_t, rec.left, rec.right, rec.gt_t, x, y, yaw, rec.name)
+    return ident.Recording(rec.enc_t, rec.left, rec.right, rec.gt_t, x, y, yaw, name=rec.name)
 
 
 def test_clean_data_recovers_auriga_alpha(clean_segments):

@@ -7,9 +7,10 @@ import numpy as np
 import pytest
 from tracked_kinematics.core.errors import ExcitationError, SensorDataError
 from tracked_kinematics.core.identify.reference import (
-    check_gyro, fit_from_reference, fit_recordings, ReferenceRecording)
+    check_gyro, fit_from_reference, fit_recordings)
 from tracked_kinematics.core.kinematics import IcrParams
 from tracked_kinematics.core.models import ConstantIcr
+from tracked_kinematics.core.recording import Recording
 
 TRUE = IcrParams(B, *AURIGA)
 S_TRUE = 0.5 * (TRUE.scale_left + TRUE.scale_right)
@@ -29,6 +30,11 @@ def gyro_of(rec, bias=0.0, noise=0.0, latency=0.0, seed=0):
     rate = np.diff(yaw) / np.diff(rec.gt_t)
     stamps = 0.5 * (rec.gt_t[1:] + rec.gt_t[:-1]) + latency
     return stamps, rate + bias + rng.normal(0.0, noise, rate.size) if noise else rate + bias
+
+
+def gnss(positions):
+    """Return the GNSS fields of a Recording from ``(t, x, y)``."""
+    return dict(zip(('gnss_t', 'gnss_x', 'gnss_y'), positions))
 
 
 def test_gyro_alone_gives_chi_ratio_bias_and_delay(drive):
@@ -66,8 +72,9 @@ def test_gnss_fits_the_distance_scale(drive):
     positions = (drive.gt_t[pick], drive.gt_x[pick] + rng.normal(0, 0.5, drive.gt_t[pick].size),
                  drive.gt_y[pick] + rng.normal(0, 0.5, drive.gt_t[pick].size))
     # Long windows: the exact constant-ICR model does not drift, and the scale is unbiased.
-    fit = fit_recordings([ReferenceRecording(drive.enc_t, drive.left, drive.right, gyro_t, rate,
-                                             positions=positions)], B, position_window=120.0)
+    fit = fit_recordings([Recording(drive.enc_t, drive.left, drive.right, gyro_t=gyro_t,
+                                    gyro_rate=rate, **gnss(positions))], B,
+                         position_window=120.0)
     assert fit.reference == 'imu+gnss'
     assert 'distance_scale' in fit.determined
     assert fit.distance_scale == pytest.approx(S_TRUE, abs=0.01)
@@ -133,7 +140,7 @@ def test_a_saturated_gyro_is_refused_by_the_fit(drive):
 def test_too_little_turning_is_an_excitation_error():
     t, left, right, w = straight_run()
     with pytest.raises(ExcitationError, match='turns'):
-        fit_recordings([ReferenceRecording(t, left, right, t, w + 1e-4)], B, imu_delay=0.0)
+        fit_recordings([Recording(t, left, right, gyro_t=t, gyro_rate=w + 1e-4)], B, imu_delay=0.0)
 
 
 def test_an_orientation_yaw_serves_as_the_heading(drive):
@@ -151,7 +158,8 @@ def test_heading_reference_removes_bias_and_delay_and_skips_gaps(drive):
     from tracked_kinematics.core.identify.reference import heading_reference
     gyro_t, rate = gyro_of(drive, bias=0.02, latency=0.1)
     keep = (gyro_t < 100.0) | (gyro_t > 103.0)     # a 3-s gap in the gyro
-    rec = ReferenceRecording(drive.enc_t, drive.left, drive.right, gyro_t[keep], rate[keep])
+    rec = Recording(drive.enc_t, drive.left, drive.right, gyro_t=gyro_t[keep],
+                    gyro_rate=rate[keep])
     ref = heading_reference(rec, 0.1, 0.02)
     assert not np.any((ref.gt_t > 100.2) & (ref.gt_t < 102.9))
     before = ref.gt_t < 99.0
@@ -168,8 +176,8 @@ def test_an_offset_antenna_is_not_taken_for_icr_x(drive):
     ax, ay = 0.5, 0.1
     positions = (drive.gt_t[pick], drive.gt_x[pick] + np.cos(yaw) * ax - np.sin(yaw) * ay,
                  drive.gt_y[pick] + np.sin(yaw) * ax + np.cos(yaw) * ay)
-    rec = ReferenceRecording(drive.enc_t, drive.left, drive.right, gyro_t, rate,
-                             positions=positions)
+    rec = Recording(drive.enc_t, drive.left, drive.right, gyro_t=gyro_t, gyro_rate=rate,
+                    **gnss(positions))
     told = fit_recordings([rec], B, imu_delay=0.0, gnss_antenna=(ax, ay))
     assert 'icr.x' in told.determined
     assert told.icr.x == pytest.approx(TRUE.x, abs=0.005)

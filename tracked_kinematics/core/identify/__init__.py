@@ -9,7 +9,7 @@ docs/tools/identify_drivetrain.md.
 from .delay import (
     correct_ground_truth, DelayEstimate, estimate_delay, estimate_delay_arrays, estimate_delays,
     fixed_delay)
-from .drive_data import DriveData, resample
+from .drive_data import resample
 from .drivetrain_fit import DriveTrainFit, fit_drivetrain
 from .excitation import (
     check_excitation, Excitation, MIN_MOVING_SEGMENTS, MIN_STRAIGHT, MIN_TURNING)
@@ -24,24 +24,24 @@ from .problem import (
 from .procedure import DataTime, Identification, identify, ModelEvaluation
 from .reference import (
     check_gyro, check_saturation, fit_from_reference, fit_recordings, heading_reference,
-    QUANTITIES,
-    ReferenceFit, ReferenceRecording)
+    QUANTITIES, ReferenceFit)
 from .search_space import (
     BASELINES, baselines, bounds, build_model, COMPARE_MODELS, FIT_MODELS, fit_models,
     initial_guess, search_box, steering_efficiency_guess)
 from .segments import (
-    build_segments, covered_spans, gap_threshold, Recording, Segments, stretches)
+    build_segments, covered_spans, gap_threshold, Segments, stretches)
 from .spin import spin_in_place, SpinResult
 from .tuned_diff_drive import ddc_parameters, DDC_PARAMS, TunedDiffDrive
 from ..errors import ExcitationError, FitError, IdentificationError, SensorDataError
+from ..recording import Recording
 
 __all__ = [
     'BASELINES', 'COMPARE_MODELS', 'DDC_PARAMS', 'DEFAULT_HEADING_WEIGHT', 'DataTime',
-    'DelayEstimate', 'DriveData', 'DriveTrainFit', 'ErrorStats', 'Excitation', 'ExcitationError',
+    'DelayEstimate', 'DriveTrainFit', 'ErrorStats', 'Excitation', 'ExcitationError',
     'FIT_MODELS', 'FitError', 'FitResult', 'HoldOut', 'Identification', 'IdentificationError',
     'LOSSES', 'METHODS', 'MIN_BLOCKS', 'MIN_MOVING_SEGMENTS', 'MIN_SEGMENTS', 'MIN_STRAIGHT',
     'MIN_TURNING', 'MIN_WINDOWS', 'ModelEvaluation', 'QUANTITIES', 'REFERENCE_RESIDUAL',
-    'Recording', 'ReferenceFit', 'ReferenceRecording', 'SensorDataError', 'STD_LIMITS',
+    'Recording', 'ReferenceFit', 'SensorDataError', 'STD_LIMITS',
     'SegmentProblem', 'Segments', 'SpinResult', 'TunedDiffDrive', 'Uncertain', 'UncertainError',
     'auto_heading_weight', 'baselines', 'bounds', 'build_model', 'build_segments',
     'check_excitation', 'check_gyro', 'check_heading_weight', 'check_identified',

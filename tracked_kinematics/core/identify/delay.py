@@ -14,8 +14,9 @@ import math
 
 import numpy as np
 
-from .segments import JUMP_MARGIN, MAX_HEADING_STEP, Recording, stretches
+from .segments import JUMP_MARGIN, MAX_HEADING_STEP, stretches
 from ..integration import wrap_angle
+from ..recording import Recording
 
 CHANNELS = ('heading', 'forward')
 """Channels correlated: heading changes and forward displacements."""

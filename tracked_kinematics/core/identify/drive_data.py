@@ -16,33 +16,7 @@ import math
 import numpy as np
 
 from ..errors import ExcitationError, TrackedKinematicsError
-
-
-@dataclass(frozen=True)
-class DriveData:
-    """
-    Commanded and measured track speeds of one recording.
-
-    Attributes
-    ----------
-    command_t : ndarray, shape (N,)
-        Times of the setpoints, s.
-    commands : ndarray, shape (N, 2)
-        Commanded (left, right) track speeds, m/s; each holds until the next.
-    speed_t : ndarray, shape (M,)
-        Times of the measured speeds, s (same clock as ``command_t``).
-    speeds : ndarray, shape (M, 2)
-        Measured (left, right) track speeds, m/s.
-    name : str
-        Where the data came from, for messages.
-
-    """
-
-    command_t: np.ndarray
-    commands: np.ndarray
-    speed_t: np.ndarray
-    speeds: np.ndarray
-    name: str = 'data'
+from ..recording import Recording
 
 
 @dataclass(frozen=True)
@@ -68,14 +42,7 @@ class Segment:
 
 
 def _series(t, values, what: str, name: str):
-    """Check, sort and clean one time series: finite rows, increasing unique times."""
-    t = np.asarray(t, dtype=float)
-    values = np.asarray(values, dtype=float)
-    if t.ndim != 1 or values.ndim != 2 or values.shape[1] != 2:
-        raise ValueError(f'{name}: {what} must be times of shape (N,) and values of shape '
-                         f'(N, 2), got {t.shape} and {values.shape}')
-    if len(t) != len(values):
-        raise ValueError(f'{name}: {len(t)} {what} times but {len(values)} values')
+    """Sort and clean one time series: finite rows, increasing unique times."""
     ok = np.isfinite(t) & np.all(np.isfinite(values), axis=1)
     t, values = t[ok], values[ok]
     order = np.argsort(t, kind='stable')
@@ -87,14 +54,14 @@ def _series(t, values, what: str, name: str):
     return t, values
 
 
-def resample(data: DriveData, dt: float, max_gap: float) -> list[Segment]:
+def resample(data: Recording, dt: float, max_gap: float) -> list[Segment]:
     """
     Put commands and measured speeds on one grid, cut at gaps.
 
     Parameters
     ----------
-    data : DriveData
-        One recording.
+    data : Recording
+        One recording with track setpoints (``commands``).
     dt : float
         Grid period, s.
     max_gap : float
@@ -115,12 +82,15 @@ def resample(data: DriveData, dt: float, max_gap: float) -> list[Segment]:
         When a series has fewer than two finite samples.
 
     """
-    t_c, cmd = _series(data.command_t, data.commands, 'command', data.name)
-    t_m, meas = _series(data.speed_t, data.speeds, 'speed', data.name)
+    name = data.name or 'data'
+    if data.command_t is None:
+        raise ValueError(f'{name}: no track setpoints (commands)')
+    t_c, cmd = _series(data.command_t, data.commands, 'command', name)
+    t_m, meas = _series(*data.track_speeds(), 'speed', name)
     start, end = max(t_c[0], t_m[0]), t_m[-1]
     if end <= start:
         raise TrackedKinematicsError(
-            f'{data.name}: the commands ({t_c[0]:.2f}-{t_c[-1]:.2f} s) and the measured '
+            f'{name}: the commands ({t_c[0]:.2f}-{t_c[-1]:.2f} s) and the measured '
             f'speeds ({t_m[0]:.2f}-{t_m[-1]:.2f} s) do not overlap in time')
     grid = start + dt * np.arange(int(math.floor((end - start) / dt + 1e-9)) + 1)
     held = np.searchsorted(t_c, grid + 1e-9 * dt, side='right') - 1
@@ -129,5 +99,5 @@ def resample(data: DriveData, dt: float, max_gap: float) -> list[Segment]:
     commands = cmd[held]
     speeds = np.column_stack([np.interp(grid, t_m, meas[:, j]) for j in range(2)])
     edges = np.flatnonzero(np.diff(np.concatenate([[0], valid.astype(np.int8), [0]])))
-    return [Segment(grid[a:b], commands[a:b], speeds[a:b], data.name)
+    return [Segment(grid[a:b], commands[a:b], speeds[a:b], name)
             for a, b in zip(edges[::2], edges[1::2]) if b - a >= 2]

@@ -17,9 +17,10 @@ import time
 import numpy as np
 from scipy.optimize import least_squares
 
-from .drive_data import DriveData, resample, Segment
+from .drive_data import resample, Segment
 from ..drivetrain import DriveTrain, FirstOrderLag, LOOP_KINDS, PidMotor
 from ..errors import ExcitationError, FitError
+from ..recording import Recording
 
 MIN_SECONDS = 2.0
 """Least duration of usable data (after the delay search window of each segment), s."""
@@ -205,7 +206,7 @@ def _delay_std(blocks, lag: int, dt: float):
             f'{1000 * dt:.0f} ms grid')
 
 
-def fit_drivetrain(data: DriveData | Sequence[DriveData], loop: str = 'first_order',
+def fit_drivetrain(data: Recording | Sequence[Recording], loop: str = 'first_order',
                    dt: float | None = None, max_delay: float = 0.5, max_gap: float = 0.5,
                    base: DriveTrain | None = None, max_rounds: int = 6) -> DriveTrainFit:
     """
@@ -213,8 +214,8 @@ def fit_drivetrain(data: DriveData | Sequence[DriveData], loop: str = 'first_ord
 
     Parameters
     ----------
-    data : DriveData or sequence of DriveData
-        Recordings; both tracks of all of them share one model.
+    data : Recording or sequence of Recording
+        Recordings with track setpoints (``commands``); both tracks of all of them share one model.
     loop : {'first_order', 'pid_dc_motor', 'ideal'}
         A lag ``1 / (T s + 1)``; the PID gains of eq. (8) with ``base``'s (else Table II's)
         motor constants fixed; or none.
@@ -245,12 +246,12 @@ def fit_drivetrain(data: DriveData | Sequence[DriveData], loop: str = 'first_ord
     for name, value in (('max_delay', max_delay), ('max_gap', max_gap)):
         if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
             raise ValueError(f'{name} must be a finite number >= 0 s, got {value!r}')
-    recordings = [data] if isinstance(data, DriveData) else list(data)
+    recordings = [data] if isinstance(data, Recording) else list(data)
     if not recordings:
         raise ValueError('no recordings given')
     if dt is None:
-        periods = [np.median(np.diff(np.unique(np.asarray(r.speed_t, float))))
-                   for r in recordings if len(np.unique(np.asarray(r.speed_t, float))) > 1]
+        times = [np.unique(np.asarray(r.track_speeds()[0], float)) for r in recordings]
+        periods = [np.median(np.diff(t)) for t in times if len(t) > 1]
         # Rounded to the microsecond: stamps jitter, and the delay is a multiple of dt.
         dt = round(float(np.clip(min(periods), 0.002, 0.02)), 6) if periods else 0.01
     if not (math.isfinite(dt) and dt > 0):

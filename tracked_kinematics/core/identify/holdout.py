@@ -189,7 +189,7 @@ def _crop(recording: Recording, start: float, end: float) -> Recording:
     e1 = int(np.searchsorted(rec.enc_t, end, side='left')) + 1
     g0, g1 = np.searchsorted(rec.gt_t, [start - 1e-9, end + 1e-9])
     return Recording(rec.enc_t[e0:e1], rec.left[e0:e1], rec.right[e0:e1], rec.gt_t[g0:g1],
-                     rec.gt_x[g0:g1], rec.gt_y[g0:g1], rec.gt_yaw[g0:g1], rec.name)
+                     rec.gt_x[g0:g1], rec.gt_y[g0:g1], rec.gt_yaw[g0:g1], name=rec.name)
 
 
 def dead_reckoning(model: MotionModel, p, recording: Recording):

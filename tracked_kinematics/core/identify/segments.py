@@ -16,56 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..integration import relative_pose, wrap_angle
-
-
-@dataclass(frozen=True)
-class Recording:
-    """
-    One continuous log: cumulative encoder travel and ground-truth poses.
-
-    Attributes
-    ----------
-    enc_t : ndarray, shape (N,)
-        Encoder sample times, s, strictly increasing.
-    left, right : ndarray, shape (N,)
-        Cumulative nominal travel of each track at those times, m (any offset).
-    gt_t : ndarray, shape (M,)
-        Ground-truth sample times, s, strictly increasing, on the same clock.
-    gt_x, gt_y, gt_yaw : ndarray, shape (M,)
-        Pose of base_link in a fixed frame: m, m, rad.
-    name : str
-        Where it came from (a bag path), for reports.
-
-    """
-
-    enc_t: np.ndarray
-    left: np.ndarray
-    right: np.ndarray
-    gt_t: np.ndarray
-    gt_x: np.ndarray
-    gt_y: np.ndarray
-    gt_yaw: np.ndarray
-    name: str = ''
-
-    def __post_init__(self):
-        for group in (('enc_t', 'left', 'right'), ('gt_t', 'gt_x', 'gt_y', 'gt_yaw')):
-            arrays = [np.asarray(getattr(self, n), dtype=float) for n in group]
-            if any(a.ndim != 1 or a.shape != arrays[0].shape for a in arrays):
-                raise ValueError(f'{", ".join(group)} must be 1-D arrays of one length')
-            for n, a in zip(group, arrays):
-                if not np.all(np.isfinite(a)):
-                    raise ValueError(f'{n} has non-finite values')
-                object.__setattr__(self, n, a)
-        for n in ('enc_t', 'gt_t'):
-            if np.any(np.diff(getattr(self, n)) <= 0.0):
-                raise ValueError(f'{n} must be strictly increasing')
-
-    @property
-    def duration(self) -> float:
-        """Time covered by both encoders and ground truth, s."""
-        start = max(self.enc_t[0], self.gt_t[0]) if len(self.enc_t) and len(self.gt_t) else 0
-        end = min(self.enc_t[-1], self.gt_t[-1]) if len(self.enc_t) and len(self.gt_t) else 0
-        return float(max(0.0, end - start))
+from ..recording import Recording
 
 
 @dataclass(frozen=True)

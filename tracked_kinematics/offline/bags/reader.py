@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 from rosbags.highlevel import AnyReader
-from tracked_kinematics.core.identify import DriveData, Recording
+from tracked_kinematics.core.recording import Recording
 from tracked_kinematics.offline.errors import BagError
 
 from .commands import Commands
@@ -95,7 +95,7 @@ def read_bags(paths, encoders: EncoderSource, ground_truth: GroundTruthSource,
 
 
 def read_drive_bag(path, encoders: EncoderSource, setpoint_topics=SETPOINT_TOPICS,
-                   progress: bool = False, commands: CommandSource | None = None) -> DriveData:
+                   progress: bool = False, commands: CommandSource | None = None) -> Recording:
     """
     Read the commanded and measured track speeds of one bag, to identify its drive train.
 
@@ -118,8 +118,10 @@ def read_drive_bag(path, encoders: EncoderSource, setpoint_topics=SETPOINT_TOPIC
 
     Returns
     -------
-    DriveData
-        Times in seconds from the bag's start.
+    Recording
+        With ``commands`` and, when the joints report them, ``speeds``
+        (:meth:`~tracked_kinematics.core.recording.Recording.track_speeds`); times in seconds
+        from the bag's start.
 
     Raises
     ------
@@ -134,19 +136,20 @@ def read_drive_bag(path, encoders: EncoderSource, setpoint_topics=SETPOINT_TOPIC
     return guarded(Path(path), _read_drive, encoders, commands, progress)
 
 
-def _read_drive(reader, path, encoders, commands, progress) -> DriveData:
+def _read_drive(reader, path, encoders, commands, progress) -> Recording:
     enc, setpoints = read_streams(reader, path, encoders, Commands, commands, progress)
+    t, left, right = enc.travel()
     speeds = enc.velocities()
-    if speeds is None:
-        t, left, right = enc.travel()
-        dt = np.diff(t) * 1e-9
-        if not np.all(dt > 0) or len(t) < 2:
-            raise BagError(f'{path}: fewer than two encoder samples')
-        speeds = (0.5 * (t[1:] + t[:-1]), np.diff(left) / dt, np.diff(right) / dt)
-    speed_t, v_left, v_right = speeds
+    if speeds is None and len(t) < 2:
+        raise BagError(f'{path}: fewer than two encoder samples')
+    measured = {}
+    if speeds is not None:
+        speed_t, v_left, v_right = speeds
+        measured = {'speed_t': np.asarray(speed_t) * 1e-9,
+                    'speeds': np.column_stack([v_left, v_right])}
     command_t, values = setpoints.commands()
-    return DriveData(command_t * 1e-9, values, np.asarray(speed_t) * 1e-9,
-                     np.column_stack([v_left, v_right]), name=str(path))
+    return Recording(t * 1e-9, left, right, command_t=command_t * 1e-9, commands=values,
+                     name=str(path), **measured)
 
 
 def read_evaluation_bag(path, encoders: EncoderSource, ground_truth: GroundTruthSource,

@@ -8,7 +8,7 @@ turns at all), a
 position topic (sensor_msgs/NavSatFix with ``status.status >= 0``, converted to the
 east-north plane at the first fix by :mod:`tracked_kinematics.core.geodesy`; or
 nav_msgs/Odometry, navsat_transform's, positions only) and a ground-truth pose. It returns
-a :class:`tracked_kinematics.core.identify.ReferenceRecording`, times in seconds from the
+a :class:`tracked_kinematics.core.recording.Recording`, times in seconds from the
 first sample of any stream.
 """
 
@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 from tracked_kinematics.core.errors import SensorDataError
 from tracked_kinematics.core.geodesy import geodetic_to_enu, GeoOrigin
-from tracked_kinematics.core.identify import ReferenceRecording
+from tracked_kinematics.core.recording import Recording
 from tracked_kinematics.offline.errors import BagError
 
 from .columns import Columns, header_stamp, sort_unique
@@ -126,7 +126,7 @@ class _References:
 def read_reference_bag(path, encoders, imu_topic: str | None = None,
                        gnss_topic: str | None = None,
                        ground_truth: GroundTruthSource | None = None,
-                       progress: bool = False) -> ReferenceRecording:
+                       progress: bool = False) -> Recording:
     """
     Read the encoders and the references of one bag.
 
@@ -153,7 +153,7 @@ def read_reference_bag(path, encoders, imu_topic: str | None = None,
                    (imu_topic, gnss_topic, ground_truth), progress)
 
 
-def _read_references(reader, path, encoders, sources, progress) -> ReferenceRecording:
+def _read_references(reader, path, encoders, sources, progress) -> Recording:
     enc, refs = read_streams(reader, path, encoders, _References, sources, progress)
     enc_t, left, right = enc.travel()
     starts = [enc_t[0]]
@@ -175,10 +175,10 @@ def _read_references(reader, path, encoders, sources, progress) -> ReferenceReco
         kwargs['gyro_rate' if gyro[1] is not None else 'gyro_yaw'] = \
             gyro[1] if gyro[1] is not None else gyro[2]
     if positions is not None:
-        kwargs['positions'] = (seconds(positions[0]), positions[1], positions[2])
+        kwargs.update(gnss_t=seconds(positions[0]), gnss_x=positions[1], gnss_y=positions[2])
     if pose is not None:
-        kwargs['pose'] = (seconds(pose[0]), *pose[1:])
+        kwargs.update(zip(('gt_t', 'gt_x', 'gt_y', 'gt_yaw'), (seconds(pose[0]), *pose[1:])))
     try:
-        return ReferenceRecording(seconds(enc_t), left, right, name=str(path), **kwargs)
+        return Recording(seconds(enc_t), left, right, name=str(path), **kwargs)
     except ValueError as err:
         raise BagError(f'{path}: {err}') from None

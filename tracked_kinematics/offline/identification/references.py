@@ -39,7 +39,7 @@ def icr_from_references(recordings, bags, track_width: float, sprocket_radius: f
 
     Parameters
     ----------
-    recordings : sequence of ReferenceRecording
+    recordings : sequence of Recording
         The bags as read, one each.
     bags : sequence of path-like
         Their paths, for the record.

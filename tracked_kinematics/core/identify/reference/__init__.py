@@ -12,12 +12,11 @@ from .heading_fit import CHI_REL_STD_LIMIT, HUBER_K, MIN_TURN, RATIO_STD_LIMIT
 from .headings import heading_reference, MAX_STRAIGHT_TURN, MIN_MOVING_SEGMENTS
 from .positions import DISTANCE_STD_LIMIT, POSITION_WINDOW, X_STD_LIMIT
 from .recordings import (
-    check_gyro, check_saturation, QUANTITIES, ReferenceFit, ReferenceRecording,
-    SATURATION_SHARE)
+    check_gyro, check_saturation, QUANTITIES, ReferenceFit, SATURATION_SHARE)
 
 __all__ = [
     'CHI_REL_STD_LIMIT', 'DISTANCE_STD_LIMIT', 'HUBER_K', 'MAX_STRAIGHT_TURN',
     'MIN_MOVING_SEGMENTS', 'MIN_TURN', 'POSITION_WINDOW', 'QUANTITIES', 'RATIO_STD_LIMIT',
-    'ReferenceFit', 'ReferenceRecording', 'SATURATION_SHARE', 'X_STD_LIMIT', 'check_gyro',
+    'ReferenceFit', 'SATURATION_SHARE', 'X_STD_LIMIT', 'check_gyro',
     'check_saturation', 'fit_from_reference', 'fit_recordings', 'heading_reference',
 ]

@@ -18,9 +18,10 @@ from .heading_fit import fit_heading, HeadingFit
 from .headings import heading_data, HeadingData
 from .positions import DistanceFit, fit_distance
 from .recordings import (calibration_quantities, check_gyro, check_saturation, clean_gyro,
-                         QUANTITIES, ReferenceFit, ReferenceRecording)
+                         QUANTITIES, ReferenceFit)
 from ...errors import FitError, SensorDataError
 from ...kinematics import IcrParams
+from ...recording import Recording
 
 
 def _checked_recordings(recordings, track_width: float, hold, gnss_antenna,
@@ -139,7 +140,7 @@ def fit_recordings(recordings, track_width: float, *, base: IcrParams | None = N
 
     Parameters
     ----------
-    recordings : sequence of ReferenceRecording
+    recordings : sequence of Recording
         One vehicle and terrain; each needs a gyro or a pose.
     track_width : float
         m.
@@ -220,7 +221,10 @@ def fit_from_reference(enc_t, left, right, *, track_width: float, gyro_t=None, g
         As :func:`fit_recordings`.
 
     """
-    rec = ReferenceRecording(enc_t, left, right, gyro_t, gyro_rate, gyro_yaw, pose, positions)
+    pose = (None,) * 4 if pose is None else pose
+    gnss = {} if positions is None else dict(zip(('gnss_t', 'gnss_x', 'gnss_y'), positions))
+    rec = Recording(enc_t, left, right, *pose, gyro_t=gyro_t, gyro_rate=gyro_rate,
+                    gyro_yaw=gyro_yaw, **gnss)
     return fit_recordings([rec], track_width, base=base, imu_delay=imu_delay,
                           pose_delay=pose_delay, segment_length=segment_length,
                           straight_distance=straight_distance,

@@ -13,8 +13,8 @@ import numpy as np
 
 from .headings import gyro_heading
 from ..delay import DelayEstimate, estimate_delay, fixed_delay
-from ..segments import Recording
 from ...integration import wrap_angle
+from ...recording import Recording
 
 
 def _delay_of_gyro(rec_list, imu_delay):
@@ -41,8 +41,7 @@ def _delay_of_pose(rec_list, pose_delay):
         return fixed_delay(float(pose_delay or 0.0))
     if pose_delay != 'auto':
         raise ValueError(f"pose_delay must be seconds or 'auto', got {pose_delay!r}")
-    return estimate_delay([Recording(r.enc_t, r.left, r.right, *r.pose, name=r.name)
-                           for r in rec_list])
+    return estimate_delay(rec_list)
 
 
 def sensor_delays(recs, imu_delay, pose_delay):
@@ -51,7 +50,7 @@ def sensor_delays(recs, imu_delay, pose_delay):
 
     Parameters
     ----------
-    recs : list of ReferenceRecording
+    recs : list of Recording
         The recordings; those with a gyro give its delay, those with a pose the pose's.
     imu_delay, pose_delay : float or 'auto'
         s, or 'auto' to estimate (:func:`_delay_of_gyro`, :func:`_delay_of_pose`).

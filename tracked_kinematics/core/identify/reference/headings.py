@@ -12,10 +12,11 @@ import math
 
 import numpy as np
 
-from .recordings import clean_gyro, ReferenceRecording
-from ..segments import gap_threshold, Recording
+from .recordings import clean_gyro
+from ..segments import gap_threshold
 from ...errors import ExcitationError
 from ...integration import wrap_angle
+from ...recording import Recording
 
 MAX_STRAIGHT_TURN = math.radians(15.0)
 """Largest heading excursion, rad, of a drive that counts as straight."""
@@ -24,7 +25,7 @@ MIN_MOVING_SEGMENTS = 10
 _MIN_TRAVEL = 0.01
 
 
-def gyro_heading(rec: ReferenceRecording, delay: float):
+def gyro_heading(rec: Recording, delay: float):
     """Return the gyro's stamps (``delay`` removed) and its continuous heading, rad."""
     t = rec.gyro_t - delay
     if rec.gyro_rate is not None:
@@ -156,7 +157,7 @@ def heading_data(recs, imu_delay: float, pose_delay: float, segment_length: floa
     return HeadingData(gyro, pose, sources, moving, turned, driven)
 
 
-def heading_reference(rec: ReferenceRecording, delay: float, bias: float,
+def heading_reference(rec: Recording, delay: float, bias: float,
                       rate: float = 10.0) -> Recording:
     """
     Return a Recording whose ground truth is the gyro's heading: to score heading only.

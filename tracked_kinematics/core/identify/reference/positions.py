@@ -298,7 +298,7 @@ def fit_distance(recs, headings: HeadingData, heading: HeadingFit, base, hold,
 
     Parameters
     ----------
-    recs : list of ReferenceRecording
+    recs : list of Recording
         Checked and cleaned (step 1).
     headings, heading : HeadingData, HeadingFit
         The heading references (step 3) and their fit (step 4).

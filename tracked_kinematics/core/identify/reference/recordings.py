@@ -1,95 +1,26 @@
 """
-The recordings a robot without ground truth gives, the result of a calibration, and the checks.
+The result of a calibration from references, and the checks of the sensor data.
 
-:class:`ReferenceRecording` holds the encoder travel and any of a gyro, a pose and positions;
-:class:`ReferenceFit` what :func:`.calibration.fit_recordings` makes of them. The sensor data
-are checked before any fit: :func:`check_gyro` refuses a gyro that reads nothing,
-:func:`check_saturation` one stuck at its range.
+:class:`ReferenceFit` is what :func:`.calibration.fit_recordings` makes of recordings with a
+gyro, a pose or positions. The sensor data are checked before any fit: :func:`check_gyro`
+refuses a gyro that reads nothing, :func:`check_saturation` one stuck at its range.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from ..delay import DelayEstimate, fixed_delay
 from ...errors import SensorDataError
 from ...kinematics import IcrParams
+from ...recording import Recording
 
 QUANTITIES = ('chi', 'scale_ratio', 'distance_scale', 'icr.x', 'icr_offset')
 """What a calibration determines or holds (``identification.determined`` / ``held``)."""
 SATURATION_SHARE = 0.005
 """Share of gyro readings stuck at the largest magnitude that means saturation."""
-
-
-@dataclass(frozen=True)
-class ReferenceRecording:
-    """
-    One recording: encoder travel and the references a robot without ground truth has.
-
-    Attributes
-    ----------
-    enc_t, left, right : ndarray, shape (N,)
-        Encoder times (s, increasing) and cumulative nominal travel per track (m).
-    gyro_t : ndarray or None
-        Gyro stamps, s, on the encoders' clock.
-    gyro_rate : ndarray or None
-        Yaw rates, rad/s (counter-clockwise positive).
-    gyro_yaw : ndarray or None
-        Yaw angles of an orientation estimate, rad, instead of ``gyro_rate``.
-    pose : tuple of ndarray or None
-        ``(t, x, y, yaw)`` of a pose reference.
-    positions : tuple of ndarray or None
-        ``(t, x, y)``: positions in a local plane (GNSS), m.
-    name : str
-        Where it came from, for reports.
-
-    """
-
-    enc_t: np.ndarray
-    left: np.ndarray
-    right: np.ndarray
-    gyro_t: np.ndarray | None = None
-    gyro_rate: np.ndarray | None = None
-    gyro_yaw: np.ndarray | None = None
-    pose: tuple | None = None
-    positions: tuple | None = None
-    name: str = ''
-
-    def __post_init__(self):
-        def arrays(group, names):
-            out = [np.asarray(a, dtype=float) for a in group]
-            if any(a.ndim != 1 or a.shape != out[0].shape for a in out):
-                raise ValueError(f'{", ".join(names)} must be 1-D arrays of one length')
-            if np.any(np.diff(out[0]) <= 0) or not np.all(np.isfinite(out[0])):
-                raise ValueError(f'{names[0]} must be finite and strictly increasing')
-            return out
-
-        enc = arrays((self.enc_t, self.left, self.right), ('enc_t', 'left', 'right'))
-        for a, n in zip(enc[1:], ('left', 'right')):
-            if not np.all(np.isfinite(a)):
-                raise ValueError(f'{n} has non-finite values')
-        for n, a in zip(('enc_t', 'left', 'right'), enc):
-            object.__setattr__(self, n, a)
-        if self.gyro_t is not None:
-            if (self.gyro_rate is None) == (self.gyro_yaw is None):
-                raise ValueError('give gyro_rate or gyro_yaw with gyro_t')
-            values = self.gyro_rate if self.gyro_rate is not None else self.gyro_yaw
-            t, v = arrays((self.gyro_t, values), ('gyro_t', 'gyro values'))
-            object.__setattr__(self, 'gyro_t', t)
-            object.__setattr__(self, 'gyro_rate' if self.gyro_rate is not None
-                               else 'gyro_yaw', v)
-        if self.pose is not None:
-            pose = arrays(self.pose, ('pose t', 'x', 'y', 'yaw'))
-            if not all(np.all(np.isfinite(a)) for a in pose):
-                raise ValueError('the pose has non-finite values')
-            object.__setattr__(self, 'pose', tuple(pose))
-        if self.positions is not None:
-            pos = arrays(self.positions, ('positions t', 'x', 'y'))
-            if not all(np.all(np.isfinite(a)) for a in pos):
-                raise ValueError('the positions have non-finite values')
-            object.__setattr__(self, 'positions', tuple(pos))
 
 
 @dataclass
@@ -190,16 +121,14 @@ def check_saturation(gyro_t, rates, enc_t, left, right, track_width: float,
                               'turn slower or set a wider gyro range')
 
 
-def clean_gyro(rec: ReferenceRecording) -> ReferenceRecording:
+def clean_gyro(rec: Recording) -> Recording:
     """Drop non-finite readings (a few; :func:`check_gyro` refuses many)."""
     values = rec.gyro_rate if rec.gyro_rate is not None else rec.gyro_yaw
     ok = np.isfinite(values)
     if np.all(ok):
         return rec
-    key = 'gyro_rate' if rec.gyro_rate is not None else 'gyro_yaw'
-    return ReferenceRecording(rec.enc_t, rec.left, rec.right, rec.gyro_t[ok],
-                              **{key: values[ok]}, pose=rec.pose, positions=rec.positions,
-                              name=rec.name)
+    gyro = ('gyro_t', 'gyro_rate', 'gyro_yaw', 'gyro_quaternion', 'gyro_quaternion_cov0')
+    return replace(rec, **{n: getattr(rec, n)[ok] for n in gyro if getattr(rec, n) is not None})
 
 
 def calibration_quantities(icr: IcrParams):
