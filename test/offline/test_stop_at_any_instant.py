@@ -41,7 +41,7 @@ import time
 from helpers.setup_info import console_scripts, ROOT
 from helpers.stops import python_course
 import pytest
-from tracked_kinematics.offline.cli.simulate_bag import simulate_bag
+from tracked_kinematics.offline.simulation import simulate_bag
 from tracked_kinematics.offline.outputs import PROBE_MARK
 from tracked_kinematics.offline.signals import TOOL_EXECUTABLES
 

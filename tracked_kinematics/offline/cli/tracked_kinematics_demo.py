@@ -51,10 +51,10 @@ from tracked_kinematics.offline.bags import EncoderSource, GroundTruthSource, re
 from tracked_kinematics.offline.cli import identify_icr
 from tracked_kinematics.offline.cli.common import (
     add_force_argument, ArgumentParser, bounded, run_main, SEED)
-from tracked_kinematics.offline.cli.simulate_bag import GROUND_TRUTH_TOPICS, JOINTS, simulate_bag
 from tracked_kinematics.offline.demo_directory import (bag_files, DemoDirectory, DemoError,
                                                        Entry, planned_outputs)
 from tracked_kinematics.offline.outputs import Outputs
+from tracked_kinematics.offline.simulation import GROUND_TRUTH_TOPICS, JOINTS, simulate_bag
 from tracked_kinematics.offline.vehicle_file import (
     add_vehicle_arguments, fixed, load_vehicle, overrides_from_args)
 from tracked_kinematics.params import icr_from_values, read_params_file
