@@ -18,8 +18,8 @@ import pytest
 from tracked_kinematics.offline.cli import (
     icr_map, identify_drivetrain, identify_icr, plan_trajectory, simulate_bag,
     tracked_kinematics_demo)
-from tracked_kinematics.offline.simulation import truth_path
 from tracked_kinematics.offline.demo_directory import MANIFEST
+from tracked_kinematics.offline.simulation import truth_path
 
 BIN = os.path.dirname(sys.executable)
 

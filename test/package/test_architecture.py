@@ -263,7 +263,7 @@ def test_setup_declares_the_entry_points_read_here():
     assert SCRIPTS['calibration_drive'] == f'{PKG}.apps.calibration_drive'
 
 
-@pytest.mark.parametrize('path', [p for p in sorted(PACKAGE.rglob('*.py'))],
+@pytest.mark.parametrize('path', sorted(PACKAGE.rglob('*.py')),
                          ids=lambda p: str(p.relative_to(PACKAGE)))
 def test_no_tool_runs_another_tools_command_line(path):
     source = path.read_text()
