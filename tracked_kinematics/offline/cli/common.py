@@ -431,8 +431,8 @@ def run_main(prog: str, run, args) -> int:
     run staged, and whatever the run left staged is removed when it has ended
     (:func:`~tracked_kinematics.offline.outputs.abort_unfinished`); further signals are
     ignored until then (a second Ctrl-C cannot interrupt the clean-up), and so is one that
-    arrives once the run's work has ended. A run inside a run (the demo runs identify_icr's
-    ``main``) lets the signal's exception through to the outer one, which reports it.
+    arrives once the run's work has ended. A run inside a run (the demo runs its identify_icr
+    step so) lets the signal's exception through to the outer one, which reports it.
     """
     outermost = signals.start()
     mark = begun()
