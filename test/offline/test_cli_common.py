@@ -65,10 +65,11 @@ def test_a_bug_in_core_is_a_traceback_a_user_error_is_status_2(tmp_path):
     bad.write_text('a: [1, 2\n')
     script = (
         'import sys\n'
-        'from tracked_kinematics.offline.cli import common, identify_icr\n'
+        'from tracked_kinematics.offline import tooling\n'
+        'from tracked_kinematics.offline.cli import identify_icr\n'
         'def bug(*args, **kwargs):\n'
         '    raise ValueError("bug")\n'
-        'common.read_params_file = bug if sys.argv[1] == "bug" else common.read_params_file\n'
+        'tooling.read_params_file = bug if sys.argv[1] == "bug" else tooling.read_params_file\n'
         'sys.exit(identify_icr.main(["run", "--ground-truth-topic", "/gt", "-o", '
         f'{str(tmp_path / "o.yaml")!r}, "--params", {str(bad)!r}]))\n')
     done = {kind: subprocess.run([sys.executable, '-c', script, kind], capture_output=True,

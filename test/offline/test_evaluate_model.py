@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 from tracked_kinematics.offline.bags import BagWriter
 from tracked_kinematics.offline.cli import evaluate_model as cli
-from tracked_kinematics.offline.cli.simulate_bag import simulate_bag
+from tracked_kinematics.offline.simulation import simulate_bag
 
 B = 0.42
 GT = '/ground_truth/pose'

@@ -6,13 +6,19 @@ from helpers.vehicle_sim import AURIGA, B, simulate
 import numpy as np
 import pytest
 from tracked_kinematics.core.identify import Recording
-from tracked_kinematics.core.identify.procedure import MIN_SPEED
+from tracked_kinematics.core.identify.procedure import IdentifyOptions, MIN_SPEED
 from tracked_kinematics.core.models import ConstantIcr, EffectiveWheelBase
 from tracked_kinematics.offline.identification import (
-    icr_from_poses, icr_from_references, IcrReport, TOOL)
+    FitOptions, FitResult, icr_from_poses, icr_from_references, TOOL)
 from tracked_kinematics.params import icr_from_values
 
 DATE = '2026-01-02T03:04:05+00:00'
+
+
+def options(bags, *, terrain=None, model='icr_scales', spin=False, **identify):
+    """Return identify_icr's options: its defaults but those given."""
+    return FitOptions(tuple(bags), terrain=terrain, model=model, spin_in_place=spin,
+                      identify=IdentifyOptions(**{'ground_truth_delay': 'auto', **identify}))
 
 
 def strict(report):
@@ -31,13 +37,13 @@ def standing():
 
 @pytest.fixture(scope='module')
 def moving_only(standing):
-    return icr_from_poses([standing], ['/data/standing'], B, 0.1, terrain='floor',
-                          ground_truth_delay=0.0, date=DATE)
+    return icr_from_poses([standing], options(['/data/standing'], terrain='floor',
+                                              ground_truth_delay=0.0), B, 0.1, date=DATE)
 
 
 def test_pose_fit_returns_the_values_the_report_and_the_table(moving_only):
     found = moving_only
-    assert isinstance(found, IcrReport) and found.date == DATE
+    assert isinstance(found, FitResult) and found.date == DATE
     values = found.values
     icr = icr_from_values(values)   # a terrain file odometry_node loads
     np.testing.assert_allclose([icr.y_left, icr.y_right, icr.x], AURIGA[:3], atol=1e-3)
@@ -63,8 +69,8 @@ def test_pose_fit_returns_the_values_the_report_and_the_table(moving_only):
 
 
 def test_holdout_scores_the_windows_in_which_the_vehicle_moves(standing, moving_only):
-    every = icr_from_poses([standing], ['/data/standing'], B, 0.1, ground_truth_delay=0.0,
-                           min_speed=None, date=DATE)
+    every = icr_from_poses([standing], options(['/data/standing'], ground_truth_delay=0.0,
+                                               min_speed=None), B, 0.1, date=DATE)
     moving = moving_only.report['holdout']['models']['ideal']['windows']
     idle_too = every.report['holdout']['models']['ideal']['windows']
     # The same windows before the selection; idle ones are most of them here.
@@ -86,8 +92,8 @@ def test_holdout_scores_the_windows_in_which_the_vehicle_moves(standing, moving_
 
 
 def test_a_higher_min_speed_keeps_fewer_windows(standing, moving_only):
-    fast = icr_from_poses([standing], ['b'], B, 0.1, ground_truth_delay=0.0, min_speed=0.5,
-                          holdout=0.2, date=DATE)
+    fast = icr_from_poses([standing], options(['b'], ground_truth_delay=0.0, min_speed=0.5,
+                                              holdout=0.2), B, 0.1, date=DATE)
     kept = fast.report['holdout']['models']['ideal']['windows']
     assert kept['n'] < moving_only.report['holdout']['models']['ideal']['windows']['n']
     assert fast.values['identification.holdout_min_speed'] == 0.5
@@ -95,8 +101,8 @@ def test_a_higher_min_speed_keeps_fewer_windows(standing, moving_only):
 
 def test_no_window_that_fast_is_said_as_such(standing):
     # Windows there are; none of them moves at 20 m/s: the line says that, not "too short".
-    none = icr_from_poses([standing], ['b'], B, 0.1, ground_truth_delay=0.0, min_speed=20.0,
-                          date=DATE)
+    none = icr_from_poses([standing], options(['b'], ground_truth_delay=0.0, min_speed=20.0),
+                          B, 0.1, date=DATE)
     kept = none.report['holdout']['models']['ideal']['windows']
     assert kept['n'] == 0 and kept['n_total'] > 0
     said = next(line for line in none.lines if 'hold-out:' in line)
@@ -107,8 +113,8 @@ def test_no_window_that_fast_is_said_as_such(standing):
 
 
 def test_models_without_constant_icrs_say_where_the_icrs_come_from(standing):
-    found = icr_from_poses([standing], ['b'], B, 0.1, model='general_slip',
-                           ground_truth_delay=0.0, holdout=0.0)
+    found = icr_from_poses([standing], options(['b'], model='general_slip',
+                                               ground_truth_delay=0.0, holdout=0.0), B, 0.1)
     assert found.values['identification.icr_source'] == 'icr_scales'
     assert 'the general_slip parameters are under identification.parameters' in found.note
     assert found.report['holdout'] is None
@@ -120,8 +126,8 @@ def test_models_without_constant_icrs_say_where_the_icrs_come_from(standing):
 def test_spin_in_place_runs():
     rec = simulate(EffectiveWheelBase(B), [0.526], duration=40.0, enc_rate=50.0, seed=2,
                    legs=('spin',))
-    found = icr_from_poses([rec], ['spins'], B, 0.1, spin=True, ground_truth_delay=0.0,
-                           tool='my_tool')
+    found = icr_from_poses([rec], options(['spins'], spin=True, ground_truth_delay=0.0), B,
+                           0.1, tool='my_tool')
     assert found.identification is None
     assert found.report['mode'] == 'spin_in_place' and found.report['tool'] == 'my_tool'
     assert found.report['chi'] == pytest.approx(0.526, abs=1e-3)
@@ -133,7 +139,8 @@ def test_reference_calibration_from_a_gyro(standing):
     # An ideal orientation estimate (the simulated yaw) as the heading reference.
     gyro = Recording(standing.enc_t, standing.left, standing.right,
                      gyro_t=standing.gt_t, gyro_yaw=standing.gt_yaw, name='gyro')
-    found = icr_from_references([gyro], ['/data/gyro'], B, 0.1, terrain='floor', date=DATE)
+    found = icr_from_references([gyro], options(['/data/gyro'], terrain='floor'), B, 0.1,
+                                date=DATE)
     values = found.values
     icr_from_values(values)
     assert values['identification.method'] == 'reference'

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from tracked_kinematics.offline.bags import BagWriter
 from tracked_kinematics.offline.cli import identify_drivetrain as cli
-from tracked_kinematics.offline.cli.simulate_bag import simulate_bag
+from tracked_kinematics.offline.simulation import simulate_bag
 
 JOINTS = ['left_sprocket_joint', 'right_sprocket_joint']
 

@@ -11,7 +11,7 @@ from rosbags.highlevel import AnyReader
 from tracked_kinematics.core.integration import relative_pose
 from tracked_kinematics.core.models import ConstantIcr, IdealDiffDrive
 from tracked_kinematics.offline.cli import icr_map, simulate_bag as simulate_cli
-from tracked_kinematics.offline.cli.simulate_bag import simulate_bag, truth_path
+from tracked_kinematics.offline.simulation import simulate_bag, START_NS, truth_path
 from tracked_kinematics.offline.vehicle_file import load_vehicle, shipped_vehicles
 from tracked_kinematics.params import icr_from_values, read_params_file
 
@@ -156,7 +156,7 @@ def test_setpoints_are_the_commands_the_drive_train_got(tmp_path):
         setpoints = [(stamp, reader.deserialize(raw, c.msgtype).data)
                      for c, stamp, raw in reader.messages(connections=conns)]
     assert len(setpoints) == 121
-    stamps = np.array([s for s, _ in setpoints]) - simulate_cli.START_NS
+    stamps = np.array([s for s, _ in setpoints]) - START_NS
     values = np.array([v for _, v in setpoints])
     k = np.round(stamps / 1e7).astype(int)
     # The recorded value is the command in force from that sample until the next setpoint.

@@ -27,7 +27,7 @@ def _exit(status: int) -> None:
 
 def _make_node():
     made = node.CalibrationDriveNode(finisher=CalibrationFiles, on_exit=_exit)
-    # A signal also ends a fit under way at once (its identify_icr process), then goes on
+    # A signal also ends a fit under way at once (its worker process), then goes on
     # to the handler run() installed (a stop request). run() restores its own at the end.
     for sig in (signal.SIGINT, signal.SIGTERM):
         previous = signal.getsignal(sig)

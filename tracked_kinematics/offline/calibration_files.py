@@ -13,10 +13,11 @@ output paths (docs/output-files.md): ``output``, the report beside it (``OUT.jso
    ``sensor_msgs/Imu`` on the IMU topic) with its own stamps, and ``cmd_vel``. With ``bag``
    it is renamed onto that path (kept even when the fit fails: the drive can be fitted again
    with ``identify_icr``); without, it lives in a temporary directory removed at the end;
-2. runs ``identify_icr`` on that bag, as its command line (a process of its own, which
-   :meth:`CalibrationFiles.cancel` ends on a signal), with the node's terrain values as
-   ``--params``; the command is written into the report, so ``identify_icr`` on the bag
-   gives the same result;
+2. fits that bag with identify_icr's fit (:func:`tracked_kinematics.offline.identification.
+   fit`, the node's terrain values as the base file) in a worker process of its own,
+   spawned (never forked from the node's threads), which :meth:`CalibrationFiles.cancel`
+   ends on a signal; the equivalent ``identify_icr`` command is written into the report, so
+   ``identify_icr`` on the bag gives the same result;
 3. writes ``output`` and the report together (:class:`~tracked_kinematics.offline.outputs.
    Outputs`: atomic, all or none, an existing file replaced only with ``force``), the
    terrain file with an ``identification.drive.*`` record of the drive, the report with a
@@ -25,22 +26,25 @@ output paths (docs/output-files.md): ``output``, the report beside it (``OUT.jso
 
 from __future__ import annotations
 
+import contextlib
 from datetime import datetime, timezone
-import json
+import io
+import multiprocessing
 from pathlib import Path
 import shutil
-import subprocess
+import signal
 import sys
 import tempfile
+import traceback
 
 import numpy as np
+from tracked_kinematics.offline.bags import EncoderSource, GroundTruthSource
 from tracked_kinematics.offline.bags.writer import BagWriter
-from tracked_kinematics.offline.cli import identify_icr
-from tracked_kinematics.offline.cli.common import report_json
+from tracked_kinematics.offline.identification import fit, FitOptions, TOOL as FIT_TOOL
 from tracked_kinematics.offline.outputs import check_output, Outputs
 from tracked_kinematics.offline.terrain_file import terrain_text
-from tracked_kinematics.params import (
-    icr_from_values, read_params_file, TERRAIN_PARAMS, write_params_file)
+from tracked_kinematics.offline.tooling import error_line, exit_status, report_json
+from tracked_kinematics.params import icr_from_values, TERRAIN_PARAMS, write_params_file
 
 TOOL = 'calibration_drive'
 #: Keys of the node's values that go into the base file of the fit.
@@ -84,16 +88,12 @@ class CalibrationFiles:
             else None
         self._cancelled = False
         self._process = None
-        if self.values['reference'] == 'imu' and not _has_imu_reference():
-            raise ValueError(
-                'reference imu: this identify_icr cannot fit from a gyro yet (no --imu-topic); '
-                'use reference:=pose')
 
     def cancel(self) -> None:
         """End a fit under way (a signal): the call returns :data:`INTERRUPTED` soon."""
         self._cancelled = True
         process = self._process
-        if process is not None and process.poll() is None:
+        if process is not None and process.is_alive():
             process.terminate()
 
     def __call__(self, recording, topics, log):
@@ -112,40 +112,31 @@ class CalibrationFiles:
             write_bag(bag, recording, topics, self.values['sprocket_radius'])
             return self._fit(bag, topics, log)
 
-    def command(self, bag, topics, base, output, report) -> list[str]:
-        """Return the identify_icr arguments that fit the bag."""
-        argv = [str(bag), '--output', str(output), '--report', str(report),
-                '--params', str(base), '--encoder-topic', topics['joint_states'],
-                '--left-joints', topics['joint_names'][0],
-                '--right-joints', topics['joint_names'][1]]
-        if topics['reference_kind'] == 'pose':
-            argv += ['--ground-truth-topic', topics['reference']]
-        else:
-            argv += ['--imu-topic', topics['reference']]
-        if self.values['terrain']:
-            argv += ['--terrain', self.values['terrain']]
-        return argv
+    def options(self, bag, topics, base) -> FitOptions:
+        """Return the options of the fit of the bag: identify_icr's defaults but these."""
+        pose = topics['reference_kind'] == 'pose'
+        return FitOptions(
+            bags=(str(bag),), params=str(base),
+            encoders=EncoderSource(topic=topics['joint_states'],
+                                   left_joints=(topics['joint_names'][0],),
+                                   right_joints=(topics['joint_names'][1],)),
+            ground_truth=GroundTruthSource(topics['reference']) if pose else None,
+            imu_topic=None if pose else topics['reference'],
+            terrain=self.values['terrain'] or None)
 
     def _fit(self, bag, topics, log):
         work = Path(tempfile.mkdtemp(prefix='.calibration_drive-fit-', dir=self.output.parent))
         try:
             base = work / 'base.yaml'
             write_params_file(base, {k: self.values[k] for k in _BASE_KEYS if k in self.values})
-            staged, staged_report = work / 'fit.yaml', work / 'fit.json'
-            argv = self.command(bag, topics, base, staged, staged_report)
+            options = self.options(bag, topics, base)
             if self._cancelled:
                 return INTERRUPTED, None
-            # identify_icr as a process of its own: the node can end it at once on a signal
-            # (cancel); whatever it staged lies in ``work``, removed below either way.
-            self._process = subprocess.Popen(
-                [sys.executable, '-m', 'tracked_kinematics.offline.cli.identify_icr', *argv],
-                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-            out, err = self._process.communicate()
-            status = self._process.returncode
-            if self._cancelled or status < 0:
+            status, found, out, err = self._run_worker(options)
+            if self._cancelled or status is None:
                 return INTERRUPTED, None
             for line in out.splitlines():
-                if line.strip() and not line.startswith('wrote '):
+                if line.strip():
                     log.info(line)
             for line in err.splitlines():
                 if line.strip() and status:
@@ -157,12 +148,37 @@ class CalibrationFiles:
                           'written' + (f'; the recording is kept in {self.bag}'
                                        if self.bag else ''))
                 return status, None
-            return 0, self._write(staged, staged_report, bag, topics, argv, log)
+            return 0, self._write(*found, options, topics, log)
         finally:
             shutil.rmtree(work, ignore_errors=True)
 
-    def _write(self, staged, staged_report, bag, topics, argv, log):
-        values = read_params_file(staged)
+    def _run_worker(self, options):
+        """
+        Fit in a spawned process; return ``(status, (values, report), stdout, stderr)``.
+
+        The status is None when the process ended without an answer (:meth:`cancel`).
+        """
+        context = multiprocessing.get_context('spawn')
+        receive, send = context.Pipe(duplex=False)
+        process = context.Process(target=_fit_worker, args=(options, send), daemon=True,
+                                  name='calibration_drive-fit')
+        process.start()
+        self._process = process
+        send.close()    # the worker holds its end: its exit ends recv() below
+        try:
+            if self._cancelled:     # a signal before cancel() knew the process
+                process.terminate()
+            try:
+                answer = receive.recv()
+            except EOFError:
+                answer = (None, None, '', '')
+        finally:
+            receive.close()
+            process.join()
+            self._process = None
+        return answer
+
+    def _write(self, values, report, options, topics, log):
         kept = str(self.bag.resolve()) if self.bag else None
         if kept:
             values['identification.bags'] = [kept]
@@ -176,13 +192,12 @@ class CalibrationFiles:
                  'bag': kept or 'not kept (no bag parameter)'}
         values.update({f'identification.drive.{k}': v for k, v in drive.items()})
         icr_from_values(values)
-        report = json.loads(staged_report.read_text())
         report['tool'] = TOOL
         report['bags'] = [kept] if kept else []
         report['calibration_drive'] = {
             **drive, 'steps': topics.get('steps', []), 'events': topics.get('events', []),
-            'identify_icr': ' '.join(['identify_icr', kept or 'BAG', *_portable(
-                argv[1:], self.output, report_path(self.output))])}
+            'identify_icr': ' '.join(command(options, kept or 'BAG', self.output,
+                                             report_path(self.output)))}
         date = datetime.now(timezone.utc).isoformat(timespec='seconds')
         with Outputs(force=self.force) as outputs:
             outputs.add('output', self.output)
@@ -193,26 +208,46 @@ class CalibrationFiles:
         return {k: float(values[k]) for k in FITTED_KEYS}
 
 
-def _portable(argv, output, report):
-    """Return the identify_icr options for the report, with the final output paths."""
-    out, skip = [], False
-    for i, arg in enumerate(argv):
-        if skip:
-            skip = False
-            continue
-        if arg in ('--output', '--report', '--params'):
-            out += [arg, {'--output': str(output), '--report': str(report),
-                          '--params': 'TERRAIN.yaml'}[arg]]
-            skip = True
-        else:
-            out.append(arg)
-    return out
+def command(options: FitOptions, bag, output, report) -> list[str]:
+    """Return the identify_icr command line that fits ``bag`` as ``options`` do (the report's)."""
+    encoders = options.encoders
+    argv = [FIT_TOOL, str(bag), '--output', str(output), '--report', str(report),
+            '--params', 'TERRAIN.yaml', '--encoder-topic', encoders.topic,
+            '--left-joints', ','.join(encoders.left_joints),
+            '--right-joints', ','.join(encoders.right_joints)]
+    if options.ground_truth is not None:
+        argv += ['--ground-truth-topic', options.ground_truth.topic]
+    else:
+        argv += ['--imu-topic', options.imu_topic]
+    if options.terrain:
+        argv += ['--terrain', options.terrain]
+    return argv
 
 
-def _has_imu_reference() -> bool:
-    """Whether identify_icr has the gyro reference (``--imu-topic``)."""
-    parser = identify_icr.build_parser()
-    return any('--imu-topic' in action.option_strings for action in parser._actions)
+def _fit_worker(options: FitOptions, send) -> None:
+    """
+    Fit in the worker process; send ``(status, (values, report), stdout, stderr)``.
+
+    SIGINT is ignored here (:meth:`CalibrationFiles.cancel` ends the process); what the fit
+    prints is captured and sent, for the node to log.
+    """
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    out, err = io.StringIO(), io.StringIO()
+    found, status = None, 0
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        try:
+            result = fit(options)
+            found = (result.values, result.report)
+            print(result.text)
+        except Exception as error:   # noqa: B902 (every error goes to the node's log)
+            status = exit_status(error)
+            if status is None:      # a bug: its traceback, as a crashed tool shows it
+                status = 1
+                traceback.print_exc()
+            else:
+                print(error_line(FIT_TOOL, error), file=sys.stderr)
+    send.send((status, found, out.getvalue(), err.getvalue()))
+    send.close()
 
 
 def write_bag(path, recording, topics, sprocket_radius: float) -> None:

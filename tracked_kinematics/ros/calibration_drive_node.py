@@ -54,7 +54,7 @@ STILL_SPEED = 0.005
 #: With the IMU the geofence is kept in dead reckoning (gyro heading, encoder distance), a few
 #: per cent off at 3 m: more margin than the pose reference's 0.85 / 0.93 of the radius.
 IMU_FENCE = {'plan_fraction': 0.8, 'guard_fraction': 0.87}
-#: Exit statuses of identify_icr for a signal (SIGHUP, SIGINT, SIGTERM).
+#: Statuses of a fit ended by a signal (identify_icr's for SIGHUP, SIGINT, SIGTERM).
 INTERRUPTED = (129, 130, 143)
 #: How long the node waits for the nodes of push_to to answer, s.
 PUSH_TIMEOUT = 5.0

@@ -14,7 +14,7 @@ from tracked_kinematics.core.identify import (
 from tracked_kinematics.offline.bags import EncoderSource, read_drive_bag
 from tracked_kinematics.offline.bags.writer import BagWriter
 from tracked_kinematics.offline.cli import identify_drivetrain as cli
-from tracked_kinematics.offline.cli.simulate_bag import simulate_bag
+from tracked_kinematics.offline.simulation import simulate_bag
 from tracked_kinematics.params import (drivetrain_from_values, read_params_file,
                                        values_from_drivetrain, write_params_file)
 

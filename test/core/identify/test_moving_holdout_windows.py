@@ -39,10 +39,3 @@ def test_identify_counts_the_windows_before_and_after_the_selection(min_speed):
     else:
         assert 0 < scored < 0.7 * result.windows_total
     np.testing.assert_allclose(result.icr.y_left, AURIGA[0], atol=1e-3)
-
-
-@pytest.mark.parametrize('bad', [-0.1, float('nan'), float('inf')])
-def test_a_min_speed_that_is_no_speed_is_refused(bad):
-    rec = simulate(ConstantIcr(B), np.array(AURIGA), duration=30.0, seed=1)
-    with pytest.raises(ValueError, match='min_speed must be a finite number >= 0'):
-        ident.identify([rec], 'icr_scales', B, min_speed=bad)

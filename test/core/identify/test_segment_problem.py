@@ -10,6 +10,7 @@ from scipy import optimize
 from tracked_kinematics.core import identify as ident
 from tracked_kinematics.core.errors import IdentificationError, TrackedKinematicsError
 from tracked_kinematics.core.identify.problem import _chord_coefficients
+from tracked_kinematics.core.identify.procedure import IdentifyOptions
 from tracked_kinematics.core.models import ConstantIcr
 from tracked_kinematics.offline.cli import identify_icr
 
@@ -74,11 +75,13 @@ def test_robust_cost_is_scipys_cost():
 
 
 def test_heading_weight_has_one_default():
-    # SegmentProblem, fit, identify, FitResult and identify_icr --heading-weight agree.
+    # SegmentProblem, fit, identify's options, FitResult and identify_icr --heading-weight agree.
     default = ident.DEFAULT_HEADING_WEIGHT
     assert default == 1.0   # Martinez eq. (17) as written: metres and radians summed as they are
-    for function in (ident.SegmentProblem, ident.fit, ident.identify):
+    for function in (ident.SegmentProblem, ident.fit):
         assert inspect.signature(function).parameters['heading_weight'].default == default
+    assert IdentifyOptions().heading_weight == default
+    assert ident.identify.__kwdefaults__['options'].heading_weight == default
     assert ident.FitResult(TRUTH, P_TRUE).heading_weight == default
     assert identify_icr.build_parser().get_default('heading_weight') == default
 

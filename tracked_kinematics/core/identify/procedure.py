@@ -12,7 +12,7 @@ and Fink & Stump sec. IV-B.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 import time
 
 import numpy as np
@@ -185,40 +185,73 @@ def _data_time(recordings, moving) -> DataTime:
                     float(longest))
 
 
+@dataclass(frozen=True, slots=True)
+class IdentifyOptions:
+    """
+    How :func:`identify` fits and compares: identify_icr's fit and evaluation options.
+
+    Attributes
+    ----------
+    method : str
+        ``lsq`` or ``de`` (:func:`fit`).
+    segment_length : float or None
+        Segment duration, s; None or 0: every ground-truth sample (:func:`build_segments`).
+    heading_weight : float or None
+        ``lambda`` of eq. (17), m/rad; None: :func:`.fitting.auto_heading_weight`
+        (docs/tools/identify_icr.md on the choice of the default).
+    loss : str
+        Robust loss (:data:`.problem.LOSSES`).
+    min_travel : float
+        Segments whose tracks travel less are stationary and left out, m.
+    holdout : float
+        Fraction of the time blocks one fold holds out; 0: no comparison.
+    holdout_block : float
+        Longest held-out block, s of driving.
+    window : float
+        Held-out evaluation window, s.
+    compare : tuple of str
+        Models compared on the held-out blocks.
+    max_nfev : int or None
+        Evaluation budget of one optimisation round (None: the method's default).
+    ground_truth_delay : float, 'auto' or None
+        s of ground-truth stamps behind the encoders to remove; 'auto' estimates it (none
+        removed when it cannot be determined); 0 or None: none.
+    accept_uncertain : bool
+        Accept parameters determined but uncertain (listed) instead of refusing the fit.
+    min_speed : float or None
+        Score the held-out windows whose mean track speed is at least this, m/s
+        (:func:`moving`); None: every window.
+
+    """
+
+    method: str = 'lsq'
+    segment_length: float | None = 1.0
+    heading_weight: float | None = DEFAULT_HEADING_WEIGHT
+    loss: str = 'soft_l1'
+    min_travel: float = 0.01
+    holdout: float = 0.2
+    holdout_block: float = 30.0
+    window: float = 10.0
+    compare: tuple = COMPARE_MODELS
+    max_nfev: int | None = None
+    ground_truth_delay: float | str | None = 0.0
+    accept_uncertain: bool = False
+    min_speed: float | None = MIN_SPEED
+
+
 def identify(recordings, model: str = 'icr_scales', track_width: float = 0.42, *,
-             base: IcrParams | None = None, method: str = 'lsq',
-             segment_length: float | None = 1.0,
-             heading_weight: float | None = DEFAULT_HEADING_WEIGHT, loss: str = 'soft_l1',
-             min_travel: float = 0.01, holdout: float = 0.2, holdout_block: float = 30.0,
-             window: float = 10.0, compare=COMPARE_MODELS, max_nfev: int | None = None,
-             ground_truth_delay: float | str | None = 0.0,
-             accept_uncertain: bool = False,
-             min_speed: float | None = MIN_SPEED) -> Identification:
+             base: IcrParams | None = None, options: IdentifyOptions = IdentifyOptions(),
+             **changes) -> Identification:
     """
     Identify a terrain model from recordings: time, check, fit, hold out, compare.
 
-    0. Measure the delay of the ground-truth stamps behind the encoders
-       (``ground_truth_delay='auto'``: :func:`.delay.estimate_delays`, each recording's
-       own when each determines it) or take the one given, and remove it from the
-       ground-truth stamps.
-    1. Cut the recordings into segments inside their pieces (:func:`build_segments`) and
-       drop those over a ground-truth jump (:func:`.segments.ground_truth_jumps`) and
-       stationary ones (both tracks travel less than ``min_travel``): they carry no
-       information and would shrink the robust scale.
-    2. Check the excitation for ``model`` (:func:`check_excitation`): refuse data with no
-       motion, no turning or no straight driving, which cannot determine it.
-    3. Fit ``model`` on all moving segments, starting from ``base`` when given, and check
-       its standard errors (:func:`.fitting.check_identified`: a parameter determined but
-       uncertain is refused unless ``accept_uncertain``).
-    4. Fit the tuned diff_drive_controller (:class:`.tuned_diff_drive.TunedDiffDrive`) on the
-       same data.
-    5. Hold out time blocks (:class:`HoldOut`: cross-validated when one fold would give
-       fewer than :data:`.holdout.MIN_WINDOWS` scored windows and
-       :data:`.holdout.MIN_SEGMENTS` segments), fit every model of ``compare``
-       on the rest with the heading weight of step 3 (one round of robust least squares
-       each) and measure each on the held-out segments and on the held-out windows of
-       ``window`` s in which the vehicle moves (:func:`moving`; ``min_speed=None``: every
-       window), none over a ground-truth jump.
+    Removes the ground-truth delay (:mod:`.delay`), cuts segments and drops those over a
+    ground-truth jump and the stationary ones, checks the excitation for ``model``
+    (:func:`check_excitation`), fits it on all moving segments (:func:`fit`, then
+    :func:`.fitting.check_identified`), fits the tuned diff_drive_controller on the same data,
+    and measures every model of ``options.compare`` on held-out time blocks
+    (:class:`HoldOut`, cross-validated when one fold holds out too little), with the heading
+    weight of the main fit. Steps and figures: docs/tools/identify_icr.md.
 
     Parameters
     ----------
@@ -229,53 +262,27 @@ def identify(recordings, model: str = 'icr_scales', track_width: float = 0.42, *
     track_width : float
         m.
     base : IcrParams, optional
-        Starting point of a model that can start from it
-        (:meth:`..models.MotionModel.start_from`), and the fixed scales of the ``icr`` model.
-    method, loss, max_nfev
-        See :func:`fit`.
-    heading_weight : float or None
-        ``lambda`` of eq. (17), m/rad; None for :func:`.fitting.auto_heading_weight`. The
-        default, 1 m/rad (:data:`DEFAULT_HEADING_WEIGHT`), is the paper's unweighted sum.
-        On simulated data with a model mismatch (adaptive ICRs fitted by constant ones) and
-        ground-truth noise, it gave held-out odometry as good as any other weight tried (0.3
-        to 3), while the noise-balancing ``auto`` weight dropped to its floor on long
-        segments, where the position residuals of the mismatch grow, and cost 10 % of final
-        position accuracy.
-    segment_length : float or None
-        See :func:`build_segments`.
-    min_travel : float
-        Stationary threshold, m.
-    holdout : float
-        Fraction of the time blocks one fold holds out; 0 disables the evaluation.
-    holdout_block : float
-        Longest block, s of driving.
-    window : float
-        Evaluation window, s.
-    compare : sequence of str
-        Models evaluated on the held-out blocks.
-    ground_truth_delay : float, 'auto' or None
-        s of ground-truth stamps behind the encoders to remove; ``'auto'`` estimates it
-        (when it cannot be determined, none is removed: ``delay.determined`` says so);
-        0 or None removes none.
-    accept_uncertain : bool
-        Accept a fit whose parameters are determined but uncertain (listed in
-        ``uncertain``) instead of refusing it.
-    min_speed : float or None
-        Score the held-out windows whose mean track speed is at least this, m/s
-        (:data:`MIN_SPEED`: those in which the vehicle moves, so that a figure does not
-        depend on how long it stood still); None scores idle windows too.
+        Starting point of a model that can start from it, and the fixed scales of ``icr``.
+    options : IdentifyOptions
+        How to fit and compare.
+    **changes
+        Fields of ``options`` to replace (``holdout=0.0``).
 
     Raises
     ------
     ExcitationError, FitError
         See :func:`check_excitation`, :func:`.fitting.check_identified` and :func:`fit`.
     ValueError
-        For a ``ground_truth_delay`` or ``min_speed`` that is neither a number nor its word.
+        For a ``ground_truth_delay`` that is neither a number nor 'auto'.
 
     """
-    if min_speed is not None and not (np.isfinite(min_speed) and min_speed >= 0):
-        raise ValueError(f'min_speed must be a finite number >= 0 (m/s) or None, got '
-                         f'{min_speed!r}')
+    options = replace(options, **changes) if changes else options
+    method, segment_length, heading_weight = (options.method, options.segment_length,
+                                              options.heading_weight)
+    loss, min_travel, max_nfev = options.loss, options.min_travel, options.max_nfev
+    holdout, holdout_block, window = options.holdout, options.holdout_block, options.window
+    compare, ground_truth_delay = options.compare, options.ground_truth_delay
+    accept_uncertain, min_speed = options.accept_uncertain, options.min_speed
     seconds = {}
     started = time.perf_counter()
     recordings = list(recordings)
@@ -307,26 +314,26 @@ def identify(recordings, model: str = 'icr_scales', track_width: float = 0.42, *
     def start_of(m):
         return None if base is None else m.start_from(base)
 
-    options = {'method': method, 'loss': loss, 'max_nfev': max_nfev}
+    settings = {'method': method, 'loss': loss, 'max_nfev': max_nfev}
     started = time.perf_counter()
     result = fit(target, segments, p0=start_of(target), heading_weight=heading_weight,
-                 check=False, **options)
+                 check=False, **settings)
     uncertain = check_identified(result, accept_uncertain)
     # Every other fit weighs heading as this one does (its loss scale is its own: a worse
     # model has larger residuals, which are not outliers).
-    options['heading_weight'] = result.heading_weight
+    settings['heading_weight'] = result.heading_weight
     try:
         icr, source = result.icr, target.name
         if not target.constant_icr:
             icr_model = build_model('icr_scales', track_width)
             try:
                 icr_fit = fit(icr_model, segments, p0=start_of(icr_model), check=False,
-                              **options)
+                              **settings)
                 check_identified(icr_fit, accept_uncertain)
             except ExcitationError:
                 icr_model = build_model('icr', track_width, scales)
                 icr_fit = fit(icr_model, segments, p0=start_of(icr_model), check=False,
-                              **options)
+                              **settings)
                 check_identified(icr_fit, accept_uncertain)
             icr, source = icr_fit.icr, icr_model.name
     except ValueError as err:
@@ -338,7 +345,7 @@ def identify(recordings, model: str = 'icr_scales', track_width: float = 0.42, *
     started = time.perf_counter()
     ddc, ddc_error = None, ''
     try:
-        ddc = fit(build_model('tuned_ddc', track_width), segments, check=False, **options)
+        ddc = fit(build_model('tuned_ddc', track_width), segments, check=False, **settings)
     except IdentificationError as err:
         ddc_error = str(err)
     seconds['ddc'] = time.perf_counter() - started
@@ -371,7 +378,7 @@ def identify(recordings, model: str = 'icr_scales', track_width: float = 0.42, *
             windows_total += total
             folds.append((segments.select(held.outside(segments, f)), test, windows))
         for name in compare:
-            evaluations.append(_evaluate(name, track_width, scales, folds, start_of, options))
+            evaluations.append(_evaluate(name, track_width, scales, folds, start_of, settings))
     seconds['holdout'] = time.perf_counter() - started
     return Identification(result, icr, source, excitation, held, evaluations, segment_length,
                           window, seconds, delay=delay, delays=each, ddc=ddc, ddc_error=ddc_error,

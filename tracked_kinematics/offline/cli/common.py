@@ -8,14 +8,12 @@ The parser with one-line usage errors, argument types with ranges, the encoder o
 from __future__ import annotations
 
 import argparse
-import json
+from dataclasses import replace
 import math
 import signal
 import sys
 
-import numpy as np
-from tracked_kinematics.core.errors import (
-    ExcitationError, IdentificationError, TrackedKinematicsError)
+from tracked_kinematics.core.errors import TrackedKinematicsError
 from tracked_kinematics.core.identify.procedure import MIN_SPEED
 from tracked_kinematics.offline import signals
 from tracked_kinematics.offline.bags import (
@@ -24,12 +22,11 @@ from tracked_kinematics.offline.bags import (
 from tracked_kinematics.offline.errors import UsageError
 from tracked_kinematics.offline.outputs import abort_unfinished, begun, Outputs
 from tracked_kinematics.offline.signals import Signalled
-from tracked_kinematics.params import (
-    ENCODER_INPUT_DEFAULTS, INPUT_MODES, read_params_file, SIDE_TOPICS,
-    unknown_terrain_parameters)
+from tracked_kinematics.offline.tooling import (  # noqa: F401 (the tools import them here)
+    checked_encoders, error_line, EXIT_EXCITATION, EXIT_FIT, EXIT_INPUT, exit_status,
+    read_base_file, report_json, require_vehicle, warn, warn_unknown_terrain_keys)
+from tracked_kinematics.params import ENCODER_INPUT_DEFAULTS, INPUT_MODES, SIDE_TOPICS
 
-EXIT_INPUT, EXIT_EXCITATION, EXIT_FIT = 2, 3, 4
-"""Exit statuses of the identification tools: bad input, too little excitation, failed fit."""
 EXIT_INTERRUPTED = 130
 """Exit status after Ctrl-C (SIGINT); after SIGTERM or SIGHUP it is 128 + the signal."""
 
@@ -264,31 +261,6 @@ def add_sprocket_radius_argument(group) -> None:
                        'default vehicle)')
 
 
-def require_vehicle(given, where: str = '--params') -> None:
-    """
-    Refuse a run that lacks the vehicle's dimensions, as the nodes do (no default vehicle).
-
-    Parameters
-    ----------
-    given : mapping
-        Flag name (``--track-width``) to value, None when neither the flag nor ``where``
-        gave it.
-    where : str
-        Where else the values may come from, for the message.
-
-    Raises
-    ------
-    UsageError
-        Naming every missing flag.
-
-    """
-    missing = [flag for flag, value in given.items() if value is None]
-    if missing:
-        raise UsageError(f'{" and ".join(missing)} {"is" if len(missing) == 1 else "are"} '
-                         f'needed (or {where} with them): there is no default vehicle, as '
-                         'diff_drive_controller needs wheel_separation and wheel_radius')
-
-
 def add_encoder_arguments(group) -> None:
     """Add the encoder options, named and defaulted as odometry_node's parameters."""
     defaults = EncoderSource()
@@ -310,6 +282,22 @@ def add_encoder_arguments(group) -> None:
                        help='encoder ticks per sprocket revolution (encoder_ticks)')
 
 
+def encoder_settings(args) -> EncoderSource:
+    """
+    Build the encoder description from the options of :func:`add_encoder_arguments`.
+
+    Unchecked, with the default sprocket radius: :func:`encoder_source` checks it and sets the
+    radius.
+    """
+    side = SIDE_TOPICS.get(args.encoder_input)
+    left, right = ('/' + side[0], '/' + side[1]) if side else ('', '')
+    return EncoderSource(
+        mode=args.encoder_input, topic=args.encoder_topic, left_joints=tuple(args.left_joints),
+        right_joints=tuple(args.right_joints), left_topic=args.left_topic or left,
+        right_topic=args.right_topic or right,
+        ticks_per_revolution=args.ticks_per_revolution)
+
+
 def encoder_source(args, radius: float) -> EncoderSource:
     """
     Build the encoder description from the options of :func:`add_encoder_arguments`.
@@ -320,22 +308,7 @@ def encoder_source(args, radius: float) -> EncoderSource:
         When a joint is listed for both tracks.
 
     """
-    side = SIDE_TOPICS.get(args.encoder_input)
-    left, right = ('/' + side[0], '/' + side[1]) if side else ('', '')
-    both = set(args.left_joints) & set(args.right_joints)
-    if both:
-        raise UsageError(f'--left-joints and --right-joints both list {", ".join(sorted(both))}')
-    return EncoderSource(
-        mode=args.encoder_input, topic=args.encoder_topic, left_joints=tuple(args.left_joints),
-        right_joints=tuple(args.right_joints), left_topic=args.left_topic or left,
-        right_topic=args.right_topic or right, sprocket_radius=radius,
-        ticks_per_revolution=args.ticks_per_revolution)
-
-
-def report_json(report) -> str:
-    """Return a JSON report as text (numpy arrays as lists, numpy scalars as floats)."""
-    return json.dumps(report, indent=2, default=lambda o: o.tolist()
-                      if isinstance(o, np.ndarray) else float(o)) + '\n'
+    return replace(checked_encoders(encoder_settings(args)), sprocket_radius=radius)
 
 
 def write_report(path, report, force: bool = False) -> None:
@@ -343,26 +316,6 @@ def write_report(path, report, force: bool = False) -> None:
     with Outputs(force=force) as out:
         out.add('--report', path)
         out.write_text('--report', report_json(report))
-
-
-def warn(prog: str, message: str) -> None:
-    """Print ``PROG: warning: MESSAGE`` on stderr (one line)."""
-    print(f'{prog}: warning: {" ".join(str(message).split())}', file=sys.stderr)
-
-
-def warn_unknown_terrain_keys(prog: str, path, values) -> None:
-    """Warn about names of a terrain file that look like typos of known ones."""
-    for message in unknown_terrain_parameters(values):
-        warn(prog, f'{path}: {message}')
-
-
-def read_base_file(prog: str, path) -> dict:
-    """Read a ``--params`` base terrain file (``{}`` without one), warning about its typos."""
-    if not path:
-        return {}
-    values = read_params_file(path)
-    warn_unknown_terrain_keys(prog, path, values)
-    return values
 
 
 def ground_truth_delay(text: str):
@@ -478,15 +431,15 @@ def run_main(prog: str, run, args) -> int:
     run staged, and whatever the run left staged is removed when it has ended
     (:func:`~tracked_kinematics.offline.outputs.abort_unfinished`); further signals are
     ignored until then (a second Ctrl-C cannot interrupt the clean-up), and so is one that
-    arrives once the run's work has ended. A run inside a run (the demo runs identify_icr's
-    ``main``) lets the signal's exception through to the outer one, which reports it.
+    arrives once the run's work has ended. A run inside a run (the demo runs its identify_icr
+    step so) lets the signal's exception through to the outer one, which reports it.
     """
     outermost = signals.start()
     mark = begun()
     try:
         status, message = _run_mapped(run, args, outermost)
         if message is not None:
-            message = f'{prog}: error: {" ".join(str(message).split())}'
+            message = error_line(prog, message)
     finally:
         if outermost:
             try:
@@ -508,12 +461,8 @@ def _run_mapped(run, args, outermost: bool):
         finally:
             if outermost:
                 signals.hold()
-    except ExcitationError as err:
-        return EXIT_EXCITATION, err
-    except IdentificationError as err:
-        return EXIT_FIT, err
     except (TrackedKinematicsError, OSError) as err:
-        return EXIT_INPUT, err
+        return exit_status(err), err
     except KeyboardInterrupt:
         if not outermost:
             raise

@@ -25,24 +25,18 @@ import argparse
 import sys
 
 from tracked_kinematics.core import identify as ident
-from tracked_kinematics.core.errors import InvalidParameters
-from tracked_kinematics.core.kinematics import IcrParams
-from tracked_kinematics.offline.bags import read_bags
-from tracked_kinematics.offline.bags.reference_reader import read_reference_bag
+from tracked_kinematics.core.identify.procedure import IdentifyOptions
 from tracked_kinematics.offline.cli.common import (
-    add_base_file_argument, add_ground_truth_arguments, add_output_argument,
+    add_base_file_argument, add_ground_truth_arguments, add_output_argument, add_plot_output,
     add_report_arguments, add_vehicle_groups, add_window_selection_arguments, bounded,
-    encoder_source, ground_truth_source, identification_parser, min_speed, names,
-    read_base_file, report_json, require_vehicle, run_main, warn, write_together)
-from tracked_kinematics.offline.errors import UsageError
+    encoder_settings, ground_truth_source, identification_parser, min_speed, names, run_main,
+    warn, write_together)
 from tracked_kinematics.offline.identification import (
-    icr_from_poses, icr_from_references, TOOL as PROG)
+    fit, FitOptions, MODELS as MODEL_CHOICES, TOOL as PROG, write_fit)
 from tracked_kinematics.offline.outputs import Outputs
-from tracked_kinematics.offline.terrain_file import terrain_text
-from tracked_kinematics.params import (
-    check_values, icr_from_values, TERRAIN_DEFAULTS, TERRAIN_PARAMS)
 
-MODEL_CHOICES = ('symmetric',) + ident.FIT_MODELS
+DEFAULT = IdentifyOptions()
+"""The defaults of the fit options."""
 
 EPILOG = """examples:
   identify_icr run1/ run2/ --ground-truth-topic /mocap/pose --output hard_floor.yaml \\
@@ -97,41 +91,45 @@ def build_parser() -> argparse.ArgumentParser:
                      metavar='M',
                      help='the bags are one straight drive of M metres (measured): fixes the '
                      'distance scale')
-    fit = parser.add_argument_group('fit')
-    fit.add_argument('--model', choices=MODEL_CHOICES, default='icr_scales',
-                     help='model to fit and write')
-    fit.add_argument('--method', choices=ident.METHODS, default='lsq',
-                     help='lsq: least squares with analytic sensitivities; de: differential '
-                     'evolution (global, derivative-free, slow), for comparison')
-    fit.add_argument('--spin-in-place', action='store_true',
-                     help='instead of fitting segments, measure the steering efficiency of the '
-                     'spin-in-place runs (Martinez eq. 16) and write the symmetric model')
-    fit.add_argument('--segment-length', type=bounded(0.01, 600.0, 's', zero=True), default=1.0,
-                     metavar='SECONDS',
-                     help='segment duration; 0 cuts at every ground-truth sample')
-    fit.add_argument('--heading-weight', type=_heading_weight,
-                     default=ident.DEFAULT_HEADING_WEIGHT, metavar='M_PER_RAD|auto',
-                     help='lambda of the cost: metres that 1 rad of heading error counts as; '
-                     'auto balances the noise of position and heading residuals')
-    fit.add_argument('--loss', choices=ident.LOSSES, default='soft_l1',
-                     help='robust loss against ground-truth glitches')
-    fit.add_argument('--min-travel', type=bounded(0.0, 100.0, 'm'), default=0.01, metavar='M',
-                     help='segments whose tracks travel less are stationary and left out')
-    fit.add_argument('--max-nfev', type=bounded(0, 1_000_000, integer=True), default=None,
-                     metavar='N', help='evaluation budget of one optimisation round')
-    fit.add_argument('--accept-uncertain', action='store_true',
-                     help='write a fit whose parameters the data determine, but with standard '
-                     'errors beyond the limits (noisy ground truth); they are reported')
+    group = parser.add_argument_group('fit')
+    group.add_argument('--model', choices=MODEL_CHOICES, default='icr_scales',
+                       help='model to fit and write')
+    group.add_argument('--method', choices=ident.METHODS, default=DEFAULT.method,
+                       help='lsq: least squares with analytic sensitivities; de: differential '
+                       'evolution (global, derivative-free, slow), for comparison')
+    group.add_argument('--spin-in-place', action='store_true',
+                       help='instead of fitting segments, measure the steering efficiency of the '
+                       'spin-in-place runs (Martinez eq. 16) and write the symmetric model')
+    group.add_argument('--segment-length', type=bounded(0.01, 600.0, 's', zero=True),
+                       default=DEFAULT.segment_length, metavar='SECONDS',
+                       help='segment duration; 0 cuts at every ground-truth sample')
+    group.add_argument('--heading-weight', type=_heading_weight,
+                       default=DEFAULT.heading_weight, metavar='M_PER_RAD|auto',
+                       help='lambda of the cost: metres that 1 rad of heading error counts as; '
+                       'auto balances the noise of position and heading residuals')
+    group.add_argument('--loss', choices=ident.LOSSES, default=DEFAULT.loss,
+                       help='robust loss against ground-truth glitches')
+    group.add_argument('--min-travel', type=bounded(0.0, 100.0, 'm'),
+                       default=DEFAULT.min_travel, metavar='M',
+                       help='segments whose tracks travel less are stationary and left out')
+    group.add_argument('--max-nfev', type=bounded(0, 1_000_000, integer=True),
+                       default=DEFAULT.max_nfev, metavar='N',
+                       help='evaluation budget of one optimisation round')
+    group.add_argument('--accept-uncertain', action='store_true',
+                       help='write a fit whose parameters the data determine, but with standard '
+                       'errors beyond the limits (noisy ground truth); they are reported')
     ev = parser.add_argument_group('evaluation')
-    ev.add_argument('--holdout', type=bounded(0.0, 0.9), default=0.2, metavar='FRACTION',
+    ev.add_argument('--holdout', type=bounded(0.0, 0.9), default=DEFAULT.holdout,
+                    metavar='FRACTION',
                     help='fraction of time blocks held out to compare the models (0: none); '
                     'short data hold every block out in turn')
-    ev.add_argument('--holdout-block', type=bounded(1.0, 3600.0, 's'), default=30.0,
-                    metavar='SECONDS',
+    ev.add_argument('--holdout-block', type=bounded(1.0, 3600.0, 's'),
+                    default=DEFAULT.holdout_block, metavar='SECONDS',
                     help='longest time block, s of driving (shorter on short data)')
-    ev.add_argument('--window', type=bounded(0.1, 3600.0, 's'), default=10.0, metavar='SECONDS',
+    ev.add_argument('--window', type=bounded(0.1, 3600.0, 's'), default=DEFAULT.window,
+                    metavar='SECONDS',
                     help='duration of the held-out evaluation windows')
-    ev.add_argument('--compare', type=names, default=','.join(ident.COMPARE_MODELS),
+    ev.add_argument('--compare', type=names, default=','.join(DEFAULT.compare),
                     metavar='M1,M2',
                     help='models compared on the held-out blocks')
     add_window_selection_arguments(ev)
@@ -143,154 +141,47 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-# Inputs ----------------------------------------------------------------------------------
+def options_from_args(args) -> FitOptions:
+    """Return the options of the fit from the parsed command line (checked by the parser)."""
+    return FitOptions(
+        bags=tuple(args.bags), params=args.params, track_width=args.track_width,
+        sprocket_radius=args.sprocket_radius, encoders=encoder_settings(args),
+        ground_truth=ground_truth_source(args) if args.ground_truth_topic else None,
+        imu_topic=args.imu_topic, imu_delay=args.imu_delay, gnss_topic=args.gnss_topic,
+        gnss_antenna=tuple(args.gnss_antenna), straight_distance=args.straight_distance,
+        model=args.model, spin_in_place=args.spin_in_place, terrain=args.terrain,
+        identify=IdentifyOptions(
+            method=args.method, segment_length=args.segment_length,
+            heading_weight=args.heading_weight, loss=args.loss, min_travel=args.min_travel,
+            holdout=args.holdout, holdout_block=args.holdout_block, window=args.window,
+            compare=tuple(args.compare), max_nfev=args.max_nfev,
+            ground_truth_delay=args.ground_truth_delay,
+            accept_uncertain=args.accept_uncertain, min_speed=min_speed(args)))
 
 
-def _vehicle(args):
-    """Read the base terrain values and check the vehicle dimensions."""
-    base_values = read_base_file(PROG, args.params)
-    merged = {**TERRAIN_DEFAULTS, **{k: v for k, v in base_values.items()
-                                     if k in TERRAIN_DEFAULTS}}
-    if args.track_width is not None:
-        merged['track_width'] = args.track_width
-    if args.sprocket_radius is not None:
-        merged['sprocket_radius'] = args.sprocket_radius
-    # The values the fallback below builds a model from: a number each (not 'abc').
-    problems = check_values([s for s in TERRAIN_PARAMS if s.name in (
-        'track_width', 'sprocket_radius', 'scale.left', 'scale.right')], merged)
-    if problems:
-        raise UsageError(f'{args.params or "vehicle"}: {"; ".join(problems)}')
-    require_vehicle({'--track-width': args.track_width if args.track_width is not None
-                     else base_values.get('track_width'),
-                     '--sprocket-radius': args.sprocket_radius if args.sprocket_radius is not None
-                     else base_values.get('sprocket_radius')})
-    base = None
-    if args.params:
-        try:
-            base = icr_from_values(merged)
-        except InvalidParameters:
-            # The ICRs of a file made for another track width: keep its scales only.
-            try:
-                base = IcrParams.ideal(merged['track_width'])
-                base = IcrParams(base.track_width, base.y_left, base.y_right, 0.0,
-                                 merged['scale.left'], merged['scale.right'])
-            except ValueError as err:   # the user's track width or scales
-                raise UsageError(str(err)) from None
-    return base_values, base, float(merged['track_width']), float(merged['sprocket_radius'])
-
-
-def _uses_references(args) -> bool:
-    return bool(args.imu_topic or args.gnss_topic or args.straight_distance is not None)
-
-
-def _check_options(args) -> None:
-    """Refuse options that contradict each other or that no fit can serve, before any work."""
-    if _uses_references(args):
-        _check_reference_options(args)
-        return
-    if not args.ground_truth_topic:
-        raise UsageError('give --ground-truth-topic (a pose) or --imu-topic (a gyro)')
-    unknown = [m for m in args.compare if m not in ident.COMPARE_MODELS]
-    if unknown:
-        raise UsageError(f'--compare: unknown model {", ".join(unknown)}; choose from '
-                         f'{", ".join(ident.COMPARE_MODELS)}')
-    if not args.spin_in_place and args.method == 'lsq' and args.max_nfev is not None \
-            and args.max_nfev < 0:
-        # Least squares refuses a negative budget; 0 takes the default one.
-        raise UsageError(f'--max-nfev must not be negative, got {args.max_nfev}')
-
-
-def _check_reference_options(args) -> None:
-    """Refuse option combinations the reference calibration cannot serve."""
-    if args.gnss_topic and not (args.imu_topic or args.ground_truth_topic):
-        raise UsageError('--gnss-topic gives positions only: give --imu-topic (the heading) '
-                         'as well')
-    if args.straight_distance is not None and not args.imu_topic:
-        raise UsageError('--straight-distance needs --imu-topic (to check that the drive is '
-                         'straight)')
-    if args.straight_distance is not None and args.gnss_topic:
-        raise UsageError('give --straight-distance or --gnss-topic for the distance, not both')
-    if args.spin_in_place:
-        raise UsageError('--spin-in-place needs --ground-truth-topic, not --imu-topic')
-    if args.model not in ('icr_scales', 'icr', 'symmetric'):
-        raise UsageError(f'--model {args.model} needs a ground-truth pose; with --imu-topic '
-                         'the constant-ICR model is fitted')
-
-
-def _delay_option(value):
-    return value if value == 'auto' else float(value)
-
-
-def _from_poses(args, base_values, base, track_width, radius):
-    """Read the bags with their ground-truth pose and identify."""
-    recordings = read_bags(args.bags, encoder_source(args, radius), ground_truth_source(args),
-                           progress=sys.stderr.isatty())
-    return icr_from_poses(
-        recordings, args.bags, track_width, radius, base=base, base_values=base_values,
-        terrain=args.terrain, model=args.model, spin=args.spin_in_place, method=args.method,
-        segment_length=args.segment_length, heading_weight=args.heading_weight,
-        loss=args.loss, min_travel=args.min_travel, holdout=args.holdout,
-        holdout_block=args.holdout_block, window=args.window, compare=args.compare,
-        max_nfev=args.max_nfev, ground_truth_delay=args.ground_truth_delay,
-        accept_uncertain=args.accept_uncertain, min_speed=min_speed(args))
-
-
-def _from_references(args, base_values, base, track_width, radius):
-    """Read the bags with their gyro, GNSS or pose references and calibrate."""
-    encoders = encoder_source(args, radius)
-    pose = ground_truth_source(args) if args.ground_truth_topic else None
-    recordings = [read_reference_bag(b, encoders, args.imu_topic, args.gnss_topic, pose,
-                                     progress=sys.stderr.isatty()) for b in args.bags]
-    return icr_from_references(
-        recordings, args.bags, track_width, radius, base=base, base_values=base_values,
-        terrain=args.terrain, model=args.model, imu_delay=_delay_option(args.imu_delay),
-        pose_delay=_delay_option(args.ground_truth_delay),
-        segment_length=args.segment_length or 1.0, straight_distance=args.straight_distance,
-        gnss_antenna=args.gnss_antenna)
-
-
-# Outputs ---------------------------------------------------------------------------------
-
-
-def _outputs(args) -> Outputs:
+def _outputs(args, options: FitOptions) -> Outputs:
     """Check every output path before any work (docs/output-files.md)."""
     outputs = Outputs(force=args.force)
     outputs.add('--output', args.output)
     outputs.add('--report', args.report)
-    if args.plot and (args.spin_in_place or _uses_references(args)):
+    if args.plot and (options.spin_in_place or options.uses_references):
         warn(PROG, '--plot is not drawn with --spin-in-place or without a ground-truth pose')
-    elif args.plot:
-        from tracked_kinematics.offline.plots import check_format
-        outputs.add('--plot', args.plot)
-        check_format('--plot', args.plot)
+    else:
+        add_plot_output(outputs, args.plot)
     outputs.refuse_inputs('BAG', args.bags)
     # --output may update the terrain file it starts from (it exists: with --force).
     outputs.refuse_inputs('--params', [args.params], allow=('--output',))
     return outputs
 
 
-def _identify(args, out, outputs) -> None:
-    """Identify, print the table, write the terrain file, the report and the plot."""
-    _check_options(args)
-    vehicle = _vehicle(args)
-    found = (_from_references if _uses_references(args) else _from_poses)(args, *vehicle)
-    print(found.text, file=out)
-    outputs.write_text('--output', terrain_text(found.values, tool=PROG, date=found.date,
-                                                note=found.note))
-    if '--report' in outputs:
-        outputs.write_text('--report', report_json(found.report))
-    if '--plot' in outputs:
-        from tracked_kinematics.offline.plots import plot_identification
-        result = found.identification
-        # The moving segments the fit used: those of --min-travel, delay removed.
-        segments = ident.build_segments(result.recordings, result.segment_length)
-        with outputs.path('--plot') as tmp:
-            plot_identification(tmp, result.recordings, result,
-                                segments.select(segments.travel >= args.min_travel))
-
-
 def _run(args, out) -> int:
-    return write_together(_outputs(args), lambda outputs: _identify(args, out, outputs), out)
+    options = options_from_args(args)
+
+    def work(outputs):
+        found = fit(options)
+        print(found.text, file=out)
+        write_fit(found, outputs, options)
+    return write_together(_outputs(args, options), work, out)
 
 
 def main(argv=None) -> int:

@@ -6,8 +6,8 @@ Four steps, each the code path a user would run:
 1. simulate a tracked robot driving on a terrain (the stationary track-soil model of
    Martinez et al. 2005, sec. 4.1, a drive train, quantised and noisy encoders, a noisy
    ground truth) and record a calibration bag (:func:`.simulate_bag.simulate_bag`);
-2. run ``identify_icr`` on that bag (:func:`.identify_icr.main`, the console script's own
-   entry point), which writes the terrain YAML, a JSON report and a plot;
+2. fit that bag as ``identify_icr`` does (:func:`tracked_kinematics.offline.identification.
+   fit`, what the console script calls), and write its terrain YAML, JSON report and plot;
 3. simulate held-out paths (other seeds, not used by the fit), record them as bags, read
    their ``/joint_states`` back and dead-reckon them twice: as ``diff_drive_controller``
    does (ideal differential drive, ICRs on the track centrelines, no scale corrections)
@@ -48,13 +48,15 @@ from tracked_kinematics.core.kinematics import IcrParams
 from tracked_kinematics.core.models import ConstantIcr
 from tracked_kinematics.core.sim.simulation import TwistTable
 from tracked_kinematics.offline.bags import EncoderSource, GroundTruthSource, read_bag
-from tracked_kinematics.offline.cli import identify_icr
 from tracked_kinematics.offline.cli.common import (
-    add_force_argument, ArgumentParser, bounded, run_main, SEED)
-from tracked_kinematics.offline.cli.simulate_bag import GROUND_TRUTH_TOPICS, JOINTS, simulate_bag
+    add_force_argument, add_plot_output, ArgumentParser, bounded, run_main, SEED,
+    write_together)
 from tracked_kinematics.offline.demo_directory import (bag_files, DemoDirectory, DemoError,
                                                        Entry, planned_outputs)
+from tracked_kinematics.offline.identification import (
+    fit, FitOptions, TOOL as FIT_TOOL, write_fit)
 from tracked_kinematics.offline.outputs import Outputs
+from tracked_kinematics.offline.simulation import GROUND_TRUTH_TOPICS, JOINTS, simulate_bag
 from tracked_kinematics.offline.vehicle_file import (
     add_vehicle_arguments, fixed, load_vehicle, overrides_from_args)
 from tracked_kinematics.params import icr_from_values, read_params_file
@@ -150,7 +152,7 @@ def dead_reckon(icr: IcrParams, left, right) -> np.ndarray:
 def identify(bag: Path, out: Path, terrain: str, track_width: float, radius: float,
              force: bool = False):
     """
-    Run ``identify_icr`` on the calibration bag, as a user would.
+    Fit the calibration bag as ``identify_icr`` would: its fit, its outputs, its statuses.
 
     Returns
     -------
@@ -162,14 +164,32 @@ def identify(bag: Path, out: Path, terrain: str, track_width: float, radius: flo
         What it printed on stdout.
 
     """
-    argv = [str(bag), '--ground-truth-topic', GT_TOPIC, '--output', str(out / f'{terrain}.yaml'),
+    options = FitOptions(bags=(str(bag),), track_width=track_width, sprocket_radius=radius,
+                         ground_truth=GroundTruthSource(GT_TOPIC), terrain=terrain)
+    paths = {'--output': out / f'{terrain}.yaml', '--report': out / 'identify_report.json',
+             '--plot': out / 'identify.png'}
+    argv = [str(bag), '--ground-truth-topic', GT_TOPIC, '--output', str(paths['--output']),
             '--sprocket-radius', repr(radius), '--track-width', repr(track_width),
-            '--terrain', terrain, '--report', str(out / 'identify_report.json'),
-            '--plot', str(out / 'identify.png')] + (['--force'] if force else [])
+            '--terrain', terrain, '--report', str(paths['--report']),
+            '--plot', str(paths['--plot'])] + (['--force'] if force else [])
+
+    def run(_, printed) -> int:
+        outputs = Outputs(force=force)
+        outputs.add('--output', paths['--output'])
+        outputs.add('--report', paths['--report'])
+        add_plot_output(outputs, paths['--plot'])
+        outputs.refuse_inputs('BAG', [bag])
+
+        def work(outputs):
+            found = fit(options)
+            print(found.text, file=printed)
+            write_fit(found, outputs, options)
+        return write_together(outputs, work, printed)
+
     buffer = io.StringIO()
     with contextlib.redirect_stdout(buffer):
-        status = identify_icr.main(argv)
-    return status, [identify_icr.PROG] + argv, buffer.getvalue()
+        status = run_main(FIT_TOOL, run, None)
+    return status, [FIT_TOOL] + argv, buffer.getvalue()
 
 
 def heldout_name(k: int) -> str:

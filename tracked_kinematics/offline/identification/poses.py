@@ -3,8 +3,8 @@ identify_icr from a ground-truth pose: the fit of the segments, or the spin-in-p
 
 :func:`icr_from_poses` runs :func:`tracked_kinematics.core.identify.identify` (or
 :func:`~tracked_kinematics.core.identify.spin_in_place`) on recordings already read and
-returns the :class:`.report.IcrReport`: the terrain values with their ``identification.*``
-record, the JSON report and the table, for a command line (or a script) to print and write.
+returns the :class:`.report.FitResult`: the terrain values with their ``identification.*``
+record, the JSON report and the table (:func:`.api.fit` reads the bags and calls it).
 """
 
 from __future__ import annotations
@@ -12,62 +12,33 @@ from __future__ import annotations
 import math
 
 from tracked_kinematics.core import identify as ident
-from tracked_kinematics.core.identify.procedure import MIN_SPEED
 
-from .report import (bag_names, finite_or_none, icr_summary, IcrReport, now, TOOL,
+from .report import (bag_names, finite_or_none, FitResult, icr_summary, now, TOOL,
                      yaml_values)
 
 
-def icr_from_poses(recordings, bags, track_width: float, sprocket_radius: float, *,
-                   base=None, base_values=None, terrain: str | None = None,
-                   model: str = 'icr_scales', spin: bool = False, method: str = 'lsq',
-                   segment_length: float = 1.0,
-                   heading_weight: float | None = ident.DEFAULT_HEADING_WEIGHT,
-                   loss: str = 'soft_l1', min_travel: float = 0.01, holdout: float = 0.2,
-                   holdout_block: float = 30.0, window: float = 10.0,
-                   compare=ident.COMPARE_MODELS, max_nfev: int | None = None,
-                   ground_truth_delay='auto', accept_uncertain: bool = False,
-                   min_speed: float | None = MIN_SPEED, date: str | None = None,
-                   tool: str = TOOL) -> IcrReport:
+def icr_from_poses(recordings, options, track_width: float, sprocket_radius: float, *,
+                   base=None, base_values=None, date: str | None = None,
+                   tool: str = TOOL) -> FitResult:
     """
     Identify the tread ICRs from encoders and a ground-truth pose; return what to write.
-
-    The options are identify_icr's (docs/tools/identify_icr.md), with its defaults.
 
     Parameters
     ----------
     recordings : sequence of Recording
-        The bags as read (:func:`tracked_kinematics.offline.bags.read_bags`).
-    bags : sequence of path-like
-        Their paths, for the record.
+        ``options.bags`` as read (:func:`tracked_kinematics.offline.bags.read_bags`).
+    options : FitOptions
+        What to fit (:class:`.api.FitOptions`).
     track_width, sprocket_radius : float
         m.
     base : IcrParams, optional
-        Starting point, and the fixed scales of ``model='icr'`` and of ``spin``.
+        Starting point, and the fixed scales of ``model='icr'`` and of the spin runs.
     base_values : mapping, optional
         The base terrain file's values, copied to the output (dotted names).
-    terrain : str, optional
-        Terrain name to write.
-    model : str
-        ``symmetric`` (written as ``effective_wheel_base``) or a registered name
-        (:func:`tracked_kinematics.core.identify.fit_models`).
-    spin : bool
-        Instead of fitting segments, measure the steering efficiency of spin-in-place runs
-        (Martinez eq. 16) and write the symmetric model.
-    method, segment_length, heading_weight, loss, min_travel, holdout, holdout_block, window, \
-compare, max_nfev, accept_uncertain, min_speed
-        See :func:`tracked_kinematics.core.identify.identify`; ``segment_length`` 0 cuts at
-        every ground-truth sample; ``min_speed`` None scores the idle hold-out windows too.
-    ground_truth_delay : float or 'auto'
-        s of ground-truth stamps behind the encoders to remove.
     date : str, optional
         ISO 8601 time to record; default now.
     tool : str
         The tool's name, in the report and the table.
-
-    Returns
-    -------
-    IcrReport
 
     Raises
     ------
@@ -75,24 +46,21 @@ compare, max_nfev, accept_uncertain, min_speed
         As :func:`tracked_kinematics.core.identify.identify`.
 
     """
+    model, terrain = options.model, options.terrain
+    segment_length = options.identify.segment_length
     date = date or now()
     recordings = list(recordings)
-    bags = bag_names(bags)
+    bags = bag_names(options.bags)
     report = {'tool': tool, 'date': date, 'bags': bags, 'track_width': track_width,
               'sprocket_radius': sprocket_radius, 'recordings': _recordings_summary(recordings)}
     lines = []
     result = None
-    if spin:
+    if options.spin_in_place:
         values = _spin(recordings, bags, track_width, sprocket_radius, base, base_values,
-                       terrain, ground_truth_delay, date, tool, report, lines)
+                       terrain, options.identify.ground_truth_delay, date, tool, report, lines)
     else:
-        result = ident.identify(
-            recordings, model, track_width,
-            base=base, method=method, segment_length=segment_length or None,
-            heading_weight=heading_weight, loss=loss, min_travel=min_travel, holdout=holdout,
-            holdout_block=holdout_block, window=window, compare=compare, max_nfev=max_nfev,
-            ground_truth_delay=ground_truth_delay, accept_uncertain=accept_uncertain,
-            min_speed=min_speed)
+        result = ident.identify(recordings, model, track_width, base=base,
+                                options=options.identify)
         values = yaml_values(base_values, result.icr, sprocket_radius, terrain,
                              _segment_extras(result, bags, date, segment_length))
         report.update({
@@ -111,7 +79,7 @@ compare, max_nfev, accept_uncertain, min_speed
         note = (f'The {model} model has no constant ICRs: icr.* and scale.* are the '
                 f'{values["identification.icr_source"]} fit of the same data;\nthe '
                 f'{model} parameters are under identification.parameters.')
-    return IcrReport(values, note, report, tuple(lines), date, result)
+    return FitResult(values, note, report, tuple(lines), date, result)
 
 
 def _spin(recordings, bags, track_width, radius, base, base_values, terrain,

@@ -3,7 +3,7 @@ identify_icr without a ground-truth pose: the gyro as the reference, GNSS or a s
 
 :func:`icr_from_references` calibrates with :func:`tracked_kinematics.core.identify.
 fit_recordings` on recordings read by :func:`tracked_kinematics.offline.bags.reference_reader.
-read_reference_bag` and returns the :class:`.report.IcrReport`, with ``identification.
+read_reference_bag` and returns the :class:`.report.FitResult`, with ``identification.
 reference``, ``identification.determined`` and ``identification.held`` (docs/tools/identify_icr.md,
 "What it writes") and ``identification.imu_delay`` in the terrain values.
 """
@@ -15,7 +15,7 @@ import math
 from tracked_kinematics.core import identify as ident
 from tracked_kinematics.core.kinematics import IcrParams
 
-from .report import bag_names, icr_summary, IcrReport, now, TOOL, yaml_values
+from .report import bag_names, FitResult, icr_summary, now, TOOL, yaml_values
 
 WHY_HELD = {
     'chi': 'the references do not turn enough',
@@ -28,46 +28,26 @@ WHY_HELD = {
 """Why each quantity the references cannot determine is held, as the table says it."""
 
 
-def icr_from_references(recordings, bags, track_width: float, sprocket_radius: float, *,
+def icr_from_references(recordings, options, track_width: float, sprocket_radius: float, *,
                         base: IcrParams | None = None, base_values=None,
-                        terrain: str | None = None, model: str = 'icr_scales',
-                        imu_delay='auto', pose_delay='auto', segment_length: float = 1.0,
-                        straight_distance: float | None = None, gnss_antenna=(0.0, 0.0),
-                        date: str | None = None, tool: str = TOOL) -> IcrReport:
+                        date: str | None = None, tool: str = TOOL) -> FitResult:
     """
     Calibrate from a gyro, GNSS positions, a pose or a measured straight; return what to write.
 
     Parameters
     ----------
     recordings : sequence of Recording
-        The bags as read, one each.
-    bags : sequence of path-like
-        Their paths, for the record.
-    track_width, sprocket_radius : float
-        m.
-    base : IcrParams, optional
-        The values to hold (``--params``); with ``model='symmetric'`` its ICRs are made
-        symmetric (offset 0).
-    base_values : mapping, optional
-        The base terrain file's values, copied to the output.
-    terrain : str, optional
-        Terrain name to write.
-    model : str
-        ``icr_scales``, ``icr`` or ``symmetric``: the constant-ICR model is fitted.
-    imu_delay, pose_delay : float or 'auto'
-        s of gyro / pose stamps behind the encoders to remove, or 'auto' to estimate.
-    segment_length : float
-        Heading segments, s (0: 1 s).
-    straight_distance : float, optional
-        The recordings are one straight drive of this many metres.
-    gnss_antenna : pair of float
-        Position of the GNSS antenna in base_link, m.
-    date, tool
-        As :func:`.poses.icr_from_poses`.
+        ``options.bags`` as read, one each.
+    options : FitOptions
+        What to fit (:class:`.api.FitOptions`): the constant-ICR model is fitted; with
+        ``model='symmetric'`` the ICRs of ``base`` are held symmetric (offset 0).
+    track_width, sprocket_radius, base, base_values, date, tool
+        As :func:`.poses.icr_from_poses`; ``base`` holds what the references cannot
+        determine.
 
     Returns
     -------
-    IcrReport
+    FitResult
         Its ``identification`` is None (nothing to plot).
 
     Raises
@@ -78,12 +58,13 @@ def icr_from_references(recordings, bags, track_width: float, sprocket_radius: f
     """
     date = date or now()
     recordings = list(recordings)
-    bags = bag_names(bags)
-    segment_length = float(segment_length or 1.0)
+    bags = bag_names(options.bags)
+    segment_length = float(options.identify.segment_length or 1.0)
     fit = ident.fit_recordings(
-        recordings, track_width, base=_held_base(base, model), imu_delay=imu_delay,
-        pose_delay=pose_delay, segment_length=segment_length,
-        straight_distance=straight_distance, gnss_antenna=tuple(gnss_antenna))
+        recordings, track_width, base=_held_base(base, options.model),
+        imu_delay=options.imu_delay, pose_delay=options.identify.ground_truth_delay,
+        segment_length=segment_length, straight_distance=options.straight_distance,
+        gnss_antenna=tuple(options.gnss_antenna))
     icr = fit.icr
     extras = {'model': 'icr_scales', 'method': 'reference', 'date': date, 'bags': bags,
               'reference': fit.reference, 'determined': list(fit.determined),
@@ -99,7 +80,7 @@ def icr_from_references(recordings, bags, track_width: float, sprocket_radius: f
         extras['gyro_bias_per_bag'] = [float(b) for b in fit.biases]
     if fit.report['pose_delay'] is not None:
         extras['ground_truth_delay'] = float(fit.pose_delay.delay)
-    values = yaml_values(base_values, icr, sprocket_radius, terrain, extras)
+    values = yaml_values(base_values, icr, sprocket_radius, options.terrain, extras)
     report = {'tool': tool, 'date': date, 'bags': bags, 'track_width': track_width,
               'sprocket_radius': sprocket_radius, 'mode': 'reference', **fit.report,
               'icr': icr_summary(icr),
@@ -110,7 +91,7 @@ def icr_from_references(recordings, bags, track_width: float, sprocket_radius: f
                              for r in recordings]}
     note = (f'Calibrated without ground truth ({fit.reference}): held, not fitted: '
             f'{", ".join(fit.held)}.' if fit.held else '')
-    return IcrReport(values, note, report, tuple(_table(fit, recordings, tool)), date)
+    return FitResult(values, note, report, tuple(_table(fit, recordings, tool)), date)
 
 
 def _held_base(base, model):

@@ -1,8 +1,8 @@
 """
 What an ICR identification hands back: the terrain values, the JSON report, the printed table.
 
-:class:`IcrReport` is the value :func:`.poses.icr_from_poses` and
-:func:`.references.icr_from_references` return; the pieces both assemble it from (the
+:class:`FitResult` is the value :func:`.api.fit` (through :func:`.poses.icr_from_poses` or
+:func:`.references.icr_from_references`) returns; the pieces both assemble it from (the
 terrain values with their ``identification.*`` record, the ICR model as the report gives it)
 are here.
 """
@@ -22,7 +22,7 @@ TOOL = 'identify_icr'
 
 
 @dataclass(frozen=True)
-class IcrReport:
+class FitResult:
     """
     An ICR identification, ready to print and to write.
 

@@ -1,0 +1,112 @@
+"""
+What the offline tools share below their command lines: warnings, inputs, reports, statuses.
+
+The command lines (:mod:`tracked_kinematics.offline.cli`) and the libraries they call (the
+fit of :mod:`tracked_kinematics.offline.identification`, the calibration drive's
+:mod:`tracked_kinematics.offline.calibration_files`) both use these.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+
+import numpy as np
+from tracked_kinematics.core.errors import (
+    ExcitationError, IdentificationError, TrackedKinematicsError)
+from tracked_kinematics.offline.bags import EncoderSource
+from tracked_kinematics.offline.errors import UsageError
+from tracked_kinematics.params import read_params_file, unknown_terrain_parameters
+
+EXIT_INPUT, EXIT_EXCITATION, EXIT_FIT = 2, 3, 4
+"""Exit statuses of the identification tools: bad input, too little excitation, failed fit."""
+
+
+def exit_status(err: BaseException) -> int | None:
+    """
+    Return the exit status of one of the package's errors, or None for another exception.
+
+    :data:`EXIT_EXCITATION` for too little excitation, :data:`EXIT_FIT` for a fit that
+    failed, :data:`EXIT_INPUT` for any other
+    :class:`~tracked_kinematics.core.errors.TrackedKinematicsError` and for an
+    :class:`OSError`.
+    """
+    if isinstance(err, ExcitationError):
+        return EXIT_EXCITATION
+    if isinstance(err, IdentificationError):
+        return EXIT_FIT
+    if isinstance(err, (TrackedKinematicsError, OSError)):
+        return EXIT_INPUT
+    return None
+
+
+def error_line(prog: str, message) -> str:
+    """Return ``PROG: error: MESSAGE`` on one line, as the tools print an error."""
+    return f'{prog}: error: {" ".join(str(message).split())}'
+
+
+def warn(prog: str, message: str) -> None:
+    """Print ``PROG: warning: MESSAGE`` on stderr (one line)."""
+    print(f'{prog}: warning: {" ".join(str(message).split())}', file=sys.stderr)
+
+
+def warn_unknown_terrain_keys(prog: str, path, values) -> None:
+    """Warn about names of a terrain file that look like typos of known ones."""
+    for message in unknown_terrain_parameters(values):
+        warn(prog, f'{path}: {message}')
+
+
+def read_base_file(prog: str, path) -> dict:
+    """Read a ``--params`` base terrain file (``{}`` without one), warning about its typos."""
+    if not path:
+        return {}
+    values = read_params_file(path)
+    warn_unknown_terrain_keys(prog, path, values)
+    return values
+
+
+def require_vehicle(given, where: str = '--params') -> None:
+    """
+    Refuse a run that lacks the vehicle's dimensions, as the nodes do (no default vehicle).
+
+    Parameters
+    ----------
+    given : mapping
+        Flag name (``--track-width``) to value, None when neither the flag nor ``where``
+        gave it.
+    where : str
+        Where else the values may come from, for the message.
+
+    Raises
+    ------
+    UsageError
+        Naming every missing flag.
+
+    """
+    missing = [flag for flag, value in given.items() if value is None]
+    if missing:
+        raise UsageError(f'{" and ".join(missing)} {"is" if len(missing) == 1 else "are"} '
+                         f'needed (or {where} with them): there is no default vehicle, as '
+                         'diff_drive_controller needs wheel_separation and wheel_radius')
+
+
+def checked_encoders(encoders: EncoderSource) -> EncoderSource:
+    """
+    Return ``encoders`` after refusing a joint listed for both tracks.
+
+    Raises
+    ------
+    UsageError
+        Naming the joints.
+
+    """
+    both = set(encoders.left_joints) & set(encoders.right_joints)
+    if both:
+        raise UsageError(f'--left-joints and --right-joints both list {", ".join(sorted(both))}')
+    return encoders
+
+
+def report_json(report) -> str:
+    """Return a JSON report as text (numpy arrays as lists, numpy scalars as floats)."""
+    return json.dumps(report, indent=2, default=lambda o: o.tolist()
+                      if isinstance(o, np.ndarray) else float(o)) + '\n'
