@@ -19,8 +19,8 @@ import numpy as np
 
 from tracked_kinematics.core.identify import fit_drivetrain, Recording
 from tracked_kinematics.core.sim.manoeuvres import manoeuvre
+from tracked_kinematics.offline.bag_simulation import simulate_bag
 from tracked_kinematics.offline.cli import identify_drivetrain as cli
-from tracked_kinematics.offline.simulation import simulate_bag
 from tracked_kinematics.offline.vehicle_file import load_vehicle
 
 RATE, SETPOINT_RATE, NOISE = 100.0, 50.0, 0.001

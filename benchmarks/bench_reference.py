@@ -35,10 +35,10 @@ from tracked_kinematics.core import identify as ident  # noqa: E402
 from tracked_kinematics.core.kinematics import IcrParams  # noqa: E402
 from tracked_kinematics.core.sim.sensors import GnssModel, GyroModel  # noqa: E402
 from tracked_kinematics.core.sim.simulation import TwistTable  # noqa: E402
+from tracked_kinematics.offline.bag_simulation import simulate_bag  # noqa: E402
 from tracked_kinematics.offline.bags import (  # noqa: E402
     EncoderSource, GroundTruthSource, read_bags)
 from tracked_kinematics.offline.bags.reference_reader import read_reference_bag  # noqa: E402
-from tracked_kinematics.offline.simulation import simulate_bag  # noqa: E402
 from tracked_kinematics.offline.vehicle_file import load_vehicle  # noqa: E402
 
 WINDOWS = (30.0, 60.0, 120.0)

@@ -19,7 +19,7 @@ from timing import best_of
 from tracked_kinematics.core.sim.icr_maps import icr_map
 from tracked_kinematics.core.sim.manoeuvres import manoeuvre
 from tracked_kinematics.core.sim.simulation import GroundTruth, simulate, TwistTable
-from tracked_kinematics.offline.simulation import simulate_bag, write_run
+from tracked_kinematics.offline.bag_simulation import simulate_bag, write_run
 from tracked_kinematics.offline.vehicle_file import load_vehicle
 
 REPEATS = 3

@@ -8,11 +8,11 @@ import re
 from helpers.command_bags import write_commands_bag
 import numpy as np
 import pytest
+from tracked_kinematics.offline.bag_simulation import simulate_bag
 from tracked_kinematics.offline.bags import (
     BagError, CommandSource, EncoderSource, GroundTruthSource, read_drive_bag,
     read_evaluation_bag)
 from tracked_kinematics.offline.cli import identify_drivetrain
-from tracked_kinematics.offline.simulation import simulate_bag
 
 B = 0.42
 GT = GroundTruthSource('/ground_truth/pose')

@@ -14,9 +14,9 @@ from helpers.command_bags import T0_NS, write_commands_bag
 from helpers.realdata import bag as real_bag
 import numpy as np
 import pytest
+from tracked_kinematics.offline.bag_simulation import simulate_bag
 from tracked_kinematics.offline.bags import BagWriter
 from tracked_kinematics.offline.cli import evaluate_model as cli
-from tracked_kinematics.offline.simulation import simulate_bag
 
 B = 0.42
 GT = '/ground_truth/pose'

@@ -8,9 +8,9 @@ import re
 
 import numpy as np
 import pytest
+from tracked_kinematics.offline.bag_simulation import simulate_bag
 from tracked_kinematics.offline.bags import BagWriter
 from tracked_kinematics.offline.cli import identify_drivetrain as cli
-from tracked_kinematics.offline.simulation import simulate_bag
 
 JOINTS = ['left_sprocket_joint', 'right_sprocket_joint']
 

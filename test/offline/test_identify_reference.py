@@ -7,8 +7,8 @@ import pytest
 from rosbags.highlevel import AnyReader
 from tracked_kinematics.core.sim.sensors import GnssModel, GyroModel
 from tracked_kinematics.core.sim.simulation import TwistTable
+from tracked_kinematics.offline import bag_simulation as sim
 from tracked_kinematics.offline.bags import EncoderSource
-from tracked_kinematics.offline import simulation as sim
 from tracked_kinematics.offline.bags.reference_reader import read_reference_bag
 from tracked_kinematics.offline.cli import identify_icr
 from tracked_kinematics.offline.vehicle_file import load_vehicle

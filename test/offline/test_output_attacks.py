@@ -16,11 +16,11 @@ import sys
 
 import pytest
 from tracked_kinematics.offline import simulation
+from tracked_kinematics.offline.bag_simulation import truth_path
 from tracked_kinematics.offline.cli import (
     icr_map, identify_drivetrain, identify_icr, plan_trajectory, simulate_bag,
     tracked_kinematics_demo)
 from tracked_kinematics.offline.demo_directory import MANIFEST
-from tracked_kinematics.offline.simulation import truth_path
 
 BIN = os.path.dirname(sys.executable)
 

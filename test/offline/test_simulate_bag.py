@@ -10,8 +10,8 @@ import pytest
 from rosbags.highlevel import AnyReader
 from tracked_kinematics.core.integration import relative_pose
 from tracked_kinematics.core.models import ConstantIcr, IdealDiffDrive
+from tracked_kinematics.offline.bag_simulation import simulate_bag, START_NS, truth_path
 from tracked_kinematics.offline.cli import icr_map, simulate_bag as simulate_cli
-from tracked_kinematics.offline.simulation import simulate_bag, START_NS, truth_path
 from tracked_kinematics.offline.vehicle_file import load_vehicle, shipped_vehicles
 from tracked_kinematics.params import icr_from_values, read_params_file
 

@@ -23,9 +23,9 @@ from rclpy.parameter_client import AsyncParameterClient
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from std_msgs.msg import Bool, Float64, String
 from tracked_kinematics.core.kinematics import IcrParams
+from tracked_kinematics.offline.bag_simulation import simulate_bag
 from tracked_kinematics.offline.bags import EncoderSource, GroundTruthSource, read_bag
 from tracked_kinematics.offline.cli.tracked_kinematics_demo import dead_reckon
-from tracked_kinematics.offline.simulation import simulate_bag
 from tracked_kinematics.params import icr_from_values, read_params_file
 
 pytestmark = pytest.mark.ros

@@ -11,10 +11,10 @@ import pytest
 from tracked_kinematics.core.drivetrain import DriveTrain, FirstOrderLag, PidMotor
 from tracked_kinematics.core.identify import (
     ExcitationError, fit_drivetrain, FitError, Recording, resample)
+from tracked_kinematics.offline.bag_simulation import simulate_bag
 from tracked_kinematics.offline.bags import EncoderSource, read_drive_bag
 from tracked_kinematics.offline.bags.writer import BagWriter
 from tracked_kinematics.offline.cli import identify_drivetrain as cli
-from tracked_kinematics.offline.simulation import simulate_bag
 from tracked_kinematics.params import (drivetrain_from_values, read_params_file,
                                        values_from_drivetrain, write_params_file)
 

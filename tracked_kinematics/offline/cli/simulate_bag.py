@@ -14,7 +14,7 @@ robot without ground truth (:mod:`tracked_kinematics.core.sim.sensors`). Next to
 valid ``--params-file``): the ground truth an identification should find, and the sensor
 settings used (``simulation.imu.*``, ``simulation.gnss.*``).
 
-The command line of :func:`tracked_kinematics.offline.simulation.simulate_bag` (the library
+The command line of :func:`tracked_kinematics.offline.bag_simulation.simulate_bag` (the library
 that scripts and the demo call).
 
 Exit status: 0 success; 2 bad input (vehicle, option, an output path that may not be
@@ -33,11 +33,11 @@ import sys
 
 from tracked_kinematics.core.sim.manoeuvres import MANOEUVRES
 from tracked_kinematics.core.sim.sensors import GnssModel, GyroModel
+from tracked_kinematics.offline.bag_simulation import (
+    GNSS_STATUS, GROUND_TRUTH_TOPICS, MAX_DURATION, MAX_SAMPLES, RATES, simulate_bag, TOOL)
 from tracked_kinematics.offline.bags import STORAGES
 from tracked_kinematics.offline.cli.common import (
     add_force_argument, ArgumentParser, bounded, run_main, SEED)
-from tracked_kinematics.offline.simulation import (
-    GNSS_STATUS, GROUND_TRUTH_TOPICS, MAX_DURATION, MAX_SAMPLES, RATES, simulate_bag, TOOL)
 from tracked_kinematics.offline.vehicle_file import (
     add_vehicle_arguments, fixed, overrides_from_args)
 

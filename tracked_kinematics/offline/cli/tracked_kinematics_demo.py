@@ -47,6 +47,7 @@ from tracked_kinematics.core.integration import wrap_angle
 from tracked_kinematics.core.kinematics import IcrParams
 from tracked_kinematics.core.models import ConstantIcr
 from tracked_kinematics.core.sim.simulation import TwistTable
+from tracked_kinematics.offline.bag_simulation import GROUND_TRUTH_TOPICS, JOINTS, simulate_bag
 from tracked_kinematics.offline.bags import EncoderSource, GroundTruthSource, read_bag
 from tracked_kinematics.offline.cli.common import (
     add_force_argument, add_plot_output, ArgumentParser, bounded, run_main, SEED,
@@ -56,7 +57,6 @@ from tracked_kinematics.offline.demo_directory import (bag_files, DemoDirectory,
 from tracked_kinematics.offline.identification import (
     fit, FitOptions, TOOL as FIT_TOOL, write_fit)
 from tracked_kinematics.offline.outputs import Outputs
-from tracked_kinematics.offline.simulation import GROUND_TRUTH_TOPICS, JOINTS, simulate_bag
 from tracked_kinematics.offline.vehicle_file import (
     add_vehicle_arguments, fixed, load_vehicle, overrides_from_args)
 from tracked_kinematics.params import icr_from_values, read_params_file
