@@ -15,8 +15,8 @@ import subprocess
 import sys
 
 import pytest
-from tracked_kinematics.offline import simulation
 from tracked_kinematics.offline.bag_simulation import truth_path
+from tracked_kinematics.offline import bag_simulation
 from tracked_kinematics.offline.cli import (
     icr_map, identify_drivetrain, identify_icr, plan_trajectory, simulate_bag,
     tracked_kinematics_demo)
@@ -242,7 +242,7 @@ def test_a_bug_is_a_traceback_and_still_leaves_nothing(tool, target, argv, tmp_p
     module = {'simulate_bag': simulate_bag, 'icr_map': icr_map,
               'tracked_kinematics_demo': tracked_kinematics_demo}[tool]
     # simulate_bag's simulation is its library's.
-    where = simulation if tool == 'simulate_bag' else module
+    where = bag_simulation if tool == 'simulate_bag' else module
 
     def bug(*args, **kwargs):
         raise ValueError('bug')

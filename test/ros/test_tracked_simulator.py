@@ -437,7 +437,8 @@ def test_console_script_runs_and_exits_on_sigint(ros_context, executor, tmp_path
         with ConsoleScript('tracked_simulator', '--ros-args', '--params-file', params,
                            '-r', f'__ns:={namespace}', tmp_path=tmp_path) as script:
             assert spin_until(executor, lambda: len(probe.joints) >= 5
-                              and probe.left.get_subscription_count() > 0, 30.0), \
+                              and probe.left.get_subscription_count() > 0
+                              and probe.pose() is not None, 30.0), \
                 script.output
             assert drive(executor, probe, 0.5, 0.5, lambda: probe.pose()[0] > 0.5), \
                 script.output
