@@ -15,8 +15,8 @@ import subprocess
 import sys
 
 import pytest
-from tracked_kinematics.offline.bag_simulation import truth_path
 from tracked_kinematics.offline import bag_simulation
+from tracked_kinematics.offline.bag_simulation import truth_path
 from tracked_kinematics.offline.cli import (
     icr_map, identify_drivetrain, identify_icr, plan_trajectory, simulate_bag,
     tracked_kinematics_demo)
