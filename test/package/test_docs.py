@@ -23,6 +23,8 @@ FENCED = re.compile(r'^```(\w*)\n(.*?)^```', re.S | re.M)
 NODE_TABLES = {'odometry_node': 'PARAMS', 'cmd_vel_translator': 'TRANSLATOR_PARAMS',
                'icr_estimator': 'PARAMS', 'calibration_drive': 'PARAMS',
                'tracked_simulator': 'SIMULATOR_PARAMS'}
+# The ros/ module of a node whose console script is named otherwise.
+NODE_MODULES = {'calibration_drive': 'calibration_drive_node'}
 
 
 def markdown_files():
@@ -175,7 +177,8 @@ def check_command(words):
             return f'no console script {words[3]}'
         if words[3] not in NODE_TABLES:
             return None
-        module = importlib.import_module(f'tracked_kinematics.ros.{words[3]}')
+        module = importlib.import_module(
+            f'tracked_kinematics.ros.{NODE_MODULES.get(words[3], words[3])}')
         declared = {spec.name for spec in getattr(module, NODE_TABLES[words[3]])}
         declared.add('use_sim_time')  # every rclpy node declares it
         names = [words[i + 1].split(':=')[0] for i, word in enumerate(words[:-1])
