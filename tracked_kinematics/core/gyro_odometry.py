@@ -459,3 +459,68 @@ def replay(enc_t, left, right, gyro_t, gyro_rate, icr: IcrParams,
             poses[k] = odo.pose
             sources[k] = odo.source
     return poses, sources, odo
+
+
+def fit_gyro_scale(gyro_t, gyro_rate, pose_t, pose_yaw, imu_delay: float = 0.0,
+                   segment: float = 1.0) -> float:
+    """
+    Fit the gyro's scale (measured over true rate) against a pose reference's heading.
+
+    Over segments of ``segment`` s, the integrated raw rate is regressed on the reference's
+    heading change with one bias per recording, ``dH = scale dpsi + b_r dt``; segments
+    across a gap of either stream are left out, and those whose residual exceeds three
+    robust standard deviations (pose glitches) dropped, twice.
+
+    Parameters
+    ----------
+    gyro_t, gyro_rate : sequence of array_like
+        Per recording: gyro stamps (s) and z rates (rad/s).
+    pose_t, pose_yaw : sequence of array_like
+        Per recording: reference stamps on the encoders' clock (its delay taken off), s,
+        and yaw, rad.
+    imu_delay : float
+        s, the gyro's stamps behind the encoders.
+    segment : float
+        s.
+
+    Returns
+    -------
+    float
+        The scale; 1.0 when the data cannot tell (fewer than ten segments).
+
+    """
+    rows, targets = [], []
+    n = len(gyro_t)
+    for r, (tg, wg, tp, yaw) in enumerate(zip(gyro_t, gyro_rate, pose_t, pose_yaw)):
+        tg = np.asarray(tg, float) - imu_delay
+        wg = np.asarray(wg, float)
+        tp = np.asarray(tp, float)
+        heading = np.unwrap(np.asarray(yaw, float))
+        h = np.r_[0.0, np.cumsum(0.5 * (wg[1:] + wg[:-1]) * np.diff(tg))]
+        lo, hi = max(tg[0], tp[0]), min(tg[-1], tp[-1])
+        if hi - lo < 2 * segment:
+            continue
+        edges = lo + segment * np.arange(int((hi - lo) // segment) + 1)
+        bad = np.zeros(len(edges) - 1, dtype=bool)
+        for t in (tg, tp):
+            steps = np.diff(t)
+            gap = np.flatnonzero(steps > max(0.5, 5 * np.median(steps)))
+            for g in gap:
+                bad |= (edges[1:] > t[g]) & (edges[:-1] < t[g + 1])
+        d_h = np.diff(np.interp(edges, tg, h))[~bad]
+        d_psi = np.diff(np.interp(edges, tp, heading))[~bad]
+        a = np.zeros((len(d_h), 1 + n))
+        a[:, 0] = d_psi
+        a[:, 1 + r] = segment
+        rows.append(a)
+        targets.append(d_h)
+    if not rows or sum(len(t) for t in targets) < 10:
+        return 1.0
+    a, y = np.vstack(rows), np.concatenate(targets)
+    keep = np.ones(len(y), dtype=bool)
+    for _ in range(3):
+        p = np.linalg.lstsq(a[keep], y[keep], rcond=None)[0]
+        residual = y - a @ p
+        sigma = 1.4826 * np.median(np.abs(residual[keep] - np.median(residual[keep])))
+        keep = np.abs(residual) <= 3.0 * max(sigma, 1e-9)
+    return float(p[0]) if np.isfinite(p[0]) and p[0] > 0 else 1.0
