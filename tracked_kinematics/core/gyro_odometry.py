@@ -334,8 +334,10 @@ class GyroOdometry:
         covered = min(t1, self._last_t)
         b = self._raw(covered)
         tail = self._buffer[-1][2] * (t1 - covered)
+        # The extrapolated tails telescope: the sum of the increments is the gyro's
+        # integral up to the last sample plus the current tail, so each covers [t0, t1].
         raw = (b - a) + tail - self._ahead
-        span = t1 - self._cursor
+        span = t1 - t0
         self._ahead = tail
         self._cursor = covered
         # Keep one sample before the cursor for the next interpolation.
