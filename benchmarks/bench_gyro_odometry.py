@@ -147,8 +147,8 @@ def main():
     for test in range(len(NAMES)):
         rows, info = held_out(refs, test)
         print(f'bench_gyro_odometry: held out {NAMES[test]}: {info}')
-        print(f'    {"odometry":<32}' + ''.join(f'{f"{w:g} s (m, deg, n)":>24}'
-                                              for w in WINDOWS))
+        head = ''.join(f'{f"{w:g} s (m, deg, n)":>24}' for w in WINDOWS)
+        print(f'    {"odometry":<32}{head}')
         for name, figures in rows.items():
             print(f'    {name:<32}' + ''.join(
                 f'{figures[w][0]:>10.3f}{figures[w][1]:>8.2f}{figures[w][2]:>6d}'

@@ -47,7 +47,7 @@ def gyro(t, w_true, seed=1, **faults):
                         np.random.default_rng(seed))
 
 
-FAULTS = dict(bias=0.02, noise_std=0.005, latency=0.08, scale=1.04)
+FAULTS = {'bias': 0.02, 'noise_std': 0.005, 'latency': 0.08, 'scale': 1.04}
 KNOWN = GyroConfig(imu_delay=0.08, gyro_scale=1.04, gyro_noise=0.005 / math.sqrt(100.0))
 
 
@@ -118,7 +118,8 @@ def test_fallback_without_a_jump_and_back(fault):
     limit = 20.5 + (config.timeout + 2 / RATE if fault == 'stale' else 2 / RATE)
     assert 20.5 - config.imu_delay <= when <= limit
     # No jump: around the fault and the return (no change of command between 20 s and
-    # 23 s; the late gyro has caught up with the change at 20 s), every step turns and moves as the robot did, to a few milliradians / mm.
+    # 23 s; the late gyro has caught up with the change at 20 s), every step turns and
+    # moves as the robot did, to a few milliradians / mm.
     k = np.searchsorted(t, at)
     near = (at > 20.3) & (at < 22.9)
     true_turn = heading[k] - heading[k - 1]

@@ -145,6 +145,7 @@ class GyroOdometry:
     icr : IcrParams
         The terrain's ICR model (ICRs and encoder scales).
     config : GyroConfig, optional
+        How the gyro is read, trusted and checked; default ``GyroConfig()``.
 
     Attributes
     ----------
@@ -429,7 +430,9 @@ def replay(enc_t, left, right, gyro_t, gyro_rate, icr: IcrParams,
     gyro_t, gyro_rate : array_like, shape (G,)
         Gyro stamps, s, and z rates, rad/s (may be empty: encoders only).
     icr : IcrParams
+        The terrain's ICR model.
     config : GyroConfig, optional
+        How the gyro is read; default ``GyroConfig()``.
 
     Returns
     -------
