@@ -126,12 +126,14 @@ def held_out(refs, test):
         'gyro heading whole': gyro(replace(base, model_yaw_rel_std=1e3)),
         'gyro-aided, scale 1': gyro(replace(base, gyro_scale=1.0)),
         'gyro-aided, no bias': gyro(replace(base, still_speed=0.0)),
+        'gyro-aided, noise not measured': gyro(replace(base, measure_noise=False)),
         'gyro-aided': gyro(base),
         'gyro-aided + adaptation': gyro(replace(base, adapt=True)),
     }
     adapted = gyro.last.icr
     info = (f'chi {icr.chi:.3f} -> adapted {adapted.chi:.3f}, imu_delay {imu_delay:+.3f} s, '
-            f'gyro scale {scale:.4f}, bias at the end {gyro.last.bias:+.5f} rad/s, '
+            f'gyro scale {scale:.4f}, bias at the end {gyro.last.bias:+.5f} rad/s, noise '
+            f'{gyro.last.gyro_noise:.5f} rad/s/sqrt(Hz), '
             f'ground-truth delay {delay.delay:.3f} s')
     return {name: score(f, pieces) for name, f in rows.items()}, info
 

@@ -51,6 +51,13 @@ from .kinematics import IcrParams
 GYRO = 'gyro'
 ENCODERS = 'encoders'
 
+#: s, blocks of standstill over which the gyro's noise is measured.
+NOISE_BLOCK = 0.5
+
+#: s of standstill after which the bias counts as measured: the adaptation then looks for
+#: no bias in motion.
+STILL_KNOWN = 2.0
+
 #: Smallest steering efficiency the adaptation goes to (the identification's bound).
 MIN_CHI = 0.2
 
@@ -71,6 +78,9 @@ class GyroConfig:
         rad/s, the bias before any standstill has been seen.
     gyro_noise : float
         rad/s/sqrt(Hz): white rate noise; heading variance ``gyro_noise^2`` per second.
+        Used until 2 s of standstill have measured it (``measure_noise``).
+    measure_noise : bool
+        Measure the noise density at standstill and use it instead of ``gyro_noise``.
     scale_std : float
         Relative uncertainty of the gyro's scale (1 sigma).
     model_yaw_rel_std : float
@@ -99,8 +109,12 @@ class GyroConfig:
         s, the gyro and the tracks are compared over segments this long.
     adapt_prior : float
         rad^2: weight of the model's spread at the start, as ``(D_r - D_l)^2`` summed.
-    min_turn : float
-        m, smallest ``|D_r - D_l|`` of a segment the adaptation learns from.
+    bias_prior : float
+        s^2: weight of "no bias beyond the standstill's" in the adaptation, as ``dt^2``
+        summed over segments.
+    bias_std : float
+        rad/s: a bias fitted in motion (no standstill yet) is known, and the gyro used,
+        when its standard error is below this.
 
     """
 
@@ -108,6 +122,7 @@ class GyroConfig:
     gyro_scale: float = 1.0
     gyro_bias: float = 0.0
     gyro_noise: float = 0.01
+    measure_noise: bool = True
     scale_std: float = 0.01
     model_yaw_rel_std: float = 0.1
     model_yaw_var_per_m: float = 1e-4
@@ -122,18 +137,20 @@ class GyroConfig:
     adapt_time: float = 60.0
     adapt_segment: float = 1.0
     adapt_prior: float = 1.0
-    min_turn: float = 0.05
+    bias_prior: float = 0.1
+    bias_std: float = 0.001
 
     def __post_init__(self):
         require_numbers(self, finite=('imu_delay', 'gyro_bias'),
-                        positive=('gyro_scale', 'bias_time', 'timeout', 'adapt_time',
+                        positive=('gyro_scale', 'bias_time', 'bias_std', 'timeout', 'adapt_time',
                                   'adapt_segment', 'saturation', 'max_jump'),
                         non_negative=('gyro_noise', 'scale_std', 'model_yaw_rel_std',
                                       'model_yaw_var_per_m', 'still_speed', 'still_time',
-                                      'recover_time', 'adapt_prior', 'min_turn'),
+                                      'recover_time', 'adapt_prior', 'bias_prior'),
                         unbounded=('saturation', 'max_jump'))
-        if not isinstance(self.adapt, bool):
-            raise ValueError(f'adapt must be a bool, got {self.adapt!r}')
+        for name in ('adapt', 'measure_noise'):
+            if not isinstance(getattr(self, name), bool):
+                raise ValueError(f'{name} must be a bool, got {getattr(self, name)!r}')
 
 
 class GyroOdometry:
@@ -177,8 +194,12 @@ class GyroOdometry:
         self.source = ENCODERS
         self.reason = 'no gyro sample yet'
         self.switches = 0
+        self._healthy = False        # the gyro's samples are in use (not the bias: source)
         self.bias = self.config.gyro_bias
         self._still_seen = 0.0       # s of standstill learnt from
+        self._noise2 = 0.0           # measured rate noise density squared, rad^2/s
+        self._block = [0.0, 0.0]     # standstill block: integral of the rate, duration
+        self._blocks = 0
         self._still_for = 0.0        # s the tracks have stood still
         # Gyro integral on the encoders' clock: (t, raw heading) of healthy samples.
         self._buffer: deque = deque()
@@ -191,8 +212,13 @@ class GyroOdometry:
         # Adaptation: information-form RLS of u = 1 / W.
         width = icr.track_width
         self._u_bounds = (1.0 / (width / MIN_CHI), 1.0 / width)
-        self._info = self.config.adapt_prior
-        self._moment = self.config.adapt_prior / self._spread
+        self._u0 = 1.0 / self._spread
+        self._info = [0.0, 0.0, 0.0]      # decaying information (uu, ub, bb)
+        self._moment = [0.0, 0.0]         # decaying moments (u, b)
+        self.residual_bias = 0.0          # rad/s, the bias found in motion (no standstill)
+        self._residual2 = 0.0             # mean squared residual of a segment, rad^2
+        self._segments = 0
+        self._bias_std = math.inf
         self._segment = [0.0, 0.0, 0.0]  # turn (m), gyro heading (rad), duration (s)
 
     # Results ---------------------------------------------------------------------------
@@ -210,7 +236,8 @@ class GyroOdometry:
         """Return what a diagnostics message shows (plain numbers and strings)."""
         icr = self.icr
         return {'source': self.source, 'reason': self.reason, 'bias': self.bias,
-                'switches': self.switches, 'y_left': icr.y_left, 'y_right': icr.y_right,
+                'switches': self.switches, 'gyro_noise': self.gyro_noise,
+                'y_left': icr.y_left, 'y_right': icr.y_right,
                 'chi': icr.chi, 'heading_variance': self.heading_variance}
 
     # Inputs ----------------------------------------------------------------------------
@@ -255,6 +282,7 @@ class GyroOdometry:
         return True
 
     def _unhealthy(self, reason: str) -> bool:
+        self._healthy = False
         self._buffer.clear()
         self._healthy_since = math.nan
         self._last_t = -math.inf
@@ -314,19 +342,17 @@ class GyroOdometry:
         cfg = self.config
         # Stale: the last sample is too old for this step.
         if t1 - self._last_t > cfg.timeout + max(cfg.imu_delay, 0.0):
-            if self.source == GYRO:
+            if self._healthy:
                 self._unhealthy('the gyro is stale')
             return None
-        if self.source != GYRO:
+        if not self._healthy:
             if not (math.isfinite(self._healthy_since)
                     and self._last_t - self._healthy_since >= cfg.recover_time):
                 return None
             start = self._raw(t0)
             if start is None:
                 return None
-            self.source = GYRO
-            self.reason = ''
-            self.switches += 1
+            self._healthy = True
             self._cursor = t0
             self._ahead = 0.0
         a = self._raw(self._cursor)
@@ -365,18 +391,27 @@ class GyroOdometry:
         if gyro is None:
             self._cursor = t1
             self._ahead = 0.0
-            dpsi, var = dpsi_e, self._model_variance(dpsi_e, big)
         else:
             dpsi_g, mean_raw, span = gyro
             if still and self._still_for >= cfg.still_time:
                 self._learn_bias(mean_raw, span)
+            self._learn_slip(turn, dpsi_g, dt, still)
+            dpsi_g -= self.residual_bias * dt
+        source = GYRO if gyro is not None and self.bias_known else ENCODERS
+        if source != self.source:
+            self.switches += 1
+            self.source = source
+        if source == GYRO:
+            self.reason = ''
             var_e = self._model_variance(dpsi_e, big)
-            var_g = cfg.gyro_noise ** 2 * dt + (cfg.scale_std * dpsi_g) ** 2
+            var_g = self.gyro_noise ** 2 * dt + (cfg.scale_std * dpsi_g) ** 2
             gain = var_e / (var_e + var_g) if var_e + var_g > 0.0 else 0.0
             dpsi = dpsi_e + gain * (dpsi_g - dpsi_e)
             var = (1.0 - gain) * var_e
-            if cfg.adapt:
-                self._adapt(turn, dpsi_g, dt)
+        else:
+            if gyro is not None:
+                self.reason = 'the gyro bias is not known yet (stand still 2 s, or drive on)'
+            dpsi, var = dpsi_e, self._model_variance(dpsi_e, big)
         dx = 0.5 * (true_left + true_right) + self._offset * dpsi
         dy = -m.x * dpsi
         x, y, theta = self.pose
@@ -390,29 +425,95 @@ class GyroOdometry:
         cfg = self.config
         return (cfg.model_yaw_rel_std * dpsi_e) ** 2 + cfg.model_yaw_var_per_m * 0.5 * big
 
+    @property
+    def gyro_noise(self) -> float:
+        """Return the rate noise density in use, rad/s/sqrt(Hz): measured after 2 s still."""
+        if self.config.measure_noise and self._still_seen >= STILL_KNOWN and self._blocks:
+            return math.sqrt(self._noise2)
+        return self.config.gyro_noise
+
     def _learn_bias(self, mean_raw, span):
         self._still_seen += span
-        weight = span / min(self._still_seen, self.config.bias_time)
-        self.bias += min(weight, 1.0) * (mean_raw - self.bias)
+        weight = min(span / min(self._still_seen, self.config.bias_time), 1.0)
+        self.bias += weight * (mean_raw - self.bias)
+        self._restart_residual_bias()
+        # The noise from blocks of NOISE_BLOCK s (a step's mean is not independent of the
+        # next: the tail of a late gyro is extrapolated, then corrected): the mean of white
+        # noise of density q over s seconds has the variance q^2 / s.
+        block = self._block
+        block[0] += mean_raw * span
+        block[1] += span
+        if block[1] >= NOISE_BLOCK:
+            d = block[0] / block[1] - self.bias
+            self._blocks += 1
+            w = max(1.0 / self._blocks, block[1] / self.config.bias_time)
+            self._noise2 += w * (d * d * block[1] - self._noise2)
+            self._block = [0.0, 0.0]
 
-    def _adapt(self, turn, dpsi_g, dt):
+    @property
+    def bias_known(self) -> bool:
+        """Whether the bias is known: from 2 s of standstill, or to ``bias_std`` in motion."""
+        if self._still_seen >= STILL_KNOWN:
+            return True
+        return self._bias_std <= self.config.bias_std
+
+    def _learn_slip(self, turn, dpsi_g, dt, still):
+        """
+        Regress the gyro's heading on the turn per segment: the turn gain, and the bias.
+
+        ``dpsi_g = u (D_r - D_l) + b dt`` over segments of ``adapt_segment`` s in motion,
+        recursive least squares with forgetting (``adapt_time``) and priors that do not
+        decay (the model's ``u``, no residual bias). The bias is fitted only while no
+        standstill has measured it.
+        """
         cfg = self.config
         seg = self._segment
-        seg[0] += turn
-        seg[1] += dpsi_g
-        seg[2] += dt
+        if not still:
+            seg[0] += turn
+            seg[1] += dpsi_g
+            seg[2] += dt
         if seg[2] < cfg.adapt_segment:
             return
         a, yv, duration = seg
         self._segment = [0.0, 0.0, 0.0]
-        if abs(a) < cfg.min_turn:
-            return
         forget = math.exp(-duration / cfg.adapt_time)
-        self._info = forget * self._info + a * a
-        self._moment = forget * self._moment + a * yv
+        info, moment = self._info, self._moment
+        info[0] = forget * info[0] + a * a
+        info[1] = forget * info[1] + a * duration
+        info[2] = forget * info[2] + duration * duration
+        moment[0] = forget * moment[0] + a * yv
+        moment[1] = forget * moment[1] + duration * yv
+        i00 = info[0] + cfg.adapt_prior
+        i01 = info[1]
+        i11 = info[2] + cfg.bias_prior
+        m0 = moment[0] + cfg.adapt_prior * self._u0
+        m1 = moment[1]
         lo, hi = self._u_bounds
-        u = min(max(self._moment / self._info, lo), hi)
-        self._spread = 1.0 / u
+        if self._still_seen >= STILL_KNOWN:
+            # The standstill measured the bias: the disagreement is slip alone.
+            u = min(max(m0 / i00, lo), hi)
+            b = 0.0
+        else:
+            det = i00 * i11 - i01 * i01
+            u = min(max((i11 * m0 - i01 * m1) / det, lo), hi)
+            b = (m1 - i01 * u) / i11
+            residual = yv - u * a - b * duration
+            self._segments += 1
+            self._residual2 += (residual * residual - self._residual2) / min(self._segments,
+                                                                             20)
+            if self._segments >= 5:
+                self._bias_std = math.sqrt(self._residual2 * i00 / det)
+            self.residual_bias = b
+        if cfg.adapt:
+            self._spread = 1.0 / u
+
+    def _restart_residual_bias(self):
+        """Forget what the adaptation knew of the bias: a standstill measured it anew."""
+        info, moment = self._info, self._moment
+        info[1] = info[2] = 0.0
+        moment[1] = 0.0
+        self.residual_bias = 0.0
+        self._bias_std = math.inf
 
 
 def replay(enc_t, left, right, gyro_t, gyro_rate, icr: IcrParams,
