@@ -21,13 +21,18 @@ eqs. 20-21) and the ICR spread ``W = y_left - y_right`` in force:
 - the position along the exact arc of ``(dx, dy, dpsi)``, ``dx = (D_l + D_r) / 2 + c dpsi``,
   ``dy = -x dpsi`` (eqs. 8-9, ``c = (y_left + y_right) / 2``), as :mod:`.odometry`.
 
-The bias is the mean raw rate while the tracks stand still (a running mean over the first
-``bias_time`` s of standstill, then exponential forgetting with that time constant). The
-spread adapts online (``adapt``): recursive least squares with forgetting, per
-``adapt_segment`` s of turning, of the turn gain ``u = 1 / W`` in
-``dpsi_g = u (D_r - D_l)``: the online estimation of the EKF paper (Pentzer et al. 2014)
-with the gyro's yaw rate as the measurement instead of poses, bounded to ``0.2 <= chi <= 1``;
-the ICR offset ``c`` and ``x``, which a gyro does not see, stay the model's.
+Trust comes from measured noise: the gyro's noise density is measured while the tracks
+stand still (blocks of :data:`NOISE_BLOCK` s; ``gyro_noise`` until then), and so is its
+bias, the mean raw rate (a running mean over the first ``bias_time`` s of standstill, then
+exponential forgetting with that time constant). Per ``adapt_segment`` s of motion, a
+recursive least squares with forgetting (``adapt_time``) regresses the gyro's heading on
+the turn, ``dpsi_g = u (D_r - D_l) + b dt``: the turn gain ``u = 1 / W`` (the online
+estimation of the EKF paper, docs/papers.md, driven by the gyro's yaw rate instead of
+low-rate poses; bounded to ``0.2 <= chi <= 1``, applied to the model with ``adapt``) and,
+while no standstill has measured the bias (:data:`STILL_KNOWN` s), a residual bias ``b``.
+Until the bias is known (that standstill, or ``b`` to ``bias_std``) the heading is the
+encoders': a gyro whose bias is unknown makes a good model worse (issue 29's Husky). The
+ICR offset ``c`` and ``x``, which a gyro does not see, stay the model's.
 
 Fallback: a sample that is not finite, saturated (``|w| >= saturation``) or jumps
 (``|w - w_prev| > max_jump``), or no sample for ``timeout`` s, switches the heading to the
