@@ -12,6 +12,7 @@ from tracked_kinematics.core.gyro_odometry import (
     ENCODERS, fit_gyro_scale, GYRO, GyroConfig, GyroOdometry, replay)
 from tracked_kinematics.core.integration import integrate_twist
 from tracked_kinematics.core.kinematics import forward, IcrParams
+from tracked_kinematics.core.odometry import Odometry
 from tracked_kinematics.core.sim.sensors import gyro_samples, GyroModel
 
 WIDTH = 1.0
@@ -191,6 +192,34 @@ def test_gyro_scale_fitted_against_a_pose():
     t, left, right, w_true, heading = drive(seconds=120.0)
     g_t, g_w = gyro(t, w_true, bias=0.01, noise_std=0.005, latency=0.05, scale=0.97)
     assert fit_gyro_scale([g_t], [g_w], [t], [heading], 0.05) == pytest.approx(0.97, abs=0.003)
+
+
+def test_without_a_gyro_it_is_the_encoder_odometry():
+    """No gyro: the same poses as core.odometry.Odometry, step for step."""
+    t, left, right, _, _ = drive(seconds=30.0)
+    model = replace(MODEL, x=0.1, y_left=0.7, scale_left=0.97, scale_right=1.02)
+    odo, reference = GyroOdometry(model), Odometry(model)
+    for k in range(1, len(t)):
+        dt = t[k] - t[k - 1]
+        assert odo.update(t[k], left[k] - left[k - 1], right[k] - right[k - 1], dt)
+        reference.update(left[k] - left[k - 1], right[k] - right[k - 1], dt)
+        assert odo.pose == pytest.approx(reference.pose, abs=1e-9)
+    assert odo.take_twist() == pytest.approx(reference.take_twist()[0], abs=1e-9)
+    assert odo.take_twist() == (0.0, 0.0, 0.0)
+    assert not odo.update(t[-1] + 1.0, math.nan, 0.0, 0.1)
+    assert not odo.update(t[-1] + 1.0, 0.0, 0.0, 0.0)
+
+
+def test_reset_keeps_what_was_learnt():
+    t, left, right, w_true, _ = drive(seconds=60.0)
+    g_t, g_w = gyro(t, w_true, **FAULTS)
+    _, _, odo = replay(t, left, right, g_t, g_w, MODEL, replace(KNOWN, adapt=True))
+    bias, icr = odo.bias, odo.icr
+    odo.reset()
+    assert odo.pose == (0.0, 0.0, 0.0) and odo.heading_variance == 0.0
+    assert odo.bias == bias and odo.icr == icr and odo.source == GYRO
+    odo.set_model(TRUE)
+    assert odo.icr == TRUE
 
 
 def test_config_checked():

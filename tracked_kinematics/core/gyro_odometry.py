@@ -190,12 +190,8 @@ class GyroOdometry:
 
     def __init__(self, icr: IcrParams, config: GyroConfig | None = None):
         self.config = config or GyroConfig()
-        self.model = icr
-        self._offset = 0.5 * (icr.y_left + icr.y_right)
-        self._spread = icr.y_left - icr.y_right
-        self.pose = (0.0, 0.0, 0.0)
-        self.twist = (0.0, 0.0, 0.0)
-        self.heading_variance = 0.0
+        self.set_model(icr)
+        self.reset()
         self.source = ENCODERS
         self.reason = 'no gyro sample yet'
         self.switches = 0
@@ -214,17 +210,10 @@ class GyroOdometry:
         self._cursor = math.nan      # gyro heading consumed up to this time
         self._ahead = 0.0            # extrapolated heading not yet covered by samples
         self._enc = None             # (t, left, right) of the last encoder sample
-        # Adaptation: information-form RLS of u = 1 / W.
-        width = icr.track_width
-        self._u_bounds = (1.0 / (width / MIN_CHI), 1.0 / width)
-        self._u0 = 1.0 / self._spread
-        self._info = [0.0, 0.0, 0.0]      # decaying information (uu, ub, bb)
-        self._moment = [0.0, 0.0]         # decaying moments (u, b)
         self.residual_bias = 0.0          # rad/s, the bias found in motion (no standstill)
         self._residual2 = 0.0             # mean squared residual of a segment, rad^2
         self._segments = 0
         self._bias_std = math.inf
-        self._segment = [0.0, 0.0, 0.0]  # turn (m), gyro heading (rad), duration (s)
 
     # Results ---------------------------------------------------------------------------
 
@@ -312,14 +301,68 @@ class GyroOdometry:
             return None
         if self._enc is None:
             self._enc = (t, left, right)
-            self._cursor = t
             return None
         t0, l0, r0 = self._enc
-        dt = t - t0
-        if dt <= 0.0:
+        if t <= t0:
             return None
         self._enc = (t, left, right)
-        return self._step(t0, t, left - l0, right - r0)
+        if not self.update(t, left - l0, right - r0, t - t0):
+            return None
+        return self.pose, self.twist
+
+    def update(self, t: float, d_left: float, d_right: float, dt: float) -> bool:
+        """
+        Integrate one step of nominal track travel ending at ``t``, as :meth:`.Odometry.update`.
+
+        Parameters
+        ----------
+        t : float
+            End of the step, s (the encoder message's stamp).
+        d_left, d_right : float
+            Nominal travel of each track over the step, m.
+        dt : float
+            Duration of the step, s (> 0).
+
+        Returns
+        -------
+        bool
+            False, with the state unchanged, for a non-finite input or ``dt <= 0``.
+
+        """
+        if not (math.isfinite(t) and math.isfinite(d_left) and math.isfinite(d_right)
+                and math.isfinite(dt) and dt > 0.0):
+            return False
+        t0 = t - dt
+        if not math.isfinite(self._cursor):
+            self._cursor = t0
+        return self._step(t0, t, d_left, d_right) is not None
+
+    def take_twist(self):
+        """Return the mean body twist ``(v_x, v_y, w)`` since the last call; the window restarts."""
+        dx, dy, dpsi, duration = self._window
+        self._window = [0.0, 0.0, 0.0, 0.0]
+        if duration <= 0.0:
+            return (0.0, 0.0, 0.0)
+        return (dx / duration, dy / duration, dpsi / duration)
+
+    def reset(self) -> None:
+        """Return the pose to zero; keep what was learnt of the gyro and the slip."""
+        self.pose = (0.0, 0.0, 0.0)
+        self.twist = (0.0, 0.0, 0.0)
+        self.heading_variance = 0.0
+        self._window = [0.0, 0.0, 0.0, 0.0]
+
+    def set_model(self, icr: IcrParams) -> None:
+        """Use another terrain model from the next step on: the adaptation starts from it."""
+        self.model = icr
+        self._offset = 0.5 * (icr.y_left + icr.y_right)
+        self._spread = icr.y_left - icr.y_right
+        width = icr.track_width
+        self._u_bounds = (1.0 / (width / MIN_CHI), 1.0 / width)
+        self._u0 = 1.0 / self._spread
+        self._info = [0.0, 0.0, 0.0]      # decaying information (uu, ub, bb)
+        self._moment = [0.0, 0.0]         # decaying moments (u, b)
+        self._segment = [0.0, 0.0, 0.0]   # turn (m), gyro heading (rad), duration (s)
 
     # The step --------------------------------------------------------------------------
 
@@ -424,6 +467,11 @@ class GyroOdometry:
         self.pose = (x + delta_x, y + delta_y, theta + dpsi)
         self.twist = (dx / dt, dy / dt, dpsi / dt)
         self.heading_variance += var
+        window = self._window
+        window[0] += dx
+        window[1] += dy
+        window[2] += dpsi
+        window[3] += dt
         return self.pose, self.twist
 
     def _model_variance(self, dpsi_e, big):
