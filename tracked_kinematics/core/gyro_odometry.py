@@ -338,7 +338,7 @@ class GyroOdometry:
         return self._step(t0, t, d_left, d_right) is not None
 
     def take_twist(self):
-        """Return the mean body twist ``(v_x, v_y, w)`` since the last call; the window restarts."""
+        """Return the mean twist ``(v_x, v_y, w)`` since the last call; restart the window."""
         dx, dy, dpsi, duration = self._window
         self._window = [0.0, 0.0, 0.0, 0.0]
         if duration <= 0.0:
