@@ -191,7 +191,9 @@ def test_adapted_spread_carries_the_fallback():
 def test_gyro_scale_fitted_against_a_pose():
     t, left, right, w_true, heading = drive(seconds=120.0)
     g_t, g_w = gyro(t, w_true, bias=0.01, noise_std=0.005, latency=0.05, scale=0.97)
-    assert fit_gyro_scale([g_t], [g_w], [t], [heading], 0.05) == pytest.approx(0.97, abs=0.003)
+    scale, std = fit_gyro_scale([g_t], [g_w], [t], [heading], 0.05)
+    assert scale == pytest.approx(0.97, abs=0.003)
+    assert 0.0 < std < 0.003
 
 
 def test_without_a_gyro_it_is_the_encoder_odometry():
