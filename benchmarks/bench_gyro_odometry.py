@@ -71,8 +71,8 @@ def train(refs):
     imu_delay = float(gyro.imu_delay.delay)
     delays = fit.delays or [fit.delay] * len(recs)
     scale, std = fit_gyro_scale([r.gyro_t for r in refs], [r.gyro_rate for r in refs],
-                           [r.pose[0] - d.delay for r, d in zip(refs, delays)],
-                           [r.pose[3] for r in refs], imu_delay)
+                                [r.pose[0] - d.delay for r, d in zip(refs, delays)],
+                                [r.pose[3] for r in refs], imu_delay)
     return fit.icr, ddc, imu_delay, (scale, std)
 
 
@@ -140,8 +140,8 @@ def held_out(refs, test):
     }
     adapted = gyro.last.icr
     info = (f'chi {icr.chi:.3f} -> adapted {adapted.chi:.3f}, imu_delay {imu_delay:+.3f} s, '
-            f'gyro scale fitted {fitted:.4f} +- {std:.4f}, used {scale:.4f}, bias at the end {gyro.last.bias:+.5f} rad/s, noise '
-            f'{gyro.last.gyro_noise:.5f} rad/s/sqrt(Hz), '
+            f'gyro scale fitted {fitted:.4f} +- {std:.4f}, used {scale:.4f}, bias at the end '
+            f'{gyro.last.bias:+.5f} rad/s, noise {gyro.last.gyro_noise:.5f} rad/s/sqrt(Hz), '
             f'ground-truth delay {delay.delay:.3f} s')
     return {name: score(f, pieces) for name, f in rows.items()}, info
 
