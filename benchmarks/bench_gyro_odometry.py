@@ -159,6 +159,10 @@ def main():
         print(f'bench_gyro_odometry: held out {NAMES[test]}: {info}')
         head = ''.join(f'{f"{w:g} s (m, deg, n)":>24}' for w in WINDOWS)
         print(f'    {"odometry":<32}{head}')
+        enc, ddc, aided = (rows[k] for k in ('encoders only (ICRs)', 'tuned DDC', 'gyro-aided'))
+        print(f'    targets: 10 s / DDC {aided[10.0][0] / ddc[10.0][0]:.3f} [<= 0.85], '
+              f'10 s / encoders {aided[10.0][0] / enc[10.0][0]:.3f}, '
+              f'5 s / encoders {aided[5.0][0] / enc[5.0][0]:.3f} [<= 1.05]')
         for name, figures in rows.items():
             print(f'    {name:<32}' + ''.join(
                 f'{figures[w][0]:>10.3f}{figures[w][1]:>8.2f}{figures[w][2]:>6d}'
