@@ -35,8 +35,8 @@ at once): an error of the body increments at step ``k`` moves the final position
 ``R(theta_k) (dx, dy)`` and, through the heading, by ``dtheta`` times the perpendicular of
 the path still to go. Every term is linear in its constant, so the covariance after a
 window is ``sum_m c_m A_m`` with bases ``A_m`` that depend on the path only;
-:func:`fit_noise` fits the constants to windowed final errors and :func:`consistency`
-measures how often the errors fall inside the published ellipses.
+:func:`consistency` measures how often windowed errors fall inside the published ellipses;
+:mod:`.evaluate.noise` fits the constants to the windows evaluate_model scores.
 
 The twist covariance is that of the mean body twist over :data:`.covariance.TWIST_TIME`
 from the same ``S`` (:meth:`NoiseModel.twist`), as :mod:`.covariance` does for its own.
@@ -52,9 +52,12 @@ import numpy as np
 from .covariance import body_jacobian, TWIST_TIME
 from .kinematics import IcrParams
 
-# Chi-square quantiles of 2 degrees of freedom: the 50 % and 95 % ellipses.
+# Chi-square quantiles of 2 degrees of freedom (the 50 % and 95 % ellipses) and of 1 (the
+# 50 % and 95 % intervals of the heading).
 CHI2_50 = 1.3862943611198906
 CHI2_95 = 5.991464547107979
+CHI2_1_50 = 0.454936423119572
+CHI2_1_95 = 3.841458820694124
 
 TERMS = ('track', 'turn', 'slip', 'timing')
 """The constants of the model, in the order of :func:`window_bases`' bases."""
@@ -154,7 +157,7 @@ class NoiseModel:
 
 
 PRIOR = NoiseModel(track=1e-3, turn=1e-3, slip=2e-2, timing=0.1 ** 2)
-"""Centre of the fit's prior (:func:`fit_noise`) and the values of terms it holds."""
+"""Centre of the fit's prior (:func:`.evaluate.noise.fit_noise`), the values of terms it holds."""
 
 
 def _step_covariances(icr: IcrParams, d_left, d_right) -> np.ndarray:
@@ -363,232 +366,26 @@ def consistency(errors_xy, covariances_xy) -> dict:
             'mean_nees': float(np.mean(n)), 'windows': int(len(n))}
 
 
-@dataclass(frozen=True)
-class Windows:
+def heading_consistency(errors, variances) -> dict:
     """
-    Windows of odometry against a reference: final errors and covariance bases.
+    How often windowed heading errors fall inside the published intervals (a gyro reference).
 
-    Attributes
-    ----------
-    errors : ndarray, shape (W, 3)
-        Final error of the odometry's motion over each window, in the frame of its start:
-        ``(x, y, theta)``, m, m, rad (odometry minus reference).
-    bases : ndarray, shape (W, len(TERMS), 3, 3)
-        :func:`window_bases`.
-    length : ndarray, shape (W,)
-        Window length asked for, s.
-    t0 : ndarray, shape (W,)
-        Start time of each window, s.
-
-    """
-
-    errors: np.ndarray
-    bases: np.ndarray
-    length: np.ndarray
-    t0: np.ndarray
-
-    @classmethod
-    def concatenate(cls, parts) -> Windows:
-        """Join windows."""
-        parts = list(parts)
-        if not parts:
-            return cls(np.zeros((0, 3)), np.zeros((0, len(TERMS), 3, 3)), np.zeros(0),
-                       np.zeros(0))
-        return cls(*(np.concatenate([getattr(p, name) for p in parts])
-                     for name in ('errors', 'bases', 'length', 't0')))
-
-    def __len__(self):
-        return len(self.length)
-
-    def select(self, mask) -> Windows:
-        """Return the windows of a mask or index array."""
-        return Windows(self.errors[mask], self.bases[mask], self.length[mask], self.t0[mask])
-
-    def of_length(self, length: float) -> Windows:
-        """Return the windows of one length, s."""
-        return self.select(np.isclose(self.length, length))
-
-    def independent(self) -> float:
-        """
-        Return about how many independent windows of each length there are, summed.
-
-        Windows start at every reference sample and overlap; the time their starts span,
-        divided by their length, counts the non-overlapping ones.
-        """
-        total = 0.0
-        for length in np.unique(self.length):
-            t0 = np.sort(self.t0[self.length == length])
-            steps = np.diff(t0)
-            # Time covered by the starts, gaps between pieces left out.
-            covered = float(np.sum(steps[steps < 0.5 * length])) + 1e-9
-            total += max(1.0, covered / length)
-        return total
-
-    def consistency(self, model: NoiseModel) -> dict:
-        """Return :func:`consistency` of the position errors under ``model``."""
-        return consistency(self.errors[:, :2], covariances(self.bases, model))
-
-
-def piece_windows(piece, icr: IcrParams, lengths, min_speed: float | None = 0.1) -> Windows:
-    """
-    The windows evaluate_model scores on a piece, with their errors and covariance bases.
-
-    The windows of :func:`.evaluate.pieces.moving_windows` (evaluate_model's: from every
-    ground-truth sample, ``length`` s, where the tracks move at ``min_speed`` m/s on average)
-    and the odometry of :func:`.evaluate.pieces.odometry` with the constant model ``icr``.
+    As :func:`consistency` with one degree of freedom: the shares inside the 50 % and 95 %
+    intervals (normalised squared error below 0.455 and 3.841) and the mean normalised
+    squared error (1 for a consistent variance).
 
     Parameters
     ----------
-    piece : Piece
-        A gap-free piece (:func:`.evaluate.pieces.cut`).
-    icr : IcrParams
-        The model the odometry runs with.
-    lengths : sequence of float
-        Window lengths, s.
-    min_speed : float or None
-        As :func:`.evaluate.pieces.moving_windows`.
+    errors : array_like, shape (W,)
+        Final heading errors, rad.
+    variances : array_like, shape (W,)
+        Their variances, rad^2, > 0.
 
     """
-    from .evaluate.pieces import moving_windows, odometry
-
-    params = (icr.y_left, icr.y_right, icr.x, icr.scale_left, icr.scale_right)
-    path = odometry(piece, params)
-    d_left, d_right, dt = piece.steps
-    parts = []
-    for length in lengths:
-        i, j, _ = moving_windows(piece, float(length), min_speed)
-        if len(i) == 0:
-            continue
-        bases, _ = window_bases(icr, d_left, d_right, dt, piece.at[i], piece.at[j])
-        parts.append(Windows(_motion(path, i, j) - _motion(piece.truth, i, j), bases,
-                             np.full(len(i), float(length)), piece.t[i]))
-    return Windows.concatenate(parts)
-
-
-def _motion(path, i, j):
-    """Motion from samples ``i`` to ``j`` of a path in the frame of ``i``: (W, 3)."""
-    c, s = np.cos(path[i, 2]), np.sin(path[i, 2])
-    ex, ey = path[j, 0] - path[i, 0], path[j, 1] - path[i, 1]
-    return np.column_stack([c * ex + s * ey, -s * ex + c * ey, path[j, 2] - path[i, 2]])
-
-
-PRIOR_WIDTH = math.log(10.0)
-"""Standard deviation of the prior of each log-constant: a factor of 10."""
-
-
-@dataclass(frozen=True)
-class NoiseFit:
-    """
-    Result of :func:`fit_noise`.
-
-    Attributes
-    ----------
-    model : NoiseModel
-        The fitted constants (the prior's where held).
-    fitted : tuple of str
-        The terms fitted to the data.
-    held : tuple of str
-        The terms held at the prior's value (not determined by the reference).
-    windows : int
-        Windows fitted on.
-    independent : float
-        About how many of them are independent (:meth:`Windows.independent`).
-    reference : str
-        ``'pose'`` or ``'heading'``.
-
-    """
-
-    model: NoiseModel
-    fitted: tuple
-    held: tuple
-    windows: int
-    independent: float
-    reference: str
-
-
-def _negative_log_posterior(log_c, prior_c, free, windows, heading_only, weight, width):
-    c = prior_c.copy()
-    c[free] = np.exp(log_c)
-    total = 0.0
-    for length in np.unique(windows.length):
-        mine = windows.length == length
-        if heading_only:
-            var = windows.bases[mine, :, 2, 2] @ c + 1e-12
-            e = windows.errors[mine, 2]
-            total += 0.5 * np.mean(np.log(var) + e * e / var)
-        else:
-            cov = np.einsum('wmij,m->wij', windows.bases[mine, :, :2, :2], c)
-            cov[:, 0, 0] += 1e-12
-            cov[:, 1, 1] += 1e-12
-            det = cov[:, 0, 0] * cov[:, 1, 1] - cov[:, 0, 1] ** 2
-            total += 0.5 * np.mean(np.log(det) + nees(windows.errors[mine, :2], cov))
-    prior = 0.5 * np.sum((log_c - np.log(prior_c[free])) ** 2) / (width * width)
-    return weight * total + prior
-
-
-def fit_noise(windows: Windows, prior: NoiseModel | None = None, free=TERMS,
-              heading_only: bool = False, width: float = PRIOR_WIDTH) -> NoiseFit:
-    """
-    Fit the constants of the noise model to windowed final errors (maximum a posteriori).
-
-    The final error of each window is taken as zero-mean Gaussian with the propagated
-    covariance (:func:`window_bases`). The likelihood is the mean over the windows of each
-    length times the number of independent windows (overlapping windows are not
-    independent: a composite likelihood, each length weighed alike), and each
-    log-constant has a Gaussian prior about ``prior``'s value, ``width`` wide: a term the
-    data hardly inform (no tight turns: ``slip``) stays near its prior.
-
-    Parameters
-    ----------
-    windows : Windows
-        The windows (:func:`piece_windows`), on data the kinematic model was not fitted to.
-    prior : NoiseModel, optional
-        Centre of the prior, and the value of the terms not fitted; default :data:`PRIOR`.
-    free : sequence of str
-        The terms fitted (of :data:`TERMS`).
-    heading_only : bool
-        Fit the heading errors only (a gyro reference): the heading's variance does not
-        depend on ``slip``, which is held; ``track``, ``turn`` and ``timing`` enter it.
-    width : float
-        Standard deviation of each log-constant's prior.
-
-    Returns
-    -------
-    NoiseFit
-
-    Raises
-    ------
-    ValueError
-        Without windows, for an unknown term, or for a term fitted whose prior is 0.
-
-    """
-    from scipy.optimize import minimize
-
-    if len(windows) == 0:
-        raise ValueError('no windows to fit the noise model on')
-    prior = prior or PRIOR
-    free = tuple(t for t in TERMS if t in set(free))
-    unknown = set(free) - set(TERMS)
-    if unknown:
-        raise ValueError(f'unknown noise terms: {", ".join(sorted(unknown))}')
-    if heading_only:
-        free = tuple(t for t in free if t != 'slip')
-    prior_c = prior.constants
-    index = np.array([TERMS.index(t) for t in free], np.intp)
-    if np.any(prior_c[index] <= 0.0):
-        raise ValueError('a fitted term needs a prior value > 0')
-    held = tuple(t for t in TERMS if t not in free)
-    n_eff = windows.independent()
-    if len(index):
-        start = np.log(prior_c[index])
-        best = minimize(_negative_log_posterior, start,
-                        args=(prior_c, index, windows, heading_only, n_eff, width),
-                        method='Nelder-Mead',
-                        options={'xatol': 1e-4, 'fatol': 1e-9, 'maxiter': 4000})
-        c = prior_c.copy()
-        c[index] = np.exp(best.x)
-    else:
-        c = prior_c
-    model = NoiseModel(**dict(zip(TERMS, (float(v) for v in c))), floor=prior.floor)
-    return NoiseFit(model, free, held, len(windows), n_eff,
-                    'heading' if heading_only else 'pose')
+    e = np.asarray(errors, float).ravel()
+    if len(e) == 0:
+        return {'inside_50': None, 'inside_95': None, 'mean_nees': None, 'windows': 0}
+    n = e * e / np.asarray(variances, float).ravel()
+    return {'inside_50': float(np.mean(n <= CHI2_1_50)),
+            'inside_95': float(np.mean(n <= CHI2_1_95)), 'mean_nees': float(np.mean(n)),
+            'windows': int(len(n))}
