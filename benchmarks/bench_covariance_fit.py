@@ -15,8 +15,9 @@ Prints figures. For each Warthog grass run held out in turn:
 
 Then the same pooled over the three held-out runs (the set); the Husky wet-grass run (no
 second run: noise fitted on the held-out blocks of its first half, checked on its second
-half); and what the gyro alone determines (the heading-rate noise ``turn``, fitted on the
-gyro of two Warthog runs, the rest held; its heading intervals checked on the third).
+half); and what the gyro alone determines (the heading's noise: ``track``, ``turn`` and
+``timing`` fitted on the gyro of two Warthog runs, ``slip`` held; the heading intervals
+checked on the third).
 
 Run: ``python benchmarks/bench_covariance_fit.py [REALDATA_FOLDER]`` (default
 ``<repository>/../shared/realdata``, or ``$TRACKED_KINEMATICS_REALDATA``). About 2 min.
@@ -113,10 +114,10 @@ def warthog(base, found, tmp):
         train = [n for n in WARTHOG if n != held]
         icr = identify_icr([base / n for n in train], radius, width, tmp / f'{held}.yaml')
         windows = noise.held_out_windows(pose_recordings(base, train, found), fitter(width),
-                                      LENGTHS, track_width=width)
+                                         LENGTHS, track_width=width)
         fit = noise.fit_noise(windows)
         test = noise.recording_windows(pose_recordings(base, [held], found), icr, LENGTHS,
-                                    track_width=width)
+                                       track_width=width)
         m = fit.model
         print(f'bench_covariance_fit: held out {held}; fitted on the other two '
               f'({fit.windows} windows, ~{fit.independent:.0f} independent): track '
@@ -148,7 +149,7 @@ def husky(base):
     from tracked_kinematics.core.identify.evaluation import _crop
     first, second = _crop(rec, rec.enc_t[0], middle), _crop(rec, middle, rec.enc_t[-1])
     fit = noise.fit_noise(noise.held_out_windows([first], fitter(width), LENGTHS,
-                                           track_width=width))
+                                                 track_width=width))
     icr = fitter(width)([first])
     test = noise.recording_windows([second], icr, LENGTHS, track_width=width)
     m = fit.model
@@ -167,18 +168,22 @@ def gyro(base):
     found = {n: read_reference_bag(base / n, encoders, '/imu/data') for n in WARTHOG}
     refs = gyro_references([base / n for n in WARTHOG], [found[n] for n in WARTHOG], width)
     recs = dict(zip(WARTHOG, (d.recording for d in refs.data)))
-    print('bench_covariance_fit: gyro only (heading reference): turn fitted, track, slip and '
-          'timing held at the prior; heading errors inside the 50 % / 95 % intervals')
+    print('bench_covariance_fit: gyro only (heading reference): track, turn and timing '
+          'fitted on the gyro of two runs (the ICRs of their gyro calibration), slip held at '
+          'the prior; heading errors of the third inside the 50 % / 95 % intervals, mean '
+          'normalised squared error (1 if consistent)')
     for held in WARTHOG:
-        train = [recs[n] for n in WARTHOG if n != held]
-        windows = noise.held_out_windows(train, lambda r: ident.fit_recordings(
-            [found[n] for n in WARTHOG if n != held], width).icr, LENGTHS, track_width=width)
-        fit = noise.fit_noise(windows, free=('turn',), heading_only=True)
-        icr = ident.fit_recordings([found[n] for n in WARTHOG if n != held], width).icr
+        train = [n for n in WARTHOG if n != held]
+        icr = ident.fit_recordings([found[n] for n in train], width).icr
+        windows = noise.recording_windows([recs[n] for n in train], icr, LENGTHS,
+                                          track_width=width)
+        fit = noise.fit_noise(windows, free=('track', 'turn', 'timing'),
+                              errors='heading')
         test = noise.recording_windows([recs[held]], icr, LENGTHS, track_width=width)
-        cells = [figures(test.of_length(w).heading_consistency(fit.model)) for w in LENGTHS]
-        print(f'    held out {held}: turn {fit.model.turn:.2e} rad^2/rad; '
-              + ' | '.join(f'{w:g} s: {c}' for w, c in zip(LENGTHS, cells)))
+        m = fit.model
+        cells = [figures(test.of_length(w).heading_consistency(m)) for w in LENGTHS]
+        print(f'    held out {held}: track {m.track:.2e}, turn {m.turn:.2e}, timing '
+              f'{m.timing:.2e}; ' + ' | '.join(f'{w:g} s: {c}' for w, c in zip(LENGTHS, cells)))
 
 
 def main():

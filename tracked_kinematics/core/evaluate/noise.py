@@ -20,8 +20,8 @@ from scipy.optimize import minimize
 from .pieces import cut, moving_windows, odometry
 from ..identify.evaluation import _crop
 from ..kinematics import IcrParams
-from ..noise_model import (consistency, covariances, heading_consistency, nees, NoiseModel,
-                           PRIOR, TERMS, window_bases)
+from ..noise_model import (consistency, covariances, heading_consistency, NoiseModel, PRIOR,
+                           TERMS, window_bases)
 
 
 @dataclass(frozen=True)
@@ -71,30 +71,34 @@ class ErrorWindows:
 
     def select(self, mask) -> ErrorWindows:
         """Return the windows of a mask or index array."""
-        return ErrorWindows(self.errors[mask], self.bases[mask], self.length[mask], self.t0[mask],
-                       self.group[mask])
+        return ErrorWindows(self.errors[mask], self.bases[mask], self.length[mask],
+                            self.t0[mask], self.group[mask])
 
     def of_length(self, length: float) -> ErrorWindows:
         """Return the windows of one length, s."""
         return self.select(np.isclose(self.length, length))
 
     def independent(self) -> float:
-        """
-        Return about how many independent windows of each length there are, summed.
+        """Return about how many independent windows there are (:meth:`independent_by_length`)."""
+        return float(sum(self.independent_by_length().values()))
 
-        ErrorWindows start at every reference sample and overlap; the time their starts span,
+    def independent_by_length(self) -> dict:
+        """
+        Return about how many independent windows of each length there are.
+
+        Windows start at every reference sample and overlap; the time their starts span,
         divided by their length, counts the non-overlapping ones.
         """
-        total = 0.0
+        out = {}
         for length in np.unique(self.length):
             covered = 0.0
             mine = self.length == length
             for group in np.unique(self.group[mine]):
                 steps = np.diff(np.sort(self.t0[mine & (self.group == group)]))
                 # Time the starts cover, the gaps between moving stretches left out.
-                covered += float(np.sum(steps[steps < 0.5 * length])) + 1.0 / 20.0
-            total += max(1.0, covered / length)
-        return total
+                covered += float(np.sum(steps[steps <= length])) + 1.0 / 20.0
+            out[float(length)] = max(1.0, covered / length)
+        return out
 
     def consistency(self, model: NoiseModel) -> dict:
         """Return :func:`consistency` of the position errors under ``model``."""
@@ -106,9 +110,10 @@ class ErrorWindows:
                                    self.bases[:, :, 2, 2] @ model.constants + 1e-12)
 
 
-def piece_windows(piece, icr: IcrParams, lengths, min_speed: float | None = 0.1) -> ErrorWindows:
+def piece_windows(piece, icr: IcrParams, lengths,
+                  min_speed: float | None = 0.1) -> ErrorWindows:
     """
-    The windows evaluate_model scores on a piece, with their errors and covariance bases.
+    Return the windows evaluate_model scores on a piece, their errors and covariance bases.
 
     The windows of :func:`.pieces.moving_windows` (evaluate_model's: from every
     ground-truth sample, ``length`` s, where the tracks move at ``min_speed`` m/s on average)
@@ -136,15 +141,15 @@ def piece_windows(piece, icr: IcrParams, lengths, min_speed: float | None = 0.1)
             continue
         bases, _ = window_bases(icr, d_left, d_right, dt, piece.at[i], piece.at[j])
         parts.append(ErrorWindows(_motion(path, i, j) - _motion(piece.truth, i, j), bases,
-                             np.full(len(i), float(length)), piece.t[i],
-                             np.zeros(len(i), np.intp)))
+                                  np.full(len(i), float(length)), piece.t[i],
+                                  np.zeros(len(i), np.intp)))
     return ErrorWindows.concatenate(parts)
 
 
 def recording_windows(recordings, icr: IcrParams, lengths, min_speed: float | None = 0.1,
                       track_width: float | None = None) -> ErrorWindows:
     """
-    The windows evaluate_model scores on recordings, with one model: errors and bases.
+    Return the windows evaluate_model scores on recordings with one model (errors, bases).
 
     Parameters
     ----------
@@ -170,7 +175,7 @@ def recording_windows(recordings, icr: IcrParams, lengths, min_speed: float | No
 def held_out_windows(recordings, fit_icr, lengths, min_speed: float | None = 0.1,
                      track_width: float | None = None, blocks: int = 5) -> ErrorWindows:
     """
-    ErrorWindows of odometry whose kinematic model was fitted without them: what to fit noise on.
+    Return windows of odometry whose kinematic model was fitted without them: to fit noise on.
 
     With two recordings or more, each recording is scored with the model fitted on the
     others (leave one out: the spread of slip from drive to drive is in the errors, as a
@@ -236,8 +241,8 @@ class NoiseFit:
         ErrorWindows fitted on.
     independent : float
         About how many of them are independent (:meth:`ErrorWindows.independent`).
-    reference : str
-        ``'pose'`` or ``'heading'``.
+    errors : str
+        What was compared: ``'position'``, ``'pose'`` or ``'heading'`` (:data:`ERRORS`).
 
     """
 
@@ -246,52 +251,60 @@ class NoiseFit:
     held: tuple
     windows: int
     independent: float
-    reference: str
+    errors: str
 
 
-def _negative_log_posterior(log_c, prior_c, free, windows, heading_only, weight, width):
+ERRORS = {'position': slice(0, 2), 'pose': slice(0, 3), 'heading': slice(2, 3)}
+"""What a fit compares (:func:`fit_noise`): the components of the windows' final errors."""
+
+
+def _gaussian(errors, covariances) -> np.ndarray:
+    """Return ``log det P + e^T P^-1 e`` of each window."""
+    chol = np.linalg.cholesky(covariances)
+    z = np.linalg.solve(chol, errors[..., None])[..., 0]
+    return 2.0 * np.sum(np.log(np.diagonal(chol, axis1=1, axis2=2)), axis=1) + np.sum(z * z, 1)
+
+
+def _negative_log_posterior(log_c, prior_c, free, groups, width):
     c = prior_c.copy()
     c[free] = np.exp(log_c)
     total = 0.0
-    for length in np.unique(windows.length):
-        mine = windows.length == length
-        if heading_only:
-            var = windows.bases[mine, :, 2, 2] @ c + 1e-12
-            e = windows.errors[mine, 2]
-            total += 0.5 * np.mean(np.log(var) + e * e / var)
-        else:
-            cov = np.einsum('wmij,m->wij', windows.bases[mine, :, :2, :2], c)
-            cov[:, 0, 0] += 1e-12
-            cov[:, 1, 1] += 1e-12
-            det = cov[:, 0, 0] * cov[:, 1, 1] - cov[:, 0, 1] ** 2
-            total += 0.5 * np.mean(np.log(det) + nees(windows.errors[mine, :2], cov))
-    prior = 0.5 * np.sum((log_c - np.log(prior_c[free])) ** 2) / (width * width)
-    return weight * total + prior
+    for weight, errors, bases in groups:
+        cov = np.einsum('wmij,m->wij', bases, c) + 1e-12 * np.eye(errors.shape[1])
+        try:
+            total += 0.5 * weight * np.mean(_gaussian(errors, cov))
+        except np.linalg.LinAlgError:
+            return np.inf
+    return total + 0.5 * np.sum((log_c - np.log(prior_c[free])) ** 2) / (width * width)
 
 
 def fit_noise(windows: ErrorWindows, prior: NoiseModel | None = None, free=TERMS,
-              heading_only: bool = False, width: float = PRIOR_WIDTH) -> NoiseFit:
+              errors: str = 'pose', width: float = PRIOR_WIDTH) -> NoiseFit:
     """
     Fit the constants of the noise model to windowed final errors (maximum a posteriori).
 
     The final error of each window is taken as zero-mean Gaussian with the propagated
-    covariance (:func:`window_bases`). The likelihood is the mean over the windows of each
-    length times the number of independent windows (overlapping windows are not
-    independent: a composite likelihood, each length weighed alike), and each
-    log-constant has a Gaussian prior about ``prior``'s value, ``width`` wide: a term the
-    data hardly inform (no tight turns: ``slip``) stays near its prior.
+    covariance (:func:`..noise_model.window_bases`). The likelihood of each window length
+    is the mean over its windows times the number of independent ones (overlapping windows
+    are not independent: a composite likelihood), and each log-constant has a Gaussian
+    prior about ``prior``'s value, ``width`` wide: a term the data hardly inform (no tight
+    turns: ``slip``) stays near its prior.
 
     Parameters
     ----------
     windows : ErrorWindows
-        The windows (:func:`piece_windows`), on data the kinematic model was not fitted to.
+        The windows (:func:`held_out_windows`), on data the kinematic model was not fitted
+        to.
     prior : NoiseModel, optional
-        Centre of the prior, and the value of the terms not fitted; default :data:`PRIOR`.
+        Centre of the prior, and the value of the terms not fitted; default
+        :data:`..noise_model.PRIOR`.
     free : sequence of str
-        The terms fitted (of :data:`TERMS`).
-    heading_only : bool
-        Fit the heading errors only (a gyro reference): the heading's variance does not
-        depend on ``slip``, which is held; ``track``, ``turn`` and ``timing`` enter it.
+        The terms fitted (of :data:`..noise_model.TERMS`).
+    errors : str
+        What is compared (:data:`ERRORS`): ``'pose'``, position and heading (a pose
+        reference: the heading errors inform ``turn``, which the positions hardly do),
+        ``'position'`` or ``'heading'`` (a gyro reference: the heading's variance does not
+        depend on ``slip``, which is held).
     width : float
         Standard deviation of each log-constant's prior.
 
@@ -302,34 +315,35 @@ def fit_noise(windows: ErrorWindows, prior: NoiseModel | None = None, free=TERMS
     Raises
     ------
     ValueError
-        Without windows, for an unknown term, or for a term fitted whose prior is 0.
+        Without windows, for an unknown term or kind of errors, or for a term fitted whose
+        prior is 0.
 
     """
     if len(windows) == 0:
         raise ValueError('no windows to fit the noise model on')
+    if errors not in ERRORS:
+        raise ValueError(f'errors must be one of {", ".join(ERRORS)}, got {errors!r}')
     prior = prior or PRIOR
-    free = tuple(t for t in TERMS if t in set(free))
     unknown = set(free) - set(TERMS)
     if unknown:
         raise ValueError(f'unknown noise terms: {", ".join(sorted(unknown))}')
-    if heading_only:
-        free = tuple(t for t in free if t != 'slip')
+    free = tuple(t for t in TERMS
+                 if t in set(free) and not (errors == 'heading' and t == 'slip'))
     prior_c = prior.constants
     index = np.array([TERMS.index(t) for t in free], np.intp)
     if np.any(prior_c[index] <= 0.0):
         raise ValueError('a fitted term needs a prior value > 0')
     held = tuple(t for t in TERMS if t not in free)
-    n_eff = windows.independent()
+    part = ERRORS[errors]
+    groups = []
+    for length, n_eff in windows.independent_by_length().items():
+        mine = windows.of_length(length)
+        groups.append((n_eff, mine.errors[:, part], mine.bases[:, :, part, part]))
+    c = prior_c.copy()
     if len(index):
-        start = np.log(prior_c[index])
-        best = minimize(_negative_log_posterior, start,
-                        args=(prior_c, index, windows, heading_only, n_eff, width),
-                        method='Nelder-Mead',
+        best = minimize(_negative_log_posterior, np.log(prior_c[index]),
+                        args=(prior_c, index, groups, width), method='Nelder-Mead',
                         options={'xatol': 1e-4, 'fatol': 1e-9, 'maxiter': 4000})
-        c = prior_c.copy()
         c[index] = np.exp(best.x)
-    else:
-        c = prior_c
     model = NoiseModel(**dict(zip(TERMS, (float(v) for v in c))), floor=prior.floor)
-    return NoiseFit(model, free, held, len(windows), n_eff,
-                    'heading' if heading_only else 'pose')
+    return NoiseFit(model, free, held, len(windows), windows.independent(), errors)
