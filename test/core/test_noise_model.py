@@ -331,3 +331,64 @@ def test_fitted_on_two_warthog_runs_covers_the_third():
             assert c['windows'] > 1500
             inside = 0.35 <= c['inside_50'] <= 0.65 and 0.85 <= c['inside_95'] <= 0.98
             assert inside == (name == 'fitted'), (name, length, c)
+
+
+def test_the_nodes_float_forms_match_the_arrays():
+    rng = np.random.default_rng(12)
+    model = nm.NoiseModel(track=2e-3, turn=1e-3, slip=1e-2, timing=0.01, floor=1e-9)
+    body = cov.body_jacobian(ICR)
+    p_tuple = (0.0,) * 6
+    p_array = np.zeros((3, 3))
+    theta = 0.0
+    for d_left, d_right in zip(*manoeuvres(5.0, rng)):
+        s = nm.step_covariance(model, body, ICR.track_width, d_left, d_right)
+        s_array = model.body_covariance(ICR, d_left, d_right)
+        assert cov.full_matrix(s) == pytest.approx(s_array, rel=1e-12, abs=1e-18)
+        dx, dy, dth = body_increments(d_left, d_right)[0]
+        delta_x, delta_y, m = cov.arc_step(theta, dx, dy, dth)
+        p_tuple = nm.propagate_step(p_tuple, delta_x, delta_y, m, s)
+        p_array = nm.propagate_body(p_array, delta_x, delta_y, m, s_array)
+        theta += dth
+    assert cov.full_matrix(p_tuple) == pytest.approx(p_array, rel=1e-9, abs=1e-15)
+    assert cov.full_matrix(nm.timing_covariance(model, 0.5, -0.2, 0.3)) == pytest.approx(
+        0.01 * np.outer([0.5, -0.2, 0.3], [0.5, -0.2, 0.3]))
+
+
+def test_fit_values_name_the_constants_and_their_provenance():
+    rng = np.random.default_rng(13)
+    windows = simulated_windows(MODEL, 120.0, rng)
+    fit = noise.fit_noise(windows, free=('track', 'slip'))
+    values = fit.values()
+    assert values['covariance.track'] == fit.model.track
+    assert values['covariance.timing'] == nm.PRIOR.timing
+    assert values['covariance.fit.fitted'] == ['track', 'slip']
+    assert values['covariance.fit.held'] == ['turn', 'timing']
+    assert values['covariance.fit.errors'] == 'pose'
+
+
+def test_one_recording_is_held_out_block_by_block():
+    from tracked_kinematics.core.identify import Recording
+
+    rng = np.random.default_rng(14)
+    d_left, d_right = manoeuvres(200.0, rng)
+    body = body_increments(d_left, d_right)
+    heading = np.concatenate([[0.0], np.cumsum(body[:, 2])])
+    cx, cy = arc_chord(*body.T)
+    c, s = np.cos(heading[:-1]), np.sin(heading[:-1])
+    x = np.concatenate([[0.0], np.cumsum(c * cx - s * cy)])
+    y = np.concatenate([[0.0], np.cumsum(s * cx + c * cy)])
+    t = np.arange(len(x)) * DT
+    left, right = np.concatenate([[0.0], np.cumsum(d_left)]), np.concatenate(
+        [[0.0], np.cumsum(d_right)])
+    rec = Recording(t, left, right, t[::2], x[::2], y[::2], heading[::2])
+    seen = []
+
+    def fit_icr(recordings):
+        seen.append(sum(r.duration for r in recordings))
+        return ICR
+
+    windows = noise.held_out_windows([rec], fit_icr, (5.0,), blocks=4)
+    assert len(seen) == 4 and all(d < 0.8 * rec.duration for d in seen)
+    assert len(windows) > 50
+    # The odometry is the drive itself: no error, whatever the block.
+    assert np.abs(windows.errors).max() < 1e-9

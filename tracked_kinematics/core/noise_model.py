@@ -126,7 +126,7 @@ class NoiseModel:
         -------
         ndarray, shape (3, 3) or (N, 3, 3)
             Of ``(dx, dy, dtheta)``: m^2, m^2, rad^2 (without ``timing``, which does not
-            accumulate: :meth:`timing_covariance`).
+            accumulate: :func:`timing_covariance`).
 
         """
         s = _step_covariances(icr, np.atleast_1d(np.asarray(d_left, float)),
@@ -134,16 +134,6 @@ class NoiseModel:
         s = np.einsum('m,nmij->nij', self.constants[:3], s)
         s += self.floor * np.eye(3)
         return s if np.ndim(d_left) else s[0]
-
-    def timing_covariance(self, v_x: float, v_y: float, w: float) -> np.ndarray:
-        """
-        Covariance ``timing v v^T`` of the pose from the time error at one end, 3 x 3.
-
-        ``v = (v_x, v_y, w)``: the pose rate in the frame of the covariance (m/s, m/s,
-        rad/s): the fixed frame for a pose covariance.
-        """
-        v = np.array([v_x, v_y, w], float)
-        return self.timing * np.outer(v, v)
 
     def twist(self, icr: IcrParams, v_left: float, v_right: float) -> np.ndarray:
         """
@@ -200,6 +190,94 @@ def propagate_body(p, delta_x: float, delta_y: float, m, s) -> np.ndarray:
     g = np.vstack([np.asarray(m, float), [0.0, 0.0, 1.0]])
     out = f @ np.asarray(p, float) @ f.T + g @ np.asarray(s, float) @ g.T
     return 0.5 * (out + out.T)
+
+
+def step_covariance(model: NoiseModel, body, track_width: float, d_left: float,
+                    d_right: float):
+    """
+    Body-increment covariance of one step, as an upper triangle of Python floats.
+
+    The node's per-message form of :meth:`NoiseModel.body_covariance` (numpy's per-call
+    overhead on 3 x 3 matrices would cost far more than the arithmetic, as for
+    :func:`.covariance.arc_step`).
+
+    Parameters
+    ----------
+    model : NoiseModel
+    body : tuple of tuple of float, 3 x 2
+        :func:`.covariance.body_jacobian` of the model in use.
+    track_width : float
+        m, of the tightness weight ``w``.
+    d_left, d_right : float
+        Nominal travel of each track over the step, m.
+
+    Returns
+    -------
+    tuple of float, 6
+        ``(xx, xy, xt, yy, yt, tt)`` of ``(dx, dy, dtheta)``.
+
+    """
+    (xl, xr), (yl, yr), (tl, tr) = body
+    ql = model.track * abs(d_left)
+    qr = model.track * abs(d_right)
+    dx = xl * d_left + xr * d_right
+    turned = abs(tl * d_left + tr * d_right)
+    tight = turned * turned / (turned + abs(dx) / track_width) if turned > 0.0 else 0.0
+    slip = model.slip * tight
+    floor = model.floor
+    return (xl * xl * ql + xr * xr * qr + slip + floor, xl * yl * ql + xr * yr * qr,
+            xl * tl * ql + xr * tr * qr, yl * yl * ql + yr * yr * qr + slip + floor,
+            yl * tl * ql + yr * tr * qr,
+            tl * tl * ql + tr * tr * qr + model.turn * turned + floor)
+
+
+def propagate_step(p, delta_x: float, delta_y: float, m, s):
+    """
+    One step of the pose covariance, ``F P F^T + M S M^T``, on upper triangles of floats.
+
+    The node's form of :func:`propagate_body`; the layout of :func:`.covariance.propagate`.
+
+    Parameters
+    ----------
+    p : tuple of float, 6
+        Pose covariance before the step, ``(xx, xy, xt, yy, yt, tt)``.
+    delta_x, delta_y : float
+        The step's displacement in the fixed frame, m (:func:`.covariance.arc_step`).
+    m : tuple of tuple of float, 2 x 3
+        :func:`.covariance.arc_step`'s Jacobian.
+    s : tuple of float, 6
+        :func:`step_covariance`.
+
+    Returns
+    -------
+    tuple of float, 6
+
+    """
+    xx, xy, xt, yy, yt, tt = p
+    a, b = -delta_y, delta_x
+    sxx, sxy, sxt, syy, syt, stt = s
+    full = ((sxx, sxy, sxt), (sxy, syy, syt), (sxt, syt, stt))
+    g = (m[0], m[1], (0.0, 0.0, 1.0))
+    gs = [[sum(g[i][k] * full[k][j] for k in range(3)) for j in range(3)] for i in range(3)]
+    q = [[sum(gs[i][k] * g[j][k] for k in range(3)) for j in range(3)] for i in range(3)]
+    return (xx + a * (2.0 * xt + a * tt) + q[0][0],
+            xy + a * yt + b * xt + a * b * tt + q[0][1],
+            xt + a * tt + q[0][2],
+            yy + b * (2.0 * yt + b * tt) + q[1][1],
+            yt + b * tt + q[1][2],
+            tt + q[2][2])
+
+
+def timing_covariance(model: NoiseModel, v_x: float, v_y: float, w: float):
+    """
+    Return ``timing v v^T`` as an upper triangle: what a published pose covariance adds.
+
+    ``v = (v_x, v_y, w)`` is the pose rate in the frame of the covariance (the fixed frame:
+    m/s, m/s, rad/s). Not accumulated: the node adds it to the covariance it publishes
+    (the time error at the end), and starts a reset from it (the time error at the start).
+    """
+    k = model.timing
+    return (k * v_x * v_x, k * v_x * v_y, k * v_x * w, k * v_y * v_y, k * v_y * w, k * w * w)
 
 
 def _prefix(values):

@@ -253,6 +253,24 @@ class NoiseFit:
     independent: float
     errors: str
 
+    def values(self, lengths=(5.0, 10.0)) -> dict:
+        """
+        Return the terrain file's ``covariance.*`` entries: the constants and their provenance.
+
+        Parameters
+        ----------
+        lengths : sequence of float
+            The window lengths fitted on, s.
+
+        """
+        return {**{f'covariance.{t}': getattr(self.model, t) for t in TERMS},
+                'covariance.fit.fitted': list(self.fitted),
+                'covariance.fit.held': list(self.held),
+                'covariance.fit.errors': self.errors,
+                'covariance.fit.windows': self.windows,
+                'covariance.fit.independent_windows': round(self.independent, 1),
+                'covariance.fit.window_lengths': [float(w) for w in lengths]}
+
 
 ERRORS = {'position': slice(0, 2), 'pose': slice(0, 3), 'heading': slice(2, 3)}
 """What a fit compares (:func:`fit_noise`): the components of the windows' final errors."""
