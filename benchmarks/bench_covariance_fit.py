@@ -15,9 +15,9 @@ Prints figures. For each Warthog grass run held out in turn:
 
 Then the same pooled over the three held-out runs (the set); the Husky wet-grass run (no
 second run: noise fitted on the held-out blocks of its first half, to its pose errors and
-to its position errors only, checked on its second half); and what the gyro alone determines (the heading's noise: ``track``, ``turn`` and
-``timing`` fitted on the gyro of two Warthog runs, ``slip`` held; the heading intervals
-checked on the third).
+to its position errors only, checked on its second half); and what the gyro alone
+determines (the heading's noise: ``track``, ``turn`` and ``timing`` fitted on the gyro of
+two Warthog runs, ``slip`` held; the heading intervals checked on the third).
 
 Run: ``python benchmarks/bench_covariance_fit.py [REALDATA_FOLDER]`` (default
 ``<repository>/../shared/realdata``, or ``$TRACKED_KINEMATICS_REALDATA``). About 2 min.

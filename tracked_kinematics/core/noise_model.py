@@ -204,6 +204,7 @@ def step_covariance(model: NoiseModel, body, track_width: float, d_left: float,
     Parameters
     ----------
     model : NoiseModel
+        The constants.
     body : tuple of tuple of float, 3 x 2
         :func:`.covariance.body_jacobian` of the model in use.
     track_width : float
