@@ -6,7 +6,7 @@ The windows are evaluate_model's (:func:`.pieces.moving_windows` over the pieces
 and the covariance bases of :func:`..noise_model.window_bases`; :func:`held_out_windows`
 scores each stretch of data with a kinematic model fitted without it, and
 :func:`fit_noise` fits the constants of :class:`..noise_model.NoiseModel` to them
-(maximum a posteriori: the windowed final errors Gaussian with the propagated covariance).
+(maximum a posteriori: the windowed final errors Student-t with the propagated covariance).
 """
 
 from __future__ import annotations
@@ -276,33 +276,52 @@ ERRORS = {'position': slice(0, 2), 'pose': slice(0, 3), 'heading': slice(2, 3)}
 """What a fit compares (:func:`fit_noise`): the components of the windows' final errors."""
 
 
-def _gaussian(errors, covariances) -> np.ndarray:
-    """Return ``log det P + e^T P^-1 e`` of each window."""
+DOF = 10.0
+"""Degrees of freedom of the Student-t likelihood of :func:`fit_noise`."""
+
+
+def _negative_log_likelihoods(errors, covariances, dof) -> np.ndarray:
+    """
+    Return ``-2 log p`` of each window's error but for constants: Gaussian or Student-t.
+
+    With ``dof``, a multivariate Student-t whose covariance is ``covariances`` (its scale
+    matrix ``covariances (dof - 2) / dof``); None: a Gaussian.
+    """
+    if dof is not None:
+        covariances = covariances * ((dof - 2.0) / dof)
     chol = np.linalg.cholesky(covariances)
     z = np.linalg.solve(chol, errors[..., None])[..., 0]
-    return 2.0 * np.sum(np.log(np.diagonal(chol, axis1=1, axis2=2)), axis=1) + np.sum(z * z, 1)
+    q = np.sum(z * z, 1)
+    log_det = 2.0 * np.sum(np.log(np.diagonal(chol, axis1=1, axis2=2)), axis=1)
+    if dof is None:
+        return log_det + q
+    return log_det + (dof + errors.shape[1]) * np.log1p(q / dof)
 
 
-def _negative_log_posterior(log_c, prior_c, free, groups, width):
+def _negative_log_posterior(log_c, prior_c, free, groups, width, dof):
     c = prior_c.copy()
     c[free] = np.exp(log_c)
     total = 0.0
     for weight, errors, bases in groups:
         cov = np.einsum('wmij,m->wij', bases, c) + 1e-12 * np.eye(errors.shape[1])
         try:
-            total += 0.5 * weight * np.mean(_gaussian(errors, cov))
+            total += 0.5 * weight * np.mean(_negative_log_likelihoods(errors, cov, dof))
         except np.linalg.LinAlgError:
             return np.inf
     return total + 0.5 * np.sum((log_c - np.log(prior_c[free])) ** 2) / (width * width)
 
 
 def fit_noise(windows: ErrorWindows, prior: NoiseModel | None = None, free=TERMS,
-              errors: str = 'pose', width: float = PRIOR_WIDTH) -> NoiseFit:
+              errors: str = 'pose', width: float = PRIOR_WIDTH,
+              dof: float | None = DOF) -> NoiseFit:
     """
     Fit the constants of the noise model to windowed final errors (maximum a posteriori).
 
-    The final error of each window is taken as zero-mean Gaussian with the propagated
-    covariance (:func:`..noise_model.window_bases`). The likelihood of each window length
+    The final error of each window is taken as zero-mean with the propagated covariance
+    (:func:`..noise_model.window_bases`), Student-t distributed with ``dof`` degrees of
+    freedom: robust to the few windows a reference's glitch or a bad stretch of the
+    kinematic fit spoils (a Gaussian would widen every ellipse for them; the identification
+    uses a robust loss for the same reason). The likelihood of each window length
     is the mean over its windows times the number of independent ones (overlapping windows
     are not independent: a composite likelihood), and each log-constant has a Gaussian
     prior about ``prior``'s value, ``width`` wide: a term the data hardly inform (no tight
@@ -325,6 +344,8 @@ def fit_noise(windows: ErrorWindows, prior: NoiseModel | None = None, free=TERMS
         depend on ``slip``, which is held).
     width : float
         Standard deviation of each log-constant's prior.
+    dof : float or None
+        Degrees of freedom of the Student-t likelihood (> 2); None: Gaussian.
 
     Returns
     -------
@@ -333,14 +354,16 @@ def fit_noise(windows: ErrorWindows, prior: NoiseModel | None = None, free=TERMS
     Raises
     ------
     ValueError
-        Without windows, for an unknown term or kind of errors, or for a term fitted whose
-        prior is 0.
+        Without windows, for an unknown term or kind of errors, for ``dof <= 2``, or for a
+        term fitted whose prior is 0.
 
     """
     if len(windows) == 0:
         raise ValueError('no windows to fit the noise model on')
     if errors not in ERRORS:
         raise ValueError(f'errors must be one of {", ".join(ERRORS)}, got {errors!r}')
+    if dof is not None and not dof > 2.0:
+        raise ValueError(f'dof must be > 2 (a finite covariance), got {dof!r}')
     prior = prior or PRIOR
     unknown = set(free) - set(TERMS)
     if unknown:
@@ -360,7 +383,7 @@ def fit_noise(windows: ErrorWindows, prior: NoiseModel | None = None, free=TERMS
     c = prior_c.copy()
     if len(index):
         best = minimize(_negative_log_posterior, np.log(prior_c[index]),
-                        args=(prior_c, index, groups, width), method='Nelder-Mead',
+                        args=(prior_c, index, groups, width, dof), method='Nelder-Mead',
                         options={'xatol': 1e-4, 'fatol': 1e-9, 'maxiter': 4000})
         c[index] = np.exp(best.x)
     model = NoiseModel(**dict(zip(TERMS, (float(v) for v in c))), floor=prior.floor)
