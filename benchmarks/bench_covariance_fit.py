@@ -38,7 +38,7 @@ from tracked_kinematics.core import noise_model as nm  # noqa: E402
 from tracked_kinematics.core.evaluate import noise  # noqa: E402
 from tracked_kinematics.offline.bags import (  # noqa: E402
     CommandSource, EncoderSource, GroundTruthSource, read_evaluation_bag)
-from tracked_kinematics.offline.bags.references import read_reference_bag  # noqa: E402
+from tracked_kinematics.offline.bags.reference_reader import read_reference_bag  # noqa: E402
 from tracked_kinematics.offline.model_evaluation import (  # noqa: E402
     gyro_references, pose_references, TerrainModel)
 
@@ -147,7 +147,8 @@ def husky(base):
     (rec,) = pose_recordings(base, [HUSKY], {HUSKY: found})
     middle = 0.5 * (rec.enc_t[0] + rec.enc_t[-1])
     from tracked_kinematics.core.identify.holdout import crop_recording
-    first, second = crop_recording(rec, rec.enc_t[0], middle), crop_recording(rec, middle, rec.enc_t[-1])
+    first = crop_recording(rec, rec.enc_t[0], middle)
+    second = crop_recording(rec, middle, rec.enc_t[-1])
     windows = noise.held_out_windows([first], fitter(width), LENGTHS, track_width=width)
     icr = fitter(width)([first])
     test = noise.recording_windows([second], icr, LENGTHS, track_width=width)

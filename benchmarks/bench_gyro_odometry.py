@@ -31,7 +31,7 @@ from tracked_kinematics.core import identify as ident  # noqa: E402
 from tracked_kinematics.core.gyro_odometry import (  # noqa: E402
     fit_gyro_scale, GyroConfig, replay)
 from tracked_kinematics.offline.bags import EncoderSource, GroundTruthSource  # noqa: E402
-from tracked_kinematics.offline.bags.references import read_reference_bag  # noqa: E402
+from tracked_kinematics.offline.bags.reference_reader import read_reference_bag  # noqa: E402
 
 NAMES = ('warthog_grass_2024-07-18_16h59', 'warthog_grass_2024-07-29_14h04',
          'warthog_grass_2024-08-08_16h11')

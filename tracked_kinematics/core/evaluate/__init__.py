@@ -1,8 +1,9 @@
 """
 Evaluation: score terrain models on recordings, the way the field measures them.
 
-:mod:`.pieces`, :mod:`.metrics`, :mod:`.horizons`, :mod:`.online`, :mod:`.scoring` (:func:`evaluate`)
-and :mod:`.noise` (the odometry noise model fitted to windows); see docs/tools/evaluate_model.md.
+:mod:`.pieces`, :mod:`.metrics`, :mod:`.horizons`, :mod:`.online`, :mod:`.scoring`
+(:func:`evaluate`) and :mod:`.noise` (the noise model fitted to windows); see
+docs/tools/evaluate_model.md.
 """
 
 from .horizons import command_horizons, Commands, encoder_horizons, HorizonErrors
