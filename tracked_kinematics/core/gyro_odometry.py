@@ -50,8 +50,10 @@ import math
 import numpy as np
 
 from ._checks import require_numbers
-from .covariance import arc_step
+from .covariance import (arc_step, propagate, saturate, TrackNoise, travel_jacobian,
+                         twist_covariance, TWIST_TIME, twist_variances)
 from .kinematics import IcrParams
+from .noise_model import NoiseModel, propagate_step, turn_slip, turn_slip_step
 
 GYRO = 'gyro'
 ENCODERS = 'encoders'
@@ -185,11 +187,17 @@ class GyroOdometry:
         Why the gyro is not used ('' when it is).
     switches : int
         Changes of source so far.
+    covariance_upper : tuple of float
+        Pose covariance ``(xx, xy, xt, yy, yt, tt)``, propagated per step (:meth:`set_noise`).
+    twist_covariance : tuple of float
+        Covariance of the twist the last :meth:`take_twist` returned, same layout.
 
     """
 
-    def __init__(self, icr: IcrParams, config: GyroConfig | None = None):
+    def __init__(self, icr: IcrParams, config: GyroConfig | None = None,
+                 noise: TrackNoise | None = None, terms: NoiseModel | None = None):
         self.config = config or GyroConfig()
+        self.set_noise(noise, terms)
         self.set_model(icr)
         self.reset()
         self.source = ENCODERS
@@ -338,19 +346,63 @@ class GyroOdometry:
         return self._step(t0, t, d_left, d_right) is not None
 
     def take_twist(self):
-        """Return the mean twist ``(v_x, v_y, w)`` since the last call; restart the window."""
-        dx, dy, dpsi, duration = self._window
-        self._window = [0.0, 0.0, 0.0, 0.0]
-        if duration <= 0.0:
-            return (0.0, 0.0, 0.0)
-        return (dx / duration, dy / duration, dpsi / duration)
+        """
+        Return the mean twist ``(v_x, v_y, w)`` since the last call; restart the window.
+
+        Its covariance is then :attr:`twist_covariance`: that of the mean twist over
+        :data:`.covariance.TWIST_TIME`, as :meth:`.Odometry.take_twist`, from the tracks' and
+        the turn and slip terms, with ``w`` the gyro's (``gyro_noise^2 / TWIST_TIME`` plus the
+        scale's uncertainty) when the heading is the gyro's.
+        """
+        dx, dy, dpsi, duration, abs_left, abs_right = self._window
+        self._window = [0.0] * 6
+        twist = (0.0, 0.0, 0.0) if duration <= 0.0 else (
+            dx / duration, dy / duration, dpsi / duration)
+        rate = 1.0 / duration if duration > 0.0 else 1.0
+        var_left, var_right = twist_variances(self.noise, abs_left * rate, abs_right * rate)
+        position, heading = turn_slip(self.terms, self.model.track_width,
+                                      twist[0] * TWIST_TIME, twist[2] * TWIST_TIME)
+        scale = 1.0 / (TWIST_TIME * TWIST_TIME)
+        position *= scale
+        if self.source == GYRO:
+            m = self.model
+            c, x = self._offset, m.x
+            var_w = (self.gyro_noise ** 2 / TWIST_TIME
+                     + (self.config.scale_std * twist[2]) ** 2)
+            var_t = 0.25 * (m.scale_left ** 2 * var_left
+                            + m.scale_right ** 2 * var_right) * scale
+            covariance = (var_t + c * c * var_w + position, -c * x * var_w, c * var_w,
+                          x * x * var_w + position, -x * var_w, var_w)
+        else:
+            xx, xy, xt, yy, yt, tt = twist_covariance(self._body, var_left, var_right,
+                                                      TWIST_TIME)
+            covariance = (xx + position, xy, xt, yy + position, yt, tt + heading * scale)
+        # v_y is known to the floor's precision, never exactly (as Odometry's).
+        xx, xy, xt, yy, yt, tt = covariance
+        self.twist_covariance = (xx, xy, xt, yy + self.noise.floor * scale, yt, tt)
+        return twist
 
     def reset(self) -> None:
-        """Return the pose to zero; keep what was learnt of the gyro and the slip."""
+        """Return the pose to zero, its covariance too; keep what was learnt of the gyro."""
         self.pose = (0.0, 0.0, 0.0)
         self.twist = (0.0, 0.0, 0.0)
         self.heading_variance = 0.0
-        self._window = [0.0, 0.0, 0.0, 0.0]
+        self.covariance_upper = (0.0,) * 6
+        self.twist_covariance = (0.0,) * 6
+        self._window = [0.0] * 6
+
+    def set_noise(self, noise: TrackNoise | None = None,
+                  terms: NoiseModel | None = None) -> None:
+        """
+        Use this noise for the covariances from the next step on.
+
+        ``noise``: the tracks' random walk (default ``TrackNoise()``); ``terms``: the turn and
+        slip terms of a :class:`.noise_model.NoiseModel` (default none), as :class:`.Odometry`.
+        With the gyro in use the heading increments' variance is the fused one (the gyro's
+        ``gyro_noise^2 dt`` plus its scale's, bounded by the model's), not the tracks'.
+        """
+        self.noise = noise if noise is not None else TrackNoise()
+        self.terms = terms if terms is not None else NoiseModel(track=0.0, floor=0.0)
 
     def set_model(self, icr: IcrParams) -> None:
         """Use another terrain model from the next step on: the adaptation starts from it."""
@@ -360,6 +412,7 @@ class GyroOdometry:
         width = icr.track_width
         self._u_bounds = (1.0 / (width / MIN_CHI), 1.0 / width)
         self._u0 = 1.0 / self._spread
+        self._update_body()
         self._info = [0.0, 0.0, 0.0]      # decaying information (uu, ub, bb)
         self._moment = [0.0, 0.0]         # decaying moments (u, b)
         self._segment = [0.0, 0.0, 0.0]   # turn (m), gyro heading (rad), duration (s)
@@ -463,7 +516,9 @@ class GyroOdometry:
         dx = 0.5 * (true_left + true_right) + self._offset * dpsi
         dy = -m.x * dpsi
         x, y, theta = self.pose
-        delta_x, delta_y, _ = arc_step(theta, dx, dy, dpsi)
+        delta_x, delta_y, jacobian = arc_step(theta, dx, dy, dpsi)
+        self.covariance_upper = self._propagate(source, d_left, d_right, dx, dpsi, var,
+                                                delta_x, delta_y, jacobian)
         self.pose = (x + delta_x, y + delta_y, theta + dpsi)
         self.twist = (dx / dt, dy / dt, dpsi / dt)
         self.heading_variance += var
@@ -472,7 +527,35 @@ class GyroOdometry:
         window[1] += dy
         window[2] += dpsi
         window[3] += dt
+        window[4] += abs(d_left)
+        window[5] += abs(d_right)
         return self.pose, self.twist
+
+    def _propagate(self, source, d_left, d_right, dx, dpsi, var, delta_x, delta_y, jacobian):
+        """
+        One step of the pose covariance (Kelly's linearised propagation, :mod:`.odometry`).
+
+        From the encoders: the tracks' random walk through the model in force plus the turn
+        and slip terms. From the gyro: the translation ``(D_l + D_r) / 2`` from the tracks,
+        the heading increment's variance ``var`` (fused), through ``dx = T + c dpsi`` and
+        ``dy = -x dpsi``, plus the slip term on the position.
+        """
+        var_left, var_right = self.noise.travel_variances(d_left, d_right)
+        position, heading = turn_slip(self.terms, self.model.track_width, dx, dpsi)
+        if source == GYRO:
+            m = self.model
+            c, x = self._offset, m.x
+            var_t = 0.25 * (m.scale_left ** 2 * var_left + m.scale_right ** 2 * var_right)
+            s = (var_t + c * c * var + position, -c * x * var, c * var,
+                 x * x * var + position, -x * var, var)
+            covariance = propagate_step(self.covariance_upper, delta_x, delta_y, jacobian, s)
+        else:
+            covariance = propagate(self.covariance_upper, delta_x, delta_y,
+                                   travel_jacobian(jacobian, self._body), var_left, var_right)
+            if position > 0.0 or heading > 0.0:
+                extra = turn_slip_step(position, heading, jacobian)
+                covariance = tuple(a + b for a, b in zip(covariance, extra))
+        return saturate(covariance)
 
     def _model_variance(self, dpsi_e, big):
         cfg = self.config
@@ -559,6 +642,16 @@ class GyroOdometry:
             self.residual_bias = b
         if cfg.adapt:
             self._spread = 1.0 / u
+            self._update_body()
+
+    def _update_body(self) -> None:
+        """Body Jacobian of the model in force (the adapted spread), for the covariance."""
+        m = self.model
+        sl = m.scale_left / self._spread
+        sr = m.scale_right / self._spread
+        y_left = self._offset + 0.5 * self._spread
+        y_right = self._offset - 0.5 * self._spread
+        self._body = ((-y_right * sl, y_left * sr), (m.x * sl, -m.x * sr), (-sl, sr))
 
     def _restart_residual_bias(self):
         """Forget what the adaptation knew of the bias: a standstill measured it anew."""

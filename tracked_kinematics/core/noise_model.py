@@ -265,16 +265,51 @@ def propagate_step(p, delta_x: float, delta_y: float, m, s):
     xx, xy, xt, yy, yt, tt = p
     a, b = -delta_y, delta_x
     sxx, sxy, sxt, syy, syt, stt = s
-    full = ((sxx, sxy, sxt), (sxy, syy, syt), (sxt, syt, stt))
-    g = (m[0], m[1], (0.0, 0.0, 1.0))
-    gs = [[sum(g[i][k] * full[k][j] for k in range(3)) for j in range(3)] for i in range(3)]
-    q = [[sum(gs[i][k] * g[j][k] for k in range(3)) for j in range(3)] for i in range(3)]
-    return (xx + a * (2.0 * xt + a * tt) + q[0][0],
-            xy + a * yt + b * xt + a * b * tt + q[0][1],
-            xt + a * tt + q[0][2],
-            yy + b * (2.0 * yt + b * tt) + q[1][1],
-            yt + b * tt + q[1][2],
-            tt + q[2][2])
+    (g0, g1, g2), (h0, h1, h2) = m
+    # G S with G = (m[0], m[1], (0, 0, 1)), unrolled (the node calls this per message).
+    gs0 = g0 * sxx + g1 * sxy + g2 * sxt
+    gs1 = g0 * sxy + g1 * syy + g2 * syt
+    gs2 = g0 * sxt + g1 * syt + g2 * stt
+    hs0 = h0 * sxx + h1 * sxy + h2 * sxt
+    hs1 = h0 * sxy + h1 * syy + h2 * syt
+    hs2 = h0 * sxt + h1 * syt + h2 * stt
+    return (xx + a * (2.0 * xt + a * tt) + (gs0 * g0 + gs1 * g1 + gs2 * g2),
+            xy + a * yt + b * xt + a * b * tt + (gs0 * h0 + gs1 * h1 + gs2 * h2),
+            xt + a * tt + gs2,
+            yy + b * (2.0 * yt + b * tt) + (hs0 * h0 + hs1 * h1 + hs2 * h2),
+            yt + b * tt + hs2,
+            tt + stt)
+
+
+def turn_slip(model: NoiseModel, track_width: float, dx: float, dtheta: float):
+    """
+    Return the turn and slip terms of one step's body covariance: position and heading.
+
+    ``(slip w |dtheta|, turn |dtheta|)`` (m^2 on each of ``dx``, ``dy``; rad^2), the terms
+    of :func:`step_covariance` beyond the track random walk and the floor; ``dx``, ``dtheta``
+    the step's body increments (m, rad).
+    """
+    turned = abs(dtheta)
+    if turned == 0.0:
+        return 0.0, 0.0
+    return model.slip * turned * turned / (turned + abs(dx) / track_width), model.turn * turned
+
+
+def turn_slip_step(position: float, heading: float, m):
+    """
+    Map body variances ``diag(position, position, heading)`` through a step: ``M S M^T``.
+
+    ``m`` is :func:`.covariance.arc_step`'s Jacobian; the result an upper triangle of the
+    pose ``(xx, xy, xt, yy, yt, tt)``, to add to a propagated covariance (the node adds
+    :func:`turn_slip` this way to its track random walk, whose two tracks may differ).
+    """
+    (g0, g1, g2), (h0, h1, h2) = m
+    return (position * (g0 * g0 + g1 * g1) + heading * g2 * g2,
+            position * (g0 * h0 + g1 * h1) + heading * g2 * h2,
+            heading * g2,
+            position * (h0 * h0 + h1 * h1) + heading * h2 * h2,
+            heading * h2,
+            heading)
 
 
 def timing_covariance(model: NoiseModel, v_x: float, v_y: float, w: float):
