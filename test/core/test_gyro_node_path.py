@@ -1,5 +1,6 @@
 """The node's per-step path through GyroOdometry, its covariance, and Odometry's new terms."""
 
+from helpers.gyro_drive import gyro_drive
 import numpy as np
 import pytest
 from tracked_kinematics.core.covariance import arc_step, body_jacobian, TrackNoise
@@ -14,23 +15,8 @@ ICR = IcrParams(0.42, 0.353, -0.425, 0.032, 1.0072, 1.0275)
 TERMS = NoiseModel(track=0.0, turn=PRIOR.turn, slip=PRIOR.slip, timing=PRIOR.timing, floor=0.0)
 
 
-def drive(seed=0, seconds=14.0, still=3.5, rate=50.0, gyro_rate=400.0, bias=0.02,
-          scale=1.02, delay=0.05, slip=0.8):
-    """Cumulative travel of a drive (a standstill, then arcs and spins) and its gyro."""
-    rng = np.random.default_rng(seed)
-    t = np.arange(int(seconds * rate) + 1) / rate
-    moving = t >= still
-    v = np.where(moving, 0.3 * np.sin(0.7 * t) + 0.1, 0.0)
-    turn = np.where(moving, 0.25 * np.sin(0.45 * t + 1.0), 0.0)
-    v_left, v_right = v - turn, v + turn
-    left = np.concatenate([[0.0], np.cumsum(v_left[1:]) / rate])
-    right = np.concatenate([[0.0], np.cumsum(v_right[1:]) / rate])
-    tg = np.arange(int(seconds * gyro_rate) + 1) / gyro_rate
-    # The ground turns the robot less than the model says (slip): slip times the model's rate.
-    w_model = np.interp(tg, t, (ICR.scale_right * v_right - ICR.scale_left * v_left)
-                        / (ICR.y_left - ICR.y_right))
-    reading = scale * slip * w_model + bias + 0.002 * rng.standard_normal(len(tg))
-    return t, left, right, tg + delay, reading
+def drive(**kwargs):
+    return gyro_drive(ICR, **kwargs)
 
 
 def config(**changes):

@@ -68,6 +68,11 @@ STILL_KNOWN = 2.0
 #: Smallest steering efficiency the adaptation goes to (the identification's bound).
 MIN_CHI = 0.2
 
+#: s: sums of step durations are compared with their thresholds this much early, so that
+#: regular steps whose durations differ in the last bit (a node's ``ns * 1e-9`` against a
+#: replay's ``t1 - t0``) cross them at the same step.
+SUM_TOLERANCE = 1e-9
+
 
 @dataclass(frozen=True, slots=True)
 class GyroConfig:
@@ -494,7 +499,7 @@ class GyroOdometry:
             self._ahead = 0.0
         else:
             dpsi_g, mean_raw, span = gyro
-            if still and self._still_for >= cfg.still_time:
+            if still and self._still_for >= cfg.still_time - SUM_TOLERANCE:
                 self._learn_bias(mean_raw, span)
             self._learn_slip(turn, dpsi_g, dt, still)
             dpsi_g -= self.residual_bias * dt
@@ -564,7 +569,8 @@ class GyroOdometry:
     @property
     def gyro_noise(self) -> float:
         """Return the rate noise density in use, rad/s/sqrt(Hz): measured after 2 s still."""
-        if self.config.measure_noise and self._still_seen >= STILL_KNOWN and self._blocks:
+        if (self.config.measure_noise and self._still_seen >= STILL_KNOWN - SUM_TOLERANCE
+                and self._blocks):
             return math.sqrt(self._noise2)
         return self.config.gyro_noise
 
@@ -579,7 +585,7 @@ class GyroOdometry:
         block = self._block
         block[0] += mean_raw * span
         block[1] += span
-        if block[1] >= NOISE_BLOCK:
+        if block[1] >= NOISE_BLOCK - SUM_TOLERANCE:
             d = block[0] / block[1] - self.bias
             self._blocks += 1
             w = max(1.0 / self._blocks, block[1] / self.config.bias_time)
@@ -589,7 +595,7 @@ class GyroOdometry:
     @property
     def bias_known(self) -> bool:
         """Whether the bias is known: from 2 s of standstill, or to ``bias_std`` in motion."""
-        if self._still_seen >= STILL_KNOWN:
+        if self._still_seen >= STILL_KNOWN - SUM_TOLERANCE:
             return True
         return self._bias_std <= self.config.bias_std
 
@@ -608,7 +614,7 @@ class GyroOdometry:
             seg[0] += turn
             seg[1] += dpsi_g
             seg[2] += dt
-        if seg[2] < cfg.adapt_segment:
+        if seg[2] < cfg.adapt_segment - SUM_TOLERANCE:
             return
         a, yv, duration = seg
         self._segment = [0.0, 0.0, 0.0]
@@ -625,7 +631,7 @@ class GyroOdometry:
         m0 = moment[0] + cfg.adapt_prior * self._u0
         m1 = moment[1]
         lo, hi = self._u_bounds
-        if self._still_seen >= STILL_KNOWN:
+        if self._still_seen >= STILL_KNOWN - SUM_TOLERANCE:
             # The standstill measured the bias: the disagreement is slip alone.
             u = min(max(m0 / i00, lo), hi)
             b = 0.0
