@@ -2,7 +2,6 @@
 
 from helpers.gyro_drive import gyro_drive
 import numpy as np
-import pytest
 from tracked_kinematics.core.covariance import arc_step, body_jacobian, TrackNoise
 from tracked_kinematics.core.gyro_odometry import GYRO, GyroConfig, GyroOdometry, replay
 from tracked_kinematics.core.kinematics import IcrParams
@@ -116,6 +115,10 @@ def test_turn_slip_terms_are_the_noise_models():
         np.testing.assert_allclose(got, expected, rtol=1e-12, atol=1e-18)
 
 
+def upper(q):
+    return tuple(q[i, j] for i, j in ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2)))
+
+
 def test_propagate_step_unrolled_equals_the_matrix_form():
     rng = np.random.default_rng(3)
     for _ in range(20):
@@ -125,8 +128,6 @@ def test_propagate_step_unrolled_equals_the_matrix_form():
         s = b @ b.T
         m = tuple(tuple(row) for row in rng.standard_normal((2, 3)).tolist())
         dx, dy = rng.standard_normal(2)
-        upper = lambda q: tuple(q[i, j] for i, j in ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2),
-                                                       (2, 2)))  # noqa: E731
         np.testing.assert_allclose(propagate_step(upper(p), dx, dy, m, upper(s)),
                                    upper(propagate_body(p, dx, dy, m, s)), rtol=1e-12,
                                    atol=1e-12)

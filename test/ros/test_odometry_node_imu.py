@@ -192,7 +192,7 @@ def test_an_imu_that_appears_late(graph):
     seen = []
     g.feed(t, left, right, tg[late], wg[late],
            lambda s: seen.append((s, g.node.odometry.source, g.node.odometry.reason)))
-    first = dict((s, (src, why)) for s, src, why in seen)
+    first = {s: (src, why) for s, src, why in seen}
     assert first[T0 + 0.5] == ('encoders', 'no gyro sample yet')
     assert g.node.odometry.source == 'gyro' and not g.fallbacks()
 
