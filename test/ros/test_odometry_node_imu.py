@@ -296,3 +296,21 @@ def test_hostile_runtime_changes_are_refused(graph):
         assert not g.node.set_parameters([Parameter(name, value=value)])[0].successful
     assert g.node.set_parameters([Parameter('imu_timeout', value=0.2)])[0].successful
     assert g.node.odometry.config.timeout == 0.2
+
+
+@pytest.mark.parametrize('frame', ['', 'a', 'imu_link', 'x' * 13])
+def test_imu_reader_reads_what_rclpy_reads(frame):
+    from rclpy.serialization import serialize_message
+    from tracked_kinematics.ros.imu_reader import ImuReader, raw_stamp_key
+    reader = ImuReader()
+    for z in (0.3, -1.5, math.inf, math.nan):
+        msg = imu_msg(12.000000007, z)
+        msg.header.frame_id = frame
+        msg.angular_velocity.x = 9.0
+        msg.orientation_covariance[8] = 4.0
+        data = serialize_message(msg)
+        for _ in range(2):   # the first by rclpy, the second in place
+            stamp_s, rate = reader.read(data)
+            assert stamp_s == 12 + 7e-9 and (rate == z or (math.isnan(z) and math.isnan(rate)))
+        assert raw_stamp_key(data) == 12_000_000_007
+    assert reader.read(b'\x00\x01\x00\x00garbage') is None

@@ -34,6 +34,7 @@ from tracked_kinematics.ros.encoder_input import (
     check_encoder_values, EncoderInput, WARN_PERIOD)
 from tracked_kinematics.ros.health import Health, WARN
 from tracked_kinematics.ros.icr_push import IcrPusher
+from tracked_kinematics.ros.imu_reader import ImuReader, raw_stamp_key
 from tracked_kinematics.ros.input_topic import CHECK_PERIOD, InputTopic, steady_timer
 from tracked_kinematics.ros.main import run
 from tracked_kinematics.ros.odometry_message import OdometrySerializer
@@ -224,8 +225,9 @@ class OdometryNode(TableNode):
         if self._gyro:
             # The gyro is not needed (the encoders carry on without it): its absence is the
             # heading source's WARN, not an ERROR.
+            self._imu_reader = ImuReader()
             self.imu = InputTopic(self, Imu, values['imu_topic'], self._on_imu,
-                                  order_key=_stamp_ns)
+                                  order_key=raw_stamp_key, raw=True)
             self.health.watch(self.imu, needed=False)
             self._icr_publisher = self.create_publisher(Float64MultiArray, '~/icr', 10)
             self._pusher = IcrPusher(self)
@@ -306,9 +308,14 @@ class OdometryNode(TableNode):
         if odometry.source == ENCODERS and not reason.startswith(_NOT_A_FAULT):
             report.merge(WARN, f'heading from the encoders: {reason}')
 
-    def _on_imu(self, msg) -> None:
-        stamp = msg.header.stamp
-        self.odometry.imu(stamp.sec + stamp.nanosec * 1e-9, msg.angular_velocity.z)
+    def _on_imu(self, data: bytes) -> None:
+        sample = self._imu_reader.read(data)
+        if sample is None:
+            self.get_logger().warning(f'{self.imu.topic_name}: a message that is no '
+                                      'sensor_msgs/Imu: skipped',
+                                      throttle_duration_sec=WARN_PERIOD)
+            return
+        self.odometry.imu(*sample)
         if self.odometry.source != self._source:
             self._switched()
 
@@ -455,11 +462,6 @@ class OdometryNode(TableNode):
     def _reset(self) -> None:
         self.odometry.reset()
         self._last_publish_ns = None
-
-
-def _stamp_ns(msg) -> int:
-    stamp = msg.header.stamp
-    return stamp.sec * 1_000_000_000 + stamp.nanosec
 
 
 def _long_lived_node() -> OdometryNode:
