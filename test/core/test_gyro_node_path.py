@@ -111,7 +111,7 @@ def test_turn_slip_terms_are_the_noise_models():
         _, _, m = arc_step(0.7, dx, dy, dth)
         expected = propagate_step((0.0,) * 6, 0.0, 0.0, m,
                                   step_covariance(model, body, ICR.track_width, d_left, d_right))
-        got = turn_slip_step(*turn_slip(model, ICR.track_width, dx, dth), m)
+        got = turn_slip_step((0.0,) * 6, *turn_slip(model, ICR.track_width, dx, dth), m)
         np.testing.assert_allclose(got, expected, rtol=1e-12, atol=1e-18)
 
 

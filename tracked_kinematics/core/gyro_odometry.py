@@ -558,8 +558,7 @@ class GyroOdometry:
             covariance = propagate(self.covariance_upper, delta_x, delta_y,
                                    travel_jacobian(jacobian, self._body), var_left, var_right)
             if position > 0.0 or heading > 0.0:
-                extra = turn_slip_step(position, heading, jacobian)
-                covariance = tuple(a + b for a, b in zip(covariance, extra))
+                covariance = turn_slip_step(covariance, position, heading, jacobian)
         return saturate(covariance)
 
     def _model_variance(self, dpsi_e, big):

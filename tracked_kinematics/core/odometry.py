@@ -101,8 +101,8 @@ class Odometry:
                                travel_jacobian(m, self._body), var_left, var_right)
         terms = self.terms
         if terms is not None:
-            extra = turn_slip_step(*turn_slip(terms, self.icr.track_width, dx, dtheta), m)
-            covariance = tuple(a + b for a, b in zip(covariance, extra))
+            covariance = turn_slip_step(
+                covariance, *turn_slip(terms, self.icr.track_width, dx, dtheta), m)
         covariance = saturate(covariance)
         theta += dtheta
         if abs(theta) > _HEADING_WRAP:

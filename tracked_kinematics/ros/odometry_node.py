@@ -47,6 +47,12 @@ NODE_NAME = 'odometry_node'
 _DEFAULT_NOISE = TrackNoise()
 _DEFAULT_GYRO = GyroConfig()
 
+
+def _prior(term: str) -> float:
+    """Return the noise model's prior of a term, to 12 digits (0.1 ** 2 is 0.01 here)."""
+    return float(f'{getattr(PRIOR, term):.12g}')
+
+
 #: Labels of the ``~/icr`` message, icr_estimator's ``icr_estimate`` layout.
 ICR_LAYOUT = ('y_left', 'y_right', 'x', 'chi', 'e')
 
@@ -80,13 +86,13 @@ ODOMETRY_PARAMS: tuple[ParamSpec, ...] = (
     ParamSpec('covariance.floor', _DEFAULT_NOISE.floor,
               'Variance added to each track travel per encoder sample', 'm^2', non_negative,
               low=0.0, high=1.0),
-    ParamSpec('covariance.turn', PRIOR.turn,
+    ParamSpec('covariance.turn', _prior('turn'),
               'Variance of the heading per radian turned (slip varying from turn to turn; 0: '
               'off)', 'rad^2/rad', non_negative, low=0.0, high=1.0),
-    ParamSpec('covariance.slip', PRIOR.slip,
+    ParamSpec('covariance.slip', _prior('slip'),
               'Variance of each position coordinate per radian turned on the spot (0: off)',
               'm^2/rad', non_negative, low=0.0, high=10.0),
-    ParamSpec('covariance.timing', PRIOR.timing,
+    ParamSpec('covariance.timing', _prior('timing'),
               'Variance of the time of the odometry: the published pose covariance adds it '
               'times the current rates squared (0: off)', 's^2', non_negative,
               low=0.0, high=1.0),
@@ -438,7 +444,9 @@ class OdometryNode(TableNode):
             cos_t, sin_t = math.cos(theta), math.sin(theta)
             extra = timing_covariance(self._timing, cos_t * v_x - sin_t * v_y,
                                       sin_t * v_x + cos_t * v_y, w)
-            pose_covariance = saturate(tuple(a + b for a, b in zip(pose_covariance, extra)))
+            xx, xy, xt, yy, yt, tt = pose_covariance
+            pose_covariance = saturate((xx + extra[0], xy + extra[1], xt + extra[2],
+                                        yy + extra[3], yt + extra[4], tt + extra[5]))
         if not all(map(math.isfinite, twist + twist_covariance)):
             self.get_logger().warning(
                 f'non-finite twist {twist} not published', throttle_duration_sec=WARN_PERIOD)
