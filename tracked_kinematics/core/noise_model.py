@@ -311,3 +311,204 @@ def turn_slip_step(p, position: float, heading: float, m):
             yy + (position * (h0 * h0 + h1 * h1) + heading * h2 * h2),
             yt + heading * h2,
             tt + heading)
+
+
+def timing_covariance(model: NoiseModel, v_x: float, v_y: float, w: float):
+    """
+    Return ``timing v v^T`` as an upper triangle: what a published pose covariance adds.
+
+    ``v = (v_x, v_y, w)`` is the pose rate in the frame of the covariance (the fixed frame:
+    m/s, m/s, rad/s). Not accumulated: the node adds it to the covariance it publishes
+    (the time error at the end), and starts a reset from it (the time error at the start).
+    """
+    k = model.timing
+    return (k * v_x * v_x, k * v_x * v_y, k * v_x * w, k * v_y * v_y, k * v_y * w, k * w * w)
+
+
+def _prefix(values):
+    """Cumulative sums with a leading zero along axis 0."""
+    values = np.asarray(values, float)
+    return np.concatenate([np.zeros((1,) + values.shape[1:]), np.cumsum(values, axis=0)])
+
+
+def window_bases(icr: IcrParams, d_left, d_right, dt, start, end):
+    """
+    Pose-covariance bases of windows of a path: one 3 x 3 matrix per window and term.
+
+    The path is the odometry of the steps (from the origin); a window runs from step
+    boundary ``start`` to ``end``. The covariance of its final pose relative to its start,
+    linearised about the path (module docstring), is ``sum_m c_m A[:, m]`` in the frame of
+    the heading at ``start``, for the constants ``c`` of :data:`TERMS`; the ``floor`` is
+    left out (negligible while moving). Vectorised over the windows with cumulative sums;
+    the steps are integrated with the midpoint heading (they are short).
+
+    Parameters
+    ----------
+    icr : IcrParams
+        Kinematic model.
+    d_left, d_right : ndarray, shape (N,)
+        Nominal travel of each track over each step, m.
+    dt : ndarray, shape (N,)
+        Duration of each step, s (> 0), for the rates of the timing term.
+    start, end : ndarray of int, shape (W,)
+        Step boundaries (0..N) of each window, ``start < end``.
+
+    Returns
+    -------
+    bases : ndarray, shape (W, len(TERMS), 3, 3)
+        Of the final pose ``(x, y, theta)`` relative to the window's start.
+    motion : ndarray, shape (W, 3)
+        The odometry's motion over each window in the frame of its start: ``(x, y, theta)``.
+
+    """
+    d_left = np.asarray(d_left, float)
+    d_right = np.asarray(d_right, float)
+    start = np.asarray(start, np.intp)
+    end = np.asarray(end, np.intp)
+    b = np.asarray(body_jacobian(icr))
+    body = np.column_stack([d_left, d_right]) @ b.T                     # (N, 3)
+    dth = body[:, 2]
+    heading = np.concatenate([[0.0], np.cumsum(dth)])
+    mid = heading[:-1] + 0.5 * dth
+    c, s = np.cos(mid), np.sin(mid)
+    px = np.concatenate([[0.0], np.cumsum(c * body[:, 0] - s * body[:, 1])])
+    py = np.concatenate([[0.0], np.cumsum(s * body[:, 0] + c * body[:, 1])])
+    # A heading error of step k acts from its middle; its lever arm to the window's end is
+    # q_end - q_k, with q = perp(p) = (-y, x).
+    q = np.column_stack([-0.5 * (py[:-1] + py[1:]), 0.5 * (px[:-1] + px[1:])])
+    qe = np.column_stack([-py[end], px[end]])
+    rot = np.stack([np.stack([c, -s], -1), np.stack([s, c], -1)], -2)  # (N, 2, 2)
+    steps = _step_covariances(icr, d_left, d_right)
+
+    def over(values):
+        prefix = _prefix(values)
+        return prefix[end] - prefix[start]
+
+    bases = np.zeros((len(start), len(TERMS), 3, 3))
+    for k in range(steps.shape[1]):
+        sk = steps[:, k]
+        # Position block in the fixed frame: R S_pp R^T; position-heading: R S_pt.
+        pp = rot @ sk[:, :2, :2] @ np.swapaxes(rot, 1, 2)
+        cross = (rot @ sk[:, :2, 2:3])[:, :, 0]
+        v = sk[:, 2, 2]
+        sum_c = over(cross)
+        sum_v = over(v)
+        sum_vq = over(v[:, None] * q)
+        # sum_k c_k (qe - q_k)^T and sum_k v_k (qe - q_k)(qe - q_k)^T
+        cross_term = sum_c[:, :, None] * qe[:, None, :] - over(cross[:, :, None] * q[:, None, :])
+        heading_term = (sum_v[:, None, None] * qe[:, :, None] * qe[:, None, :]
+                        - qe[:, :, None] * sum_vq[:, None, :]
+                        - sum_vq[:, :, None] * qe[:, None, :]
+                        + over(v[:, None, None] * q[:, :, None] * q[:, None, :]))
+        bases[:, k, :2, :2] = (over(pp) + cross_term + np.swapaxes(cross_term, 1, 2)
+                               + heading_term)
+        bases[:, k, :2, 2] = sum_c + qe * sum_v[:, None] - sum_vq
+        bases[:, k, 2, :2] = bases[:, k, :2, 2]
+        bases[:, k, 2, 2] = sum_v
+    # Timing: the pose rate at each end (that of the step ending there), fixed frame.
+    rate = body / np.asarray(dt, float)[:, None]
+    k = TERMS.index('timing')
+    for at in (start, end):
+        step = np.clip(at - 1, 0, len(dth) - 1)
+        h = heading[at]
+        u = np.column_stack([np.cos(h) * rate[step, 0] - np.sin(h) * rate[step, 1],
+                             np.sin(h) * rate[step, 0] + np.cos(h) * rate[step, 1],
+                             rate[step, 2]])
+        bases[:, k] += u[:, :, None] * u[:, None, :]
+    # To the frame of the window's start heading.
+    h0 = heading[start]
+    c0, s0 = np.cos(h0), np.sin(h0)
+    r0 = np.zeros((len(start), 3, 3))
+    r0[:, 0, 0], r0[:, 0, 1], r0[:, 1, 0], r0[:, 1, 1], r0[:, 2, 2] = c0, s0, -s0, c0, 1.0
+    bases = r0[:, None] @ bases @ np.swapaxes(r0, 1, 2)[:, None]
+    dx, dy = px[end] - px[start], py[end] - py[start]
+    motion = np.column_stack([c0 * dx + s0 * dy, -s0 * dx + c0 * dy, heading[end] - h0])
+    return 0.5 * (bases + np.swapaxes(bases, 2, 3)), motion
+
+
+def covariances(bases, model: NoiseModel, floor: float = 1e-12) -> np.ndarray:
+    """
+    Return the windows' position covariances ``sum_m c_m A_m`` (W, 2, 2) of a model, m^2.
+
+    ``floor`` (m^2) is added on the diagonal so that a window without motion stays
+    invertible.
+    """
+    cov = np.einsum('wmij,m->wij', bases[:, :, :2, :2], model.constants)
+    cov[:, 0, 0] += floor
+    cov[:, 1, 1] += floor
+    return cov
+
+
+def nees(errors_xy, covariances_xy) -> np.ndarray:
+    """
+    Normalised estimation error squared of 2-D errors, ``e^T P^-1 e``, one per window.
+
+    Parameters
+    ----------
+    errors_xy : array_like, shape (W, 2)
+        Final position errors, m.
+    covariances_xy : array_like, shape (W, 2, 2)
+        Their published covariances, m^2.
+
+    """
+    e = np.asarray(errors_xy, float)
+    p = np.asarray(covariances_xy, float)
+    a, b, d = p[:, 0, 0], p[:, 0, 1], p[:, 1, 1]
+    det = a * d - b * b
+    return (d * e[:, 0] ** 2 - 2.0 * b * e[:, 0] * e[:, 1] + a * e[:, 1] ** 2) / det
+
+
+def consistency(errors_xy, covariances_xy) -> dict:
+    """
+    How often windowed position errors fall inside the published ellipses.
+
+    The share of windows whose error is inside the 50 % and the 95 % ellipse of its
+    covariance (NEES below the chi-square quantiles of 2 degrees of freedom, 1.386 and
+    5.991) and the mean NEES (2 for a consistent covariance, Bar-Shalom et al. 2001,
+    sec. 5.4).
+
+    Parameters
+    ----------
+    errors_xy : array_like, shape (W, 2)
+        Final position errors of the windows, m (any frame, the covariance's).
+    covariances_xy : array_like, shape (W, 2, 2)
+        Their covariances, m^2, positive definite.
+
+    Returns
+    -------
+    dict
+        ``inside_50``, ``inside_95`` (fractions), ``mean_nees`` and ``windows`` (the count);
+        the figures are None without windows.
+
+    """
+    e = np.asarray(errors_xy, float).reshape(-1, 2)
+    if len(e) == 0:
+        return {'inside_50': None, 'inside_95': None, 'mean_nees': None, 'windows': 0}
+    n = nees(e, np.asarray(covariances_xy, float).reshape(-1, 2, 2))
+    return {'inside_50': float(np.mean(n <= CHI2_50)), 'inside_95': float(np.mean(n <= CHI2_95)),
+            'mean_nees': float(np.mean(n)), 'windows': int(len(n))}
+
+
+def heading_consistency(errors, variances) -> dict:
+    """
+    How often windowed heading errors fall inside the published intervals (a gyro reference).
+
+    As :func:`consistency` with one degree of freedom: the shares inside the 50 % and 95 %
+    intervals (normalised squared error below 0.455 and 3.841) and the mean normalised
+    squared error (1 for a consistent variance).
+
+    Parameters
+    ----------
+    errors : array_like, shape (W,)
+        Final heading errors, rad.
+    variances : array_like, shape (W,)
+        Their variances, rad^2, > 0.
+
+    """
+    e = np.asarray(errors, float).ravel()
+    if len(e) == 0:
+        return {'inside_50': None, 'inside_95': None, 'mean_nees': None, 'windows': 0}
+    n = e * e / np.asarray(variances, float).ravel()
+    return {'inside_50': float(np.mean(n <= CHI2_1_50)),
+            'inside_95': float(np.mean(n <= CHI2_1_95)), 'mean_nees': float(np.mean(n)),
+            'windows': int(len(n))}
