@@ -16,7 +16,8 @@ from tracked_kinematics.core.covariance import TrackNoise
 from tracked_kinematics.core.gyro_odometry import replay
 from tracked_kinematics.core.odometry import Odometry
 from tracked_kinematics.params import icr_from_values, read_params_file
-from tracked_kinematics.ros.odometry_node import gyro_config, OdometryNode
+from tracked_kinematics.params import gyro_config_from_values
+from tracked_kinematics.ros.odometry_node import OdometryNode
 from tracked_kinematics.ros.parameters import ParameterError
 from tracked_kinematics.share import config_file
 
@@ -112,11 +113,12 @@ def test_gyro_heading_matches_replay_and_the_truth(graph):
     t, left, right, tg, wg = drive()
     msgs = g.feed(t, left, right, tg, wg)
     assert g.node.odometry.source == 'gyro'
-    # The node is replay() of the same streams (evaluate_model --fuse-imu's path).
+    # The node is replay() of the same streams with gyro_config_from_values of its
+    # parameters: evaluate_model --fuse-imu's path.
     # The stamps as the node reads them: integer nanoseconds, in seconds.
     ns = (lambda times: np.round(np.asarray(times) * 1e9) * 1e-9)
     poses, sources, end = replay(ns(t), left, right, ns(tg), wg, AURIGA,
-                                 gyro_config(g.node.params))
+                                 gyro_config_from_values(g.node.params))
     got = np.array([[m.pose.pose.position.x, m.pose.pose.position.y] for m in msgs])
     np.testing.assert_allclose(got, poses[1:, :2], atol=1e-6)
     np.testing.assert_allclose(yaws(msgs), poses[1:, 2], atol=1e-6)

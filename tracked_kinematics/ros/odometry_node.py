@@ -27,9 +27,9 @@ from tracked_kinematics.core.integration import quaternion_from_yaw
 from tracked_kinematics.core.kinematics import eccentricity, IcrParams, steering_efficiency
 from tracked_kinematics.core.noise_model import NoiseModel, PRIOR, timing_covariance
 from tracked_kinematics.core.odometry import Odometry
-from tracked_kinematics.params import (ENCODER_INPUT_PARAMS, frame_id, icr_from_values,
-                                       non_negative, ParamSpec, positive, TERRAIN_PARAMS,
-                                       zero_or_at_least)
+from tracked_kinematics.params import (ENCODER_INPUT_PARAMS, frame_id, gyro_config_from_values,
+                                       icr_from_values, non_negative, ParamSpec, positive,
+                                       TERRAIN_PARAMS, zero_or_at_least)
 from tracked_kinematics.params.spec import each, finite, node_name, ros_name
 from tracked_kinematics.ros.encoder_input import (
     check_encoder_values, EncoderInput, WARN_PERIOD)
@@ -145,18 +145,8 @@ def _terms(values: Mapping[str, Any]) -> NoiseModel:
                       floor=0.0)
 
 
-def gyro_config(values: Mapping[str, Any]) -> GyroConfig:
-    """
-    Return the gyro's configuration the node's parameters give.
-
-    What :func:`~tracked_kinematics.core.gyro_odometry.replay` must be given to reproduce
-    the node (evaluate_model ``--fuse-imu``).
-    """
-    return GyroConfig(
-        imu_delay=values['imu_delay'], gyro_scale=values['gyro_scale'],
-        gyro_noise=values['covariance.gyro_noise'], timeout=values['imu_timeout'],
-        saturation=values['imu_saturation'] or math.inf,
-        max_jump=values['imu_max_jump'] or math.inf, adapt=values['adapt_slip'])
+gyro_config = gyro_config_from_values
+"""How the node reads its gyro (:func:`~tracked_kinematics.params.gyro_config_from_values`)."""
 
 
 def validate(values: Mapping[str, Any]) -> IcrParams:
