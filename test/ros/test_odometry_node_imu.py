@@ -118,7 +118,7 @@ def test_gyro_heading_matches_replay_and_the_truth(graph):
     # The stamps as the node reads them: integer nanoseconds, in seconds.
     ns = (lambda times: np.round(np.asarray(times) * 1e9) * 1e-9)
     poses, sources, end = replay(ns(t), left, right, ns(tg), wg, AURIGA,
-                                 gyro_config_from_values(g.node.params))
+                                 gyro_config_from_values(g.node.params.values))
     got = np.array([[m.pose.pose.position.x, m.pose.pose.position.y] for m in msgs])
     np.testing.assert_allclose(got, poses[1:, :2], atol=1e-6)
     np.testing.assert_allclose(yaws(msgs), poses[1:, 2], atol=1e-6)
