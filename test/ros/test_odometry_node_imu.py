@@ -15,8 +15,8 @@ from std_msgs.msg import Float64MultiArray
 from tracked_kinematics.core.covariance import TrackNoise
 from tracked_kinematics.core.gyro_odometry import replay
 from tracked_kinematics.core.odometry import Odometry
-from tracked_kinematics.params import icr_from_values, read_params_file
-from tracked_kinematics.params import gyro_config_from_values
+from tracked_kinematics.params import (gyro_config_from_values, icr_from_values,
+                                       read_params_file)
 from tracked_kinematics.ros.odometry_node import OdometryNode
 from tracked_kinematics.ros.parameters import ParameterError
 from tracked_kinematics.share import config_file
