@@ -18,6 +18,7 @@ from std_srvs.srv import Trigger
 from tracked_kinematics.core.covariance import ros_covariance, TrackNoise, UNOBSERVED_VARIANCE
 from tracked_kinematics.core.integration import integrate
 from tracked_kinematics.core.kinematics import forward, true_speeds
+from tracked_kinematics.core.noise_model import NoiseModel, PRIOR, timing_covariance
 from tracked_kinematics.core.odometry import Odometry
 from tracked_kinematics.params import icr_from_values, read_params_file
 from tracked_kinematics.params.spec import check_values
@@ -115,11 +116,20 @@ def assert_matches_core(msgs, t, angle_left, angle_right, tol=1e-6):
     np.testing.assert_allclose(got_twist, twists, atol=tol)
     assert [(m.header.stamp.sec + m.header.stamp.nanosec * 1e-9) for m in msgs] == (
         pytest.approx(list(t[1:]), abs=1e-9))
-    # The covariance is the core's propagation, embedded in ROS's 6 x 6 layout.
-    core = Odometry(AURIGA, TrackNoise())
+    # The covariance is the core's propagation with the default noise model (the tracks'
+    # random walk, the turn and slip terms), plus the timing term at the last rates,
+    # embedded in ROS's 6 x 6 layout.
+    terms = NoiseModel(track=0.0, turn=PRIOR.turn, slip=PRIOR.slip, timing=PRIOR.timing,
+                       floor=0.0)
+    core = Odometry(AURIGA, TrackNoise(), terms)
     for dl, dr in zip(d_left, d_right):
         core.update(dl, dr, 1.0 / RATE)
-    np.testing.assert_allclose(msgs[-1].pose.covariance, ros_covariance(core.covariance_upper),
+    v_x, v_y, w = got_twist[-1]
+    theta = core.pose[2]
+    timing = timing_covariance(terms, math.cos(theta) * v_x - math.sin(theta) * v_y,
+                               math.sin(theta) * v_x + math.cos(theta) * v_y, w)
+    expected = [a + b for a, b in zip(core.covariance_upper, timing)]
+    np.testing.assert_allclose(msgs[-1].pose.covariance, ros_covariance(expected),
                                rtol=1e-9, atol=1e-15)
     return got_twist
 
@@ -206,8 +216,12 @@ def test_bad_input_never_publishes_non_finite_and_keeps_the_pose(graph):
         assert g.warned(text), text
 
 
+# The track random walk alone (the terms of the noise model that today's bounds predate off).
+TRACKS_ONLY = {'covariance.turn': 0.0, 'covariance.slip': 0.0, 'covariance.timing': 0.0}
+
+
 def test_reset_service_returns_pose_to_zero(graph):
-    g = graph()
+    g = graph(TRACKS_ONLY)
     t, angle_left, angle_right = manoeuvre('turn', seconds=0.4)
     g.stream(t, angle_left, angle_right)
     assert g.odom[-1].pose.pose.position.x > 0.05
@@ -424,7 +438,7 @@ def test_absurd_values_are_refused_and_the_node_keeps_running(graph, name, value
 def test_absurd_positions_do_not_freeze_the_heading(graph):
     # Issue 14 item 6: after left 1e100, 3e99, 0 rad, a 90 degree spin publishes 90 degrees.
     g = graph({'icr.y_left': 0.21, 'icr.y_right': -0.21, 'icr.x': 0.0, 'scale.left': 1.0,
-               'scale.right': 1.0})
+               'scale.right': 1.0, **TRACKS_ONLY})
     for i, left in enumerate((0.0, 1e100, 3e99, 0.0)):
         g.send(joint_state(10.0 + 0.02 * i, [left, 0.0]))
     assert g.warned('implausible encoder input skipped')

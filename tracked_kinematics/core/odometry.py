@@ -16,6 +16,7 @@ from .covariance import (
     arc_step, body_jacobian, full_matrix, propagate, saturate, TrackNoise, travel_jacobian,
     twist_covariance, TWIST_TIME, twist_variances)
 from .kinematics import IcrParams
+from .noise_model import NoiseModel, turn_slip, turn_slip_step
 
 _ZERO_COVARIANCE = (0.0,) * 6
 
@@ -35,17 +36,27 @@ class Odometry:
 
     ``pose`` is ``(x, y, theta)`` (m, m, rad; theta continuous); ``covariance_upper`` the upper
     triangle ``(xx, xy, xt, yy, yt, tt)``; ``steps`` those since the start or :meth:`reset`.
+
+    ``noise`` is the track random walk of each track; ``terms``, optional, adds the ``turn``
+    and ``slip`` terms of a :class:`.noise_model.NoiseModel` (its ``track`` and ``floor`` are
+    ``noise``'s; its ``timing`` is the publisher's: :func:`.noise_model.timing_covariance`).
+    Without them (or with both 0) the covariance is the track random walk alone.
     """
 
-    def __init__(self, icr: IcrParams, noise: TrackNoise | None = None):
-        self.set_model(icr, noise if noise is not None else TrackNoise())
+    def __init__(self, icr: IcrParams, noise: TrackNoise | None = None,
+                 terms: NoiseModel | None = None):
+        self.terms = None
+        self.set_model(icr, noise if noise is not None else TrackNoise(), terms)
         self.reset()
 
-    def set_model(self, icr: IcrParams, noise: TrackNoise | None = None) -> None:
+    def set_model(self, icr: IcrParams, noise: TrackNoise | None = None,
+                  terms: NoiseModel | None = None) -> None:
         """Use another kinematic model (and noise) from the next step on; keep the pose."""
         self.icr = icr
         if noise is not None:
             self.noise = noise
+        if terms is not None:
+            self.terms = terms if (terms.turn > 0.0 or terms.slip > 0.0) else None
         self._body = body_jacobian(icr)
 
     def reset(self) -> None:
@@ -86,8 +97,13 @@ class Odometry:
             return False
         delta_x, delta_y, m = arc_step(theta, dx, dy, dtheta)
         var_left, var_right = self.noise.travel_variances(d_left, d_right)
-        covariance = saturate(propagate(self.covariance_upper, delta_x, delta_y,
-                                        travel_jacobian(m, self._body), var_left, var_right))
+        covariance = propagate(self.covariance_upper, delta_x, delta_y,
+                               travel_jacobian(m, self._body), var_left, var_right)
+        terms = self.terms
+        if terms is not None:
+            covariance = turn_slip_step(
+                covariance, *turn_slip(terms, self.icr.track_width, dx, dtheta), m)
+        covariance = saturate(covariance)
         theta += dtheta
         if abs(theta) > _HEADING_WRAP:
             theta = math.remainder(theta, 2.0 * math.pi)
@@ -127,6 +143,14 @@ class Odometry:
         twist = (b0l * v_left + b0r * v_right, b1l * v_left + b1r * v_right,
                  b2l * v_left + b2r * v_right)
         xx, xy, xt, yy, yt, tt = twist_covariance(self._body, var_left, var_right, TWIST_TIME)
+        if self.terms is not None:
+            # The turn and slip terms of the mean twist over TWIST_TIME: S(v T) / T^2.
+            position, heading = turn_slip(self.terms, self.icr.track_width,
+                                          twist[0] * TWIST_TIME, twist[2] * TWIST_TIME)
+            scale = 1.0 / (TWIST_TIME * TWIST_TIME)
+            xx += position * scale
+            yy += position * scale
+            tt += heading * scale
         # With icr.x = 0 the model says v_y = 0 exactly; no model is exact, and a filter
         # should never be handed a zero variance: v_y is known to the floor's precision.
         return twist, (xx, xy, xt, yy + self.noise.floor / (TWIST_TIME * TWIST_TIME), yt, tt)

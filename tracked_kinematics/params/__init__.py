@@ -12,15 +12,16 @@ from .tables import (COMMAND_LIMIT_PARAMS, DRIVETRAIN_DEFAULTS, DRIVETRAIN_PARAM
                      ENCODER_INPUT_DEFAULTS, ENCODER_INPUT_PARAMS, INPUT_MODES,
                      JOINT_STATES_TOPIC, LIMIT_FIELDS, limit_value, SIDE_TOPICS,
                      TERRAIN_DEFAULTS, TERRAIN_PARAMS, TICKS_TYPES, unknown_terrain_parameters)
-from .values import (drivetrain_from_values, icr_from_values, limits_from_values,
-                     values_from_drivetrain, values_from_icr)
+from .values import (drivetrain_from_values, gyro_config_from_values, icr_from_values,
+                     limits_from_values, values_from_drivetrain, values_from_icr)
 
 __all__ = [
     'COMMAND_LIMIT_PARAMS', 'DRIVETRAIN_DEFAULTS', 'DRIVETRAIN_PARAMS', 'Derived',
     'ENCODER_INPUT_DEFAULTS', 'ENCODER_INPUT_PARAMS', 'INPUT_MODES', 'JOINT_STATES_TOPIC',
     'LIMIT_FIELDS', 'ParamSpec', 'SIDE_TOPICS', 'TERRAIN_DEFAULTS', 'TERRAIN_PARAMS',
     'TICKS_TYPES', 'check_values', 'described_as', 'drivetrain_from_values', 'each', 'finite',
-    'flatten', 'frame_id', 'icr_from_values', 'in_range', 'limit_value', 'limits_from_values',
+    'flatten', 'frame_id', 'gyro_config_from_values', 'icr_from_values', 'in_range',
+    'limit_value', 'limits_from_values',
     'missing_message', 'nest', 'node_name', 'non_negative', 'one_of', 'params_text',
     'positive', 'read_params_file', 'resolve', 'ros_name', 'typos', 'unknown_parameters',
     'unknown_terrain_parameters', 'values_from_drivetrain', 'values_from_icr',

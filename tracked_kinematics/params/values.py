@@ -10,6 +10,7 @@ from typing import Any
 from tracked_kinematics.core.command import CommandLimits
 from tracked_kinematics.core.drivetrain import DriveTrain, FirstOrderLag, PidMotor
 from tracked_kinematics.core.errors import InvalidParameters
+from tracked_kinematics.core.gyro_odometry import GyroConfig
 from tracked_kinematics.core.kinematics import IcrParams
 
 from .spec import check_values, missing_message, resolve
@@ -146,3 +147,24 @@ def limits_from_values(values: Mapping[str, Any]) -> CommandLimits:
             value = math.inf
         limits[field] = value
     return CommandLimits(**limits)
+
+
+def gyro_config_from_values(values: Mapping[str, Any]) -> GyroConfig:
+    """
+    Return how odometry_node reads its gyro, from its parameters or a terrain file's values.
+
+    Keys (odometry_node's defaults for the missing ones): ``imu_delay``, ``gyro_scale``,
+    ``covariance.gyro_noise``, ``imu_timeout``, ``imu_saturation`` and ``imu_max_jump`` (0:
+    none), ``adapt_slip`` (default true). What
+    :func:`~tracked_kinematics.core.gyro_odometry.replay` must be given to reproduce the
+    node (evaluate_model ``--fuse-imu``).
+    """
+    default = GyroConfig()
+    return GyroConfig(
+        imu_delay=values.get('imu_delay', default.imu_delay),
+        gyro_scale=values.get('gyro_scale', default.gyro_scale),
+        gyro_noise=values.get('covariance.gyro_noise', default.gyro_noise),
+        timeout=values.get('imu_timeout', default.timeout),
+        saturation=values.get('imu_saturation', 0.0) or math.inf,
+        max_jump=values.get('imu_max_jump', 0.0) or math.inf,
+        adapt=values.get('adapt_slip', True))

@@ -18,8 +18,6 @@ from builtin_interfaces.msg import Time
 from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped, Twist
 from nav_msgs.msg import Odometry, Path
 import numpy as np
-from rcl_interfaces.msg import Parameter as ParameterMsg, ParameterType
-from rcl_interfaces.srv import SetParametersAtomically
 from sensor_msgs.msg import Imu
 from std_msgs.msg import Float64MultiArray, MultiArrayDimension
 from tracked_kinematics.core.estimate.ekf import EstimatorConfig, SlipEstimator
@@ -36,6 +34,7 @@ from tracked_kinematics.params import (
 from tracked_kinematics.ros.encoder_input import (
     check_encoder_values, EncoderInput, WARN_PERIOD)
 from tracked_kinematics.ros.health import Health
+from tracked_kinematics.ros.icr_push import IcrPusher
 from tracked_kinematics.ros.input_topic import CHECK_PERIOD, InputTopic, steady_timer
 from tracked_kinematics.ros.main import run
 from tracked_kinematics.ros.parameters import TableNode
@@ -222,9 +221,7 @@ class IcrEstimatorNode(TableNode):
         self._logged: dict[str, int] = {}
         self._frame = ''
         self._command = None
-        self._pushed = None
-        self._push_clients = {}
-        self._last_push_ns = None
+        self._pusher = IcrPusher(self, lambda target, icr: self.counts.update(('pushed',)))
         self._apply(values)
         self.encoder = EncoderInput(self, values, self._on_step)
         pose_type = POSE_TYPES[values['pose_type']]
@@ -370,7 +367,7 @@ class IcrEstimatorNode(TableNode):
 
     def _reset(self) -> None:
         self.estimator.reset()
-        self._pushed = None
+        self._pusher.reset()
 
     # --- outputs ------------------------------------------------------------------------
 
@@ -459,46 +456,7 @@ class IcrEstimatorNode(TableNode):
             v_left, v_right = self.estimator.last_speeds
             if abs(v_right - v_left) < 0.05 * max(abs(v_left), abs(v_right), 0.1):
                 return  # straight: the ICRs are not observable, keep the last pushed ones
-        now_ns = self.get_clock().now().nanoseconds
-        if (self._last_push_ns is not None
-                and now_ns - self._last_push_ns < values['push_period'] * 1e9):
-            return
-        if self._pushed is not None and max(
-                abs(a - b) for a, b in zip(icr, self._pushed)) <= values['push_min_change']:
-            return
-        request = SetParametersAtomically.Request()
-        for name, value in zip(('icr.y_left', 'icr.y_right', 'icr.x'), icr):
-            param = ParameterMsg(name=name)
-            param.value.type = ParameterType.PARAMETER_DOUBLE
-            param.value.double_value = float(value)
-            request.parameters.append(param)
-        self._last_push_ns = now_ns
-        for target in values['push_to']:
-            client = self._push_clients.get(target)
-            if client is None:
-                client = self.create_client(
-                    SetParametersAtomically, f'/{target.strip("/")}/set_parameters_atomically')
-                self._push_clients[target] = client
-            if not client.service_is_ready():
-                self.get_logger().warning(f'cannot push the ICRs: {client.srv_name} is not '
-                                          'available', throttle_duration_sec=WARN_PERIOD)
-                continue
-            future = client.call_async(request)
-            future.add_done_callback(
-                lambda f, target=target, icr=icr: self._pushed_to(target, icr, f))
-
-    def _pushed_to(self, target, icr, future) -> None:
-        result = future.result()
-        if result is None or not result.result.successful:
-            reason = 'no answer' if result is None else result.result.reason
-            self.get_logger().warning(f'{target} refused the ICRs {icr}: {reason}',
-                                      throttle_duration_sec=WARN_PERIOD)
-            return
-        self._pushed = icr
-        self.counts['pushed'] += 1
-        self.get_logger().info(
-            f'pushed icr.y_left {icr[0]:.3f}, icr.y_right {icr[1]:.3f}, icr.x {icr[2]:.3f} m '
-            f'to {target}', throttle_duration_sec=WARN_PERIOD)
+        self._pusher.push(icr, values)
 
 
 def main(args=None):

@@ -2,8 +2,9 @@
 odometry_node: track encoders to nav_msgs/Odometry through the tread-ICR kinematics.
 
 A thin adapter: :class:`~tracked_kinematics.ros.encoder_input.EncoderInput` gives travel
-steps, :class:`~tracked_kinematics.core.odometry.Odometry` integrates them, this node fills
-``odom`` and the transform. See docs/nodes/odometry_node.md.
+steps, :class:`~tracked_kinematics.core.odometry.Odometry` integrates them (or, with an
+``imu_topic``, :class:`~tracked_kinematics.core.gyro_odometry.GyroOdometry`, fed the gyro's
+samples too), this node fills ``odom`` and the transform. See docs/nodes/odometry_node.md.
 """
 
 from __future__ import annotations
@@ -16,18 +17,26 @@ from typing import Any
 
 from geometry_msgs.msg import TransformStamped
 from nav_msgs.msg import Odometry as OdometryMsg
+from rclpy.exceptions import InvalidHandle
 from rclpy.qos import QoSProfile, ReliabilityPolicy
-from tracked_kinematics.core.covariance import TrackNoise
+from sensor_msgs.msg import Imu
+from std_msgs.msg import Float64MultiArray, MultiArrayDimension
+from tracked_kinematics.core.covariance import saturate, TrackNoise
+from tracked_kinematics.core.gyro_odometry import ENCODERS, GYRO, GyroConfig, GyroOdometry
 from tracked_kinematics.core.integration import quaternion_from_yaw
-from tracked_kinematics.core.kinematics import IcrParams
+from tracked_kinematics.core.kinematics import eccentricity, IcrParams, steering_efficiency
+from tracked_kinematics.core.noise_model import NoiseModel, PRIOR, timing_covariance
 from tracked_kinematics.core.odometry import Odometry
-from tracked_kinematics.params import (ENCODER_INPUT_PARAMS, frame_id, icr_from_values,
-                                       non_negative, ParamSpec, TERRAIN_PARAMS,
-                                       zero_or_at_least)
+from tracked_kinematics.params import (ENCODER_INPUT_PARAMS, frame_id, gyro_config_from_values,
+                                       icr_from_values, non_negative, ParamSpec, positive,
+                                       TERRAIN_PARAMS, zero_or_at_least)
+from tracked_kinematics.params.spec import each, finite, node_name, ros_name
 from tracked_kinematics.ros.encoder_input import (
     check_encoder_values, EncoderInput, WARN_PERIOD)
-from tracked_kinematics.ros.health import Health
-from tracked_kinematics.ros.input_topic import CHECK_PERIOD, steady_timer
+from tracked_kinematics.ros.health import Health, WARN
+from tracked_kinematics.ros.icr_push import IcrPusher
+from tracked_kinematics.ros.imu_reader import ImuReader, raw_stamp_key
+from tracked_kinematics.ros.input_topic import CHECK_PERIOD, InputTopic, steady_timer
 from tracked_kinematics.ros.main import run
 from tracked_kinematics.ros.odometry_message import OdometrySerializer
 from tracked_kinematics.ros.parameters import TableNode
@@ -37,6 +46,28 @@ NODE_NAME = 'odometry_node'
 
 
 _DEFAULT_NOISE = TrackNoise()
+_DEFAULT_GYRO = GyroConfig()
+
+
+def _prior(term: str) -> float:
+    """Return the noise model's prior of a term, to 12 digits (0.1 ** 2 is 0.01 here)."""
+    return float(f'{getattr(PRIOR, term):.12g}')
+
+
+#: Labels of the ``~/icr`` message, icr_estimator's ``icr_estimate`` layout.
+ICR_LAYOUT = ('y_left', 'y_right', 'x', 'chi', 'e')
+
+# Reasons the gyro is not used that are no fault of the IMU (no warning, no WARN level).
+_NOT_A_FAULT = ('no gyro sample yet', 'the gyro bias is not known yet')
+
+
+def _topic_or_empty(value) -> str | None:
+    if value == '':
+        return None
+    return ros_name(value)
+
+
+_topic_or_empty.words = "'' (off) or a valid ROS name"
 
 ODOMETRY_PARAMS: tuple[ParamSpec, ...] = (
     ParamSpec('odom_frame', 'odom', 'Frame of the published pose (header.frame_id)',
@@ -56,6 +87,47 @@ ODOMETRY_PARAMS: tuple[ParamSpec, ...] = (
     ParamSpec('covariance.floor', _DEFAULT_NOISE.floor,
               'Variance added to each track travel per encoder sample', 'm^2', non_negative,
               low=0.0, high=1.0),
+    ParamSpec('covariance.turn', _prior('turn'),
+              'Variance of the heading per radian turned (slip varying from turn to turn; 0: '
+              'off)', 'rad^2/rad', non_negative, low=0.0, high=1.0),
+    ParamSpec('covariance.slip', _prior('slip'),
+              'Variance of each position coordinate per radian turned on the spot (0: off)',
+              'm^2/rad', non_negative, low=0.0, high=10.0),
+    ParamSpec('covariance.timing', _prior('timing'),
+              'Variance of the time of the odometry: the published pose covariance adds it '
+              'times the current rates squared (0: off)', 's^2', non_negative,
+              low=0.0, high=1.0),
+    ParamSpec('covariance.gyro_noise', _DEFAULT_GYRO.gyro_noise,
+              'White rate noise of the gyro, used until 2 s of standstill have measured it',
+              'rad/s/sqrt(Hz)', non_negative, low=0.0, high=1.0),
+    ParamSpec('imu_topic', '',
+              "sensor_msgs/Imu topic whose angular_velocity.z gives the heading ('' = off: "
+              'the encoders alone)', check=_topic_or_empty, read_only=True),
+    ParamSpec('imu_delay', _DEFAULT_GYRO.imu_delay,
+              "Time by which the gyro's stamps are late on the encoders' (identify_icr's "
+              'imu_delay; negative: the encoders trail the gyro)', 's', finite,
+              low=-5.0, high=5.0),
+    ParamSpec('gyro_scale', _DEFAULT_GYRO.gyro_scale,
+              'Gyro scale: measured rate over true rate', '', positive, low=0.5, high=2.0),
+    ParamSpec('imu_timeout', _DEFAULT_GYRO.timeout,
+              'Seconds without a gyro sample after which the heading falls back to the '
+              'encoders', 's', positive, low=0.001, high=60.0),
+    ParamSpec('imu_saturation', 0.0,
+              'Gyro readings at or beyond this |rate| are saturated: encoders (0: unknown, '
+              'off)', 'rad/s', non_negative, low=0.0, high=1000.0),
+    ParamSpec('imu_max_jump', 0.0,
+              'Largest plausible change of the gyro rate between consecutive samples; '
+              'beyond: encoders (0: off)', 'rad/s', non_negative, low=0.0, high=1000.0),
+    ParamSpec('adapt_slip', True,
+              'Adapt the ICR spread online from the gyro (published on ~/icr)'),
+    ParamSpec('push_to', [],
+              'Nodes (cmd_vel_translator) whose icr.* parameters are set to the adapted ICRs: '
+              'valid node names, optionally with their namespace', check=each(node_name)),
+    ParamSpec('push_period', 1.0, 'Shortest time between two pushes', 's', positive,
+              low=0.01, high=3600.0),
+    ParamSpec('push_min_change', 0.01,
+              'Push only when an ICR coordinate moved by more than this', 'm', non_negative,
+              low=0.0, high=10.0),
 )
 
 PARAMS = TERRAIN_PARAMS + ENCODER_INPUT_PARAMS + ODOMETRY_PARAMS
@@ -64,6 +136,17 @@ PARAMS = TERRAIN_PARAMS + ENCODER_INPUT_PARAMS + ODOMETRY_PARAMS
 def _noise(values: Mapping[str, Any]) -> TrackNoise:
     return TrackNoise(values['covariance.k_left'], values['covariance.k_right'],
                       values['covariance.floor'])
+
+
+def _terms(values: Mapping[str, Any]) -> NoiseModel:
+    """Return the turn, slip and timing terms (the tracks' are :func:`_noise`'s)."""
+    return NoiseModel(track=0.0, turn=values['covariance.turn'],
+                      slip=values['covariance.slip'], timing=values['covariance.timing'],
+                      floor=0.0)
+
+
+gyro_config = gyro_config_from_values
+"""How the node reads its gyro (:func:`~tracked_kinematics.params.gyro_config_from_values`)."""
 
 
 def validate(values: Mapping[str, Any]) -> IcrParams:
@@ -114,7 +197,15 @@ class OdometryNode(TableNode):
         return self._validated[1]
 
     def _start(self, values: Mapping[str, Any]) -> None:
-        self.odometry = Odometry(self._icr(values), _noise(values))
+        self._gyro = bool(values['imu_topic'])
+        if self._gyro:
+            self.odometry = GyroOdometry(self._icr(values), gyro_config(values),
+                                         _noise(values), _terms(values))
+        else:
+            self.odometry = Odometry(self._icr(values), _noise(values), _terms(values))
+        self._source = ENCODERS
+        self._pusher = None
+        self.imu = None
         self._publisher = self.create_publisher(
             OdometryMsg, 'odom', QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE))
         self._serializer = None
@@ -127,6 +218,18 @@ class OdometryNode(TableNode):
         self.encoder = EncoderInput(self, values, self._on_step, check_timer=False)
         self.health = Health(self, timer=False)  # updated by _check, on the timer below
         self.health.watch(*self.encoder.inputs)
+        self.health.add(self._report_heading)
+        if self._gyro:
+            # The gyro is not needed (the encoders carry on without it): its absence is the
+            # heading source's WARN, not an ERROR.
+            self._imu_reader = ImuReader()
+            self.imu = InputTopic(self, Imu, values['imu_topic'], self._on_imu,
+                                  order_key=raw_stamp_key, raw=True)
+            self.health.watch(self.imu, needed=False)
+            self._icr_publisher = self.create_publisher(Float64MultiArray, '~/icr', 10)
+            self._pusher = IcrPusher(self)
+            self._pusher.pushed = self._model_icrs()
+            self._pusher.prepare(values['push_to'])
         reset_service(self, self._reset, 'odometry reset: pose (0, 0, 0), covariance zero')
         # One timer for the input's checks and the output's: every timer of the node costs
         # each turn of the executor (each message) a little.
@@ -145,12 +248,111 @@ class OdometryNode(TableNode):
             f'{self._publisher.topic_name} ({values["odom_frame"]} -> {values["base_frame"]}) '
             + (f'at up to {values["publish_rate"]:g} Hz' if values['publish_rate'] > 0
                else 'at the input rate')
-            + ('' if self._broadcaster is None else ' with TF'))
+            + ('' if self._broadcaster is None else ' with TF')
+            + ('' if self.imu is None else
+               f'; heading from the gyro on {self.imu.topic_name} (imu_delay '
+               f'{values["imu_delay"]:g} s, gyro_scale {values["gyro_scale"]:g}, slip '
+               + ('adapted' if values['adapt_slip'] else 'not adapted')
+               + (f', pushed to {", ".join(values["push_to"])}' if values['push_to'] else '')
+               + ')'))
 
     def _check(self) -> None:
         self.encoder.check()
+        if self.imu is not None:
+            self.imu.check()
+            self._publish_icr()
         self._check_output()
         self.health.update()
+
+    def _model_icrs(self) -> tuple:
+        icr = self.odometry.model
+        return (icr.y_left, icr.y_right, icr.x)
+
+    def _publish_icr(self) -> None:
+        """Publish the ICRs in force on ``~/icr`` (adapted or not); push them if asked to."""
+        icr = self.odometry.icr
+        data = [icr.y_left, icr.y_right, icr.x,
+                steering_efficiency(icr.track_width, icr.y_left, icr.y_right),
+                eccentricity(icr.y_left, icr.y_right)]
+        if not all(map(math.isfinite, data)):
+            return
+        msg = Float64MultiArray()
+        msg.layout.dim = [MultiArrayDimension(label=','.join(ICR_LAYOUT), size=5, stride=5)]
+        msg.data = data
+        self._icr_publisher.publish(msg)
+        if data[3] <= 1.0:
+            self._pusher.push(tuple(data[:3]), self.params.values)
+
+    def _report_heading(self, report) -> None:
+        """Add the heading source (and the gyro's state) to the node's health."""
+        odometry = self.odometry
+        if self.imu is None:
+            report.add('heading source', ENCODERS)
+            report.add('heading source reason', 'imu_topic is empty')
+            return
+        reason = odometry.reason
+        report.add('heading source', odometry.source)
+        report.add('heading source reason', reason or 'the gyro is healthy, its bias known')
+        report.add('gyro bias (rad/s)', f'{odometry.bias:.6g}')
+        report.add('gyro noise (rad/s/sqrt(Hz))', f'{odometry.gyro_noise:.3g}')
+        icr = odometry.icr
+        report.add('icr.y_left in force (m)', f'{icr.y_left:.6g}')
+        report.add('icr.y_right in force (m)', f'{icr.y_right:.6g}')
+        report.add('icr.x in force (m)', f'{icr.x:.6g}')
+        report.add('heading source switches', odometry.switches)
+        if self._pusher.count:
+            report.add('icr pushes accepted', self._pusher.count)
+        if odometry.source == ENCODERS and not reason.startswith(_NOT_A_FAULT):
+            report.merge(WARN, f'heading from the encoders: {reason}')
+
+    def _take_imu(self) -> None:
+        """
+        Take the Imu messages that wait, in this encoder message's turn of the executor.
+
+        A turn costs far more than the message (the IMU's own turns cost the flood about as
+        much per message as an encoder message); a take that finds none costs about 1 us.
+        Not while the input switches subscriptions (it orders the two then).
+        """
+        imu = self.imu
+        if imu.switching:
+            return
+        handle = imu.subscription.handle
+        count = imu.count
+        while True:
+            try:
+                with handle:
+                    taken = handle.take_message(Imu, True)
+            except InvalidHandle:  # destroyed: the node is shutting down
+                return
+            if taken is None:
+                return
+            count.tick()
+            self._on_imu(taken[0])
+
+    def _on_imu(self, data: bytes) -> None:
+        sample = self._imu_reader.read(data)
+        if sample is None:
+            self.get_logger().warning(f'{self.imu.topic_name}: a message that is no '
+                                      'sensor_msgs/Imu: skipped',
+                                      throttle_duration_sec=WARN_PERIOD)
+            return
+        self.odometry.imu(*sample)
+        if self.odometry.source != self._source:
+            self._switched()
+
+    def _switched(self) -> None:
+        """Say once (throttled) that the heading source changed, and why."""
+        source = self._source = self.odometry.source
+        if source == GYRO:
+            self.get_logger().info(f'heading from the gyro ({self.imu.topic_name})',
+                                   throttle_duration_sec=WARN_PERIOD)
+            return
+        reason = self.odometry.reason
+        if reason.startswith(_NOT_A_FAULT):
+            return
+        self.get_logger().warning(
+            f'{self.imu.topic_name}: {reason}: heading from the encoders until the gyro is '
+            'healthy again (the pose continues, no jump)', throttle_duration_sec=WARN_PERIOD)
 
     def _check_output(self) -> None:
         """Warn when another node publishes on the odometry topic too (two instances)."""
@@ -173,7 +375,19 @@ class OdometryNode(TableNode):
 
     def _apply(self, values: Mapping[str, Any]) -> None:
         """Take (new) parameter values into use from the next encoder step on."""
-        self.odometry.set_model(self._icr(values), _noise(values))
+        odometry = self.odometry
+        terms = _terms(values)
+        self._timing = terms if terms.timing > 0.0 else None
+        if self._gyro:
+            icr = self._icr(values)
+            if icr != odometry.model:
+                odometry.set_model(icr)  # the adaptation restarts from the new model
+                if self._pusher is not None:
+                    self._pusher.pushed = self._model_icrs()
+            odometry.config = gyro_config(values)
+            odometry.set_noise(_noise(values), terms)
+        else:
+            odometry.set_model(self._icr(values), _noise(values), terms)
         if self.encoder is not None:
             self.encoder.configure(values)
         rate = values['publish_rate']
@@ -206,7 +420,14 @@ class OdometryNode(TableNode):
         self._transform = TransformStamped()
 
     def _on_step(self, stamp_s: float, d_left: float, d_right: float, dt: float) -> None:
-        if not self.odometry.update(d_left, d_right, dt):
+        if self._gyro:
+            self._take_imu()
+            accepted = self.odometry.update(stamp_s, d_left, d_right, dt)
+            if self.odometry.source != self._source:
+                self._switched()
+        else:
+            accepted = self.odometry.update(d_left, d_right, dt)
+        if not accepted:
             self.get_logger().warning(
                 f'encoder step refused by the odometry (travel {d_left!r}, {d_right!r} m over '
                 f'{dt!r} s: beyond 1e9 m, or a speed or pose that is not finite): skipped, '
@@ -226,7 +447,22 @@ class OdometryNode(TableNode):
     def _publish(self, sec: int, nanosec: int) -> bool:
         odometry = self.odometry
         x, y, theta = odometry.pose
-        twist, twist_covariance = odometry.take_twist()
+        if self._gyro:
+            twist = odometry.take_twist()
+            twist_covariance = odometry.twist_covariance
+        else:
+            twist, twist_covariance = odometry.take_twist()
+        pose_covariance = odometry.covariance_upper
+        if self._timing is not None:
+            # The time error at the end of the interval, at the current rates (fixed frame):
+            # published, not accumulated.
+            v_x, v_y, w = twist
+            cos_t, sin_t = math.cos(theta), math.sin(theta)
+            extra = timing_covariance(self._timing, cos_t * v_x - sin_t * v_y,
+                                      sin_t * v_x + cos_t * v_y, w)
+            xx, xy, xt, yy, yt, tt = pose_covariance
+            pose_covariance = saturate((xx + extra[0], xy + extra[1], xt + extra[2],
+                                        yy + extra[3], yt + extra[4], tt + extra[5]))
         if not all(map(math.isfinite, twist + twist_covariance)):
             self.get_logger().warning(
                 f'non-finite twist {twist} not published', throttle_duration_sec=WARN_PERIOD)
@@ -236,7 +472,7 @@ class OdometryNode(TableNode):
         if qw < 0.0:
             qz, qw = -qz, -qw
         self._publisher.publish(self._serializer.serialize(
-            sec, nanosec, x, y, qz, qw, odometry.covariance_upper, twist, twist_covariance))
+            sec, nanosec, x, y, qz, qw, pose_covariance, twist, twist_covariance))
         if self._broadcaster is not None:
             transform = self._transform
             transform.header.stamp = self.encoder.stamp

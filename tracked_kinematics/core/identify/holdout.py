@@ -173,7 +173,7 @@ class HoldOut:
                 start = t0 + k * stride
                 if t1 - start < length:
                     break
-                crops.append(_crop(full, start, t1))
+                crops.append(crop_recording(full, start, t1))
                 origin.append(int(rec))
         windows = build_segments(crops, length, partial=False)
         windows = replace(windows, recording=np.asarray(origin, np.intp)[windows.recording])
@@ -182,7 +182,7 @@ class HoldOut:
         return windows.select(windows.t1 - windows.t0 >= 0.9 * length)
 
 
-def _crop(recording: Recording, start: float, end: float) -> Recording:
+def crop_recording(recording: Recording, start: float, end: float) -> Recording:
     """Cut a recording to ``start``-``end`` s (and one encoder sample more each side)."""
     rec = recording
     e0 = max(0, int(np.searchsorted(rec.enc_t, start, side='right')) - 1)
