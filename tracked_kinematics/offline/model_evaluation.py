@@ -7,7 +7,7 @@ bags, prints, writes and plots; the report's keys are in docs/tools/evaluate_mod
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from datetime import datetime, timezone
 import json
 import math
@@ -23,6 +23,8 @@ from tracked_kinematics.core.evaluate.pieces import track_path
 from tracked_kinematics.core.gyro_odometry import GyroConfig
 from tracked_kinematics.core.kinematics import IcrParams
 from tracked_kinematics.core.noise_model import NoiseModel
+from tracked_kinematics.offline.bags.reference_reader import read_reference_bag
+from tracked_kinematics.offline.errors import UsageError
 from tracked_kinematics.params import (
     drivetrain_from_values, icr_from_values, read_params_file, values_from_drivetrain)
 
@@ -197,6 +199,23 @@ def gyro_references(bags, found, track_width: float) -> References:
             'ground_truth_delay_source': None, 'commands': None, 'command_samples': 0})
     account = f'none (gyro reference); the gyro: {delay.describe()}'
     return References(tuple(data), tuple(records), account, 'imu')
+
+
+def with_gyro(bag, recording, encoders, topic: str, progress: bool = False):
+    """
+    Return a recording read from ``bag`` with the gyro of ``topic`` added, on its clock.
+
+    For evaluate_model's ``--fuse-imu``. Raises UsageError when the topic carries no angular
+    velocity, BagError when it is absent.
+    """
+    gyro = read_reference_bag(bag, encoders, topic, progress=progress)
+    if gyro.gyro_rate is None:
+        raise UsageError(f'--fuse-imu {topic}: {bag} has no angular velocity on it (an '
+                         'orientation only): the gyro-aided odometry needs the rate')
+    # Both reads start the clock at their first stamp; the encoders are the same.
+    shift = float(gyro.enc_t[0] - recording.enc_t[0])
+    return replace(recording, gyro_t=np.asarray(gyro.gyro_t) - shift,
+                   gyro_rate=np.asarray(gyro.gyro_rate))
 
 
 # The report ------------------------------------------------------------------------------

@@ -28,7 +28,6 @@ computed).
 from __future__ import annotations
 
 import argparse
-from dataclasses import replace
 import os
 from pathlib import Path
 import sys
@@ -43,7 +42,8 @@ from tracked_kinematics.offline.cli.common import (
     identification_parser, positive, require_vehicle, run_main)
 from tracked_kinematics.offline.errors import UsageError
 from tracked_kinematics.offline.model_evaluation import (
-    evaluate_models, gyro_references, pose_references, read_terrain_models, References)
+    evaluate_models, gyro_references, pose_references, read_terrain_models, References,
+    with_gyro)
 from tracked_kinematics.offline.outputs import Outputs
 from tracked_kinematics.params import positive as check_positive
 
@@ -168,21 +168,9 @@ def _read(args, track_width, radius) -> References:
     found = [read_evaluation_bag(bag, encoders, ground_truth, commands, progress)
              for bag in args.bags]
     if args.fuse_imu:
-        found = [(_with_gyro(bag, recording, encoders, args.fuse_imu, progress), cmds)
+        found = [(with_gyro(bag, recording, encoders, args.fuse_imu, progress), cmds)
                  for bag, (recording, cmds) in zip(args.bags, found)]
     return pose_references(args.bags, found, args.ground_truth_delay)
-
-
-def _with_gyro(bag, recording, encoders, topic, progress):
-    """Return the recording with the gyro of ``topic`` on its clock (--fuse-imu)."""
-    gyro = read_reference_bag(bag, encoders, topic, progress=progress)
-    if gyro.gyro_rate is None:
-        raise UsageError(f'--fuse-imu {topic}: {bag} has no angular velocity on it (an '
-                         'orientation only): the gyro-aided odometry needs the rate')
-    # Both reads start the clock at their first stamp; the encoders are the same.
-    shift = float(gyro.enc_t[0] - recording.enc_t[0])
-    return replace(recording, gyro_t=np.asarray(gyro.gyro_t) - shift,
-                   gyro_rate=np.asarray(gyro.gyro_rate))
 
 
 # Outputs ---------------------------------------------------------------------------------
