@@ -13,7 +13,7 @@ import math
 
 from tracked_kinematics.core import identify as ident
 
-from .noise import add_extras, pose_extras
+from .noise_constants import add_extras, pose_extras
 from .report import (bag_names, finite_or_none, FitResult, icr_summary, now, TOOL,
                      yaml_values)
 

@@ -15,7 +15,7 @@ import math
 from tracked_kinematics.core import identify as ident
 from tracked_kinematics.core.kinematics import IcrParams
 
-from .noise import add_extras, reference_extras
+from .noise_constants import add_extras, reference_extras
 from .report import bag_names, FitResult, icr_summary, now, TOOL, yaml_values
 
 WHY_HELD = {
