@@ -18,7 +18,7 @@ CONSISTENCY = {'inside_50', 'inside_95', 'mean_nees', 'windows'}
 
 @pytest.fixture(scope='module')
 def sim(tmp_path_factory):
-    """A drive with a gyro 0.08 s late and 5 % over-reading; the true model with and without."""
+    """Simulate a drive with a gyro 0.08 s late, 5 % over-reading; the truth with and without."""
     root = tmp_path_factory.mktemp('fuse')
     result = simulate_bag(root / 'drive', 'auriga_alpha', duration=90.0, seed=5,
                           imu=GyroModel(bias=0.01, noise_std=0.003, latency=0.08, scale=1.05))

@@ -8,9 +8,9 @@ test_realdata_consistency.py.
 import json
 
 import pytest
+from tracked_kinematics.core.sim.sensors import GyroModel
 from tracked_kinematics.offline.bag_simulation import simulate_bag
 from tracked_kinematics.offline.cli import identify_icr
-from tracked_kinematics.core.sim.sensors import GyroModel
 from tracked_kinematics.params import read_params_file
 
 GT = '/ground_truth/pose'

@@ -42,7 +42,7 @@ def held_out(tmp_path_factory):
 
 
 def pooled(held_out, name, window):
-    """The consistency of a row over the three held-out bags (window-weighted)."""
+    """Return the consistency of a row over the three held-out bags (window-weighted)."""
     parts = [m[name]['odometry']['windows'][window]['consistency'] for m in held_out]
     n = sum(p['windows'] for p in parts)
     return {key: sum(p[key] * p['windows'] for p in parts) / n

@@ -92,7 +92,7 @@ def noise_model_of(values) -> NoiseModel:
 
 
 def gyro_config_of(values) -> GyroConfig:
-    """Return how the gyro-aided odometry reads the gyro: the file's ``imu_delay``, ``gyro_scale``."""
+    """Return how the gyro-aided odometry reads the gyro: the file's imu_delay, gyro_scale."""
     return GyroConfig(imu_delay=values.get('imu_delay', 0.0),
                       gyro_scale=values.get('gyro_scale', 1.0))
 

@@ -157,8 +157,9 @@ def window_consistency(pieces, paths, icr: IcrParams, model: NoiseModel, lengths
         (W,) and ``normalised`` (W, 2) (:func:`normalised_errors`).
 
     """
-    used = model if gyro is None else NoiseModel(model.track, 0.0, model.slip, model.timing,
-                                                  model.floor)
+    used = model
+    if gyro is not None:
+        used = NoiseModel(model.track, 0.0, model.slip, model.timing, model.floor)
     out = {}
     for length in lengths:
         errors, covs = [], []
