@@ -17,6 +17,7 @@ import numpy as np
 from tracked_kinematics.core import evaluate as ev
 from tracked_kinematics.core import identify as ident
 from tracked_kinematics.core.errors import ExcitationError, InvalidParameters
+from tracked_kinematics.core.estimate.config import EstimatorConfig
 from tracked_kinematics.core.evaluate.consistency import (
     gyro_track, GyroHeading, window_consistency)
 from tracked_kinematics.core.evaluate.pieces import track_path
@@ -89,6 +90,22 @@ def noise_model_of(values) -> NoiseModel:
         return NoiseModel(track=0.5 * (float(k_left) + float(k_right)), **terms)
     except ValueError as err:
         raise ValueError(f'covariance.{err}') from None
+
+
+def estimator_config_of(values) -> EstimatorConfig:
+    """
+    Return icr_estimator's EKF settings for a terrain file: its defaults, the file's noise model.
+
+    As the node reads them: ``covariance.k_left``/``k_right`` (averaged), ``covariance.turn``
+    and ``covariance.slip`` where the file has them, else 0 (the EKF's ``travel_std`` alone).
+    """
+    def value(key):
+        found = values.get(key, 0.0)
+        return 0.0 if isinstance(found, bool) or not isinstance(found, (int, float)) \
+            else float(found)
+    return EstimatorConfig(
+        track_noise=0.5 * (value('covariance.k_left') + value('covariance.k_right')),
+        turn_noise=value('covariance.turn'), slip_noise=value('covariance.slip'))
 
 
 def gyro_config_of(values) -> GyroConfig:
@@ -291,7 +308,8 @@ def evaluate_models(references: References, models, settings: ev.Settings, *,
                                            tracks=tuple((t, p) for t, p, _ in replays)))
     if online:
         for m in models:
-            runs[m.name] = tuple(ev.replay(d.recording, m.icr, r['ground_truth_delay_s'])
+            runs[m.name] = tuple(ev.replay(d.recording, m.icr, r['ground_truth_delay_s'],
+                                           estimator_config_of(m.values))
                                  for d, r in zip(references.data, references.records))
             candidates.append(ev.Candidate(f'online_{m.name}', m.icr, m.drivetrain,
                                            runs[m.name]))
