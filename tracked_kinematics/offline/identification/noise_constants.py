@@ -82,8 +82,30 @@ def _noise_lines(found, held_out: str) -> list[str]:
             f'{m.slip:.2e} m^2/rad, timing {m.timing:.2e} s^2{held}']
 
 
+MAX_WINDOWS = 3000
+"""Most windows of one length the noise model is fitted on: evenly spaced starts beyond."""
+
+
+def _thinned(windows):
+    """
+    Keep at most :data:`MAX_WINDOWS` windows of each length, their starts evenly spaced.
+
+    Windows start at every reference sample and overlap: on a long log, every few tenths of
+    a second is as informative (the fit weighs the windows by how many are independent) and
+    the fit is linear in their number.
+    """
+    import numpy as np
+    keep = np.zeros(len(windows), dtype=bool)
+    for length in np.unique(windows.length):
+        mine = np.flatnonzero(windows.length == length)
+        step = max(1, -(-len(mine) // MAX_WINDOWS))
+        keep[mine[::step]] = True
+    return windows.select(keep)
+
+
 def _noise(windows, errors, free, held_out):
     """Fit the noise model to windows; return (values, record, report, lines) or a reason."""
+    windows = _thinned(windows)
     try:
         found = fit_noise(windows, free=free, errors=errors)
     except ValueError as err:
@@ -130,6 +152,7 @@ def pose_extras(result, options, track_width: float) -> Extras:
     model = fitted.model if fitted.model.constant_icr else ident.build_model(
         'icr_scales', track_width)
     settings = options.identify
+    start = fitted.p if fitted.model.constant_icr else None
 
     def fit_icr(recs):
         segments = ident.build_segments(recs, result.segment_length)
@@ -137,8 +160,9 @@ def pose_extras(result, options, track_width: float) -> Extras:
             segments = segments.select(~over_jumps(segments, recs, track_width))
             segments = segments.select(segments.travel >= settings.min_travel)
         try:
-            return ident.fit(model, segments, heading_weight=fitted.heading_weight,
-                             loss=settings.loss, max_nfev=settings.max_nfev,
+            # From the full fit's parameters, one round: a fold differs little from it.
+            return ident.fit(model, segments, p0=start, heading_weight=fitted.heading_weight,
+                             loss=settings.loss, max_nfev=settings.max_nfev, rounds=1,
                              check=False).icr
         except (IdentificationError, ValueError):
             return result.icr   # too little in this fold: the full fit's ICRs
