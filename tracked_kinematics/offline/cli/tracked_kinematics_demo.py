@@ -481,6 +481,7 @@ def _steps(args, out, spec, terrain, overrides, outputs: DemoDirectory, start) -
 def _consistency(directory, yaml_path, results, spec, force, out) -> None:
     """Score the held-out bags as evaluate_model --fuse-imu does: the covariance's coverage."""
     from tracked_kinematics.core import evaluate as ev
+    from tracked_kinematics.core.errors import ExcitationError
     from tracked_kinematics.offline.bags import CommandSource, read_evaluation_bag
     from tracked_kinematics.offline.model_evaluation import (
         evaluate_models, pose_references, TerrainModel, with_gyro)
@@ -496,9 +497,25 @@ def _consistency(directory, yaml_path, results, spec, force, out) -> None:
     model = TerrainModel(yaml_path)
     settings = ev.Settings((5.0, 10.0), track_width=spec.robot.vehicle.track_width,
                            min_speed=0.1)
-    report = evaluate_models(pose_references(bags, found, 0.0), [model], settings,
-                             sprocket_radius=spec.robot.encoders.sprocket_radius,
-                             fuse_imu=True)
+    try:
+        report = evaluate_models(pose_references(bags, found, 0.0), [model], settings,
+                                 sprocket_radius=spec.robot.encoders.sprocket_radius,
+                                 fuse_imu=True)
+    except ExcitationError as err:
+        report = None
+        print(f'   the published covariance: not scored ({err})', file=out)
+    if report is None:
+        normalised = {}
+    else:
+        normalised = _print_consistency(report, model, yaml_path, out)
+    with Outputs(force=force) as files:
+        files.add('consistency.png', directory / 'consistency.png')
+        with files.path('consistency.png') as tmp:
+            plot_consistency(tmp, normalised, settings.windows)
+
+
+def _print_consistency(report, model, yaml_path, out) -> dict:
+    """Print the coverage of the published covariance; return the normalised errors."""
     print(f"   the published covariance ({yaml_path.name}'s noise model, fitted by identify_icr) "
           'on the held-out windows, as evaluate_model --fuse-imu reports it:', file=out)
     for name in (model.name, f'{model.name}+imu'):
@@ -506,14 +523,14 @@ def _consistency(directory, yaml_path, results, spec, force, out) -> None:
         cells = []
         for key in ('5', '10'):
             c = windows[key]['consistency']
+            if not c['windows']:
+                cells.append(f'{key} s: no windows (paths too short)')
+                continue
             cells.append(f'{key} s: {100 * c["inside_50"]:.0f} % / {100 * c["inside_95"]:.0f} % '
                          f'inside the 50 % / 95 % ellipses, mean NEES {c["mean_nees"]:.1f}')
         print(f'   {name:<18}' + '; '.join(cells), file=out)
     print('   (consistent: 50 % / 95 %, mean NEES 2)', file=out)
-    with Outputs(force=force) as files:
-        files.add('consistency.png', directory / 'consistency.png')
-        with files.path('consistency.png') as tmp:
-            plot_consistency(tmp, report.normalised, settings.windows)
+    return report.normalised
 
 
 def main(argv=None) -> int:
