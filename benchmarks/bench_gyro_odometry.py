@@ -13,6 +13,12 @@ worth (no delay, no bias at standstill, the gyro's heading taken whole).
 Targets (issue 29): after 10 s the gyro-aided error <= 0.85 x the tuned DDC's, or <= 1.05 x
 the encoders' where those are far better than the DDC; after 5 s <= 1.05 x the encoders'.
 
+Then the same through the tools (``--tools``, or after the table): identify_icr's fit (its
+library, :func:`tracked_kinematics.offline.identification.fit`) with the ICP and the gyro on
+the two training runs, and evaluate_model's library with ``--fuse-imu`` on the third: the
+tuned DDC (as an ICR file), the file from the encoders and gyro-aided (``+imu``), with the
+coverage of the published covariance (inside the 50 % / 95 % ellipses, mean NEES).
+
 Run: ``python benchmarks/bench_gyro_odometry.py [REALDATA_FOLDER]``.
 """
 
@@ -30,8 +36,14 @@ from tracked_kinematics.core import evaluate as ev  # noqa: E402,I100
 from tracked_kinematics.core import identify as ident  # noqa: E402
 from tracked_kinematics.core.gyro_odometry import (  # noqa: E402
     fit_gyro_scale, GyroConfig, replay)
-from tracked_kinematics.offline.bags import EncoderSource, GroundTruthSource  # noqa: E402
+from tracked_kinematics.offline.bags import (  # noqa: E402
+    CommandSource, EncoderSource, GroundTruthSource, read_evaluation_bag)
 from tracked_kinematics.offline.bags.reference_reader import read_reference_bag  # noqa: E402
+from tracked_kinematics.offline.identification import fit as fit_icr, FitOptions  # noqa: E402
+from tracked_kinematics.offline.model_evaluation import (  # noqa: E402
+    evaluate_models, pose_references, TerrainModel, with_gyro)
+from tracked_kinematics.offline.terrain_file import terrain_text  # noqa: E402
+from tracked_kinematics.params import values_from_icr  # noqa: E402
 
 NAMES = ('warthog_grass_2024-07-18_16h59', 'warthog_grass_2024-07-29_14h04',
          'warthog_grass_2024-08-08_16h11')
@@ -43,8 +55,9 @@ SCALE_SPREAD = 0.01
 
 def folder() -> Path:
     """Return the folder of the real bags."""
-    if len(sys.argv) > 1:
-        return Path(sys.argv[1])
+    given = [a for a in sys.argv[1:] if not a.startswith('--')]
+    if given:
+        return Path(given[0])
     named = os.environ.get('TRACKED_KINEMATICS_REALDATA')
     return Path(named) if named else ROOT.parent / 'shared' / 'realdata'
 
@@ -61,7 +74,7 @@ def recording(ref):
     return ident.Recording(ref.enc_t, ref.left, ref.right, *ref.pose, name=ref.name)
 
 
-def train(refs):
+def train_on(refs):
     """Fit what the node would read from the terrain file on the training runs."""
     recs = [recording(r) for r in refs]
     fit = ident.identify(recs, 'icr_scales', WIDTH, ground_truth_delay='auto',
@@ -100,7 +113,7 @@ def score(paths_of, pieces):
 
 def held_out(refs, test):
     """Score every variant on the held-out run; return {row: {window: (m, deg, n)}}."""
-    icr, ddc, imu_delay, (fitted, std) = train([r for k, r in enumerate(refs) if k != test])
+    icr, ddc, imu_delay, (fitted, std) = train_on([r for k, r in enumerate(refs) if k != test])
     # The fitted scale is applied only when it is determined: 1 beyond 3 standard errors
     # and 1 % (the three runs' own fits spread over 1.5 %).
     scale = fitted if abs(fitted - 1.0) > max(3.0 * std, SCALE_SPREAD) else 1.0
@@ -146,6 +159,44 @@ def held_out(refs, test):
     return {name: score(f, pieces) for name, f in rows.items()}, info
 
 
+def through_tools(base, refs, tmp: Path):
+    """identify_icr and evaluate_model --fuse-imu (their libraries), each run held out."""
+    encoders = EncoderSource(sprocket_radius=RADIUS)
+    print('bench_gyro_odometry: through identify_icr (ICP + gyro, two runs) and evaluate_model '
+          '--fuse-imu (the third): mean position m / heading deg after 5 s and 10 s; the '
+          'covariance: inside 50 % / 95 %, mean NEES')
+    for test, name in enumerate(NAMES):
+        train = [str(base / n) for k, n in enumerate(NAMES) if k != test]
+        found = fit_icr(FitOptions(bags=tuple(train), track_width=WIDTH, sprocket_radius=RADIUS,
+                                   encoders=encoders, ground_truth=GroundTruthSource('/icp/pose'),
+                                   imu_topic='/imu/data', terrain='grass'))
+        grass = tmp / f'grass{test}.yaml'
+        grass.write_text(terrain_text(found.values, tool='bench', date=found.date))
+        _, ddc, _, _ = train_on([r for k, r in enumerate(refs) if k != test])
+        tuned = tmp / f'tuned_ddc{test}.yaml'
+        tuned.write_text(terrain_text(values_from_icr(ddc, RADIUS), tool='bench', date=''))
+        bag = base / name
+        recording, cmds = read_evaluation_bag(bag, encoders, GroundTruthSource('/icp/pose'),
+                                              CommandSource('none'))
+        references = pose_references([bag], [(with_gyro(bag, recording, encoders, '/imu/data'),
+                                              cmds)], 'auto')
+        report = evaluate_models(references, [TerrainModel(tuned), TerrainModel(grass)],
+                                 ev.Settings(WINDOWS, track_width=WIDTH, min_speed=MIN_SPEED),
+                                 sprocket_radius=RADIUS, fuse_imu=True)
+        print(f'    held out {name}: imu_delay {found.values["imu_delay"]:+.3f} s, gyro_scale '
+              f'{found.values["gyro_scale"]:.4f}')
+        for row in (f'tuned_ddc{test}', f'grass{test}', f'grass{test}+imu'):
+            windows = report.content['models'][row]['odometry']['windows']
+            cells = []
+            for w in ('5', '10'):
+                win, c = windows[w], windows[w]['consistency']
+                cells.append(f'{w:>2} s: {win["mean_position_error_m"]:.3f} m '
+                             f'{math.degrees(win["mean_heading_error_rad"]):5.2f} deg '
+                             f'{100 * c["inside_50"]:3.0f} / {100 * c["inside_95"]:3.0f} % '
+                             f'{c["mean_nees"]:5.2f}')
+            print(f'    {row:<16}' + ' | '.join(cells))
+
+
 def main():
     """Run the three folds and print the table."""
     base = folder()
@@ -153,6 +204,11 @@ def main():
         print(f'bench_gyro_odometry: no Warthog runs in {base}; give the folder')
         return 1
     refs = read(base)
+    if '--tools' in sys.argv:
+        import tempfile
+        with tempfile.TemporaryDirectory() as tmp:
+            through_tools(base, refs, Path(tmp))
+        return 0
     pooled = {}
     for test in range(len(NAMES)):
         rows, info = held_out(refs, test)
@@ -185,6 +241,9 @@ def main():
         r5e = (g[5.0][0] / g[5.0][2]) / (enc[5.0][0] / enc[5.0][2])
         print(f'bench_gyro_odometry: {name}: 10 s / DDC {r10d:.3f} [<= 0.85], '
               f'10 s / encoders {r10e:.3f}, 5 s / encoders {r5e:.3f} [<= 1.05]')
+    import tempfile
+    with tempfile.TemporaryDirectory() as tmp:
+        through_tools(base, refs, Path(tmp))
     return 0
 
 

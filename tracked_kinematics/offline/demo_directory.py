@@ -109,7 +109,8 @@ def planned_outputs(vehicle: str, terrain: str, heldout: list[str]) -> list[Entr
     for name in heldout:
         entries += [Entry('bag', f'heldout/{name}'),
                     Entry('file', f'heldout/{name}.truth.yaml')]
-    return entries + [Entry('file', 'heldout.csv'), Entry('file', 'heldout.png')]
+    return entries + [Entry('file', 'heldout.csv'), Entry('file', 'heldout.png'),
+                      Entry('file', 'consistency.png')]
 
 
 def _lstat(path: Path):

@@ -7,7 +7,7 @@ bags, prints, writes and plots; the report's keys are in docs/tools/evaluate_mod
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 from datetime import datetime, timezone
 import json
 import math
@@ -17,7 +17,15 @@ import numpy as np
 from tracked_kinematics.core import evaluate as ev
 from tracked_kinematics.core import identify as ident
 from tracked_kinematics.core.errors import ExcitationError, InvalidParameters
+from tracked_kinematics.core.estimate.config import EstimatorConfig
+from tracked_kinematics.core.evaluate.consistency import (
+    gyro_track, GyroHeading, window_consistency)
+from tracked_kinematics.core.evaluate.pieces import track_path
+from tracked_kinematics.core.gyro_odometry import GyroConfig
 from tracked_kinematics.core.kinematics import IcrParams
+from tracked_kinematics.core.noise_model import NoiseModel
+from tracked_kinematics.offline.bags.reference_reader import read_reference_bag
+from tracked_kinematics.offline.errors import UsageError
 from tracked_kinematics.params import (
     drivetrain_from_values, icr_from_values, read_params_file, values_from_drivetrain)
 
@@ -51,6 +59,59 @@ class TerrainModel:
             raise InvalidParameters(f'{path}: {err}') from None
         self.drivetrain_in_file = any(k.startswith('drivetrain.') for k in self.values)
         self.name = Path(path).stem
+        try:
+            self.noise = noise_model_of(self.values)
+            self.gyro = gyro_config_of(self.values)
+        except ValueError as err:
+            raise InvalidParameters(f'{path}: {err}') from None
+
+
+NOISE_KEYS = {'covariance.turn': 'turn', 'covariance.slip': 'slip',
+              'covariance.timing': 'timing', 'covariance.floor': 'floor'}
+"""The terrain file's names of the noise model's constants (the track's: ``k_left, k_right``)."""
+
+
+def noise_model_of(values) -> NoiseModel:
+    """
+    Return the noise model a terrain file publishes with: its ``covariance.*`` or the defaults.
+
+    The track random walk is the mean of ``covariance.k_left`` and ``covariance.k_right``
+    (identify_icr writes the same value into both); absent terms are 0, as odometry_node
+    reads them. Raises ValueError for a value that is not a number >= 0.
+    """
+    default = NoiseModel()
+    k_left = values.get('covariance.k_left', default.track)
+    k_right = values.get('covariance.k_right', default.track)
+    for name, value in (('covariance.k_left', k_left), ('covariance.k_right', k_right)):
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise ValueError(f'{name} must be a number, got {value!r}')
+    terms = {term: values[key] for key, term in NOISE_KEYS.items() if key in values}
+    try:
+        return NoiseModel(track=0.5 * (float(k_left) + float(k_right)), **terms)
+    except ValueError as err:
+        raise ValueError(f'covariance.{err}') from None
+
+
+def estimator_config_of(values) -> EstimatorConfig:
+    """
+    Return icr_estimator's EKF settings for a terrain file: its defaults, the file's noise model.
+
+    As the node reads them: ``covariance.k_left``/``k_right`` (averaged), ``covariance.turn``
+    and ``covariance.slip`` where the file has them, else 0 (the EKF's ``travel_std`` alone).
+    """
+    def value(key):
+        found = values.get(key, 0.0)
+        return 0.0 if isinstance(found, bool) or not isinstance(found, (int, float)) \
+            else float(found)
+    return EstimatorConfig(
+        track_noise=0.5 * (value('covariance.k_left') + value('covariance.k_right')),
+        turn_noise=value('covariance.turn'), slip_noise=value('covariance.slip'))
+
+
+def gyro_config_of(values) -> GyroConfig:
+    """Return how the gyro-aided odometry reads the gyro: the file's imu_delay, gyro_scale."""
+    return GyroConfig(imu_delay=values.get('imu_delay', 0.0),
+                      gyro_scale=values.get('gyro_scale', 1.0))
 
 
 def read_terrain_models(paths) -> list[TerrainModel]:
@@ -157,6 +218,23 @@ def gyro_references(bags, found, track_width: float) -> References:
     return References(tuple(data), tuple(records), account, 'imu')
 
 
+def with_gyro(bag, recording, encoders, topic: str, progress: bool = False):
+    """
+    Return a recording read from ``bag`` with the gyro of ``topic`` added, on its clock.
+
+    For evaluate_model's ``--fuse-imu``. Raises UsageError when the topic carries no angular
+    velocity, BagError when it is absent.
+    """
+    gyro = read_reference_bag(bag, encoders, topic, progress=progress)
+    if gyro.gyro_rate is None:
+        raise UsageError(f'--fuse-imu {topic}: {bag} has no angular velocity on it (an '
+                         'orientation only): the gyro-aided odometry needs the rate')
+    # Both reads start the clock at their first stamp; the encoders are the same.
+    shift = float(gyro.enc_t[0] - recording.enc_t[0])
+    return replace(recording, gyro_t=np.asarray(gyro.gyro_t) - shift,
+                   gyro_rate=np.asarray(gyro.gyro_rate))
+
+
 # The report ------------------------------------------------------------------------------
 
 
@@ -166,6 +244,8 @@ class EvaluationReport:
 
     content: dict
     evaluation: ev.Evaluation
+    normalised: dict = field(default_factory=dict)
+    """Per model and window length (s): the normalised position errors (W, 2), for the plot."""
 
     @property
     def names(self) -> list:
@@ -183,7 +263,7 @@ class EvaluationReport:
 
 def evaluate_models(references: References, models, settings: ev.Settings, *,
                     sprocket_radius: float, command_source: str = 'auto',
-                    online: bool = False) -> EvaluationReport:
+                    online: bool = False, fuse_imu: bool = False) -> EvaluationReport:
     """
     Score the ideal drive and each terrain model on the recordings; return the report.
 
@@ -201,24 +281,35 @@ def evaluate_models(references: References, models, settings: ev.Settings, *,
         How the commands were read (recorded in the report).
     online : bool
         Also replay the icr_estimator's EKF from each file (``online_`` entries; pose only).
+    fuse_imu : bool
+        Also score each file gyro-aided (``<name>+imu`` entries, after the file's): the
+        recordings carry a gyro (``gyro_t``, ``gyro_rate``); pose only.
 
     Raises
     ------
     ExcitationError
         When no stretch has both encoders and a reference without a gap.
     ValueError
-        For ``online`` with a gyro reference.
+        For ``online`` or ``fuse_imu`` with a gyro reference.
 
     """
-    if online and references.reference != 'pose':
-        raise ValueError('the online estimator needs a pose reference, not the gyro')
+    if (online or fuse_imu) and references.reference != 'pose':
+        raise ValueError('the online estimator and the gyro-aided odometry need a pose '
+                         'reference, not the gyro')
     track_width = settings.track_width
     candidates = [ev.Candidate('ideal', IcrParams.ideal(track_width), None)]
-    candidates += [ev.Candidate(m.name, m.icr, m.drivetrain) for m in models]
     runs = {}
+    for m in models:
+        candidates.append(ev.Candidate(m.name, m.icr, m.drivetrain))
+        if fuse_imu:
+            replays = [gyro_track(d.recording, m.icr, m.gyro) for d in references.data]
+            runs[f'{m.name}+imu'] = replays
+            candidates.append(ev.Candidate(f'{m.name}+imu', m.icr, m.drivetrain,
+                                           tracks=tuple((t, p) for t, p, _ in replays)))
     if online:
         for m in models:
-            runs[m.name] = tuple(ev.replay(d.recording, m.icr, r['ground_truth_delay_s'])
+            runs[m.name] = tuple(ev.replay(d.recording, m.icr, r['ground_truth_delay_s'],
+                                           estimator_config_of(m.values))
                                  for d, r in zip(references.data, references.records))
             candidates.append(ev.Candidate(f'online_{m.name}', m.icr, m.drivetrain,
                                            runs[m.name]))
@@ -226,11 +317,44 @@ def evaluate_models(references: References, models, settings: ev.Settings, *,
     if not evaluation.pieces:
         raise ExcitationError('no stretch of the bags has both encoders and ground truth '
                               'without a gap: nothing to score')
+    normalised = {}
+    if references.reference == 'pose':
+        normalised = _consistency(evaluation, models, candidates, runs, settings)
     content = _finite(_content(references, models, evaluation, candidates, runs, settings,
                                sprocket_radius, command_source))
     if references.reference == 'imu':
         content = _heading_only(content)
-    return EvaluationReport(content, evaluation)
+    return EvaluationReport(content, evaluation, normalised)
+
+
+def _consistency(evaluation, models, candidates, runs, settings) -> dict:
+    """
+    Add ``odometry.windows.<s>.consistency`` to each file's entries (and its ``+imu``'s).
+
+    Returns the normalised errors per model and window length for the plot.
+    """
+    by_name = {m.name: m for m in models}
+    out = {}
+    for c in candidates:
+        gyro = c.name.endswith('+imu') and c.tracks is not None
+        model = by_name.get(c.name[:-len('+imu')] if gyro else c.name)
+        if model is None or c.runs is not None:
+            continue
+        heading = grid_paths = None
+        paths = evaluation.paths[c.name]
+        if gyro:
+            odos = [odo for _, _, odo in runs[c.name]]
+            heading = GyroHeading(float(np.median([o.gyro_noise for o in odos])),
+                                  model.gyro.scale_std)
+            grid_paths = [track_path(p, *c.tracks[p.recording], p.grid)
+                          for p in evaluation.pieces]
+        found = window_consistency(evaluation.pieces, paths, c.icr, model.noise,
+                                   settings.windows, settings.min_speed, heading, grid_paths)
+        windows = evaluation.models[c.name]['odometry']['windows']
+        for length, result in found.items():
+            windows[ev.window_key(length)]['consistency'] = result['consistency']
+        out[c.name] = {length: result['normalised'] for length, result in found.items()}
+    return out
 
 
 def _icr_summary(icr: IcrParams) -> dict:
@@ -259,8 +383,11 @@ def _model_entry(candidate, by_name, runs) -> dict:
         return {'kind': 'ideal', 'file': None, 'icr': _icr_summary(candidate.icr),
                 'drivetrain': None}
     online = candidate.runs is not None
-    model = by_name[candidate.name[len('online_'):] if online else candidate.name]
-    entry = {'kind': 'online' if online else 'file', 'file': str(Path(model.path).resolve()),
+    gyro = candidate.tracks is not None
+    model = by_name[candidate.name[len('online_'):] if online
+                    else candidate.name[:-len('+imu')] if gyro else candidate.name]
+    entry = {'kind': 'online' if online else 'gyro' if gyro else 'file',
+             'file': str(Path(model.path).resolve()),
              'icr': _icr_summary(model.icr),
              'drivetrain': {**values_from_drivetrain(model.drivetrain),
                             'from_file': model.drivetrain_in_file}}
@@ -275,6 +402,19 @@ def _model_entry(candidate, by_name, runs) -> dict:
             'noise_scale': float(max(r.noise_scale for r in rs)),
             'trusted_fraction': float(np.mean([r.trusted for r in rs])),
             'final_icr': [r.icr[-1].tolist() for r in rs]}
+    if gyro:
+        odos = [odo for _, _, odo in runs[candidate.name]]
+        entry['gyro'] = {
+            'imu_delay_s': model.gyro.imu_delay, 'gyro_scale': model.gyro.gyro_scale,
+            'bias_rad_s': [o.bias for o in odos],
+            'noise_rad_per_sqrt_s': [o.gyro_noise for o in odos],
+            'switches': [o.switches for o in odos],
+            'source_at_end': [o.source for o in odos],
+            'from_file': {k: k in model.values for k in ('imu_delay', 'gyro_scale')}}
+    elif candidate.name != 'ideal' and not online:
+        entry['noise'] = {**{t: getattr(model.noise, t) for t in ('track', 'turn', 'slip',
+                                                                  'timing')},
+                          'from_file': any(k.startswith('covariance.') for k in model.values)}
     return entry
 
 

@@ -111,3 +111,69 @@ def plot_evaluation(path, evaluation, names, windows=(5.0, 10.0), fmt: str = 'pn
         ax.legend(fontsize=7)
     fig.tight_layout()
     fig.savefig(path, format=fmt, dpi=dpi)
+
+
+def plot_consistency(path, normalised, windows, fmt: str = 'png', dpi: int = 110) -> None:
+    """
+    Draw the normalised final position errors of each model against their published ellipses.
+
+    One row per model (the terrain files and their ``+imu`` rows), one pair of panels per
+    window length: the histogram of the NEES against the chi-square density of 2 degrees of
+    freedom (what a consistent covariance gives; its 50 % and 95 % quantiles marked), and
+    the normalised errors ``L^-1 e`` with the 50 % and 95 % circles (radii
+    ``sqrt(1.386)`` and ``sqrt(5.991)``).
+
+    Parameters
+    ----------
+    path : path-like
+        Image to write.
+    normalised : dict
+        Per model and window length (s): the normalised errors (W, 2)
+        (:attr:`tracked_kinematics.offline.model_evaluation.EvaluationReport.normalised`).
+    windows : sequence of float
+        The window lengths, s.
+    fmt : str
+        Image format.
+    dpi : int
+        Resolution.
+
+    """
+    from tracked_kinematics.core.noise_model import CHI2_50, CHI2_95
+    names = list(normalised)
+    rows, columns = max(1, len(names)), 2 * max(1, len(windows))
+    fig = Figure(figsize=(3.6 * columns, 3.4 * rows))
+    FigureCanvasAgg(fig)
+    theta = np.linspace(0.0, 2.0 * math.pi, 200)
+    for r, name in enumerate(names):
+        for c, length in enumerate(windows):
+            z = normalised[name].get(float(length), np.zeros((0, 2)))
+            nees = np.sum(z * z, 1)
+            inside = ((f', {100 * np.mean(nees <= CHI2_50):.0f} % / '
+                       f'{100 * np.mean(nees <= CHI2_95):.0f} % inside, mean {nees.mean():.1f}')
+                      if len(z) else ', no windows')
+            ax = fig.add_subplot(rows, columns, r * columns + 2 * c + 1)
+            top = max(12.0, float(np.percentile(nees, 95)) if len(z) else 12.0)
+            bins = np.linspace(0.0, top, 40)
+            ax.hist(np.minimum(nees, top), bins=bins, density=True, color='C0', alpha=0.6,
+                    label='NEES of the windows')
+            x = np.linspace(0.0, top, 200)
+            ax.plot(x, 0.5 * np.exp(-0.5 * x), 'k', lw=1.5, label='chi-square(2)')
+            for q in (CHI2_50, CHI2_95):
+                ax.axvline(q, color='grey', ls=':', lw=1.0)
+            ax.set(xlabel='NEES (last bin: beyond)', ylabel='density',
+                   title=f'{name}, {length:g} s{inside}')
+            ax.title.set_fontsize(8)
+            ax.legend(fontsize=7)
+            ax = fig.add_subplot(rows, columns, r * columns + 2 * c + 2)
+            ax.plot(z[:, 0], z[:, 1], '.', ms=2, color='C0', alpha=0.4)
+            for q, style in ((CHI2_50, '--'), (CHI2_95, '-')):
+                ax.plot(math.sqrt(q) * np.cos(theta), math.sqrt(q) * np.sin(theta), 'k',
+                        ls=style, lw=1.0)
+            lim = max(4.0, min(float(np.percentile(np.abs(z), 98)) if len(z) else 4.0, 20.0))
+            ax.set(xlim=(-lim, lim), ylim=(-lim, lim), aspect='equal',
+                   xlabel='normalised error, forward', ylabel='normalised error, left',
+                   title='inside the 50 % (dashed) and 95 % circles')
+            ax.title.set_fontsize(8)
+            ax.grid(True, alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, format=fmt, dpi=dpi)

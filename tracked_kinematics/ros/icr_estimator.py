@@ -144,6 +144,19 @@ ESTIMATOR_PARAMS: tuple[ParamSpec, ...] = (
               "Fraction by which the filter's recent prediction cost must be below that of the "
               'start values for its state to be used (0.1: 10 % lower)', '',
               _fraction_below_one, low=0.0, high=1.0),
+    ParamSpec('covariance.k_left', 0.0,
+              "The terrain file's noise model (identify_icr): the track random walk, added to "
+              'the model error of a window (0: travel_std alone)', 'm^2/m', non_negative,
+              low=0.0, high=1.0),
+    ParamSpec('covariance.k_right', 0.0,
+              'As covariance.k_left, right track (the two are averaged)', 'm^2/m',
+              non_negative, low=0.0, high=1.0),
+    ParamSpec('covariance.turn', 0.0,
+              "The terrain file's noise model: heading random walk per radian turned", 'rad^2/rad',
+              non_negative, low=0.0, high=10.0),
+    ParamSpec('covariance.slip', 0.0,
+              "The terrain file's noise model: position random walk per radian turned",
+              'm^2/rad', non_negative, low=0.0, high=10.0),
     ParamSpec('publish_rate', 10.0, 'Rate of icr_estimate and predicted_path', 'Hz',
               positive, low=0.01, high=1000.0),
     ParamSpec('prediction.horizon', 2.0, 'Length of predicted_path (0: not published)', 's',
@@ -181,12 +194,17 @@ def validate(values: Mapping[str, Any]) -> None:
                          f'{values["prediction.dt"]:g} s = {poses:.6g}')
 
 
-# Every field of EstimatorConfig is a parameter of the same name.
-_CONFIG_FIELDS = tuple(EstimatorConfig.__dataclass_fields__)
+# Every field of EstimatorConfig is a parameter of the same name, but the noise model's: the
+# terrain file's covariance.* (identify_icr writes them).
+_NOISE_FIELDS = ('track_noise', 'turn_noise', 'slip_noise')
+_CONFIG_FIELDS = tuple(f for f in EstimatorConfig.__dataclass_fields__ if f not in _NOISE_FIELDS)
 
 
 def _config(values: Mapping[str, Any]) -> EstimatorConfig:
-    return EstimatorConfig(**{name: values[name] for name in _CONFIG_FIELDS})
+    track = 0.5 * (values['covariance.k_left'] + values['covariance.k_right'])
+    return EstimatorConfig(**{name: values[name] for name in _CONFIG_FIELDS},
+                           track_noise=track, turn_noise=values['covariance.turn'],
+                           slip_noise=values['covariance.slip'])
 
 
 def _yaw(q) -> float:

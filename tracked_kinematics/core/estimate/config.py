@@ -14,7 +14,10 @@ class EstimatorConfig:
     Each is the icr_estimator parameter of the same name (docs/nodes/icr_estimator.md, "Parameters"
     and "On real pose sources", which also say which are the paper's). Units: ``pose_std_xy`` m,
     ``pose_std_yaw`` rad, ``travel_std`` m per m travelled, ``process_std`` parameter units /
-    sqrt(s), windows and times s, ``prior_std`` track widths.
+    sqrt(s), windows and times s, ``prior_std`` track widths. ``track_noise`` (m^2/m),
+    ``turn_noise`` (rad^2/rad) and ``slip_noise`` (m^2/rad) are the terrain file's noise model
+    (``covariance.k_left``/``k_right``, ``covariance.turn``, ``covariance.slip``,
+    :mod:`..noise_model`), added to a window's model error (0: none, as before).
     """
 
     pose_std_xy: float = 0.02
@@ -36,6 +39,9 @@ class EstimatorConfig:
     fallback: bool = True
     fallback_span: float = 30.0
     fallback_margin: float = 0.1
+    track_noise: float = 0.0
+    turn_noise: float = 0.0
+    slip_noise: float = 0.0
 
     def __post_init__(self):
         # Each field's range is checked where it enters (icr_estimator's parameter table);

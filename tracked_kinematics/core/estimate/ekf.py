@@ -422,8 +422,15 @@ class SlipEstimator:
         pos = 2.0 * cfg.pose_std_xy ** 2 + cfg.pose_std_yaw ** 2 * distance2
         yaw = 2.0 * cfg.pose_std_yaw ** 2
         travel2 = (cfg.travel_std * travel) ** 2
+        # The noise model's random walks over the window (docs/nodes/icr_estimator.md): the
+        # tracks' travel, the heading and the position per radian turned (the measured turn).
+        turned = abs(float(z[2]))
+        width2 = self.model.track_width ** 2
+        model_pos = 0.5 * cfg.track_noise * travel + cfg.slip_noise * turned
+        model_yaw = 2.0 * cfg.track_noise * travel / width2 + cfg.turn_noise * turned
         return (np.array([pos, pos, yaw]),
-                np.array([travel2, travel2, 2.0 * travel2 / self.model.track_width ** 2]))
+                np.array([travel2 + model_pos, travel2 + model_pos,
+                          2.0 * travel2 / width2 + model_yaw]))
 
     def _physical(self, p) -> bool:
         if not np.all(np.isfinite(p)):

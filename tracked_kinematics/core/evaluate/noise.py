@@ -207,7 +207,8 @@ def held_out_windows(recordings, fit_icr, lengths, min_speed: float | None = 0.1
     edges = np.linspace(t0, t1, blocks + 1)
     parts = []
     for a, b in zip(edges[:-1], edges[1:]):
-        rest = ([crop_recording(rec, t0, a)] if a > t0 else []) + ([crop_recording(rec, b, t1)] if b < t1 else [])
+        rest = (([crop_recording(rec, t0, a)] if a > t0 else [])
+                + ([crop_recording(rec, b, t1)] if b < t1 else []))
         parts.append(recording_windows([crop_recording(rec, a, b)], fit_icr(rest), lengths,
                                        min_speed, track_width))
     return ErrorWindows.concatenate(parts)

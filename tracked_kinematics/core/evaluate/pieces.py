@@ -159,3 +159,24 @@ def odometry(piece: Piece, params) -> np.ndarray:
                             np.concatenate([[piece.truth[0, 1]], y]),
                             np.concatenate([[piece.truth[0, 2]], yaw])])
     return path[piece.at]
+
+
+def track_path(piece: Piece, t, poses, times=None) -> np.ndarray:
+    """
+    Return a path computed over a whole recording along a piece, from its first ground truth.
+
+    ``poses`` (N, 3) at times ``t`` (N,; they include the piece's grid) are taken at
+    ``times`` (default ``piece.t``; ``piece.grid``: at every step boundary) and moved rigidly
+    so that the first is the piece's first ground-truth pose, as :func:`odometry` starts;
+    ``(x, y, yaw)``, one row per time.
+    """
+    times = piece.t if times is None else times
+    k = np.clip(np.searchsorted(t, times), 0, len(t) - 1)
+    p = np.asarray(poses, float)[k]
+    d = p[:, 2] - p[0, 2]
+    c, s = np.cos(p[0, 2]), np.sin(p[0, 2])
+    ex, ey = p[:, 0] - p[0, 0], p[:, 1] - p[0, 1]
+    lx, ly = c * ex + s * ey, -s * ex + c * ey
+    x0, y0, h0 = piece.truth[0]
+    c0, s0 = np.cos(h0), np.sin(h0)
+    return np.column_stack([x0 + c0 * lx - s0 * ly, y0 + s0 * lx + c0 * ly, h0 + d])

@@ -15,7 +15,7 @@ import numpy as np
 
 from .horizons import command_horizons, Commands, encoder_horizons, HorizonErrors
 from .metrics import relative_errors, rpe, summary
-from .pieces import cut, moving_windows, odometry, Piece
+from .pieces import cut, moving_windows, odometry, Piece, track_path
 from ..drivetrain import DriveTrain
 from ..identify import Recording
 from ..kinematics import IcrParams
@@ -53,13 +53,18 @@ class Candidate:
     """
     A model to score: report ``name``, ``icr``, and the ``drivetrain`` of its command predictions.
 
-    ``runs`` (the online estimator's replay of each recording) replace ``icr``'s ICRs over time.
+    ``runs`` (the online estimator's replay of each recording) replace ``icr``'s ICRs over time;
+    ``tracks`` (per recording, a path ``(t, poses)`` computed elsewhere, such as the gyro-aided
+    odometry of :func:`.gyro.gyro_tracks`) replace the odometry of the pieces (each path
+    re-anchored at the piece's first ground-truth pose); the horizons and the predictions
+    remain ``icr``'s.
     """
 
     name: str
     icr: IcrParams
     drivetrain: DriveTrain | None = None
     runs: tuple | None = None
+    tracks: tuple | None = None
 
     def params_at(self, recording: int):
         """Return ``times -> (y_left, y_right, x, scale_left, scale_right)`` for a recording."""
@@ -134,7 +139,10 @@ def _score(candidate: Candidate, pieces, data, settings: Settings) -> _Scores:
             step_params = params_at(None)
         else:
             step_params = params_at(piece.grid[:-1])
-        path = odometry(piece, step_params)
+        if candidate.tracks is None:
+            path = odometry(piece, step_params)
+        else:
+            path = track_path(piece, *candidate.tracks[piece.recording])
         scores.paths.append(path)
         walked = np.concatenate([[0.0], np.cumsum(np.hypot(np.diff(piece.truth[:, 0]),
                                                            np.diff(piece.truth[:, 1])))])

@@ -46,7 +46,7 @@ class GyroModel:
 
     def __post_init__(self):
         # The other fields are checked where they enter (simulate_bag's --imu-* options,
-        # tracked_simulator's gyro_* parameters); no option sets the scale.
+        # tracked_simulator's gyro_* parameters, simulate_bag's --imu-scale).
         require_numbers(self, positive=('scale',))
 
 

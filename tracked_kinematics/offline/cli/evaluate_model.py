@@ -42,7 +42,8 @@ from tracked_kinematics.offline.cli.common import (
     identification_parser, positive, require_vehicle, run_main)
 from tracked_kinematics.offline.errors import UsageError
 from tracked_kinematics.offline.model_evaluation import (
-    evaluate_models, gyro_references, pose_references, read_terrain_models, References)
+    evaluate_models, gyro_references, pose_references, read_terrain_models, References,
+    with_gyro)
 from tracked_kinematics.offline.outputs import Outputs
 from tracked_kinematics.params import positive as check_positive
 
@@ -65,6 +66,9 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument('--imu-topic', default=None, metavar='TOPIC',
                         help='instead of a ground-truth pose, a gyro (sensor_msgs/Imu): scores '
                         'heading only; the position figures are null')
+    parser.add_argument('--fuse-imu', default=None, metavar='TOPIC',
+                        help='also score each terrain file gyro-aided (row <name>+imu): the '
+                        "gyro's heading, as odometry_node with imu_topic (sensor_msgs/Imu)")
     parser.add_argument('--params', nargs='+', required=True, metavar='A.yaml',
                         help='terrain files to score (each named by its file stem)')
     add_vehicle_groups(parser, 'm, of the ideal drive and of the cmd_vel inverse; '
@@ -95,6 +99,9 @@ def build_parser() -> argparse.ArgumentParser:
                      help='JSON report with every figure')
     out.add_argument('--plot', default=None, metavar='OUT.png',
                      help='error against window length, and paths')
+    out.add_argument('--consistency-plot', default=None, metavar='OUT.png',
+                     help='the normalised final position errors against the published 50 % '
+                     'and 95 % ellipses: NEES histogram and scatter per terrain file')
     out.add_argument('--tum', default=None, metavar='DIR',
                      help='new directory: ground truth and odometry of each piece as TUM '
                      'trajectories, to check the RPE with evo_rpe')
@@ -135,6 +142,11 @@ def _check_options(args) -> None:
                          'only), one of them')
     if args.imu_topic and args.online:
         raise UsageError('--online needs --ground-truth-topic (the estimator uses poses)')
+    if args.imu_topic and args.fuse_imu:
+        raise UsageError('--fuse-imu needs --ground-truth-topic (the gyro cannot be both the '
+                         'reference and an input)')
+    if args.imu_topic and args.consistency_plot:
+        raise UsageError('--consistency-plot needs --ground-truth-topic (position errors)')
     if args.prediction_dt >= args.horizon:
         raise UsageError(f'--prediction-dt ({args.prediction_dt:g} s) must be shorter than '
                          f'--horizon ({args.horizon:g} s)')
@@ -155,6 +167,9 @@ def _read(args, track_width, radius) -> References:
     commands = command_source(args, track_width)
     found = [read_evaluation_bag(bag, encoders, ground_truth, commands, progress)
              for bag in args.bags]
+    if args.fuse_imu:
+        found = [(with_gyro(bag, recording, encoders, args.fuse_imu, progress), cmds)
+                 for bag, (recording, cmds) in zip(args.bags, found)]
     return pose_references(args.bags, found, args.ground_truth_delay)
 
 
@@ -186,11 +201,13 @@ def _write_tum(directory: Path, evaluation, names) -> None:
 
 def _run(args, out) -> int:
     _check_options(args)
-    from tracked_kinematics.offline.model_evaluation_plot import check_format, plot_evaluation
+    from tracked_kinematics.offline.model_evaluation_plot import (
+        check_format, plot_consistency, plot_evaluation)
     fmt = check_format(args.plot) if args.plot else None
     with Outputs(force=args.force) as outputs:
         outputs.add('--report', args.report)
         outputs.add('--plot', args.plot)
+        outputs.add('--consistency-plot', args.consistency_plot)
         outputs.add('--tum', args.tum, directory=True)
         try:
             models = read_terrain_models(args.params)
@@ -203,7 +220,8 @@ def _run(args, out) -> int:
                                not args.keep_jumps, track_width,
                                None if args.all_windows else args.min_speed)
         report = evaluate_models(references, models, settings, sprocket_radius=radius,
-                                 command_source=args.command_source, online=args.online)
+                                 command_source=args.command_source, online=args.online,
+                                 fuse_imu=bool(args.fuse_imu))
         print(report.table(), file=out)
         if args.report:
             outputs.write_text('--report', report.json())
@@ -214,7 +232,11 @@ def _run(args, out) -> int:
             with outputs.path('--plot') as tmp:
                 plot_evaluation(tmp, report.evaluation, report.names, settings.windows,
                                 fmt=fmt, min_speed=settings.min_speed)
-    written = [p for p in (args.report, args.plot, args.tum) if p]
+        if args.consistency_plot:
+            with outputs.path('--consistency-plot') as tmp:
+                plot_consistency(tmp, report.normalised, settings.windows,
+                                 fmt=check_format(args.consistency_plot))
+    written = [p for p in (args.report, args.plot, args.consistency_plot, args.tum) if p]
     if written:
         print(f'wrote {", ".join(written)}', file=out)
     return 0

@@ -104,6 +104,9 @@ def build_parser() -> argparse.ArgumentParser:
     imu.add_argument('--imu-latency', type=bounded(-1.0, 1.0, 's'), default=0.0,
                      help='the gyro is stamped this late behind the truth (the encoders are '
                           'not), s; identify_icr finds it as imu_delay')
+    imu.add_argument('--imu-scale', type=bounded(0.5, 2.0), default=1.0,
+                     help='scale error of the gyro: reading over true rate (identify_icr fits '
+                     'it as gyro_scale when it has a pose)')
     imu.add_argument('--imu-saturation', type=bounded(0.01, 100.0, 'rad/s'), default=math.inf,
                      help='largest rate the gyro reports, rad/s (inf: none)')
     gnss = parser.add_argument_group('GNSS (--gnss: sensor_msgs/NavSatFix on /gnss/fix)')
@@ -142,7 +145,7 @@ def _imu_model(args) -> GyroModel | None:
         return None
     return GyroModel(rate=args.imu_rate, bias=args.imu_bias, noise_std=args.imu_noise,
                      bias_walk=args.imu_bias_walk, latency=args.imu_latency,
-                     saturation=args.imu_saturation)
+                     scale=args.imu_scale, saturation=args.imu_saturation)
 
 
 def _gnss_model(args) -> GnssModel | None:

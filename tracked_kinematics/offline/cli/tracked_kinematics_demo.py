@@ -33,7 +33,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import csv
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 import io
 import math
 from pathlib import Path
@@ -43,12 +43,16 @@ import textwrap
 import time
 
 import numpy as np
+from tracked_kinematics.core.gyro_odometry import GyroConfig, replay
 from tracked_kinematics.core.integration import wrap_angle
 from tracked_kinematics.core.kinematics import IcrParams
 from tracked_kinematics.core.models import ConstantIcr
+from tracked_kinematics.core.sim.sensors import GyroModel
 from tracked_kinematics.core.sim.simulation import TwistTable
-from tracked_kinematics.offline.bag_simulation import GROUND_TRUTH_TOPICS, JOINTS, simulate_bag
-from tracked_kinematics.offline.bags import EncoderSource, GroundTruthSource, read_bag
+from tracked_kinematics.offline.bag_simulation import (
+    GROUND_TRUTH_TOPICS, IMU_TOPIC, JOINTS, simulate_bag)
+from tracked_kinematics.offline.bags import EncoderSource, GroundTruthSource
+from tracked_kinematics.offline.bags.reference_reader import read_reference_bag
 from tracked_kinematics.offline.cli.common import (
     add_force_argument, add_plot_output, ArgumentParser, bounded, run_main, SEED,
     write_together)
@@ -65,6 +69,8 @@ PROG = 'tracked_kinematics_demo'
 HELDOUT_MANOEUVRES = ('random', 'sweep', 'random', 'mixed', 'random')
 """Manoeuvre set of held-out path k (cycled)."""
 GT_TOPIC = GROUND_TRUTH_TOPICS['pose']
+GYRO = GyroModel(rate=100.0, bias=0.01, noise_std=0.003, latency=0.05, scale=1.02)
+"""The demo robot's gyro: biased, noisy, 2 % over-reading, stamped 0.05 s late."""
 
 
 @dataclass(frozen=True)
@@ -84,6 +90,8 @@ class PathResult:
         Length of the path, s and m (true path).
     truth, ideal, identified : ndarray, shape (N, 3)
         True pose and the two dead reckonings at each encoder sample.
+    gyro_aided : ndarray, shape (N, 3)
+        The identified ICRs with the gyro's heading (odometry_node with ``imu_topic``).
 
     """
 
@@ -95,6 +103,7 @@ class PathResult:
     truth: np.ndarray
     ideal: np.ndarray
     identified: np.ndarray
+    gyro_aided: np.ndarray
 
     def errors(self, which: str) -> tuple[float, float, float]:
         """
@@ -102,7 +111,7 @@ class PathResult:
 
         Parameters
         ----------
-        which : {'ideal', 'identified'}
+        which : {'ideal', 'identified', 'gyro_aided'}
             The dead reckoning.
 
         Returns
@@ -182,7 +191,13 @@ def identify(bag: Path, out: Path, terrain: str, track_width: float, radius: flo
 
         def work(outputs):
             found = fit(options)
+            gyro = fit(replace(options, imu_topic=IMU_TOPIC))
             print(found.text, file=printed)
+            print('the gyro, from the same fit with --imu-topic ' + IMU_TOPIC + ':',
+                  file=printed)
+            print('\n'.join(line for line in gyro.lines if 'gyro' in line), file=printed)
+            found.values.update({k: v for k, v in gyro.values.items()
+                                 if k in GYRO_KEYS or k.startswith(GYRO_RECORDS)})
             write_fit(found, outputs, options)
         return write_together(outputs, work, printed)
 
@@ -192,13 +207,18 @@ def identify(bag: Path, out: Path, terrain: str, track_width: float, radius: flo
     return status, [FIT_TOOL] + argv, buffer.getvalue()
 
 
+GYRO_KEYS = ('imu_delay', 'gyro_scale')
+"""What the demo's terrain file takes from the fit with the gyro."""
+GYRO_RECORDS = ('identification.imu_delay', 'identification.gyro_')
+
+
 def heldout_name(k: int) -> str:
     """Name of held-out path ``k`` (from 0) and of its bag."""
     return f'path{k + 1}_{HELDOUT_MANOEUVRES[k % len(HELDOUT_MANOEUVRES)]}'
 
 
 def heldout_path(k: int, args, overrides, table, identified: IcrParams,
-                 directory: Path) -> PathResult:
+                 directory: Path, gyro: GyroConfig | None = None) -> PathResult:
     """Simulate held-out path ``k``, record it, read it back and dead-reckon it."""
     manoeuvres = HELDOUT_MANOEUVRES[k % len(HELDOUT_MANOEUVRES)]
     seed = args.seed + 1 + k
@@ -206,19 +226,23 @@ def heldout_path(k: int, args, overrides, table, identified: IcrParams,
     sim = simulate_bag(directory / name, args.vehicle, overrides=overrides,
                        manoeuvres=manoeuvres, duration=args.path_duration, seed=seed,
                        storage=args.storage, table=table,
-                       force=bool(getattr(args, 'force', False)), parents=False)
+                       force=bool(getattr(args, 'force', False)), parents=False,
+                       imu=GYRO)
     radius = sim.vehicle.robot.encoders.sprocket_radius
-    rec = read_bag(sim.bag, EncoderSource(left_joints=JOINTS[:1], right_joints=JOINTS[1:],
-                                          sprocket_radius=radius),
-                   GroundTruthSource(GT_TOPIC))
+    rec = read_reference_bag(sim.bag, EncoderSource(left_joints=JOINTS[:1],
+                                                    right_joints=JOINTS[1:],
+                                                    sprocket_radius=radius),
+                             IMU_TOPIC, ground_truth=GroundTruthSource(GT_TOPIC))
     run = sim.run
     if len(rec.enc_t) != len(run.t):
         raise RuntimeError(f'{sim.bag}: read {len(rec.enc_t)} encoder samples, wrote '
                            f'{len(run.t)}')
     ideal = IcrParams.ideal(identified.track_width)
+    aided, _, _ = replay(rec.enc_t, rec.left, rec.right, rec.gyro_t, rec.gyro_rate, identified,
+                         gyro)
     return PathResult(name, manoeuvres, seed, run.duration, run.distance, run.pose,
                       dead_reckon(ideal, rec.left, rec.right),
-                      dead_reckon(identified, rec.left, rec.right))
+                      dead_reckon(identified, rec.left, rec.right), aided)
 
 
 def print_table(results, out) -> tuple[float, float]:
@@ -251,6 +275,15 @@ def print_table(results, out) -> tuple[float, float]:
     gains = 100.0 * (1.0 - mean_ident[:2] / np.maximum(mean_ideal[:2], 1e-12))
     print(f'   identified ICRs vs ideal: final position error {-gains[0]:+.0f} %, '
           f'heading error {-gains[1]:+.0f} %', file=out)
+    aided = np.array([r.errors('gyro_aided') for r in results])
+    print('   gyro-aided (the identified ICRs, the heading from the gyro as odometry_node with '
+          'imu_topic):', file=out)
+    print('   ' + ', '.join(f'{r.name} {a[0]:.3f} m {a[1]:.1f} deg' for r, a in
+                            zip(results, aided)), file=out)
+    mean_aided = aided.mean(axis=0)
+    print(f'   mean {mean_aided[0]:.3f} m, {mean_aided[1]:.1f} deg ({mean_aided[2]:.1f} % of '
+          f'the distance) against {mean_ident[0]:.3f} m, {mean_ident[1]:.1f} deg from the '
+          'encoders alone', file=out)
     return float(gains[0]), float(gains[1])
 
 
@@ -261,11 +294,14 @@ def csv_text(results) -> str:
     writer.writerow(['path', 'manoeuvres', 'seed', 'duration_s', 'distance_m',
                      'ideal_position_error_m', 'ideal_heading_error_deg',
                      'ideal_error_pct_of_distance', 'identified_position_error_m',
-                     'identified_heading_error_deg', 'identified_error_pct_of_distance'])
+                     'identified_heading_error_deg', 'identified_error_pct_of_distance',
+                     'gyro_aided_position_error_m', 'gyro_aided_heading_error_deg',
+                     'gyro_aided_error_pct_of_distance'])
     for r in results:
         writer.writerow([r.name, r.manoeuvres, r.seed, f'{r.duration:.2f}',
                          f'{r.distance:.4f}']
-                        + [f'{v:.6g}' for v in r.errors('ideal') + r.errors('identified')])
+                        + [f'{v:.6g}' for v in r.errors('ideal') + r.errors('identified')
+                           + r.errors('gyro_aided')])
     return stream.getvalue()
 
 
@@ -349,7 +385,7 @@ def _steps(args, out, spec, terrain, overrides, outputs: DemoDirectory, start) -
     outputs.record(Entry('file', f'{calibration}.truth.yaml'))
     sim = simulate_bag(directory / calibration, args.vehicle, overrides=overrides,
                        duration=args.duration, seed=args.seed, storage=args.storage,
-                       table=table, force=force, parents=False)
+                       table=table, force=force, parents=False, imu=GYRO)
     outputs.written()
     truth = sim.truth_icr
     _step(1, f'simulated a calibration drive: mixed manoeuvres, {sim.run.duration:.0f} s, '
@@ -380,7 +416,10 @@ def _steps(args, out, spec, terrain, overrides, outputs: DemoDirectory, start) -
         return status
     outputs.written()
     yaml_path = directory / f'{terrain}.yaml'
-    identified = icr_from_values(read_params_file(yaml_path))
+    values = read_params_file(yaml_path)
+    identified = icr_from_values(values)
+    gyro = GyroConfig(imu_delay=values.get('imu_delay', 0.0),
+                      gyro_scale=values.get('gyro_scale', 1.0))
     print(f'   fitted YAML {yaml_path} (terrain parameters; fit statistics follow in the file):',
           file=out)
     text = yaml_path.read_text(encoding='utf-8')
@@ -396,7 +435,7 @@ def _steps(args, out, spec, terrain, overrides, outputs: DemoDirectory, start) -
         name = f'heldout/{heldout_name(k)}'
         outputs.record(Entry('bag', name, bag_files(name, args.storage)))
         outputs.record(Entry('file', f'{name}.truth.yaml'))
-        results.append(heldout_path(k, args, overrides, table, identified, heldout))
+        results.append(heldout_path(k, args, overrides, table, identified, heldout, gyro))
         outputs.written()
     outputs.record(Entry('file', 'heldout.csv'))
     outputs.record(Entry('file', 'heldout.png'))
@@ -414,6 +453,9 @@ def _steps(args, out, spec, terrain, overrides, outputs: DemoDirectory, start) -
     print("   final errors against the true pose; ideal = diff_drive_controller's odometry, "
           f'identified = {yaml_path.name}', file=out)
     print_table(results, out)
+    outputs.record(Entry('file', 'consistency.png'))
+    _consistency(directory, yaml_path, results, spec, force, out)
+    outputs.written()
 
     print(f'4. outputs (total {time.perf_counter() - start:.1f} s):', file=out)
     listing = (
@@ -422,6 +464,8 @@ def _steps(args, out, spec, terrain, overrides, outputs: DemoDirectory, start) -
             (directory / 'identify.png', 'identify_icr plot: paths and residuals'),
             (directory / 'heldout.csv', 'held-out errors, one row per path'),
             (directory / 'heldout.png', 'held-out paths: truth, ideal, identified'),
+            (directory / 'consistency.png', 'held-out errors against the published '
+                                            'covariance (NEES)'),
             (sim.bag, 'calibration bag (+ .truth.yaml: the true model)'),
             (heldout, 'held-out bags'),
             (outputs.manifest, 'what the demo wrote here (a rerun replaces exactly these)'))
@@ -432,6 +476,61 @@ def _steps(args, out, spec, terrain, overrides, outputs: DemoDirectory, start) -
           '   ros2 run tracked_kinematics odometry_node --ros-args --params-file '
           f'{yaml_path.resolve()}', file=out)
     return 0
+
+
+def _consistency(directory, yaml_path, results, spec, force, out) -> None:
+    """Score the held-out bags as evaluate_model --fuse-imu does: the covariance's coverage."""
+    from tracked_kinematics.core import evaluate as ev
+    from tracked_kinematics.core.errors import ExcitationError
+    from tracked_kinematics.offline.bags import CommandSource, read_evaluation_bag
+    from tracked_kinematics.offline.model_evaluation import (
+        evaluate_models, pose_references, TerrainModel, with_gyro)
+    from tracked_kinematics.offline.model_evaluation_plot import plot_consistency
+    encoders = EncoderSource(left_joints=JOINTS[:1], right_joints=JOINTS[1:],
+                             sprocket_radius=spec.robot.encoders.sprocket_radius)
+    bags = [directory / 'heldout' / r.name for r in results]
+    found = []
+    for bag in bags:
+        recording, cmds = read_evaluation_bag(bag, encoders, GroundTruthSource(GT_TOPIC),
+                                              CommandSource('none'))
+        found.append((with_gyro(bag, recording, encoders, IMU_TOPIC), cmds))
+    model = TerrainModel(yaml_path)
+    settings = ev.Settings((5.0, 10.0), track_width=spec.robot.vehicle.track_width,
+                           min_speed=0.1)
+    try:
+        report = evaluate_models(pose_references(bags, found, 0.0), [model], settings,
+                                 sprocket_radius=spec.robot.encoders.sprocket_radius,
+                                 fuse_imu=True)
+    except ExcitationError as err:
+        report = None
+        print(f'   the published covariance: not scored ({err})', file=out)
+    if report is None:
+        normalised = {}
+    else:
+        normalised = _print_consistency(report, model, yaml_path, out)
+    with Outputs(force=force) as files:
+        files.add('consistency.png', directory / 'consistency.png')
+        with files.path('consistency.png') as tmp:
+            plot_consistency(tmp, normalised, settings.windows)
+
+
+def _print_consistency(report, model, yaml_path, out) -> dict:
+    """Print the coverage of the published covariance; return the normalised errors."""
+    print(f"   the published covariance ({yaml_path.name}'s noise model, fitted by identify_icr) "
+          'on the held-out windows, as evaluate_model --fuse-imu reports it:', file=out)
+    for name in (model.name, f'{model.name}+imu'):
+        windows = report.content['models'][name]['odometry']['windows']
+        cells = []
+        for key in ('5', '10'):
+            c = windows[key]['consistency']
+            if not c['windows']:
+                cells.append(f'{key} s: no windows (paths too short)')
+                continue
+            cells.append(f'{key} s: {100 * c["inside_50"]:.0f} % / {100 * c["inside_95"]:.0f} % '
+                         f'inside the 50 % / 95 % ellipses, mean NEES {c["mean_nees"]:.1f}')
+        print(f'   {name:<18}' + '; '.join(cells), file=out)
+    print('   (consistent: 50 % / 95 %, mean NEES 2)', file=out)
+    return report.normalised
 
 
 def main(argv=None) -> int:

@@ -13,6 +13,7 @@ import math
 
 from tracked_kinematics.core import identify as ident
 
+from .noise_constants import add_extras, pose_extras
 from .report import (bag_names, finite_or_none, FitResult, icr_summary, now, TOOL,
                      yaml_values)
 
@@ -74,6 +75,7 @@ def icr_from_poses(recordings, options, track_width: float, sprocket_radius: flo
             'ground_truth_jumps': {'jumps': result.jumps, 'segments': result.jump_segments},
             'uncertain': [vars(u) for u in result.uncertain]})
         _table(result, recordings, sprocket_radius, tool, lines)
+        add_extras(values, report, lines, pose_extras(result, options, track_width))
     note = ''
     if result is not None and not result.fit.model.constant_icr:
         note = (f'The {model} model has no constant ICRs: icr.* and scale.* are the '

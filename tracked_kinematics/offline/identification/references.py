@@ -15,6 +15,7 @@ import math
 from tracked_kinematics.core import identify as ident
 from tracked_kinematics.core.kinematics import IcrParams
 
+from .noise_constants import add_extras, reference_extras
 from .report import bag_names, FitResult, icr_summary, now, TOOL, yaml_values
 
 WHY_HELD = {
@@ -89,9 +90,13 @@ def icr_from_references(recordings, options, track_width: float, sprocket_radius
                               'positions': 0 if r.positions is None else len(r.positions[0]),
                               'pose_samples': 0 if r.pose is None else len(r.pose[0])}
                              for r in recordings]}
+    lines = _table(fit, recordings, tool)
+    add_extras(values, report, lines,
+               reference_extras(fit, recordings, options, track_width,
+                                _held_base(base, options.model)))
     note = (f'Calibrated without ground truth ({fit.reference}): held, not fitted: '
             f'{", ".join(fit.held)}.' if fit.held else '')
-    return FitResult(values, note, report, tuple(_table(fit, recordings, tool)), date)
+    return FitResult(values, note, report, tuple(lines), date)
 
 
 def _held_base(base, model):

@@ -1,0 +1,114 @@
+"""evaluate_model --fuse-imu and the consistency of the published covariance, on simulated bags.
+
+The real-data figures: test_realdata_consistency.py.
+"""
+
+import json
+
+import numpy as np
+import pytest
+from tracked_kinematics.core.sim.sensors import GyroModel
+from tracked_kinematics.offline.bag_simulation import simulate_bag
+from tracked_kinematics.offline.cli import evaluate_model as cli
+
+GT = '/ground_truth/pose'
+IMU = '/imu/data'
+CONSISTENCY = {'inside_50', 'inside_95', 'mean_nees', 'windows'}
+
+
+@pytest.fixture(scope='module')
+def sim(tmp_path_factory):
+    """Simulate a drive with a gyro 0.08 s late, 5 % over-reading; the truth with and without."""
+    root = tmp_path_factory.mktemp('fuse')
+    result = simulate_bag(root / 'drive', 'auriga_alpha', duration=90.0, seed=5,
+                          imu=GyroModel(bias=0.01, noise_std=0.003, latency=0.08, scale=1.05))
+    truth = result.truth.read_text()
+    told = root / 'told.yaml'
+    told.write_text(truth.replace('ros__parameters:\n', 'ros__parameters:\n'
+                                  '    imu_delay: 0.08\n    gyro_scale: 1.05\n'
+                                  '    covariance:\n      k_left: 1.0e-4\n'
+                                  '      k_right: 1.0e-4\n      turn: 1.0e-3\n'
+                                  '      slip: 1.0e-3\n      timing: 1.0e-4\n', 1))
+    naive = root / 'naive.yaml'
+    naive.write_text(truth)
+    return {'bag': result.bag, 'told': told, 'naive': naive, 'root': root}
+
+
+def run(argv, capsys):
+    status = cli.main([str(a) for a in argv])
+    captured = capsys.readouterr()
+    return status, captured.out, captured.err
+
+
+@pytest.fixture(scope='module')
+def fused(sim):
+    out = sim['root'] / 'out'
+    out.mkdir()
+    argv = [sim['bag'], '--ground-truth-topic', GT, '--params', sim['told'], sim['naive'],
+            '--fuse-imu', IMU, '--report', out / 'r.json', '--tum', out / 'tum',
+            '--consistency-plot', out / 'c.png']
+    assert cli.main([str(a) for a in argv]) == 0
+    return json.loads((out / 'r.json').read_text()), out
+
+
+def test_each_file_is_scored_from_the_encoders_and_gyro_aided(fused):
+    report, _ = fused
+    assert report['order'] == ['ideal', 'told', 'told+imu', 'naive', 'naive+imu']
+    entry = report['models']['told+imu']
+    assert entry['kind'] == 'gyro'
+    assert entry['gyro']['imu_delay_s'] == 0.08 and entry['gyro']['gyro_scale'] == 1.05
+    assert entry['gyro']['from_file'] == {'imu_delay': True, 'gyro_scale': True}
+    # The bias is found at standstill: the simulated 0.01 rad/s, times the scale.
+    assert entry['gyro']['bias_rad_s'][0] == pytest.approx(0.0105, abs=0.002)
+    assert report['models']['told']['noise']['turn'] == 1e-3
+    assert report['models']['naive']['noise']['from_file'] is False
+
+
+def test_the_files_gyro_constants_are_used(fused):
+    models = fused[0]['models']
+    told = models['told+imu']['odometry']['windows']['10']['mean_heading_error_rad']
+    naive = models['naive+imu']['odometry']['windows']['10']['mean_heading_error_rad']
+    # A 5 % scale error and 0.08 s of offset left in cost the naive replay its heading.
+    assert told < 0.7 * naive
+
+
+def test_consistency_keys_for_every_file_and_gyro_row(fused):
+    models = fused[0]['models']
+    for name in ('told', 'told+imu', 'naive', 'naive+imu'):
+        for window in ('5', '10'):
+            c = models[name]['odometry']['windows'][window]['consistency']
+            assert set(c) == CONSISTENCY
+            assert c['windows'] == models[name]['odometry']['windows'][window]['n'] > 0
+            assert 0.0 <= c['inside_50'] <= c['inside_95'] <= 1.0
+            assert c['mean_nees'] > 0.0
+    assert 'consistency' not in models['ideal']['odometry']['windows']['5']
+
+
+def test_tum_trajectories_of_the_gyro_rows_beside_the_others(fused):
+    _, out = fused
+    names = sorted(p.name for p in (out / 'tum').iterdir())
+    assert 'piece000.told+imu.tum' in names and 'piece000.naive+imu.tum' in names
+    truth = np.loadtxt(out / 'tum' / 'piece000.ground_truth.tum')
+    aided = np.loadtxt(out / 'tum' / 'piece000.told+imu.tum')
+    assert aided.shape == truth.shape
+    np.testing.assert_array_equal(aided[:, 0], truth[:, 0])
+    np.testing.assert_allclose(aided[0, 1:3], truth[0, 1:3])   # from the first true pose
+
+
+def test_the_consistency_plot_is_written(fused):
+    _, out = fused
+    assert (out / 'c.png').read_bytes()[:8] == b'\x89PNG\r\n\x1a\n'
+
+
+def test_an_absent_imu_topic_is_bad_input_not_a_traceback(sim, capsys):
+    status, _, err = run([sim['bag'], '--ground-truth-topic', GT, '--params', sim['told'],
+                          '--fuse-imu', '/no/imu'], capsys)
+    assert status == 2
+    assert err.startswith('evaluate_model: error: ') and err.count('\n') == 1, err
+    assert '/no/imu' in err
+
+
+def test_fuse_imu_needs_a_pose_reference(sim, capsys):
+    status, _, err = run([sim['bag'], '--imu-topic', IMU, '--params', sim['told'],
+                          '--fuse-imu', IMU], capsys)
+    assert status == 2 and '--fuse-imu needs --ground-truth-topic' in err

@@ -1,0 +1,313 @@
+"""
+What identify_icr writes beside the ICRs: the odometry noise model and the gyro's constants.
+
+The noise model's constants (:class:`tracked_kinematics.core.noise_model.NoiseModel`) are fitted
+on held-out windows of the same recordings (:func:`tracked_kinematics.core.evaluate.
+held_out_windows`: leave one recording out with several, held-out time blocks with one;
+:func:`tracked_kinematics.core.evaluate.fit_noise`): against a pose, on the final pose errors;
+against the gyro alone, on the heading errors (``track``, ``turn``, ``timing``; ``slip`` held).
+They are written as odometry_node reads them (``covariance.k_left``, ``covariance.k_right``: the
+track random walk; ``covariance.turn``, ``covariance.slip``, ``covariance.timing``), with their
+provenance under ``identification.covariance.*``. The gyro's ``imu_delay`` and, with a pose,
+its ``gyro_scale`` (:func:`tracked_kinematics.core.gyro_odometry.fit_gyro_scale`) are written at
+the top level. docs/tools/identify_icr.md, "The noise model and the gyro".
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+import math
+
+from tracked_kinematics.core import identify as ident
+from tracked_kinematics.core.errors import IdentificationError
+from tracked_kinematics.core.evaluate import fit_noise, held_out_windows, recording_windows
+from tracked_kinematics.core.gyro_odometry import fit_gyro_scale
+from tracked_kinematics.core.identify.segments import over_jumps
+
+LENGTHS = (5.0, 10.0)
+"""Window lengths the noise model is fitted on, s (evaluate_model's defaults)."""
+
+SCALE_SPREAD = 0.01
+"""A gyro scale is written only when it differs from 1 by more than this and 3 standard errors."""
+
+COVARIANCE_KEYS = {'track': ('covariance.k_left', 'covariance.k_right'),
+                   'turn': ('covariance.turn',), 'slip': ('covariance.slip',),
+                   'timing': ('covariance.timing',)}
+"""The terrain file's (odometry_node's) names of each constant of the noise model."""
+
+
+@dataclass(frozen=True)
+class Extras:
+    """
+    The noise model and the gyro's constants of one identification.
+
+    ``values`` are top-level terrain values, ``record`` goes under ``identification.``,
+    ``report`` into the JSON report, ``lines`` are printed after the table.
+    """
+
+    values: dict = field(default_factory=dict)
+    record: dict = field(default_factory=dict)
+    report: dict = field(default_factory=dict)
+    lines: tuple = ()
+
+
+def noise_values(found, lengths=LENGTHS) -> tuple[dict, dict]:
+    """
+    Return a :class:`~tracked_kinematics.core.evaluate.NoiseFit` as terrain values and record.
+
+    Returns
+    -------
+    values : dict
+        ``covariance.*`` (odometry_node's names, :data:`COVARIANCE_KEYS`).
+    record : dict
+        ``covariance.*`` provenance, to go under ``identification.``.
+
+    """
+    model = found.model
+    values = {key: float(getattr(model, term))
+              for term, keys in COVARIANCE_KEYS.items() for key in keys}
+    record = {'covariance.fitted': list(found.fitted), 'covariance.held': list(found.held),
+              'covariance.errors': found.errors, 'covariance.windows': int(found.windows),
+              'covariance.independent_windows': round(float(found.independent), 1),
+              'covariance.window_lengths': [float(w) for w in lengths]}
+    return values, record
+
+
+def _noise_lines(found, held_out: str) -> list[str]:
+    m = found.model
+    held = (f'; held at the prior: {", ".join(found.held)}' if found.held else '')
+    return [f'noise model ({found.errors} errors of {found.windows} windows of '
+            f'{"/".join(f"{w:g}" for w in LENGTHS)} s, ~{found.independent:.0f} independent, '
+            f'{held_out}): track {m.track:.2e} m^2/m, turn {m.turn:.2e} rad^2/rad, slip '
+            f'{m.slip:.2e} m^2/rad, timing {m.timing:.2e} s^2{held}']
+
+
+MAX_WINDOWS = 3000
+"""Most windows of one length the noise model is fitted on: evenly spaced starts beyond."""
+
+
+def _thinned(windows):
+    """
+    Keep at most :data:`MAX_WINDOWS` windows of each length, their starts evenly spaced.
+
+    Windows start at every reference sample and overlap: on a long log, every few tenths of
+    a second is as informative (the fit weighs the windows by how many are independent) and
+    the fit is linear in their number.
+    """
+    import numpy as np
+    keep = np.zeros(len(windows), dtype=bool)
+    for length in np.unique(windows.length):
+        mine = np.flatnonzero(windows.length == length)
+        step = max(1, -(-len(mine) // MAX_WINDOWS))
+        keep[mine[::step]] = True
+    return windows.select(keep)
+
+
+def _noise(windows, errors, free, held_out):
+    """Fit the noise model to windows; return (values, record, report, lines) or a reason."""
+    windows = _thinned(windows)
+    try:
+        found = fit_noise(windows, free=free, errors=errors)
+    except ValueError as err:
+        return None, str(err)
+    values, record = noise_values(found)
+    record['covariance.held_out'] = held_out
+    report = {'model': {t: getattr(found.model, t) for t in COVARIANCE_KEYS},
+              'fitted': list(found.fitted), 'held': list(found.held), 'errors': found.errors,
+              'windows': int(found.windows), 'independent_windows': float(found.independent),
+              'window_lengths_s': list(LENGTHS), 'held_out': held_out}
+    return (values, record, report, _noise_lines(found, held_out)), ''
+
+
+def _not_fitted(reason: str) -> Extras:
+    return Extras(record={'covariance.not_fitted': reason},
+                  report={'covariance': {'not_fitted': reason}},
+                  lines=(f'noise model: not fitted ({reason}); covariance.* not written',))
+
+
+def _held_out_kind(recordings) -> str:
+    return ('leave one recording out' if len(recordings) >= 2
+            else 'held-out time blocks')
+
+
+def pose_extras(result, options, track_width: float) -> Extras:
+    """
+    Fit the noise model on the held-out windows of a segment identification (a pose reference).
+
+    Each fold's ICRs are fitted as the main fit (its model, heading weight, loss, segments),
+    without its comparisons; the recordings are ``result``'s, their delay removed.
+
+    Parameters
+    ----------
+    result : Identification
+        :func:`tracked_kinematics.core.identify.identify`'s.
+    options : FitOptions
+        identify_icr's options.
+    track_width : float
+        m.
+
+    """
+    recordings = list(result.recordings)
+    fitted = result.fit
+    model = fitted.model if fitted.model.constant_icr else ident.build_model(
+        'icr_scales', track_width)
+    settings = options.identify
+    start = fitted.p if fitted.model.constant_icr else None
+
+    def fit_icr(recs):
+        segments = ident.build_segments(recs, result.segment_length)
+        if len(segments):
+            segments = segments.select(~over_jumps(segments, recs, track_width))
+            segments = segments.select(segments.travel >= settings.min_travel)
+        try:
+            # From the full fit's parameters, one round: a fold differs little from it.
+            return ident.fit(model, segments, p0=start, heading_weight=fitted.heading_weight,
+                             loss=settings.loss, max_nfev=settings.max_nfev, rounds=1,
+                             check=False).icr
+        except (IdentificationError, ValueError):
+            return result.icr   # too little in this fold: the full fit's ICRs
+    windows = held_out_windows(recordings, fit_icr, LENGTHS, settings.min_speed,
+                               track_width)
+    done, reason = _noise(windows, 'pose', ('track', 'turn', 'slip', 'timing'),
+                          _held_out_kind(recordings))
+    if done is None:
+        return _not_fitted(reason)
+    values, record, report, lines = done
+    return Extras(values, record, {'covariance': report}, tuple(lines))
+
+
+def reference_extras(fit, recordings, options, track_width: float, base=None) -> Extras:
+    """
+    Fit the noise model and the gyro's constants of a reference calibration.
+
+    With a pose among the references, the noise model is fitted to the pose errors (each
+    held-out part scored with the ICRs calibrated without it) and the gyro's scale against the
+    pose's heading; with the gyro alone, to the heading errors against the gyro (``slip``
+    held: a gyro does not see it). ``imu_delay`` is written whenever there is a gyro.
+
+    Parameters
+    ----------
+    fit : ReferenceFit
+        :func:`tracked_kinematics.core.identify.fit_recordings`'s, on ``recordings``.
+    recordings : sequence of Recording
+        As read.
+    options : FitOptions
+        identify_icr's options.
+    track_width : float
+        m.
+    base : IcrParams, optional
+        The values the calibration held.
+
+    """
+    recordings = list(recordings)
+    values, record, report, lines = {}, {}, {}, []
+    has_gyro = fit.report.get('imu_delay') is not None
+    has_pose = fit.report.get('pose_delay') is not None
+    segment_length = float(options.identify.segment_length or 1.0)
+    min_speed = options.identify.min_speed
+    if has_gyro:
+        values['imu_delay'] = float(fit.imu_delay.delay)
+    if has_pose:
+        shifted = _per_bag_delay(recordings, float(fit.pose_delay.delay))
+        imu_delay = float(fit.imu_delay.delay) if has_gyro else 0.0
+
+        def fit_icr(recs):
+            try:
+                return ident.fit_recordings(
+                    recs, track_width, base=base, imu_delay=imu_delay, pose_delay=0.0,
+                    segment_length=segment_length,
+                    gnss_antenna=tuple(options.gnss_antenna)).icr
+            except (IdentificationError, ValueError):
+                return fit.icr
+        windows = held_out_windows(shifted, fit_icr, LENGTHS, min_speed, track_width)
+        done, reason = _noise(windows, 'pose', ('track', 'turn', 'slip', 'timing'),
+                              _held_out_kind(recordings))
+        if has_gyro:
+            scale_lines, scale_values, scale_record = _gyro_scale(shifted, imu_delay)
+            values.update(scale_values)
+            record.update(scale_record)
+            report['gyro_scale'] = {k.replace('gyro_scale', 'fitted'): v
+                                    for k, v in scale_record.items()}
+            report['gyro_scale']['written'] = scale_values['gyro_scale']
+            lines += scale_lines
+    elif has_gyro:
+        heading = [ident.heading_reference(r, fit.imu_delay.delay, b)
+                   for r, b in zip(recordings, fit.biases)]
+        raw = {id(h): r for h, r in zip(heading, recordings)}
+        delay = float(fit.imu_delay.delay)
+
+        def fit_icr(recs):
+            try:
+                return ident.fit_recordings([raw[id(h)] for h in recs], track_width,
+                                            base=base, imu_delay=delay,
+                                            segment_length=segment_length).icr
+            except (IdentificationError, ValueError, KeyError):
+                return fit.icr
+        if len(heading) >= 2:
+            windows = held_out_windows(heading, fit_icr, LENGTHS, min_speed, track_width)
+            kind = 'leave one recording out'
+        else:
+            # One recording: a time block of it has no gyro to calibrate on; the calibration
+            # (chi and the scale ratio, from the whole drive) scores it.
+            windows = recording_windows(heading, fit.icr, LENGTHS, min_speed, track_width)
+            kind = 'in sample: one recording'
+        done, reason = _noise(windows, 'heading', ('track', 'turn', 'timing'), kind)
+    else:
+        done, reason = None, 'no pose and no gyro: positions alone do not time the errors'
+    if done is None:
+        extra = _not_fitted(reason)
+        return Extras({**values, **extra.values}, {**record, **extra.record},
+                      {**report, **extra.report}, tuple(lines) + extra.lines)
+    n_values, n_record, n_report, n_lines = done
+    return Extras({**values, **n_values}, {**record, **n_record},
+                  {**report, 'covariance': n_report}, tuple(n_lines + lines))
+
+
+def _per_bag_delay(recordings, pooled: float):
+    """
+    Return the recordings with the pose's delay taken off, each bag's own where determined.
+
+    The pose delay of lidar ICP varies from bag to bag (0.19-0.26 s on the Warthog runs);
+    a delay off by a few 0.01 s lowers the gyro scale fitted against the pose's heading by
+    about 1 % (the regression on a time-shifted heading is attenuated).
+    """
+    try:
+        each = ident.estimate_delays(recordings)[1]
+    except (IdentificationError, ValueError):
+        each = []
+    delays = [e.delay if e.determined else pooled for e in each] if each else \
+        [pooled] * len(recordings)
+    return [ident.correct_ground_truth([r], float(d))[0] for r, d in zip(recordings, delays)]
+
+
+def _gyro_scale(recordings, imu_delay: float):
+    """Return the printed lines, terrain values and record of the gyro scale fit."""
+    with_gyro = [r for r in recordings if r.gyro_t is not None and r.gyro_rate is not None
+                 and r.gt_t is not None]
+    scale, std = fit_gyro_scale([r.gyro_t for r in with_gyro],
+                                [r.gyro_rate for r in with_gyro],
+                                [r.gt_t for r in with_gyro], [r.gt_yaw for r in with_gyro],
+                                imu_delay)
+    determined = (math.isfinite(std)
+                  and abs(scale - 1.0) > max(3.0 * std, SCALE_SPREAD))
+    record = {'gyro_scale_fitted': float(scale)}
+    if math.isfinite(std):
+        record['gyro_scale_std'] = float(std)
+    record['gyro_scale_method'] = ('fitted against the pose' if determined else
+                                   'not determined: 1.0 written (the fit is within 3 standard '
+                                   'errors or 1 % of 1)')
+    written = float(scale) if determined else 1.0
+    std_text = f' +- {std:.4f}' if math.isfinite(std) else ' (too few segments)'
+    line = (f'gyro scale (measured / true): fitted {scale:.4f}{std_text}; written '
+            f'{written:.4f}' + ('' if determined else ' (not determined: within 3 standard '
+                                                      'errors or 1 % of 1)'))
+    return [line], {'gyro_scale': written}, record
+
+
+def add_extras(values: dict, report: dict, lines: list, extras: Extras) -> None:
+    """Add :class:`Extras` to an identification's terrain values, report and printed lines."""
+    values.update(extras.values)
+    values.update({f'identification.{k}': v for k, v in extras.record.items()
+                   if not (isinstance(v, float) and not math.isfinite(v))})
+    report.update(extras.report)
+    lines.extend(extras.lines)
