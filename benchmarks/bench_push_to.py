@@ -113,7 +113,7 @@ def main():
     parser.add_argument('--rtf', type=float, default=2.0, help='real-time factor')
     args = parser.parse_args()
     with tempfile.TemporaryDirectory() as logs:
-        logs = os.environ.get("BENCH_LOGS", logs)
+        logs = os.environ.get('BENCH_LOGS', logs)  # keep the nodes' logs there
         results = {push: run(args.terrain, args.seconds, args.rtf, push, logs)
                    for push in (False, True)}
     print(f'closed loop on {args.terrain} with the hard-floor file, cmd v {V} m/s, w {W} rad/s, '
