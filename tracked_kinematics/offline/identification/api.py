@@ -13,12 +13,14 @@ from dataclasses import dataclass, field, replace
 import sys
 
 from tracked_kinematics.core import identify as ident
-from tracked_kinematics.core.errors import InvalidParameters
+from tracked_kinematics.core.errors import (IdentificationError, InvalidParameters,
+                                            SensorDataError)
 from tracked_kinematics.core.identify.procedure import IdentifyOptions
 from tracked_kinematics.core.kinematics import IcrParams
 from tracked_kinematics.offline.bags import EncoderSource, GroundTruthSource, read_bags
+from tracked_kinematics.offline.bags.opening import topics_of_type
 from tracked_kinematics.offline.bags.reference_reader import read_reference_bag
-from tracked_kinematics.offline.errors import UsageError
+from tracked_kinematics.offline.errors import BagError, UsageError
 from tracked_kinematics.offline.outputs import Outputs
 from tracked_kinematics.offline.terrain_file import terrain_text
 from tracked_kinematics.offline.tooling import (
@@ -26,6 +28,7 @@ from tracked_kinematics.offline.tooling import (
 from tracked_kinematics.params import (
     check_values, icr_from_values, TERRAIN_DEFAULTS, TERRAIN_PARAMS)
 
+from .noise_constants import add_extras, gyro_extras
 from .poses import icr_from_poses
 from .references import icr_from_references
 from .report import FitResult, TOOL
@@ -132,8 +135,38 @@ def fit(options: FitOptions, *, date: str | None = None) -> FitResult:
         return icr_from_references(recordings, options, track_width, radius, base=base,
                                    base_values=base_values, date=date)
     recordings = read_bags(options.bags, encoders, options.ground_truth, progress=progress)
-    return icr_from_poses(recordings, options, track_width, radius, base=base,
-                          base_values=base_values, date=date)
+    found = icr_from_poses(recordings, options, track_width, radius, base=base,
+                           base_values=base_values, date=date)
+    return _with_gyro(found, options, encoders, progress)
+
+
+IMU_TYPE = 'sensor_msgs/msg/Imu'
+
+
+def _with_gyro(found: FitResult, options: FitOptions, encoders, progress) -> FitResult:
+    """
+    Add the gyro's constants to a pose fit whose bags carry one gyro topic, the same in each.
+
+    The ICRs stay the pose fit's; ``imu_delay`` and ``gyro_scale`` (:func:`.noise_constants.
+    gyro_extras`) let odometry_node's ``imu_topic`` and evaluate_model's ``--fuse-imu`` use
+    the gyro at the right time. A gyro that cannot be read or timed adds a note, not an error.
+    """
+    if found.identification is None:    # spin in place: the ICRs alone
+        return found
+    topics = {tuple(topics_of_type(bag, IMU_TYPE)) for bag in options.bags}
+    if len(topics) != 1 or len(next(iter(topics))) != 1:
+        return found
+    topic = next(iter(topics))[0]
+    try:
+        recordings = [read_reference_bag(bag, encoders, topic, None, options.ground_truth,
+                                         progress=progress) for bag in options.bags]
+        extras = gyro_extras(recordings, topic)
+    except (BagError, SensorDataError, IdentificationError, ValueError) as err:
+        return replace(found, lines=found.lines + (
+            f'gyro {topic}: not used ({err}); imu_delay and gyro_scale not written',))
+    values, report, lines = dict(found.values), dict(found.report), list(found.lines)
+    add_extras(values, report, lines, extras)
+    return replace(found, values=values, report=report, lines=tuple(lines))
 
 
 def write_fit(found: FitResult, outputs: Outputs, options: FitOptions) -> None:

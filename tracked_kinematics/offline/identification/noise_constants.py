@@ -22,6 +22,7 @@ from tracked_kinematics.core import identify as ident
 from tracked_kinematics.core.errors import IdentificationError
 from tracked_kinematics.core.evaluate import fit_noise, held_out_windows, recording_windows
 from tracked_kinematics.core.gyro_odometry import fit_gyro_scale
+from tracked_kinematics.core.identify.reference.delays import sensor_delays
 from tracked_kinematics.core.identify.segments import over_jumps
 
 LENGTHS = (5.0, 10.0)
@@ -261,6 +262,40 @@ def reference_extras(fit, recordings, options, track_width: float, base=None) ->
     n_values, n_record, n_report, n_lines = done
     return Extras({**values, **n_values}, {**record, **n_record},
                   {**report, 'covariance': n_report}, tuple(n_lines + lines))
+
+
+def gyro_extras(recordings, topic: str) -> Extras:
+    """
+    Return the gyro's constants of a pose identification whose bags also carry a gyro.
+
+    ``recordings`` (as read with the gyro on ``topic`` and the pose): ``imu_delay`` (the
+    gyro's stamps against the encoders, model-free, as ``--imu-topic`` estimates it) and
+    ``gyro_scale`` (against the pose's heading), so that odometry_node's ``imu_topic`` and
+    evaluate_model's ``--fuse-imu`` use the gyro at the right time; the ICRs stay the pose
+    fit's.
+    """
+    try:
+        imu, pose = sensor_delays(list(recordings), 'auto', 'auto')
+    except (IdentificationError, ValueError) as err:
+        return Extras(record={'gyro_topic': topic, 'imu_delay_method': f'not determined: {err}'},
+                      lines=(f'gyro {topic}: delay not determined ({err}); imu_delay not '
+                             'written',))
+    if not imu.determined:
+        return Extras(record={'gyro_topic': topic, 'imu_delay_method': 'not determined'},
+                      lines=(f'gyro {topic}: delay not determined ({imu.problem}); imu_delay '
+                             'not written',))
+    imu_delay = float(imu.delay)
+    shifted = _per_bag_delay(list(recordings), float(pose.delay))
+    scale_lines, scale_values, scale_record = _gyro_scale(shifted, imu_delay)
+    record = {'gyro_topic': topic, 'imu_delay': imu_delay,
+              'imu_delay_method': imu.uncertainty or 'not determined', **scale_record}
+    if math.isfinite(imu.std):
+        record['imu_delay_std'] = float(imu.std)
+    report = {'gyro': {'topic': topic, 'imu_delay': imu_delay,
+                       'gyro_scale': scale_values['gyro_scale']}}
+    lines = (f'gyro {topic} (found in the bags): imu_delay {imu_delay:+.3f} s',
+             *scale_lines)
+    return Extras({'imu_delay': imu_delay, **scale_values}, record, report, lines)
 
 
 def _per_bag_delay(recordings, pooled: float):
