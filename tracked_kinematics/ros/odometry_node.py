@@ -213,6 +213,8 @@ class OdometryNode(TableNode):
         self._transform = None
         self._tf_warned = False
         self._last_publish_ns = None
+        self._last_twist = (0.0, 0.0, 0.0)
+        self._start_timing = (0.0,) * 6
         self.encoder = None
         self._apply(values)
         self.encoder = EncoderInput(self, values, self._on_step, check_timer=False)
@@ -456,17 +458,20 @@ class OdometryNode(TableNode):
         if self._timing is not None:
             # The time error at the end of the interval, at the current rates (fixed frame):
             # published, not accumulated.
+            # With the one at the start (the last ~/reset's rates), as evaluate_model's
+            # windows have both ends (core.noise_model.window_bases).
             v_x, v_y, w = twist
             cos_t, sin_t = math.cos(theta), math.sin(theta)
             extra = timing_covariance(self._timing, cos_t * v_x - sin_t * v_y,
                                       sin_t * v_x + cos_t * v_y, w)
-            xx, xy, xt, yy, yt, tt = pose_covariance
-            pose_covariance = saturate((xx + extra[0], xy + extra[1], xt + extra[2],
-                                        yy + extra[3], yt + extra[4], tt + extra[5]))
+            start = self._start_timing
+            pose_covariance = saturate(tuple(
+                p + e + s0 for p, e, s0 in zip(pose_covariance, extra, start)))
         if not all(map(math.isfinite, twist + twist_covariance)):
             self.get_logger().warning(
                 f'non-finite twist {twist} not published', throttle_duration_sec=WARN_PERIOD)
             return False
+        self._last_twist = twist
         # The yaw as a quaternion with w >= 0 (theta itself is continuous, not wrapped).
         _, _, qz, qw = quaternion_from_yaw(theta)
         if qw < 0.0:
@@ -486,6 +491,10 @@ class OdometryNode(TableNode):
     def _reset(self) -> None:
         self.odometry.reset()
         self._last_publish_ns = None
+        # The pose and its accumulated covariance are zero; a robot reset while it moves has
+        # its time error at the start too (the rates then, in the new frame: heading 0).
+        self._start_timing = (timing_covariance(self._timing, *self._last_twist)
+                              if self._timing is not None else (0.0,) * 6)
 
 
 def _long_lived_node() -> OdometryNode:
