@@ -93,4 +93,7 @@ def test_pose_alone_on_two_bags_holds_each_out_in_turn(bags, tmp_path, capsys):
     for key in KEYS:
         assert values[key] > 0.0, key
     assert values['identification.covariance.held_out'] == 'leave one recording out'
-    assert 'imu_delay' not in values and 'gyro_scale' not in values
+    # The bags carry one gyro topic: its constants are written beside the pose fit's ICRs.
+    assert values['identification.gyro_topic'] == IMU
+    assert values['imu_delay'] == pytest.approx(0.08, abs=0.01)
+    assert 'gyro_scale' in values
