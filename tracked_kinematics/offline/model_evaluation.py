@@ -27,7 +27,8 @@ from tracked_kinematics.core.noise_model import NoiseModel
 from tracked_kinematics.offline.bags.reference_reader import read_reference_bag
 from tracked_kinematics.offline.errors import UsageError
 from tracked_kinematics.params import (
-    drivetrain_from_values, icr_from_values, read_params_file, values_from_drivetrain)
+    drivetrain_from_values, gyro_config_from_values, icr_from_values, read_params_file,
+    values_from_drivetrain)
 
 TOOL = 'evaluate_model'
 
@@ -109,9 +110,13 @@ def estimator_config_of(values) -> EstimatorConfig:
 
 
 def gyro_config_of(values) -> GyroConfig:
-    """Return how the gyro-aided odometry reads the gyro: the file's imu_delay, gyro_scale."""
-    return GyroConfig(imu_delay=values.get('imu_delay', 0.0),
-                      gyro_scale=values.get('gyro_scale', 1.0))
+    """
+    Return how the gyro-aided odometry reads the gyro: as odometry_node does with the file.
+
+    Its imu_delay, gyro_scale, covariance.gyro_noise, imu_* limits and adapt_slip (the node's
+    defaults, the slip adapted, for the missing ones): :func:`gyro_config_from_values`.
+    """
+    return gyro_config_from_values(values)
 
 
 def read_terrain_models(paths) -> list[TerrainModel]:
