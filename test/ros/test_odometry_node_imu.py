@@ -324,6 +324,15 @@ def test_imu_reader_reads_what_rclpy_reads(frame):
         data = serialize_message(msg)
         for _ in range(2):   # the first by rclpy, the second in place
             stamp_s, rate = reader.read(data)
-            assert stamp_s == 12 + 7e-9 and (rate == z or (math.isnan(z) and math.isnan(rate)))
+            # From the origin, the first message's whole seconds.
+            assert reader.origin == 12
+            assert stamp_s == 7 * 1e-9 and (rate == z or (math.isnan(z) and math.isnan(rate)))
         assert raw_stamp_key(data) == 12_000_000_007
     assert reader.read(b'\x00\x01\x00\x00garbage') is None
+    # An epoch stamp keeps its nanoseconds (as a float of the epoch it would not).
+    reader = ImuReader()
+    reader.origin = 1_700_000_000
+    msg = imu_msg(0.0, 0.1)
+    msg.header.stamp.sec, msg.header.stamp.nanosec = 1_700_000_012, 250_000_001
+    stamp_s, _ = reader.read(serialize_message(msg))
+    assert stamp_s == pytest.approx(12.250000001, abs=1e-12)

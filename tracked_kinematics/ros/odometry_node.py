@@ -424,7 +424,13 @@ class OdometryNode(TableNode):
     def _on_step(self, stamp_s: float, d_left: float, d_right: float, dt: float) -> None:
         if self._gyro:
             self._take_imu()
-            accepted = self.odometry.update(stamp_s, d_left, d_right, dt)
+            # On the gyro's time origin (whole seconds): epoch seconds lose precision.
+            reader = self._imu_reader
+            stamp_ns = self.encoder.stamp_ns
+            if reader.origin is None:
+                reader.origin = stamp_ns // 1_000_000_000
+            t = (stamp_ns - reader.origin * 1_000_000_000) * 1e-9
+            accepted = self.odometry.update(t, d_left, d_right, dt)
             if self.odometry.source != self._source:
                 self._switched()
         else:
