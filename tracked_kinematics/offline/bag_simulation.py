@@ -1,26 +1,10 @@
 """
 Simulate a tracked vehicle and record the run as a bag, with its true ICR model next to it.
 
-The bag holds what a real calibration run would: ``/joint_states`` (sensor_msgs/JointState,
-``left_sprocket_joint`` / ``right_sprocket_joint`` positions and velocities), a ground-truth
-pose (geometry_msgs/PoseStamped on ``/ground_truth/pose``, or nav_msgs/Odometry on
-``/ground_truth/odom``), and the commanded setpoints ``/left_track/setpoint`` and
-``/right_track/setpoint`` (std_msgs/Float64, m/s), so the drive train can be identified from
-it too; with ``--imu`` a gyro on ``/imu/data`` (sensor_msgs/Imu, ``angular_velocity.z`` with
-bias, noise, latency; ``orientation_covariance[0] = -1``) and with ``--gnss`` a receiver on
-``/gnss/fix`` (sensor_msgs/NavSatFix with noise, dropouts and fix status), the sensors of a
-robot without ground truth (:mod:`tracked_kinematics.core.sim.sensors`). Next to it,
-``OUT.truth.yaml`` holds the vehicle's averaged stationary ICR model in the terrain format (a
-valid ``--params-file``): the ground truth an identification should find, and the sensor
-settings used (``simulation.imu.*``, ``simulation.gnss.*``).
-
 :func:`simulate_bag` does it all in one call (the ``simulate_bag`` command line, the demo,
 benchmarks and tests call it); :func:`write_run` records any
-:class:`~tracked_kinematics.core.sim.simulation.Run`. The bag is written to a hidden
-temporary directory and renamed when closed, the truth file likewise, both at the end or
-neither (docs/output-files.md).
-
-Documentation: docs/tools/simulate_bag.md.
+:class:`~tracked_kinematics.core.sim.simulation.Run`. The bag's topics and the truth file:
+docs/tools/simulate_bag.md; both are written at the end or neither (docs/output-files.md).
 """
 
 from __future__ import annotations
