@@ -33,7 +33,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import csv
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 import io
 import math
 from pathlib import Path
@@ -63,7 +63,7 @@ from tracked_kinematics.offline.identification import (
 from tracked_kinematics.offline.outputs import Outputs
 from tracked_kinematics.offline.vehicle_file import (
     add_vehicle_arguments, fixed, load_vehicle, overrides_from_args)
-from tracked_kinematics.params import icr_from_values, read_params_file
+from tracked_kinematics.params import gyro_config_from_values, icr_from_values, read_params_file
 
 PROG = 'tracked_kinematics_demo'
 HELDOUT_MANOEUVRES = ('random', 'sweep', 'random', 'mixed', 'random')
@@ -190,14 +190,9 @@ def identify(bag: Path, out: Path, terrain: str, track_width: float, radius: flo
         outputs.refuse_inputs('BAG', [bag])
 
         def work(outputs):
+            # The bag's gyro is found by the pose fit itself: imu_delay and gyro_scale.
             found = fit(options)
-            gyro = fit(replace(options, imu_topic=IMU_TOPIC))
             print(found.text, file=printed)
-            print('the gyro, from the same fit with --imu-topic ' + IMU_TOPIC + ':',
-                  file=printed)
-            print('\n'.join(line for line in gyro.lines if 'gyro' in line), file=printed)
-            found.values.update({k: v for k, v in gyro.values.items()
-                                 if k in GYRO_KEYS or k.startswith(GYRO_RECORDS)})
             write_fit(found, outputs, options)
         return write_together(outputs, work, printed)
 
@@ -205,11 +200,6 @@ def identify(bag: Path, out: Path, terrain: str, track_width: float, radius: flo
     with contextlib.redirect_stdout(buffer):
         status = run_main(FIT_TOOL, run, None)
     return status, [FIT_TOOL] + argv, buffer.getvalue()
-
-
-GYRO_KEYS = ('imu_delay', 'gyro_scale')
-"""What the demo's terrain file takes from the fit with the gyro."""
-GYRO_RECORDS = ('identification.imu_delay', 'identification.gyro_')
 
 
 def heldout_name(k: int) -> str:
@@ -418,8 +408,7 @@ def _steps(args, out, spec, terrain, overrides, outputs: DemoDirectory, start) -
     yaml_path = directory / f'{terrain}.yaml'
     values = read_params_file(yaml_path)
     identified = icr_from_values(values)
-    gyro = GyroConfig(imu_delay=values.get('imu_delay', 0.0),
-                      gyro_scale=values.get('gyro_scale', 1.0))
+    gyro = gyro_config_from_values(values)
     print(f'   fitted YAML {yaml_path} (terrain parameters; fit statistics follow in the file):',
           file=out)
     text = yaml_path.read_text(encoding='utf-8')
