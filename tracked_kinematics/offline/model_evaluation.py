@@ -21,14 +21,12 @@ from tracked_kinematics.core.estimate.config import EstimatorConfig
 from tracked_kinematics.core.evaluate.consistency import (
     gyro_track, GyroHeading, window_consistency)
 from tracked_kinematics.core.evaluate.pieces import track_path
-from tracked_kinematics.core.gyro_odometry import GyroConfig
 from tracked_kinematics.core.kinematics import IcrParams
-from tracked_kinematics.core.noise_model import NoiseModel
 from tracked_kinematics.offline.bags.reference_reader import read_reference_bag
 from tracked_kinematics.offline.errors import UsageError
 from tracked_kinematics.params import (
-    drivetrain_from_values, gyro_config_from_values, icr_from_values, read_params_file,
-    values_from_drivetrain)
+    drivetrain_from_values, gyro_config_from_values, icr_from_values, noise_model_from_values,
+    read_params_file, values_from_drivetrain)
 
 TOOL = 'evaluate_model'
 
@@ -60,37 +58,12 @@ class TerrainModel:
             raise InvalidParameters(f'{path}: {err}') from None
         self.drivetrain_in_file = any(k.startswith('drivetrain.') for k in self.values)
         self.name = Path(path).stem
+        # As odometry_node reads them, checked by its table.
         try:
-            self.noise = noise_model_of(self.values)
-            self.gyro = gyro_config_of(self.values)
+            self.noise = noise_model_from_values(self.values)
+            self.gyro = gyro_config_from_values(self.values)
         except ValueError as err:
             raise InvalidParameters(f'{path}: {err}') from None
-
-
-NOISE_KEYS = {'covariance.turn': 'turn', 'covariance.slip': 'slip',
-              'covariance.timing': 'timing', 'covariance.floor': 'floor'}
-"""The terrain file's names of the noise model's constants (the track's: ``k_left, k_right``)."""
-
-
-def noise_model_of(values) -> NoiseModel:
-    """
-    Return the noise model a terrain file publishes with: its ``covariance.*`` or the defaults.
-
-    The track random walk is the mean of ``covariance.k_left`` and ``covariance.k_right``
-    (identify_icr writes the same value into both); absent terms are 0, as odometry_node
-    reads them. Raises ValueError for a value that is not a number >= 0.
-    """
-    default = NoiseModel()
-    k_left = values.get('covariance.k_left', default.track)
-    k_right = values.get('covariance.k_right', default.track)
-    for name, value in (('covariance.k_left', k_left), ('covariance.k_right', k_right)):
-        if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise ValueError(f'{name} must be a number, got {value!r}')
-    terms = {term: values[key] for key, term in NOISE_KEYS.items() if key in values}
-    try:
-        return NoiseModel(track=0.5 * (float(k_left) + float(k_right)), **terms)
-    except ValueError as err:
-        raise ValueError(f'covariance.{err}') from None
 
 
 def estimator_config_of(values) -> EstimatorConfig:
@@ -107,16 +80,6 @@ def estimator_config_of(values) -> EstimatorConfig:
     return EstimatorConfig(
         track_noise=0.5 * (value('covariance.k_left') + value('covariance.k_right')),
         turn_noise=value('covariance.turn'), slip_noise=value('covariance.slip'))
-
-
-def gyro_config_of(values) -> GyroConfig:
-    """
-    Return how the gyro-aided odometry reads the gyro: as odometry_node does with the file.
-
-    Its imu_delay, gyro_scale, covariance.gyro_noise, imu_* limits and adapt_slip (the node's
-    defaults, the slip adapted, for the missing ones): :func:`gyro_config_from_values`.
-    """
-    return gyro_config_from_values(values)
 
 
 def read_terrain_models(paths) -> list[TerrainModel]:

@@ -11,8 +11,11 @@ import math
 from typing import Any
 
 from tracked_kinematics.core.command import TRACK_SPEED_ENVELOPE
+from tracked_kinematics.core.covariance import TrackNoise
 from tracked_kinematics.core.drivetrain import LOOP_KINDS
 from tracked_kinematics.core.encoder_modes import ENCODER_DECODERS, JointStatesDecoder, TICK_TYPES
+from tracked_kinematics.core.gyro_odometry import GyroConfig
+from tracked_kinematics.core.noise_model import PRIOR
 
 from .spec import (Derived, described_as, finite, non_negative, one_of, ParamSpec, positive,
                    unknown_parameters)
@@ -217,6 +220,67 @@ COMMAND_LIMIT_PARAMS: tuple[ParamSpec, ...] = (
     _deceleration('angular.z.max_deceleration', 'Largest rate of change of w toward zero',
                   'rad/s^2', MAX_YAW_ACCEL),
 )
+
+
+# The odometry's noise model and gyro: odometry_node's parameters, a terrain file's keys ------
+
+_DEFAULT_NOISE = TrackNoise()
+_DEFAULT_GYRO = GyroConfig()
+
+
+def _prior(term: str) -> float:
+    """Return the noise model's prior of a term, to 12 digits (0.1 ** 2 is 0.01 here)."""
+    return float(f'{getattr(PRIOR, term):.12g}')
+
+
+NOISE_PARAMS: tuple[ParamSpec, ...] = (
+    ParamSpec('covariance.k_left', _DEFAULT_NOISE.k_left,
+              'Variance of the left track travel per metre travelled', 'm^2/m', non_negative,
+              low=0.0, high=1.0),
+    ParamSpec('covariance.k_right', _DEFAULT_NOISE.k_right,
+              'Variance of the right track travel per metre travelled', 'm^2/m',
+              non_negative, low=0.0, high=1.0),
+    ParamSpec('covariance.floor', _DEFAULT_NOISE.floor,
+              'Variance added to each track travel per encoder sample', 'm^2', non_negative,
+              low=0.0, high=1.0),
+    ParamSpec('covariance.turn', _prior('turn'),
+              'Variance of the heading per radian turned (slip varying from turn to turn; 0: '
+              'off)', 'rad^2/rad', non_negative, low=0.0, high=1.0),
+    ParamSpec('covariance.slip', _prior('slip'),
+              'Variance of each position coordinate per radian turned on the spot (0: off)',
+              'm^2/rad', non_negative, low=0.0, high=10.0),
+    ParamSpec('covariance.timing', _prior('timing'),
+              'Variance of the time of the odometry: the published pose covariance adds it '
+              'times the current rates squared (0: off)', 's^2', non_negative,
+              low=0.0, high=1.0),
+)
+"""The noise model's constants (identify_icr fits them; odometry_node and evaluate_model read
+them: :func:`.values.noise_model_from_values`)."""
+
+GYRO_PARAMS: tuple[ParamSpec, ...] = (
+    ParamSpec('covariance.gyro_noise', _DEFAULT_GYRO.gyro_noise,
+              'White rate noise of the gyro, used until 2 s of standstill have measured it',
+              'rad/s/sqrt(Hz)', non_negative, low=0.0, high=1.0),
+    ParamSpec('imu_delay', _DEFAULT_GYRO.imu_delay,
+              "Time by which the gyro's stamps are late on the encoders' (identify_icr's "
+              'imu_delay; negative: the encoders trail the gyro)', 's', finite,
+              low=-5.0, high=5.0),
+    ParamSpec('gyro_scale', _DEFAULT_GYRO.gyro_scale,
+              'Gyro scale: measured rate over true rate', '', positive, low=0.5, high=2.0),
+    ParamSpec('imu_timeout', _DEFAULT_GYRO.timeout,
+              'Seconds without a gyro sample after which the heading falls back to the '
+              'encoders', 's', positive, low=0.001, high=60.0),
+    ParamSpec('imu_saturation', 0.0,
+              'Gyro readings at or beyond this |rate| are saturated: encoders (0: unknown, '
+              'off)', 'rad/s', non_negative, low=0.0, high=1000.0),
+    ParamSpec('imu_max_jump', 0.0,
+              'Largest plausible change of the gyro rate between consecutive samples; '
+              'beyond: encoders (0: off)', 'rad/s', non_negative, low=0.0, high=1000.0),
+    ParamSpec('adapt_slip', True,
+              'Adapt the ICR spread online from the gyro (published on ~/icr)'),
+)
+"""How the gyro is read (odometry_node's ``imu_topic``; evaluate_model ``--fuse-imu``:
+:func:`.values.gyro_config_from_values`)."""
 
 
 # Names of a terrain file ---------------------------------------------------------------

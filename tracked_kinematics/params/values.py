@@ -12,10 +12,11 @@ from tracked_kinematics.core.drivetrain import DriveTrain, FirstOrderLag, PidMot
 from tracked_kinematics.core.errors import InvalidParameters
 from tracked_kinematics.core.gyro_odometry import GyroConfig
 from tracked_kinematics.core.kinematics import IcrParams
+from tracked_kinematics.core.noise_model import NoiseModel
 
 from .spec import check_values, missing_message, resolve
 from .tables import (COMMAND_LIMIT_PARAMS, DECELERATION_LIMITS, DRIVETRAIN_DEFAULTS,
-                     DRIVETRAIN_PARAMS, LIMIT_FIELDS, TERRAIN_PARAMS)
+                     DRIVETRAIN_PARAMS, GYRO_PARAMS, LIMIT_FIELDS, NOISE_PARAMS, TERRAIN_PARAMS)
 
 
 _DRIVE_FIELDS = {'time_constant': 'drivetrain.time_constant', 'delay': 'drivetrain.delay',
@@ -153,18 +154,36 @@ def gyro_config_from_values(values: Mapping[str, Any]) -> GyroConfig:
     """
     Return how odometry_node reads its gyro, from its parameters or a terrain file's values.
 
-    Keys (odometry_node's defaults for the missing ones): ``imu_delay``, ``gyro_scale``,
-    ``covariance.gyro_noise``, ``imu_timeout``, ``imu_saturation`` and ``imu_max_jump`` (0:
-    none), ``adapt_slip`` (default true). What
+    The keys of :data:`.tables.GYRO_PARAMS` (their defaults for the missing ones; 0 for
+    ``imu_saturation`` and ``imu_max_jump``: none), checked by that table. What
     :func:`~tracked_kinematics.core.gyro_odometry.replay` must be given to reproduce the
-    node (evaluate_model ``--fuse-imu``).
+    node (evaluate_model ``--fuse-imu``). Raises :class:`InvalidParameters` naming a value the
+    table refuses.
     """
-    default = GyroConfig()
+    problems = check_values(GYRO_PARAMS, values)
+    if problems:
+        raise InvalidParameters('; '.join(problems))
+    value = {spec.name: values.get(spec.name, spec.default) for spec in GYRO_PARAMS}
     return GyroConfig(
-        imu_delay=values.get('imu_delay', default.imu_delay),
-        gyro_scale=values.get('gyro_scale', default.gyro_scale),
-        gyro_noise=values.get('covariance.gyro_noise', default.gyro_noise),
-        timeout=values.get('imu_timeout', default.timeout),
-        saturation=values.get('imu_saturation', 0.0) or math.inf,
-        max_jump=values.get('imu_max_jump', 0.0) or math.inf,
-        adapt=values.get('adapt_slip', True))
+        imu_delay=value['imu_delay'], gyro_scale=value['gyro_scale'],
+        gyro_noise=value['covariance.gyro_noise'], timeout=value['imu_timeout'],
+        saturation=value['imu_saturation'] or math.inf,
+        max_jump=value['imu_max_jump'] or math.inf, adapt=value['adapt_slip'])
+
+
+def noise_model_from_values(values: Mapping[str, Any]) -> NoiseModel:
+    """
+    Return the noise model odometry_node publishes with, from its parameters or a terrain file.
+
+    The keys of :data:`.tables.NOISE_PARAMS` (their defaults for the missing ones, as the node
+    has them), checked by that table; the track random walk is the mean of
+    ``covariance.k_left`` and ``covariance.k_right`` (identify_icr writes the same value into
+    both). Raises :class:`InvalidParameters` naming a value the table refuses.
+    """
+    problems = check_values(NOISE_PARAMS, values)
+    if problems:
+        raise InvalidParameters('; '.join(problems))
+    value = {spec.name: float(values.get(spec.name, spec.default)) for spec in NOISE_PARAMS}
+    return NoiseModel(track=0.5 * (value['covariance.k_left'] + value['covariance.k_right']),
+                      turn=value['covariance.turn'], slip=value['covariance.slip'],
+                      timing=value['covariance.timing'], floor=value['covariance.floor'])

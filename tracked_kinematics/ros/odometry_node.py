@@ -22,15 +22,15 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import Imu
 from std_msgs.msg import Float64MultiArray, MultiArrayDimension
 from tracked_kinematics.core.covariance import saturate, TrackNoise
-from tracked_kinematics.core.gyro_odometry import ENCODERS, GYRO, GyroConfig, GyroOdometry
+from tracked_kinematics.core.gyro_odometry import ENCODERS, GYRO, GyroOdometry
 from tracked_kinematics.core.integration import quaternion_from_yaw
 from tracked_kinematics.core.kinematics import eccentricity, IcrParams, steering_efficiency
-from tracked_kinematics.core.noise_model import NoiseModel, PRIOR, timing_covariance
+from tracked_kinematics.core.noise_model import NoiseModel, timing_covariance
 from tracked_kinematics.core.odometry import Odometry
 from tracked_kinematics.params import (ENCODER_INPUT_PARAMS, frame_id, gyro_config_from_values,
-                                       icr_from_values, non_negative, ParamSpec, positive,
-                                       TERRAIN_PARAMS, zero_or_at_least)
-from tracked_kinematics.params.spec import each, finite, node_name, ros_name
+                                       GYRO_PARAMS, icr_from_values, NOISE_PARAMS, non_negative,
+                                       ParamSpec, positive, TERRAIN_PARAMS, zero_or_at_least)
+from tracked_kinematics.params.spec import each, node_name, ros_name
 from tracked_kinematics.ros.encoder_input import (
     check_encoder_values, EncoderInput, WARN_PERIOD)
 from tracked_kinematics.ros.health import Health, WARN
@@ -43,15 +43,6 @@ from tracked_kinematics.ros.parameters import TableNode
 from tracked_kinematics.ros.services import reset_service
 
 NODE_NAME = 'odometry_node'
-
-
-_DEFAULT_NOISE = TrackNoise()
-_DEFAULT_GYRO = GyroConfig()
-
-
-def _prior(term: str) -> float:
-    """Return the noise model's prior of a term, to 12 digits (0.1 ** 2 is 0.01 here)."""
-    return float(f'{getattr(PRIOR, term):.12g}')
 
 
 #: Labels of the ``~/icr`` message, icr_estimator's ``icr_estimate`` layout.
@@ -78,48 +69,11 @@ ODOMETRY_PARAMS: tuple[ParamSpec, ...] = (
     ParamSpec('publish_rate', 0.0,
               'Highest rate of odom messages, by message time; 0 publishes on every encoder '
               'step', 'Hz', zero_or_at_least(0.01, 'Hz'), low=0.0, high=10000.0),
-    ParamSpec('covariance.k_left', _DEFAULT_NOISE.k_left,
-              'Variance of the left track travel per metre travelled', 'm^2/m', non_negative,
-              low=0.0, high=1.0),
-    ParamSpec('covariance.k_right', _DEFAULT_NOISE.k_right,
-              'Variance of the right track travel per metre travelled', 'm^2/m',
-              non_negative, low=0.0, high=1.0),
-    ParamSpec('covariance.floor', _DEFAULT_NOISE.floor,
-              'Variance added to each track travel per encoder sample', 'm^2', non_negative,
-              low=0.0, high=1.0),
-    ParamSpec('covariance.turn', _prior('turn'),
-              'Variance of the heading per radian turned (slip varying from turn to turn; 0: '
-              'off)', 'rad^2/rad', non_negative, low=0.0, high=1.0),
-    ParamSpec('covariance.slip', _prior('slip'),
-              'Variance of each position coordinate per radian turned on the spot (0: off)',
-              'm^2/rad', non_negative, low=0.0, high=10.0),
-    ParamSpec('covariance.timing', _prior('timing'),
-              'Variance of the time of the odometry: the published pose covariance adds it '
-              'times the current rates squared (0: off)', 's^2', non_negative,
-              low=0.0, high=1.0),
-    ParamSpec('covariance.gyro_noise', _DEFAULT_GYRO.gyro_noise,
-              'White rate noise of the gyro, used until 2 s of standstill have measured it',
-              'rad/s/sqrt(Hz)', non_negative, low=0.0, high=1.0),
+    *NOISE_PARAMS,
     ParamSpec('imu_topic', '',
               "sensor_msgs/Imu topic whose angular_velocity.z gives the heading ('' = off: "
               'the encoders alone)', check=_topic_or_empty, read_only=True),
-    ParamSpec('imu_delay', _DEFAULT_GYRO.imu_delay,
-              "Time by which the gyro's stamps are late on the encoders' (identify_icr's "
-              'imu_delay; negative: the encoders trail the gyro)', 's', finite,
-              low=-5.0, high=5.0),
-    ParamSpec('gyro_scale', _DEFAULT_GYRO.gyro_scale,
-              'Gyro scale: measured rate over true rate', '', positive, low=0.5, high=2.0),
-    ParamSpec('imu_timeout', _DEFAULT_GYRO.timeout,
-              'Seconds without a gyro sample after which the heading falls back to the '
-              'encoders', 's', positive, low=0.001, high=60.0),
-    ParamSpec('imu_saturation', 0.0,
-              'Gyro readings at or beyond this |rate| are saturated: encoders (0: unknown, '
-              'off)', 'rad/s', non_negative, low=0.0, high=1000.0),
-    ParamSpec('imu_max_jump', 0.0,
-              'Largest plausible change of the gyro rate between consecutive samples; '
-              'beyond: encoders (0: off)', 'rad/s', non_negative, low=0.0, high=1000.0),
-    ParamSpec('adapt_slip', True,
-              'Adapt the ICR spread online from the gyro (published on ~/icr)'),
+    *GYRO_PARAMS,
     ParamSpec('push_to', [],
               'Nodes (cmd_vel_translator) whose icr.* parameters are set to the adapted ICRs: '
               'valid node names, optionally with their namespace', check=each(node_name)),
