@@ -4,8 +4,8 @@ import math
 
 import pytest
 from tracked_kinematics.core.errors import InvalidParameters
-from tracked_kinematics.params import (GYRO_PARAMS, gyro_config_from_values, NOISE_PARAMS,
-                                       noise_model_from_values)
+from tracked_kinematics.params import (gyro_config_from_values, GYRO_PARAMS,
+                                       noise_model_from_values, NOISE_PARAMS)
 from tracked_kinematics.ros.odometry_node import PARAMS
 
 
