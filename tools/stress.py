@@ -46,7 +46,7 @@ def _suite(run: int) -> bool:
     started = time.monotonic()
     # Four times the suite's signal instants of every offline tool (28 per tool).
     env = {**os.environ, 'TRACKED_KINEMATICS_STOP_SCALE': '4',
-           'TRACKED_KINEMATICS_ATTACKS': 'all'}
+           'TRACKED_KINEMATICS_ATTACKS': 'all', 'TRACKED_KINEMATICS_LONG': '1'}
     result = subprocess.run([sys.executable, '-m', 'pytest', '-q', '-p', 'no:rerunfailures'],
                             cwd=ROOT, capture_output=True, text=True, env=env)
     lines = [line for line in result.stdout.splitlines() if line.strip()]

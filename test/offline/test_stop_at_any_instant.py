@@ -48,10 +48,12 @@ from tracked_kinematics.offline.signals import TOOL_EXECUTABLES
 BIN = Path(sys.executable).parent
 SCALE = max(1, int(os.environ.get('TRACKED_KINEMATICS_STOP_SCALE', '1')))
 """``make stress`` sets TRACKED_KINEMATICS_STOP_SCALE=4: four times the instants."""
-KINDS = (('spread',) * 3 + ('first output',) + ('commit',) + ('early',) * 2) * SCALE
-"""Per tool, per scale: 3 instants spread over its life, 1 at its first output, 1 at its
-commit, 2 early: at once, and in its first :data:`EARLY` s (the suite's share; ``make
-stress`` runs 28 per tool)."""
+FULL = ('spread',) * 3 + ('first output',) + ('commit',) + ('early',) * 2
+"""One full set: 3 instants spread over the tool's life, 1 at its first output, 1 at its
+commit, 2 early: at once, and in its first :data:`EARLY` s."""
+KINDS = FULL * SCALE if SCALE > 1 else ('spread', 'first output', 'commit', 'early')
+"""The suite's share: one instant of each kind per tool (``make stress``, at scale 4, runs
+four full sets: 28 per tool)."""
 EARLY = 1.5
 """Seconds after the process started: the span of the early instants."""
 INSTANTS = len(KINDS)

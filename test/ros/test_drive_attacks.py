@@ -61,11 +61,11 @@ SCENARIOS = {
     # Not an attack: the tracks slide on ice, the drive must keep its fence all the same.
     'ice_under_the_tracks': ('pose', None),
 }
-#: What `make test` runs (about 100 s on one worker); `make stress` and
+#: What `make test` runs (four scenarios, one of each kind of lie: a frozen sensor, a gyro
+#: burst, a stalled clock, a second publisher); `make stress` and
 #: TRACKED_KINEMATICS_ATTACKS=all run every scenario (docs/testing.md).
-SUITE = ('frozen_encoders_imu', 'frozen_pose', 'gyro_saturation_burst', 'clock_frozen',
-         'deadman_delivered_late_after_a_stall', 'two_deadman_publishers',
-         'ice_under_the_tracks')
+SUITE = ('frozen_encoders_imu', 'gyro_saturation_burst', 'clock_frozen',
+         'two_deadman_publishers')
 RUN = sorted(SCENARIOS) if os.environ.get('TRACKED_KINEMATICS_ATTACKS') == 'all' else SUITE
 TYPES = {'joint_states': JointState, 'ground_truth/odom': Odometry, 'imu/data': Imu,
          '/clock': Clock}
