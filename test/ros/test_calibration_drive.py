@@ -130,7 +130,7 @@ def drive(ros_context, executor):
 def test_supervisor_settings_are_checked_where_they_enter(name, value, message):
     # SupervisorConfig trusts them: the node's parameter table is the one check.
     from tracked_kinematics.params.spec import check_values
-    from tracked_kinematics.ros.calibration_drive_node import CALIBRATION_PARAMS
+    from tracked_kinematics.params.node_tables import CALIBRATION_PARAMS
     assert check_values(CALIBRATION_PARAMS, {name: value}) == [message]
 
 

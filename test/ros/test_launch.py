@@ -102,7 +102,7 @@ def test_simulation_runs_the_robot_nodes_on_the_simulated_clock(sim_tree):
 
 
 def test_simulation_arguments_are_simulator_parameters(sim_tree):
-    from tracked_kinematics.ros.tracked_simulator import SIMULATOR_PARAMS
+    from tracked_kinematics.params.node_tables import SIMULATOR_PARAMS
     declared = {ast.literal_eval(call.args[0])
                 for call in _calls(sim_tree, 'DeclareLaunchArgument')}
     assert declared == {'vehicle', 'terrain', 'real_time_factor', 'params_file'}

@@ -18,6 +18,7 @@ from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescr
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from tracked_kinematics.params import missing_message, ParamSpec, typos
+from tracked_kinematics.params.node_tables import NODE_PARAMS
 from tracked_kinematics.params.tables import is_terrain_file_record
 
 # Parameters every rclpy node declares itself.
@@ -26,9 +27,7 @@ NODE_PARAMETERS = ('use_sim_time', 'start_type_description_service')
 
 def package_parameters() -> dict[str, tuple[ParamSpec, ...]]:
     """Return the parameters every node of this package declares, by node name."""
-    # The node modules import this one: their tables are read when a node is built.
-    from tracked_kinematics.ros.param_docs import NODES
-    return {node: tuple(specs) for node, specs, _ in NODES}
+    return dict(NODE_PARAMS)
 
 
 def package_parameter_names() -> frozenset[str]:
