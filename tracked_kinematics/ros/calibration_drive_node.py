@@ -68,6 +68,8 @@ MAX_POSE_AGE = 0.5
 OFFSET_WINDOW = 30.0
 #: Steady time the ROS clock may stand still while the sensors deliver, s.
 CLOCK_STALL = 0.5
+#: The topic of the simulated time (use_sim_time): one publisher, as every input.
+CLOCK_TOPIC = '/clock'
 #: Gyro plausibility: the largest rate is this many times max_yaw_rate (at least 2 rad/s).
 GYRO_RANGE_FACTOR = 5.0
 
@@ -164,6 +166,7 @@ class CalibrationDriveNode(TableNode):
         self._last_tick = None         # (steady, ros) of the last timer tick
         self._clock_watch = ClockWatch(CLOCK_STALL)
         self._clock_latest = self._clock_advanced = None   # ROS time, and steady when seen
+        self._clock_refusals = 0       # clock_refusals() when last looked at
         self._faults = {}              # name -> (text, steady time it ends or None)
         self._links = {}
         self._encoder_steady = self._reference_steady = None
@@ -272,8 +275,10 @@ class CalibrationDriveNode(TableNode):
         return '; '.join(text for text, _ in self._faults.values())
 
     def _check_publishers(self) -> None:
-        """Rule 6: one publisher per input topic; more is a fault that names the topic."""
+        """Rule 6: one publisher per input topic (/clock too, in sim time); more is a fault."""
         topics = (*self.encoder.topics, self._inputs[0].topic_name, *self._deadman_topics)
+        if self.get_parameter('use_sim_time').value:
+            topics += (CLOCK_TOPIC,)
         crowded = []
         for topic in topics:
             try:
@@ -410,6 +415,12 @@ class CalibrationDriveNode(TableNode):
         ros = self.ros_time()
         if ros is not None and (self._clock_latest is None or ros != self._clock_latest):
             self._clock_latest, self._clock_advanced = ros, steady
+        refusals, why = self.clock_refusals()
+        if refusals != self._clock_refusals:
+            # One refused message is enough: a healthy clock never sends one, and the next
+            # valid message ends clock_fault() before the next tick could see it.
+            self._clock_refusals = refusals
+            self._fault('clock refused', why)
         fault = self.clock_fault() or self._clock_watch.update(ros, steady)
         if 'went back' in fault:
             self._fault('clock went back', fault)    # reported once: held a while
