@@ -166,7 +166,10 @@ def parameters_markdown() -> str:
         '`tracked_kinematics/params/node_tables.py`); `ros2 param describe NODE NAME` shows '
         'the same description and unit. Give them in a YAML file with '
         '`--ros-args --params-file FILE` (several files: the last one wins per parameter) or '
-        'one by one with `-p NAME:=VALUE`.',
+        'one by one with `-p NAME:=VALUE`. `track_width` and `sprocket_radius` given twice '
+        '(two files, a file and a `-p`) must agree within rounding (0.5 % or 0.5 mm: '
+        '`params.dimensions`), else the node refuses to start, naming both sources: the '
+        'terrain file of another robot.',
         '',
         '- **type**: the ROS parameter type; a `double` also accepts an integer.',
         '- **range / check**: checked at start (an invalid value gives one `FATAL` line naming '
