@@ -43,6 +43,7 @@ setup(
             'tracked_simulator = tracked_kinematics.ros.tracked_simulator:main',
             'calibration_drive = tracked_kinematics.apps.calibration_drive:main',
             'calibration_deadman = tracked_kinematics.ros.calibration_deadman:main',
+            'play_bag = tracked_kinematics.apps.play_bag:main',
         ],
     },
 )

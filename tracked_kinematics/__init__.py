@@ -11,7 +11,7 @@ import signal as _signal
 import sys as _sys
 
 NODE_EXECUTABLES = ('odometry_node', 'cmd_vel_translator', 'icr_estimator', 'tracked_simulator',
-                    'calibration_drive', 'calibration_deadman')
+                    'calibration_drive', 'calibration_deadman', 'play_bag')
 """Console scripts that run a node (setup.py): a signal before run() is a quiet exit 0."""
 TOOL_EXECUTABLES = ('simulate_bag', 'identify_icr', 'identify_drivetrain', 'evaluate_model',
                     'icr_map', 'plan_trajectory', 'convert_diff_drive_params',

@@ -41,9 +41,9 @@ import time
 from helpers.setup_info import console_scripts, ROOT
 from helpers.stops import python_course
 import pytest
+from tracked_kinematics import TOOL_EXECUTABLES
 from tracked_kinematics.offline.bag_simulation import simulate_bag
 from tracked_kinematics.offline.outputs import PROBE_MARK
-from tracked_kinematics.offline.signals import TOOL_EXECUTABLES
 
 BIN = Path(sys.executable).parent
 SCALE = max(1, int(os.environ.get('TRACKED_KINEMATICS_STOP_SCALE', '1')))

@@ -445,3 +445,135 @@ def test_a_command_line_may_import_its_siblings_and_run_its_own_main():
     name = module_name(where)
     assert not cli_imports(source, package_parts_of(where), name)
     assert not command_line_calls(source, package_parts_of(where), name)
+
+
+# No import circle: a module never needs, however indirectly, a module that needs it. Every
+# import counts, those inside functions too (a lazy import only hides a circle until the day
+# the order of the first imports changes).
+
+def module_imports(path: Path, root: Path = PACKAGE):
+    """
+    Return the modules of the package under ``root`` that the module ``path`` imports.
+
+    ``from X import name`` counts as an import of ``X.name`` when that is a module of the
+    package, else of ``X`` (a name from its ``__init__``); ``import X.Y`` of ``X.Y``. The
+    parent packages Python imports on the way are not counted: their ``__init__`` importing a
+    child is the usual shape of a package, not a circle.
+    """
+    parts = [PKG] + list(path.relative_to(root).parent.parts)
+    modules = set()
+    for node in ast.walk(ast.parse(path.read_text(), filename=str(path))):
+        if isinstance(node, ast.Import):
+            modules.update(alias.name for alias in node.names)
+        elif isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = parts[:len(parts) - node.level + 1]
+                module = '.'.join(base + ([node.module] if node.module else []))
+            else:
+                module = node.module or ''
+            for alias in node.names:
+                child = f'{module}.{alias.name}'
+                modules.add(child if _module_file(child, root) else module)
+    own = {module for module in modules if _module_file(module, root)}
+    return own - {module_name_under(path, root)}
+
+
+def _module_file(module: str, root: Path) -> Path | None:
+    """Return the file of ``module`` (a module or package under ``root``), else None."""
+    parts = module.split('.')
+    if parts[0] != PKG:
+        return None
+    where = root.joinpath(*parts[1:])
+    for candidate in (where.with_suffix('.py'), where / '__init__.py'):
+        if candidate.is_file():
+            return candidate
+    return None
+
+
+def module_name_under(path: Path, root: Path) -> str:
+    rel = path.relative_to(root)
+    parts = [PKG] + list(rel.parent.parts)
+    return '.'.join(parts if path.stem == '__init__' else parts + [path.stem])
+
+
+def import_circles(root: Path = PACKAGE) -> list[list[str]]:
+    """Return every circle of imports under ``root`` (strongly connected modules), sorted."""
+    graph = {module_name_under(path, root): module_imports(path, root)
+             for path in sorted(root.rglob('*.py'))}
+    # Tarjan's strongly connected components, iteratively (no recursion limit to meet).
+    index, low, on_stack, stack, circles = {}, {}, set(), [], []
+    for start in graph:
+        if start in index:
+            continue
+        work = [(start, iter(sorted(graph[start])))]
+        index[start] = low[start] = len(index)
+        stack.append(start)
+        on_stack.add(start)
+        while work:
+            node, children = work[-1]
+            child = next(children, None)
+            if child is not None:
+                if child not in index:
+                    index[child] = low[child] = len(index)
+                    stack.append(child)
+                    on_stack.add(child)
+                    work.append((child, iter(sorted(graph.get(child, ())))))
+                elif child in on_stack:
+                    low[node] = min(low[node], index[child])
+                continue
+            work.pop()
+            if work:
+                low[work[-1][0]] = min(low[work[-1][0]], low[node])
+            if low[node] == index[node]:
+                component = []
+                while True:
+                    member = stack.pop()
+                    on_stack.discard(member)
+                    component.append(member)
+                    if member == node:
+                        break
+                if len(component) > 1:
+                    circles.append(sorted(component))
+    return sorted(circles)
+
+
+def test_no_import_circle():
+    assert import_circles() == []
+
+
+def _write_package(root: Path, files: dict[str, str]) -> None:
+    for rel, source in files.items():
+        (root / rel).parent.mkdir(parents=True, exist_ok=True)
+        (root / rel).write_text(source)
+
+
+@pytest.mark.parametrize('files, circle', [
+    # The circle this check was written for: node -> parameters -> (lazily) docs -> node.
+    ({'ros/__init__.py': '',
+      'ros/odometry_node.py': 'from tracked_kinematics.ros.parameters import TableNode\n',
+      'ros/parameters.py': 'def names():\n'
+                           '    from tracked_kinematics.ros.param_docs import NODES\n',
+      'ros/param_docs.py': 'from tracked_kinematics.ros import odometry_node\n'},
+     ['tracked_kinematics.ros.odometry_node', 'tracked_kinematics.ros.param_docs',
+      'tracked_kinematics.ros.parameters']),
+    # Relative imports, a name from a package's __init__ that imports the importer.
+    ({'params/__init__.py': 'from .tables import TERRAIN\n',
+      'params/tables.py': 'from . import spec\n',
+      'params/spec.py': 'from tracked_kinematics.params import TERRAIN\n'},
+     ['tracked_kinematics.params', 'tracked_kinematics.params.spec',
+      'tracked_kinematics.params.tables']),
+])
+def test_import_circle_check_can_fail(tmp_path, files, circle):
+    _write_package(tmp_path, files)
+    assert import_circles(tmp_path) == [circle]
+
+
+def test_import_circle_check_allows_a_package_of_modules(tmp_path):
+    # An __init__ importing its children and the children importing each other is no circle.
+    _write_package(tmp_path, {
+        'params/__init__.py': 'from .tables import TERRAIN\nfrom .spec import check\n',
+        'params/tables.py': 'from .spec import check\nimport numpy\n',
+        'params/spec.py': 'import math\n',
+        'ros/node.py': 'from tracked_kinematics.params import TERRAIN\n'
+                       'def later():\n    from tracked_kinematics.params.tables import TERRAIN\n'})
+    assert import_circles(tmp_path) == []

@@ -8,10 +8,11 @@ import shlex
 
 from helpers.setup_info import console_scripts, ROOT
 import pytest
+from tracked_kinematics.params.node_tables import NODE_PARAMS
 
 README = ROOT / 'README.md'
 DOCS = ROOT / 'docs'
-REGENERATE = '.venv/bin/python -m tracked_kinematics.ros.param_docs'
+REGENERATE = '.venv/bin/python -m tracked_kinematics.params.param_docs'
 MAX_README_LINES = 250
 
 FENCE = re.compile(r'^(```|~~~).*?^\1[^\n]*$', re.S | re.M)
@@ -20,11 +21,8 @@ INDENTED = re.compile(r'^(?: {4}|\t).*$', re.M)
 LINK = re.compile(r'!?\[[^\]\n]*\]\(\s*<?([^)\s>]+)>?(?:\s+"[^"]*")?\s*\)')
 HEADING = re.compile(r'^#{1,6}\s+(.*?)\s*#*\s*$', re.M)
 FENCED = re.compile(r'^```(\w*)\n(.*?)^```', re.S | re.M)
-NODE_TABLES = {'odometry_node': 'PARAMS', 'cmd_vel_translator': 'TRANSLATOR_PARAMS',
-               'icr_estimator': 'PARAMS', 'calibration_drive': 'PARAMS',
-               'tracked_simulator': 'SIMULATOR_PARAMS'}
-# The ros/ module of a node whose console script is named otherwise.
-NODE_MODULES = {'calibration_drive': 'calibration_drive_node'}
+# Every parameter each node declares, by node (console script) name.
+NODE_TABLES = NODE_PARAMS
 
 
 def markdown_files():
@@ -64,7 +62,7 @@ def broken_links(path):
 
 
 def test_parameters_md_is_current():
-    from tracked_kinematics.ros.param_docs import parameters_markdown
+    from tracked_kinematics.params.param_docs import parameters_markdown
     path = DOCS / 'parameters.md'
     assert path.is_file(), f'docs/parameters.md is missing: generate it with `{REGENERATE}`'
     assert path.read_text() == parameters_markdown(), (
@@ -74,10 +72,12 @@ def test_parameters_md_is_current():
 
 def test_parameters_md_lists_every_parameter_of_every_node():
     from tracked_kinematics.ros import (calibration_drive_node, cmd_vel_translator, icr_estimator,
-                                        odometry_node)
+                                        odometry_node, tracked_simulator)
     text = (DOCS / 'parameters.md').read_text()
+    # What the nodes declare, read from the node modules: the tables they use are documented.
     for table in (odometry_node.PARAMS, cmd_vel_translator.TRANSLATOR_PARAMS,
-                  icr_estimator.PARAMS, calibration_drive_node.PARAMS):
+                  icr_estimator.PARAMS, calibration_drive_node.PARAMS,
+                  tracked_simulator.SIMULATOR_PARAMS):
         for spec in table:
             assert f'| `{spec.name}` |' in text, spec.name
 
@@ -85,7 +85,7 @@ def test_parameters_md_lists_every_parameter_of_every_node():
 def test_a_check_without_words_is_refused():
     # The generator must not document a check it cannot describe.
     from tracked_kinematics.params import ParamSpec
-    from tracked_kinematics.ros.param_docs import table
+    from tracked_kinematics.params.param_docs import table
     spec = ParamSpec('made_up', 1.0, 'Made up', 'm', check=lambda value: None)
     with pytest.raises(ValueError, match='made_up'):
         table([spec])
@@ -177,9 +177,7 @@ def check_command(words):
             return f'no console script {words[3]}'
         if words[3] not in NODE_TABLES:
             return None
-        module = importlib.import_module(
-            f'tracked_kinematics.ros.{NODE_MODULES.get(words[3], words[3])}')
-        declared = {spec.name for spec in getattr(module, NODE_TABLES[words[3]])}
+        declared = {spec.name for spec in NODE_TABLES[words[3]]}
         declared.add('use_sim_time')  # every rclpy node declares it
         names = [words[i + 1].split(':=')[0] for i, word in enumerate(words[:-1])
                  if word == '-p']
@@ -221,8 +219,7 @@ def test_command_checker_flags_a_wrong_flag(tmp_path):
 
 
 def _node_specs():
-    from tracked_kinematics.ros.param_docs import NODES
-    return {node: {spec.name: spec for spec in specs} for node, specs, _ in NODES}
+    return {node: {spec.name: spec for spec in specs} for node, specs in NODE_PARAMS.items()}
 
 
 def _stated_default_problem(spec, cell):

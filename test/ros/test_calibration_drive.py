@@ -130,7 +130,7 @@ def drive(ros_context, executor):
 def test_supervisor_settings_are_checked_where_they_enter(name, value, message):
     # SupervisorConfig trusts them: the node's parameter table is the one check.
     from tracked_kinematics.params.spec import check_values
-    from tracked_kinematics.ros.calibration_drive_node import CALIBRATION_PARAMS
+    from tracked_kinematics.params.node_tables import CALIBRATION_PARAMS
     assert check_values(CALIBRATION_PARAMS, {name: value}) == [message]
 
 
@@ -560,3 +560,57 @@ def test_a_bad_clock_stops_the_drive(drive, fault, text):
         d.node.supervisor.events[-3:]
     assert text in d.node.supervisor.last.reason, d.node.supervisor.last.reason
     assert spin_until(d.executor, lambda: tick_clock() or not d.moving(), 2.0)
+
+
+@pytest.mark.parametrize('second, texts', [
+    # Issue 37 item 10: a second /clock publisher that sent one sec = -1 message was refused
+    # by the node's clock guard, but the next valid /clock ended the fault before the drive
+    # looked: it kept driving (0.95 m in the next 3 s). Whichever the drive sees first.
+    ('one_negative_and_stays', ('negative time', '2 publishers on /clock')),
+    # Two clocks are a fault like two encoders, even when both send valid times.
+    ('valid_and_stays', ('2 publishers on /clock',)),
+    # Gone before the publisher check could count it: the refused message itself stops.
+    ('one_negative_then_gone', ('negative time',)),
+])
+def test_a_second_clock_publisher_stops_the_drive(drive, second, texts):
+    from builtin_interfaces.msg import Time
+    from rosgraph_msgs.msg import Clock
+    import time
+    d = drive(auto_start=True, use_sim_time=True)
+    clock = d.robot.node.create_publisher(Clock, '/clock', 10)
+    start = time.monotonic()
+
+    def now():
+        t = 100.0 + time.monotonic() - start
+        return Time(sec=int(t), nanosec=int((t % 1.0) * 1e9))
+
+    def tick_clock():
+        clock.publish(Clock(clock=now()))
+        return False
+    # A single healthy /clock drives.
+    assert d.run(10.0, until=lambda: tick_clock() or d.moving())
+    d.run(1.0, until=tick_clock)
+    assert d.moving() and d.node.supervisor.state == 'running', d.node.supervisor.last
+    other = d.robot.node.create_publisher(Clock, '/clock', 10)
+    # The drive can only refuse what DDS delivered: its subscription matched first.
+    assert d.run(5.0, until=lambda: tick_clock() or other.get_subscription_count() >= 1)
+    refused = d.node.clock_refusals()[0]
+    if second == 'valid_and_stays':
+        def tick():
+            other.publish(Clock(clock=now()))
+            return tick_clock()
+    else:
+        other.publish(Clock(clock=Time(sec=-1, nanosec=0)))
+        tick = tick_clock
+    if second == 'one_negative_then_gone':
+        # rclpy's /clock subscription keeps the last message only (best effort, depth 1): the
+        # healthy clock waits until the node took the bad one, which a later one could hide,
+        # then at once ends the node's clock fault, before the drive's next tick.
+        assert spin_until(d.executor, lambda: d.node.clock_refusals()[0] > refused, 2.0)
+        tick_clock()
+        d.robot.node.destroy_publisher(other)
+    assert d.run(5.0, until=lambda: tick() or d.node.supervisor.state == 'stopped'), \
+        d.node.supervisor.events[-3:]
+    reason = d.node.supervisor.last.reason
+    assert any(text in reason for text in texts), reason
+    assert spin_until(d.executor, lambda: tick() or not d.moving(), 2.0)

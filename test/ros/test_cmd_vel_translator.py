@@ -733,7 +733,7 @@ def test_nan_limits_in_process_match_the_core(graph, executor):
 def test_docs_page_lists_every_parameter():
     from helpers.setup_info import ROOT
     from tracked_kinematics.params import TERRAIN_PARAMS
-    from tracked_kinematics.ros.cmd_vel_translator import TRANSLATOR_PARAMS
+    from tracked_kinematics.params.node_tables import TRANSLATOR_PARAMS
     page = (ROOT / 'docs' / 'nodes' / 'cmd_vel_translator.md').read_text()
     for spec in TRANSLATOR_PARAMS:
         assert spec in TERRAIN_PARAMS or f'`{spec.name}`' in page, spec.name

@@ -22,7 +22,8 @@ from std_msgs.msg import Float64MultiArray
 from tracked_kinematics.core.command import (CommandLimiter, setpoint_twist,
                                              TRACK_SPEED_ENVELOPE)
 from tracked_kinematics.params import icr_from_values, limits_from_values
-from tracked_kinematics.ros.cmd_vel_translator import CmdVelTranslator, TRANSLATOR_PARAMS
+from tracked_kinematics.params.node_tables import TRANSLATOR_PARAMS
+from tracked_kinematics.ros.cmd_vel_translator import CmdVelTranslator
 
 pytestmark = pytest.mark.ros
 

@@ -56,16 +56,19 @@ SCENARIOS = {
     'clock_frozen': ('pose', '/clock'),
     'clock_negative': ('pose', '/clock'),
     'clock_rewound_after_release': ('pose', '/clock'),
+    # Issue 37 item 10: beside the simulator's /clock, a second publisher sends one sec = -1
+    # message and stays (the drive kept driving, 0.95 m in the next 3 s).
+    'second_clock_publisher': ('pose', None),
     'two_deadman_publishers': ('pose', None),
     'deadman_delivered_late_after_a_stall': ('pose', None),
     # Not an attack: the tracks slide on ice, the drive must keep its fence all the same.
     'ice_under_the_tracks': ('pose', None),
 }
-#: What `make test` runs (four scenarios, one of each kind of lie: a frozen sensor, a gyro
-#: burst, a stalled clock, a second publisher); `make stress` and
+#: What `make test` runs (one scenario of each kind of lie: a frozen sensor, a gyro burst, a
+#: stalled clock, a second deadman, a second clock); `make stress` and
 #: TRACKED_KINEMATICS_ATTACKS=all run every scenario (docs/testing.md).
 SUITE = ('frozen_encoders_imu', 'gyro_saturation_burst', 'clock_frozen',
-         'two_deadman_publishers')
+         'two_deadman_publishers', 'second_clock_publisher')
 RUN = sorted(SCENARIOS) if os.environ.get('TRACKED_KINEMATICS_ATTACKS') == 'all' else SUITE
 TYPES = {'joint_states': JointState, 'ground_truth/odom': Odometry, 'imu/data': Imu,
          '/clock': Clock}
@@ -275,6 +278,12 @@ def _scenario(scenario, ros_context, executor, tmp_path):
                 hold(None)       # let go: silence, the deadman goes stale
             assert attacker.status.get('state') in ('paused', 'stopped'), attacker.status
             n_cmds = len(attacker.cmds)
+        if scenario == 'second_clock_publisher':
+            second = attacker.node.create_publisher(Clock, '/clock', 10)
+            deadline = time.monotonic() + 10.0
+            while second.get_subscription_count() < 2 and time.monotonic() < deadline:
+                hold()     # the drive's and the translator's /clock matched
+            second.publish(Clock(clock=Time(sec=-1, nanosec=0)))
         attacker.attack_t = attacker.sim_t
         attacker.attacking = True
         attack_wall = time.monotonic()

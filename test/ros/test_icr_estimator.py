@@ -237,7 +237,7 @@ REFUSED = {'min_coverage': 0.0, 'noise_memory': 19, 'prior_std': 0.0, 'prior_tim
 def test_every_estimator_setting_is_a_parameter():
     from dataclasses import fields
     from tracked_kinematics.core.estimate.config import EstimatorConfig
-    from tracked_kinematics.ros.icr_estimator import ESTIMATOR_PARAMS
+    from tracked_kinematics.params.node_tables import ESTIMATOR_PARAMS
     declared = {spec.name: spec for spec in ESTIMATOR_PARAMS}
     # The noise model's settings are the terrain file's covariance.* (identify_icr's names).
     named = {'track_noise': 'covariance.k_left', 'turn_noise': 'covariance.turn',
@@ -290,7 +290,7 @@ def test_an_estimator_setting_out_of_range_refuses_to_start(ros_context, name):
 def test_estimator_settings_are_checked_where_they_enter(name, value, message):
     # EstimatorConfig trusts its fields: the node's parameter table checks each, once.
     from tracked_kinematics.params.spec import check_values
-    from tracked_kinematics.ros.icr_estimator import ESTIMATOR_PARAMS
+    from tracked_kinematics.params.node_tables import ESTIMATOR_PARAMS
     assert check_values(ESTIMATOR_PARAMS, {name: value}) == [f'{message}, got {value!r}']
 
 

@@ -21,9 +21,10 @@ from tracked_kinematics.core.kinematics import forward, true_speeds
 from tracked_kinematics.core.noise_model import NoiseModel, PRIOR, timing_covariance
 from tracked_kinematics.core.odometry import Odometry
 from tracked_kinematics.params import icr_from_values, read_params_file
+from tracked_kinematics.params.node_tables import ODOMETRY_PARAMS
 from tracked_kinematics.params.spec import check_values
 from tracked_kinematics.ros import odometry_node
-from tracked_kinematics.ros.odometry_node import ODOMETRY_PARAMS, OdometryNode
+from tracked_kinematics.ros.odometry_node import OdometryNode
 from tracked_kinematics.ros.parameters import ParameterError
 from tracked_kinematics.share import config_file
 

@@ -15,8 +15,6 @@ import signal
 import sys
 import threading
 
-from tracked_kinematics import TOOL_EXECUTABLES  # noqa: F401 -- the tools' names
-
 STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
 """The signals that end a run: 130 (SIGINT), 143 (SIGTERM), 129 (SIGHUP)."""
 

@@ -30,13 +30,12 @@ from std_srvs.srv import Trigger
 from tracked_kinematics.core.clock_watch import ClockWatch
 from tracked_kinematics.core.integration import stamp_ns, yaw_from_quaternion
 from tracked_kinematics.core.plan.calibration_protocol import (
-    FenceOdometry, MAX_DURATION, MIN_DURATION, protocol, total_duration)
+    FenceOdometry, protocol, total_duration)
 from tracked_kinematics.core.plan.supervisor import (
     Inputs, pose_jump, Supervisor, SupervisorConfig)
 from tracked_kinematics.core.recording import from_stamped_rows, Recording
-from tracked_kinematics.params import (
-    described_as, each, ENCODER_INPUT_PARAMS, icr_from_values, node_name, one_of, ParamSpec,
-    positive, ros_name, TERRAIN_PARAMS)
+from tracked_kinematics.params import icr_from_values
+from tracked_kinematics.params.node_tables import CALIBRATION_POSE_TYPES, NODE_PARAMS
 from tracked_kinematics.ros.calibration_health import watch_calibration_inputs
 from tracked_kinematics.ros.encoder_input import check_encoder_values, EncoderInput, WARN_PERIOD
 from tracked_kinematics.ros.input_topic import (CHECK_PERIOD, InputTopic, steady_timer,
@@ -44,9 +43,8 @@ from tracked_kinematics.ros.input_topic import (CHECK_PERIOD, InputTopic, steady
 from tracked_kinematics.ros.parameters import TableNode
 
 NODE_NAME = 'calibration_drive'
-REFERENCES = ('pose', 'imu')
-POSE_TYPES = {'odometry': Odometry, 'pose_stamped': PoseStamped,
-              'pose_with_covariance': PoseWithCovarianceStamped}
+POSE_TYPES = dict(zip(CALIBRATION_POSE_TYPES,
+                      (Odometry, PoseStamped, PoseWithCovarianceStamped), strict=True))
 #: Highest rate of the status topic, Hz (and on every state change).
 STATUS_RATE = 2.0
 #: Largest track speed of a vehicle that stands still (the gyro then measures its bias), m/s.
@@ -70,77 +68,13 @@ MAX_POSE_AGE = 0.5
 OFFSET_WINDOW = 30.0
 #: Steady time the ROS clock may stand still while the sensors deliver, s.
 CLOCK_STALL = 0.5
+#: The topic of the simulated time (use_sim_time): one publisher, as every input.
+CLOCK_TOPIC = '/clock'
 #: Gyro plausibility: the largest rate is this many times max_yaw_rate (at least 2 rad/s).
 GYRO_RANGE_FACTOR = 5.0
 
 
-@described_as("a valid ROS 2 topic name, or '' for none")
-def _optional_topic(value):
-    return None if value == '' else ros_name(value)
-
-
-@described_as('a file name (required)')
-def _file_name(value):
-    return None if value.strip() else 'must name the terrain file to write (-p output:=OUT.yaml)'
-
-
-CALIBRATION_PARAMS: tuple[ParamSpec, ...] = (
-    ParamSpec('reference', 'pose',
-              'What the fit compares the encoders with: pose (pose_topic, e.g. motion capture '
-              'or the ground truth of the simulator) or imu (the gyro of imu_topic)',
-              check=one_of(REFERENCES), read_only=True),
-    ParamSpec('output', '',
-              'Terrain file to write when the protocol ends (required); the report goes beside '
-              'it with the extension .json', check=_file_name, read_only=True),
-    ParamSpec('bag', '', "Also write the recording as an MCAP bag in this new directory ('': "
-              'no bag)', read_only=True),
-    ParamSpec('force', False, 'Replace output files that exist', read_only=True),
-    ParamSpec('terrain', '', 'Terrain name written to the file', read_only=True),
-    ParamSpec('geofence_radius', 3.0, 'Radius of the geofence around the pose at start', 'm',
-              positive, low=0.5, high=1000.0, read_only=True),
-    ParamSpec('max_speed', 0.5, 'Largest |v| commanded', 'm/s', positive, low=0.01,
-              high=10.0, read_only=True),
-    ParamSpec('max_yaw_rate', 1.0, 'Largest |w| commanded', 'rad/s', positive, low=0.01,
-              high=10.0, read_only=True),
-    ParamSpec('duration', 180.0, 'Motion time of the protocol', 's', positive,
-              low=MIN_DURATION, high=MAX_DURATION, read_only=True),
-    ParamSpec('deadman_topic', 'deadman',
-              "Deadman (std_msgs/Bool): the vehicle moves only while it is true and fresh; '' "
-              'when joy_topic is the deadman', check=_optional_topic, read_only=True),
-    ParamSpec('deadman_timeout', 0.3, 'Oldest deadman message that still holds', 's',
-              positive, low=0.01, high=10.0, read_only=True),
-    ParamSpec('joy_topic', '',
-              "Joystick (sensor_msgs/Joy) whose deadman_button is the deadman ('': none)",
-              check=_optional_topic, read_only=True),
-    ParamSpec('deadman_button', 0, 'Index of the deadman button in Joy.buttons', '',
-              low=0, high=255, read_only=True),
-    ParamSpec('auto_start', False, 'Start when the deadman is first held, without ~/start',
-              read_only=True),
-    ParamSpec('imu_topic', 'imu/data', 'Gyro (sensor_msgs/Imu) of reference imu',
-              check=ros_name, read_only=True),
-    ParamSpec('pose_topic', 'ground_truth/odom', 'Pose of base_link of reference pose',
-              check=ros_name, read_only=True),
-    ParamSpec('pose_type', 'odometry',
-              'Message type on pose_topic: odometry, pose_stamped or pose_with_covariance',
-              check=one_of(POSE_TYPES), read_only=True),
-    ParamSpec('encoder_timeout', 0.5,
-              'Encoders silent this long while driving stop the drive', 's', positive,
-              low=0.01, high=10.0, read_only=True),
-    ParamSpec('reference_timeout', 0.5,
-              'Reference silent this long while driving stops the drive', 's', positive,
-              low=0.01, high=10.0, read_only=True),
-    ParamSpec('rate', 20.0, 'Rate of cmd_vel (a zero Twist whenever not moving)', 'Hz',
-              positive, low=1.0, high=1000.0, read_only=True),
-    ParamSpec('max_gyro_rate', 0.0,
-              'Largest plausible yaw rate of the gyro; a sample beyond it (or a jump of more '
-              'than half of it) stops the drive; 0 = 5 x max_yaw_rate, at least 2 rad/s',
-              'rad/s', low=0.0, high=100.0, read_only=True),
-    ParamSpec('push_to', [],
-              'Nodes whose icr.* and scale.* parameters are set to the fit (e.g. '
-              'odometry_node, cmd_vel_translator)', check=each(node_name), read_only=True),
-)
-
-PARAMS = TERRAIN_PARAMS + ENCODER_INPUT_PARAMS + CALIBRATION_PARAMS
+PARAMS = NODE_PARAMS[NODE_NAME]
 
 
 def validate(values: Mapping[str, Any]) -> None:
@@ -232,6 +166,7 @@ class CalibrationDriveNode(TableNode):
         self._last_tick = None         # (steady, ros) of the last timer tick
         self._clock_watch = ClockWatch(CLOCK_STALL)
         self._clock_latest = self._clock_advanced = None   # ROS time, and steady when seen
+        self._clock_refusals = 0       # clock_refusals() when last looked at
         self._faults = {}              # name -> (text, steady time it ends or None)
         self._links = {}
         self._encoder_steady = self._reference_steady = None
@@ -340,8 +275,10 @@ class CalibrationDriveNode(TableNode):
         return '; '.join(text for text, _ in self._faults.values())
 
     def _check_publishers(self) -> None:
-        """Rule 6: one publisher per input topic; more is a fault that names the topic."""
+        """Rule 6: one publisher per input topic (/clock too, in sim time); more is a fault."""
         topics = (*self.encoder.topics, self._inputs[0].topic_name, *self._deadman_topics)
+        if self.get_parameter('use_sim_time').value:
+            topics += (CLOCK_TOPIC,)
         crowded = []
         for topic in topics:
             try:
@@ -478,6 +415,12 @@ class CalibrationDriveNode(TableNode):
         ros = self.ros_time()
         if ros is not None and (self._clock_latest is None or ros != self._clock_latest):
             self._clock_latest, self._clock_advanced = ros, steady
+        refusals, why = self.clock_refusals()
+        if refusals != self._clock_refusals:
+            # One refused message is enough: a healthy clock never sends one, and the next
+            # valid message ends clock_fault() before the next tick could see it.
+            self._clock_refusals = refusals
+            self._fault('clock refused', why)
         fault = self.clock_fault() or self._clock_watch.update(ros, steady)
         if 'went back' in fault:
             self._fault('clock went back', fault)    # reported once: held a while

@@ -21,10 +21,8 @@ from tracked_kinematics.core.command import (CommandLimiter, CommandLimits, exce
                                              setpoint_problem, setpoint_twist,
                                              TRACK_SPEED_ENVELOPE)
 from tracked_kinematics.core.kinematics import IcrParams
-from tracked_kinematics.params import (COMMAND_LIMIT_PARAMS, Derived, described_as,
-                                       icr_from_values, LIMIT_FIELDS, limits_from_values,
-                                       non_negative, one_of, ParamSpec, positive, ros_name,
-                                       TERRAIN_PARAMS)
+from tracked_kinematics.params import icr_from_values, LIMIT_FIELDS, limits_from_values
+from tracked_kinematics.params.node_tables import CMD_VEL_TYPE_NAMES, TRANSLATOR_PARAMS
 from tracked_kinematics.ros.health import Health
 from tracked_kinematics.ros.loop_thread import LoopNode
 from tracked_kinematics.ros.main import run
@@ -32,7 +30,7 @@ from tracked_kinematics.ros.main import run
 NODE_NAME = 'cmd_vel_translator'
 
 # cmd_vel_type -> message class; the ROS type names the graph reports.
-CMD_VEL_TYPES = {'twist': Twist, 'twist_stamped': TwistStamped}
+CMD_VEL_TYPES = dict(zip(CMD_VEL_TYPE_NAMES, (Twist, TwistStamped), strict=True))
 _TYPE_NAMES = {Twist: 'geometry_msgs/msg/Twist', TwistStamped: 'geometry_msgs/msg/TwistStamped'}
 _TYPES_BY_NAME = {name: cls for cls, name in _TYPE_NAMES.items()}
 
@@ -45,42 +43,6 @@ FUTURE_STAMP = 1.0  # s a TwistStamped may be ahead of the node's clock without 
 # steady time without a new one, whatever /clock says.
 SLOWEST_SIM_RATE = 0.02
 FAULT_WARN_PERIOD = 5.0  # s between warnings of one clock fault that lasts
-NO_TIMEOUT_STALL = 1.0  # s, clock_stall_timeout's default when cmd_timeout is 0
-
-
-@described_as('empty (off) or a valid ROS name')
-def _optional_ros_name(value) -> str | None:
-    return None if value == '' else ros_name(value)
-
-
-TRANSLATOR_PARAMS: tuple[ParamSpec, ...] = TERRAIN_PARAMS + (
-    ParamSpec('rate', 50.0, 'Rate at which the setpoints are published', 'Hz', positive,
-              low=1.0, high=1000.0),
-    ParamSpec('cmd_timeout', 0.5,
-              'Age of the last command (by arrival; by header stamp for TwistStamped when '
-              'older) beyond which the setpoints ramp to zero; 0 = no timeout', 's',
-              non_negative, low=0.0, high=60.0),
-    ParamSpec('clock_stall_timeout', 0.5,
-              'Under use_sim_time: steady (wall) time the ROS clock may stand still before it '
-              'is a fault that ramps the setpoints to zero', 's', positive, low=0.0, high=60.0,
-              derived=Derived(f'cmd_timeout ({NO_TIMEOUT_STALL:g} s when cmd_timeout is 0)',
-                              lambda values: float(values['cmd_timeout']) or NO_TIMEOUT_STALL)),
-    ParamSpec('cmd_vel_type', 'auto',
-              'Message type of cmd_vel: auto (the type its publishers use; Twist while there '
-              'are none), twist or twist_stamped', check=one_of(('auto', *CMD_VEL_TYPES)),
-              read_only=True),
-    ParamSpec('use_stamped', False,
-              'true: the same as cmd_vel_type twist_stamped (kept as an alias)',
-              read_only=True),
-    ParamSpec('publish_limited_velocity', True,
-              'Publish the limited command (the twist of the setpoints) as '
-              'geometry_msgs/TwistStamped on ~/cmd_vel_out while it has subscribers',
-              read_only=True),
-    ParamSpec('joint_velocity_topic', '',
-              'Topic of a Float64MultiArray [left, right] of sprocket speeds in rad/s (for a '
-              'ros2_control velocity controller); empty = not published',
-              check=_optional_ros_name, read_only=True),
-) + COMMAND_LIMIT_PARAMS
 
 
 def forced_type(values: Mapping[str, Any]):

@@ -27,10 +27,8 @@ from tracked_kinematics.core.kinematics import eccentricity, steering_efficiency
 from tracked_kinematics.core.models import AdaptiveIcr, ConstantIcr
 from tracked_kinematics.core.prediction import (
     commands_from_twist, hold_speeds, predict_from_commands, predict_path)
-from tracked_kinematics.params import (
-    described_as, drivetrain_from_values, DRIVETRAIN_PARAMS, each, ENCODER_INPUT_PARAMS, finite,
-    icr_from_values, node_name, non_negative, one_of, ParamSpec, positive, ros_name,
-    TERRAIN_PARAMS)
+from tracked_kinematics.params import drivetrain_from_values, icr_from_values
+from tracked_kinematics.params.node_tables import ESTIMATOR_POSE_TYPES, NODE_PARAMS
 from tracked_kinematics.ros.encoder_input import (
     check_encoder_values, EncoderInput, WARN_PERIOD)
 from tracked_kinematics.ros.health import Health
@@ -42,143 +40,15 @@ from tracked_kinematics.ros.services import reset_service
 
 NODE_NAME = 'icr_estimator'
 
-POSE_TYPES = {
-    'odometry': Odometry, 'pose_stamped': PoseStamped,
-    'pose_with_covariance': PoseWithCovarianceStamped, 'imu': Imu,
-}
-MODELS = ('icr', 'adaptive_icr')
-SOURCES = ('speeds', 'cmd_vel')
+POSE_TYPES = dict(zip(ESTIMATOR_POSE_TYPES,
+                      (Odometry, PoseStamped, PoseWithCovarianceStamped, Imu), strict=True))
 ICR_LAYOUT = ('y_left', 'y_right', 'x', 'chi', 'e')
-
-
-@described_as('> 0 and < 1')
-def _probability(value):
-    return positive(value) or (None if value < 1.0 else f'must be < 1, got {value!r}')
-
-
-@described_as('>= 0 and < 1')
-def _fraction_below_one(value):
-    return non_negative(value) or (None if value < 1.0 else f'must be < 1, got {value!r}')
-
-
-@described_as('> 0 or .inf')
-def _positive_or_inf(value):
-    return None if value == math.inf else positive(value)
 
 
 # Longest predicted_path, in poses (prediction.horizon / prediction.dt).
 MAX_PATH_POSES = 10_000
 
-
-_DEFAULTS = EstimatorConfig()
-
-ESTIMATOR_PARAMS: tuple[ParamSpec, ...] = (
-    ParamSpec('model', 'icr',
-              'Slip model estimated: icr (constant tread ICRs, what odometry_node uses) or '
-              'adaptive_icr (ICRs over lateral acceleration and curvature, EKF paper eq. 11)',
-              check=one_of(MODELS), read_only=True),
-    ParamSpec('pose_topic', 'pose', 'Pose measurements topic', check=ros_name, read_only=True),
-    ParamSpec('pose_type', 'odometry',
-              'Message type on pose_topic: odometry, pose_stamped, pose_with_covariance, or '
-              'imu (heading only)', check=one_of(POSE_TYPES), read_only=True),
-    ParamSpec('heading_only', False,
-              'Use only the heading of the pose messages (e.g. while RTK GPS is out)'),
-    ParamSpec('pose_std_xy', _DEFAULTS.pose_std_xy,
-              'Standard deviation of each measured position coordinate', 'm', positive,
-              low=1e-6, high=1000.0),
-    ParamSpec('pose_std_yaw', _DEFAULTS.pose_std_yaw,
-              'Standard deviation of each measured heading', 'rad', positive, low=1e-6,
-              high=10.0),
-    ParamSpec('travel_std', _DEFAULTS.travel_std,
-              'Model and encoder error per metre travelled in a window', 'm/m', non_negative,
-              low=0.0, high=10.0),
-    ParamSpec('process_std', _DEFAULTS.process_std,
-              'Random-walk standard deviation of the parameters per sqrt(second): larger '
-              'follows terrain changes faster', '1/sqrt(s)', non_negative, low=0.0,
-              high=100.0),
-    ParamSpec('initial_std', _DEFAULTS.initial_std,
-              'Standard deviation of the initial parameters', '', positive, low=1e-6,
-              high=1000.0),
-    ParamSpec('window', _DEFAULTS.window,
-              'Each pose is compared with the accepted pose this much older', 's', positive,
-              low=0.01, high=3600.0),
-    ParamSpec('min_window', _DEFAULTS.min_window, 'Shortest window', 's', non_negative,
-              low=0.0, high=3600.0),
-    ParamSpec('max_window', _DEFAULTS.max_window,
-              'Poses older than this are forgotten (outages restart the window)', 's',
-              positive, low=0.01, high=86400.0),
-    ParamSpec('gate_probability', _DEFAULTS.gate_probability,
-              'Chi-square probability of the innovation gate against pose jumps', '',
-              _probability, low=0.0, high=1.0),
-    ParamSpec('max_outliers', _DEFAULTS.max_outliers,
-              'Consecutive refused windows after which the filter re-anchors', '',
-              positive, low=1, high=1000),
-    ParamSpec('min_coverage', _DEFAULTS.min_coverage,
-              'Fraction of a window the encoder steps must cover; less is an encoder gap and '
-              'the window restarts', '', positive, low=0.01, high=1.0),
-    ParamSpec('pose_delay', _DEFAULTS.pose_delay,
-              'Delay of the pose stamps behind the encoders (a pose source stamped on receipt, '
-              'as lidar ICP often is): the identification.ground_truth_delay that identify_icr '
-              'writes', 's', finite, low=-1.0, high=2.0),
-    ParamSpec('adaptive_noise', _DEFAULTS.adaptive_noise,
-              'Raise travel_std (never lower it) to what the innovations of the last '
-              'noise_memory moving windows show; false: travel_std as given'),
-    ParamSpec('noise_memory', _DEFAULTS.noise_memory,
-              'Moving windows the adaptive noise is estimated from (it starts after 20)', '',
-              positive, low=20, high=100_000),
-    ParamSpec('prior_std', _DEFAULTS.prior_std,
-              'Spread of the parameters about start values from a terrain file, in track '
-              "widths; .inf for the paper's random walk (not used when starting from ideal "
-              'drive)', '', _positive_or_inf, low=1e-6, high=math.inf),
-    ParamSpec('prior_time', _DEFAULTS.prior_time,
-              'Memory of the prior: a departure from the start values that the data stop '
-              'supporting fades in this time', 's', positive, low=0.01, high=86400.0),
-    ParamSpec('fallback', _DEFAULTS.fallback,
-              'Publish and predict with the start values from a terrain file until the '
-              "filter's own predictions of the last fallback_span seconds beat theirs by "
-              'fallback_margin (not used when starting from ideal drive)'),
-    ParamSpec('fallback_span', _DEFAULTS.fallback_span,
-              'Seconds of recent windows the fallback compares', 's', positive, low=0.1,
-              high=86400.0),
-    ParamSpec('fallback_margin', _DEFAULTS.fallback_margin,
-              "Fraction by which the filter's recent prediction cost must be below that of the "
-              'start values for its state to be used (0.1: 10 % lower)', '',
-              _fraction_below_one, low=0.0, high=1.0),
-    ParamSpec('covariance.k_left', 0.0,
-              "The terrain file's noise model (identify_icr): the track random walk, added to "
-              'the model error of a window (0: travel_std alone)', 'm^2/m', non_negative,
-              low=0.0, high=1.0),
-    ParamSpec('covariance.k_right', 0.0,
-              'As covariance.k_left, right track (the two are averaged)', 'm^2/m',
-              non_negative, low=0.0, high=1.0),
-    ParamSpec('covariance.turn', 0.0,
-              "The terrain file's noise model: heading random walk per radian turned", 'rad^2/rad',
-              non_negative, low=0.0, high=10.0),
-    ParamSpec('covariance.slip', 0.0,
-              "The terrain file's noise model: position random walk per radian turned",
-              'm^2/rad', non_negative, low=0.0, high=10.0),
-    ParamSpec('publish_rate', 10.0, 'Rate of icr_estimate and predicted_path', 'Hz',
-              positive, low=0.01, high=1000.0),
-    ParamSpec('prediction.horizon', 2.0, 'Length of predicted_path (0: not published)', 's',
-              non_negative, low=0.0, high=600.0),
-    ParamSpec('prediction.dt', 0.05, 'Step of predicted_path', 's', positive, low=1e-3,
-              high=10.0),
-    ParamSpec('prediction.source', 'speeds',
-              'Future track speeds: speeds (hold the current ones) or cmd_vel (the latest '
-              'command through the inverse kinematics and the drive-train model)',
-              check=one_of(SOURCES), read_only=True),
-    ParamSpec('push_to', [],
-              'Nodes whose icr.* parameters are set to the estimate (e.g. odometry_node, '
-              'cmd_vel_translator): valid node names, optionally with their namespace',
-              check=each(node_name)),
-    ParamSpec('push_period', 1.0, 'Shortest time between two pushes', 's', positive,
-              low=0.01, high=3600.0),
-    ParamSpec('push_min_change', 0.01,
-              'Push only when an ICR coordinate moved by more than this', 'm', non_negative,
-              low=0.0, high=10.0),
-)
-
-PARAMS = TERRAIN_PARAMS + DRIVETRAIN_PARAMS + ENCODER_INPUT_PARAMS + ESTIMATOR_PARAMS
+PARAMS = NODE_PARAMS[NODE_NAME]
 
 
 def validate(values: Mapping[str, Any]) -> None:

@@ -20,7 +20,9 @@ import rclpy.executors
 from rclpy.executors import ExternalShutdownException
 from rclpy.signals import SignalHandlerOptions
 from tracked_kinematics import params, ros
-from tracked_kinematics.params import ParamSpec
+from tracked_kinematics.core.errors import InvalidParameters
+from tracked_kinematics.params import ParamSpec, read_params_file
+from tracked_kinematics.params.dimensions import dimension_conflicts, DIMENSION_KEYS
 from tracked_kinematics.params.tables import is_terrain_file_record
 from tracked_kinematics.ros.parameters import (NODE_PARAMETERS, package_parameter_names,
                                                package_parameters, ParameterError)
@@ -86,6 +88,32 @@ def params_file_keys(path: str, name: str) -> list[str]:
     """Check a ``--params-file`` (:func:`params_file_sections`); return its names for ``name``."""
     return [key for node, keys in params_file_sections(path) if node in ('**', '*', name)
             for key in keys]
+
+
+def dimension_sources(name: str, ros_args: Sequence[str]) -> list[tuple[str, dict]]:
+    """
+    Return where the command line gives the vehicle's dimensions, for :func:`dimension_conflicts`.
+
+    One source per ``--params-file`` (its ``/**`` section and the node's own, as rcl reads it)
+    and per ``-p`` of a :data:`~tracked_kinematics.params.dimensions.DIMENSION_KEYS` name, in
+    command-line order. A file that cannot be read is passed over (its own check names it).
+    """
+    sources = []
+    for i, arg in enumerate(ros_args[:-1]):
+        value = ros_args[i + 1]
+        if arg == '--params-file':
+            try:
+                sources.append((f'params file {value}', read_params_file(value, name)))
+            except (InvalidParameters, OSError):
+                continue
+        elif arg in ('-p', '--param') and ':=' in value:
+            key, text = value.split(':=', 1)
+            if key in DIMENSION_KEYS:
+                try:
+                    sources.append((f'-p {value}', {key: yaml.safe_load(text)}))
+                except yaml.YAMLError:
+                    continue
+    return sources
 
 
 def _flat_names(tree, prefix: str = '') -> Iterable[str]:
@@ -281,6 +309,9 @@ def _run(node_factory, name, user_args, argv, specs, stop: StopRequest) -> int:
                 if ':=' not in value or not value.split(':=', 1)[0]:
                     raise StartupError(f'-p needs NAME:=VALUE, got {value!r}')
                 settings.append(('p', value.split(':=', 1)[0]))
+        conflicts = dimension_conflicts(dimension_sources(name, ros_args))
+        if conflicts:
+            raise StartupError('; '.join(conflicts))
     except StartupError as err:
         logger.fatal(str(err))
         return EXIT_STARTUP

@@ -27,10 +27,8 @@ from tracked_kinematics.core.integration import quaternion_from_yaw
 from tracked_kinematics.core.kinematics import eccentricity, IcrParams, steering_efficiency
 from tracked_kinematics.core.noise_model import NoiseModel, timing_covariance
 from tracked_kinematics.core.odometry import Odometry
-from tracked_kinematics.params import (ENCODER_INPUT_PARAMS, frame_id, gyro_config_from_values,
-                                       GYRO_PARAMS, icr_from_values, NOISE_PARAMS, non_negative,
-                                       ParamSpec, positive, TERRAIN_PARAMS, zero_or_at_least)
-from tracked_kinematics.params.spec import each, node_name, ros_name
+from tracked_kinematics.params import gyro_config_from_values, icr_from_values, TERRAIN_PARAMS
+from tracked_kinematics.params.node_tables import NODE_PARAMS
 from tracked_kinematics.ros.encoder_input import (
     check_encoder_values, EncoderInput, WARN_PERIOD)
 from tracked_kinematics.ros.health import Health, WARN
@@ -52,39 +50,7 @@ ICR_LAYOUT = ('y_left', 'y_right', 'x', 'chi', 'e')
 _NOT_A_FAULT = ('no gyro sample yet', 'the gyro bias is not known yet')
 
 
-def _topic_or_empty(value) -> str | None:
-    if value == '':
-        return None
-    return ros_name(value)
-
-
-_topic_or_empty.words = "'' (off) or a valid ROS name"
-
-ODOMETRY_PARAMS: tuple[ParamSpec, ...] = (
-    ParamSpec('odom_frame', 'odom', 'Frame of the published pose (header.frame_id)',
-              check=frame_id),
-    ParamSpec('base_frame', 'base_link', 'Frame of the vehicle (child_frame_id)',
-              check=frame_id),
-    ParamSpec('publish_tf', True, 'Also broadcast the odom_frame -> base_frame transform'),
-    ParamSpec('publish_rate', 0.0,
-              'Highest rate of odom messages, by message time; 0 publishes on every encoder '
-              'step', 'Hz', zero_or_at_least(0.01, 'Hz'), low=0.0, high=10000.0),
-    *NOISE_PARAMS,
-    ParamSpec('imu_topic', '',
-              "sensor_msgs/Imu topic whose angular_velocity.z gives the heading ('' = off: "
-              'the encoders alone)', check=_topic_or_empty, read_only=True),
-    *GYRO_PARAMS,
-    ParamSpec('push_to', [],
-              'Nodes (cmd_vel_translator) whose icr.* parameters are set to the adapted ICRs: '
-              'valid node names, optionally with their namespace', check=each(node_name)),
-    ParamSpec('push_period', 1.0, 'Shortest time between two pushes', 's', positive,
-              low=0.01, high=3600.0),
-    ParamSpec('push_min_change', 0.01,
-              'Push only when an ICR coordinate moved by more than this', 'm', non_negative,
-              low=0.0, high=10.0),
-)
-
-PARAMS = TERRAIN_PARAMS + ENCODER_INPUT_PARAMS + ODOMETRY_PARAMS
+PARAMS = NODE_PARAMS[NODE_NAME]
 
 
 def _noise(values: Mapping[str, Any]) -> TrackNoise:

@@ -18,6 +18,7 @@ from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescr
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from tracked_kinematics.params import missing_message, ParamSpec, typos
+from tracked_kinematics.params.node_tables import NODE_PARAMS
 from tracked_kinematics.params.tables import is_terrain_file_record
 
 # Parameters every rclpy node declares itself.
@@ -26,9 +27,7 @@ NODE_PARAMETERS = ('use_sim_time', 'start_type_description_service')
 
 def package_parameters() -> dict[str, tuple[ParamSpec, ...]]:
     """Return the parameters every node of this package declares, by node name."""
-    # The node modules import this one: their tables are read when a node is built.
-    from tracked_kinematics.ros.param_docs import NODES
-    return {node: tuple(specs) for node, specs, _ in NODES}
+    return dict(NODE_PARAMS)
 
 
 def package_parameter_names() -> frozenset[str]:
@@ -298,7 +297,8 @@ def _guard_clock(node: 'TableNode') -> None:
     Refuse /clock messages rclpy cannot take (``sec < 0``) instead of raising in spin.
 
     rclpy's TimeSource offers no hook, so its callback is wrapped; a refused message sets
-    :meth:`TableNode.clock_fault` until a valid one arrives.
+    :meth:`TableNode.clock_fault` until a valid one arrives and counts in
+    :meth:`TableNode.clock_refusals`.
     """
     source = node._time_source
     original = source.clock_callback
@@ -307,6 +307,7 @@ def _guard_clock(node: 'TableNode') -> None:
         if msg.clock.sec < 0:
             node._clock_invalid = (f'/clock message refused: negative time {msg.clock.sec} s '
                                    f'{msg.clock.nanosec} ns')
+            node._clock_refused = (node._clock_refused[0] + 1, node._clock_invalid)
             node.get_logger().error(node._clock_invalid, throttle_duration_sec=5.0)
             return
         node._clock_invalid = ''
@@ -331,6 +332,7 @@ class TableNode(Node):
                  validate: Callable[[Mapping[str, Any]], None] | None = None, **kwargs):
         super().__init__(name, **kwargs)
         self._clock_invalid = ''
+        self._clock_refused = (0, '')
         _guard_clock(self)
         with destroyed_on_failure(self):
             try:
@@ -344,6 +346,10 @@ class TableNode(Node):
     def clock_fault(self) -> str:
         """Return why the latest /clock message was refused ('' when it was valid)."""
         return self._clock_invalid
+
+    def clock_refusals(self) -> tuple[int, str]:
+        """Return how many /clock messages were refused since the start, and why the last was."""
+        return self._clock_refused
 
     def ros_time(self) -> float | None:
         """Return the node's ROS time in s, or None while /clock is invalid."""

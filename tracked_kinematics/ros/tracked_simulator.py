@@ -30,8 +30,7 @@ from tracked_kinematics.core.sim.live_sensors import (EncoderReadout, PoseModel,
 from tracked_kinematics.core.sim.sensors import GyroModel, GyroStream
 from tracked_kinematics.core.sim.simulation import TwistTable
 from tracked_kinematics.core.sim.terrains import Terrain, TERRAINS
-from tracked_kinematics.params import (described_as, finite, frame_id, non_negative, one_of,
-                                       ParamSpec, positive)
+from tracked_kinematics.params.node_tables import SIMULATOR_PARAMS
 from tracked_kinematics.params.vehicles import load_vehicle, VehicleFile
 from tracked_kinematics.ros.health import Health
 from tracked_kinematics.ros.loop_thread import LoopNode
@@ -42,123 +41,6 @@ NODE_NAME = 'tracked_simulator'
 MAX_LAG = 0.25  # s of wall time behind schedule after which the backlog is dropped
 WARN_PERIOD = 1.0  # s, throttle of the warnings on recurring bad input
 LAG_WARN_PERIOD = 10.0  # s, throttle of the "cannot keep up" warning
-
-
-@described_as("a shipped terrain name, or the vehicle file's own friction.terrain")
-def _terrain_name(value) -> str | None:
-    if not isinstance(value, str) or not value:
-        return f'must be a terrain name, got {value!r}'
-    return None
-
-
-@described_as("-1 (the vehicle file's) or >= 0")
-def _vehicle_or_non_negative(value) -> str | None:
-    problem = finite(value)
-    if problem or value == -1.0 or value >= 0.0:
-        return problem
-    return f"must be -1 (the vehicle file's value) or >= 0, got {value!r}"
-
-
-@described_as('a shipped vehicle name or a path to a vehicle file')
-def _vehicle_name(value) -> str | None:
-    if not isinstance(value, str) or not value:
-        return f'must be a vehicle name or path, got {value!r}'
-    return None
-
-
-SIMULATOR_PARAMS: tuple[ParamSpec, ...] = (
-    ParamSpec('vehicle', 'auriga_alpha',
-              'Vehicle: a shipped name (config/vehicles/NAME.yaml: auriga_alpha, packbot) or '
-              'the path of a vehicle file', check=_vehicle_name, read_only=True),
-    ParamSpec('terrain', 'hard_floor',
-              'Terrain (the friction under the tracks): ' + ', '.join(TERRAINS)
-              + ", or the vehicle file's own friction.terrain (its coefficients); can be "
-              'changed at runtime', check=_terrain_name),
-    ParamSpec('real_time_factor', 1.0,
-              'Simulated seconds per wall-clock second (> 1: faster than real time); can be '
-              'changed at runtime', '', positive, low=0.01, high=100.0),
-    ParamSpec('seed', 0, 'Seed of every random source (encoder phase, noise, gyro, lidar '
-              'jumps): a run is reproducible from it and the setpoints', '', non_negative,
-              low=0, high=2**31 - 1, read_only=True),
-    ParamSpec('rate', 100.0, 'Rate of the simulation steps, in simulated time', 'Hz',
-              positive, low=10.0, high=2000.0, read_only=True),
-    ParamSpec('clock_rate', 200.0,
-              'Largest rate of /clock, in wall time: the steps due are taken together, then '
-              '/clock is published once (every step when the steps are slower)', 'Hz',
-              positive, low=1.0, high=10000.0, read_only=True),
-    ParamSpec('setpoint_timeout', 0.5,
-              'Age (in simulated and in wall time, whichever ends later) beyond which a '
-              'track setpoint counts as zero; 0 = no timeout', 's', non_negative, low=0.0,
-              high=60.0),
-    ParamSpec('left_joint', 'left_sprocket_joint', 'Joint name of the left sprocket',
-              check=frame_id, read_only=True),
-    ParamSpec('right_joint', 'right_sprocket_joint', 'Joint name of the right sprocket',
-              check=frame_id, read_only=True),
-    ParamSpec('encoder_rate', 50.0, 'Rate of joint_states (sampled at the simulation steps)',
-              'Hz', positive, low=1.0, high=2000.0, read_only=True),
-    ParamSpec('encoder_position_noise', -1.0,
-              "White noise on the reported joint positions; -1 = the vehicle file's "
-              'encoders.position_noise', 'rad', _vehicle_or_non_negative, low=-1.0, high=10.0,
-              read_only=True),
-    ParamSpec('encoder_velocity_noise', -1.0,
-              "White noise on the reported joint velocities; -1 = the vehicle file's "
-              'encoders.velocity_noise', 'rad/s', _vehicle_or_non_negative, low=-1.0,
-              high=100.0, read_only=True),
-    ParamSpec('encoder_ticks_per_revolution', -1.0,
-              'Encoder ticks per sprocket turn (0: no quantisation); -1 = the vehicle '
-              "file's encoders.ticks_per_revolution", '', _vehicle_or_non_negative,
-              low=-1.0, high=1e9, read_only=True),
-    ParamSpec('encoder_wrap', False,
-              'Report joint positions wrapped to [-pi, pi) (as some motor drivers do)',
-              read_only=True),
-    ParamSpec('gyro_rate', 100.0, 'Rate of imu/data', 'Hz', positive, low=1.0, high=2000.0,
-              read_only=True),
-    ParamSpec('gyro_bias', 0.005,
-              "Bias of the gyro's yaw rate at the start (simulate_bag --imu-bias's default)",
-              'rad/s', finite, low=-1.0, high=1.0, read_only=True),
-    ParamSpec('gyro_noise', 0.002, 'White noise of one gyro reading', 'rad/s', non_negative,
-              low=0.0, high=1.0, read_only=True),
-    ParamSpec('gyro_bias_walk', 0.0, 'Random walk of the gyro bias', 'rad/s/sqrt(s)',
-              non_negative, low=0.0, high=1.0, read_only=True),
-    ParamSpec('gyro_latency', 0.0,
-              'A gyro reading stamped t shows the yaw rate of t - gyro_latency (negative: '
-              'stamped early, as on the Warthog logs)', 's', finite, low=-1.0, high=1.0,
-              read_only=True),
-    ParamSpec('imu_frame', 'base_link', 'header.frame_id of imu/data', check=frame_id,
-              read_only=True),
-    ParamSpec('ground_truth_rate', 50.0, 'Rate of ground_truth/odom', 'Hz', positive,
-              low=1.0, high=2000.0, read_only=True),
-    ParamSpec('odom_frame', 'odom', 'Frame of the true pose (ground_truth/odom)',
-              check=frame_id, read_only=True),
-    ParamSpec('base_frame', 'base_link', 'Child frame of ground_truth/odom', check=frame_id,
-              read_only=True),
-    ParamSpec('lidar_pose', False,
-              'Publish lidar/pose: a delayed, noisy, jumpy pose as lidar ICP gives',
-              read_only=True),
-    ParamSpec('lidar_pose_rate', 10.0, 'Rate of lidar/pose', 'Hz', positive, low=0.1,
-              high=200.0, read_only=True),
-    ParamSpec('lidar_pose_delay', 0.1,
-              'Processing time: the pose measured at t is published at t + delay', 's',
-              non_negative, low=0.0, high=5.0, read_only=True),
-    ParamSpec('lidar_pose_stamp', 'measurement',
-              'Stamp of lidar/pose: measurement (the scan time) or receipt (the publication '
-              "time, as sources stamped on receipt; see icr_estimator's pose_delay)",
-              check=one_of(('measurement', 'receipt')), read_only=True),
-    ParamSpec('lidar_pose_position_noise', 0.01, 'White noise on x and y of lidar/pose', 'm',
-              non_negative, low=0.0, high=10.0, read_only=True),
-    ParamSpec('lidar_pose_yaw_noise', 0.005, 'White noise on the heading of lidar/pose',
-              'rad', non_negative, low=0.0, high=3.0, read_only=True),
-    ParamSpec('lidar_pose_jump_rate', 0.02,
-              'Mean number of jumps (mis-registrations) per second; 0 = none', '1/s',
-              non_negative, low=0.0, high=10.0, read_only=True),
-    ParamSpec('lidar_pose_jump_size', 0.2,
-              'Position shift of a jump (random direction; it stays until the next)', 'm',
-              non_negative, low=0.0, high=100.0, read_only=True),
-    ParamSpec('lidar_pose_jump_yaw', 0.02, 'Standard deviation of the heading shift of a jump',
-              'rad', non_negative, low=0.0, high=3.0, read_only=True),
-    ParamSpec('lidar_pose_frame', 'odom', 'header.frame_id of lidar/pose', check=frame_id,
-              read_only=True),
-)
 
 
 class Terrains:

@@ -41,7 +41,8 @@ class Progress:
             self._bar.close()
 
 
-def _open(path: Path) -> AnyReader:
+def open_bag(path: Path) -> AnyReader:
+    """Return the reader of a bag, not yet open; BagError for a missing path or not a bag."""
     if not path.exists():
         raise BagError(f'bag not found: {path}')
     if path.is_dir() and not (path / 'metadata.yaml').exists():
@@ -79,7 +80,7 @@ def topics_of_type(path, msgtype: str) -> list[str]:
 def guarded(path: Path, read, *args):
     """Open a bag and ``read(reader, path, *args)`` it; any reader failure is a BagError."""
     try:
-        reader = _open(path)
+        reader = open_bag(path)
         with reader:
             return read(reader, path, *args)
     except (BagError, SensorDataError):   # already one line about the bag's content
