@@ -51,8 +51,7 @@ from tracked_kinematics.core.sim.sensors import GyroModel
 from tracked_kinematics.core.sim.simulation import TwistTable
 from tracked_kinematics.offline.bag_simulation import (
     GROUND_TRUTH_TOPICS, IMU_TOPIC, JOINTS, simulate_bag)
-from tracked_kinematics.offline.bags import EncoderSource, GroundTruthSource
-from tracked_kinematics.offline.bags.reference_reader import read_reference_bag
+from tracked_kinematics.offline.bags import EncoderSource, GroundTruthSource, read_recording
 from tracked_kinematics.offline.cli.common import (
     add_force_argument, add_plot_output, ArgumentParser, bounded, run_main, SEED,
     write_together)
@@ -219,10 +218,9 @@ def heldout_path(k: int, args, overrides, table, identified: IcrParams,
                        force=bool(getattr(args, 'force', False)), parents=False,
                        imu=GYRO)
     radius = sim.vehicle.robot.encoders.sprocket_radius
-    rec = read_reference_bag(sim.bag, EncoderSource(left_joints=JOINTS[:1],
-                                                    right_joints=JOINTS[1:],
-                                                    sprocket_radius=radius),
-                             IMU_TOPIC, ground_truth=GroundTruthSource(GT_TOPIC))
+    rec = read_recording(sim.bag, EncoderSource(left_joints=JOINTS[:1], right_joints=JOINTS[1:],
+                                                sprocket_radius=radius),
+                         imu_topic=IMU_TOPIC, ground_truth=GroundTruthSource(GT_TOPIC))
     run = sim.run
     if len(rec.enc_t) != len(run.t):
         raise RuntimeError(f'{sim.bag}: read {len(rec.enc_t)} encoder samples, wrote '
@@ -471,18 +469,18 @@ def _consistency(directory, yaml_path, results, spec, force, out) -> None:
     """Score the held-out bags as evaluate_model --fuse-imu does: the covariance's coverage."""
     from tracked_kinematics.core import evaluate as ev
     from tracked_kinematics.core.errors import ExcitationError
-    from tracked_kinematics.offline.bags import CommandSource, read_evaluation_bag
     from tracked_kinematics.offline.model_evaluation import (
-        evaluate_models, pose_references, TerrainModel, with_gyro)
+        check_gyro_rate, evaluate_models, pose_references, TerrainModel)
     from tracked_kinematics.offline.model_evaluation_plot import plot_consistency
     encoders = EncoderSource(left_joints=JOINTS[:1], right_joints=JOINTS[1:],
                              sprocket_radius=spec.robot.encoders.sprocket_radius)
     bags = [directory / 'heldout' / r.name for r in results]
     found = []
     for bag in bags:
-        recording, cmds = read_evaluation_bag(bag, encoders, GroundTruthSource(GT_TOPIC),
-                                              CommandSource('none'))
-        found.append((with_gyro(bag, recording, encoders, IMU_TOPIC), cmds))
+        recording = read_recording(bag, encoders, ground_truth=GroundTruthSource(GT_TOPIC),
+                                   imu_topic=IMU_TOPIC)
+        check_gyro_rate(bag, recording, IMU_TOPIC)
+        found.append((recording, None))
     model = TerrainModel(yaml_path)
     settings = ev.Settings((5.0, 10.0), track_width=spec.robot.vehicle.track_width,
                            min_speed=0.1)
