@@ -28,6 +28,7 @@ from tracked_kinematics.offline.tooling import (
 from tracked_kinematics.params import (
     check_values, icr_from_values, TERRAIN_DEFAULTS, TERRAIN_PARAMS)
 
+from .combined import icr_from_pose_and_gyro
 from .noise_constants import add_extras, gyro_extras
 from .poses import icr_from_poses
 from .references import icr_from_references
@@ -95,9 +96,16 @@ class FitOptions:
         default_factory=lambda: IdentifyOptions(ground_truth_delay='auto'))
 
     @property
+    def pose_and_gyro(self) -> bool:
+        """Whether a pose and a gyro, and nothing else, are the references (:mod:`.combined`)."""
+        return bool(self.ground_truth is not None and self.imu_topic and not self.gnss_topic
+                    and self.straight_distance is None and not self.spin_in_place)
+
+    @property
     def uses_references(self) -> bool:
         """Whether a gyro, GNSS or a measured straight is the reference (:mod:`.references`)."""
-        return bool(self.imu_topic or self.gnss_topic or self.straight_distance is not None)
+        return bool(self.imu_topic or self.gnss_topic or self.straight_distance is not None) \
+            and not self.pose_and_gyro
 
 
 def fit(options: FitOptions, *, date: str | None = None) -> FitResult:
@@ -128,6 +136,12 @@ def fit(options: FitOptions, *, date: str | None = None) -> FitResult:
     base_values, base, track_width, radius = _vehicle(options)
     encoders = replace(checked_encoders(options.encoders), sprocket_radius=radius)
     progress = sys.stderr.isatty()
+    if options.pose_and_gyro:
+        recordings = [read_reference_bag(b, encoders, options.imu_topic, None,
+                                         options.ground_truth, progress=progress)
+                      for b in options.bags]
+        return icr_from_pose_and_gyro(recordings, options, options.imu_topic, track_width,
+                                      radius, base=base, base_values=base_values, date=date)
     if options.uses_references:
         recordings = [read_reference_bag(b, encoders, options.imu_topic, options.gnss_topic,
                                          options.ground_truth, progress=progress)
@@ -160,7 +174,7 @@ def _with_gyro(found: FitResult, options: FitOptions, encoders, progress) -> Fit
     try:
         recordings = [read_reference_bag(bag, encoders, topic, None, options.ground_truth,
                                          progress=progress) for bag in options.bags]
-        extras = gyro_extras(recordings, topic)
+        extras = gyro_extras(recordings, topic)[0]
     except (BagError, SensorDataError, IdentificationError, ValueError) as err:
         return replace(found, lines=found.lines + (
             f'gyro {topic}: not used ({err}); imu_delay and gyro_scale not written',))

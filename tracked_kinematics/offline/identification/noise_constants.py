@@ -23,6 +23,8 @@ from tracked_kinematics.core.errors import IdentificationError
 from tracked_kinematics.core.evaluate import fit_noise, held_out_windows, recording_windows
 from tracked_kinematics.core.gyro_odometry import fit_gyro_scale
 from tracked_kinematics.core.identify.reference.delays import sensor_delays
+from tracked_kinematics.core.identify.reference.fusion import (
+    bias_prior, BIAS_SIGMA_FLOOR, check_gyro_against_pose, fuse_heading)
 from tracked_kinematics.core.identify.segments import over_jumps
 
 LENGTHS = (5.0, 10.0)
@@ -264,38 +266,85 @@ def reference_extras(fit, recordings, options, track_width: float, base=None) ->
                   {**report, 'covariance': n_report}, tuple(n_lines + lines))
 
 
-def gyro_extras(recordings, topic: str) -> Extras:
+def gyro_extras(recordings, topic: str, imu_delay='auto'):
     """
     Return the gyro's constants of a pose identification whose bags also carry a gyro.
 
     ``recordings`` (as read with the gyro on ``topic`` and the pose): ``imu_delay`` (the
-    gyro's stamps against the encoders, model-free, as ``--imu-topic`` estimates it) and
-    ``gyro_scale`` (against the pose's heading), so that odometry_node's ``imu_topic`` and
-    evaluate_model's ``--fuse-imu`` use the gyro at the right time; the ICRs stay the pose
-    fit's.
+    gyro's stamps against the encoders, model-free, as ``--imu-topic`` estimates it, or as
+    given), ``gyro_scale`` (against the pose's heading), ``gyro_bias`` and ``gyro_bias_sigma``
+    (its drift against the pose's heading, :func:`~tracked_kinematics.core.identify.reference.
+    fusion.bias_prior`), so that odometry_node's ``imu_topic`` and evaluate_model's
+    ``--fuse-imu`` use the gyro at the right time. A gyro that does not turn as the pose does
+    (:func:`~tracked_kinematics.core.identify.reference.fusion.check_gyro_against_pose`: sign,
+    axis, clock) is refused: none of its constants are written, and the line says why.
+
+    Returns
+    -------
+    extras : Extras
+    gyro : tuple or None
+        ``(recordings with the pose's delay removed, imu_delay, gyro scale to divide out)``
+        for a gyro to fuse; None for a refused or untimed one.
+
     """
     try:
-        imu, pose = sensor_delays(list(recordings), 'auto', 'auto')
+        imu, pose = sensor_delays(list(recordings), imu_delay, 'auto')
     except (IdentificationError, ValueError) as err:
         return Extras(record={'gyro_topic': topic, 'imu_delay_method': f'not determined: {err}'},
                       lines=(f'gyro {topic}: delay not determined ({err}); imu_delay not '
-                             'written',))
+                             'written',)), None
     if not imu.determined:
         return Extras(record={'gyro_topic': topic, 'imu_delay_method': 'not determined'},
                       lines=(f'gyro {topic}: delay not determined ({imu.problem}); imu_delay '
-                             'not written',))
+                             'not written',)), None
     imu_delay = float(imu.delay)
     shifted = _per_bag_delay(list(recordings), float(pose.delay))
+    scale, std = _fitted_scale(shifted, imu_delay)
+    refused = check_gyro_against_pose(scale, std)
+    if refused:
+        return Extras(record={'gyro_topic': topic, 'gyro_refused': refused},
+                      report={'gyro': {'topic': topic, 'refused': refused}},
+                      lines=(f'gyro {topic}: left out ({refused}); imu_delay, gyro_scale and '
+                             'gyro_bias not written',)), None
     scale_lines, scale_values, scale_record = _gyro_scale(shifted, imu_delay)
     record = {'gyro_topic': topic, 'imu_delay': imu_delay,
               'imu_delay_method': imu.uncertainty or 'not determined', **scale_record}
     if math.isfinite(imu.std):
         record['imu_delay_std'] = float(imu.std)
-    report = {'gyro': {'topic': topic, 'imu_delay': imu_delay,
-                       'gyro_scale': scale_values['gyro_scale']}}
-    lines = (f'gyro {topic} (found in the bags): imu_delay {imu_delay:+.3f} s',
-             *scale_lines)
-    return Extras({'imu_delay': imu_delay, **scale_values}, record, report, lines)
+    written = scale_values['gyro_scale']
+    bias_values, bias_line = _bias(shifted, imu_delay, written)
+    report = {'gyro': {'topic': topic, 'imu_delay': imu_delay, 'gyro_scale': written,
+                       **bias_values}}
+    lines = (f'gyro {topic}: imu_delay {imu_delay:+.3f} s', *scale_lines, bias_line)
+    return (Extras({'imu_delay': imu_delay, **scale_values, **bias_values}, record, report,
+                   lines), (shifted, imu_delay, written))
+
+
+def _bias(recordings, imu_delay: float, scale: float):
+    """Return the gyro bias prior (terrain values) and its line, from the drift on the pose."""
+    try:
+        _, fusion = fuse_heading(recordings, imu_delay, scale)
+    except ValueError as err:
+        return {}, f'gyro bias: not measured ({err}); gyro_bias not written'
+    bias, sigma = bias_prior(fusion.biases)
+    if not math.isfinite(bias):
+        return {}, 'gyro bias: not measured; gyro_bias not written'
+    per = ', '.join(f'{b:+.5f}' for b in fusion.biases)
+    return ({'gyro_bias': bias, 'gyro_bias_sigma': sigma},
+            f'gyro bias {bias:+.5f} +- {sigma:.4f} rad/s (per bag {per}; the sigma is the '
+            'spread between bags, at least '
+            f'{BIAS_SIGMA_FLOOR:g} rad/s: the run-to-run change a restart sees)')
+
+
+def _fitted_scale(recordings, imu_delay: float):
+    """Return the gyro's scale against the pose's heading and its standard error."""
+    with_gyro = [r for r in recordings if r.gyro_t is not None and r.gyro_rate is not None
+                 and r.gt_t is not None]
+    if not with_gyro:
+        return 1.0, math.inf
+    return fit_gyro_scale([r.gyro_t for r in with_gyro], [r.gyro_rate for r in with_gyro],
+                          [r.gt_t for r in with_gyro], [r.gt_yaw for r in with_gyro],
+                          imu_delay)
 
 
 def _per_bag_delay(recordings, pooled: float):
@@ -317,12 +366,7 @@ def _per_bag_delay(recordings, pooled: float):
 
 def _gyro_scale(recordings, imu_delay: float):
     """Return the printed lines, terrain values and record of the gyro scale fit."""
-    with_gyro = [r for r in recordings if r.gyro_t is not None and r.gyro_rate is not None
-                 and r.gt_t is not None]
-    scale, std = fit_gyro_scale([r.gyro_t for r in with_gyro],
-                                [r.gyro_rate for r in with_gyro],
-                                [r.gt_t for r in with_gyro], [r.gt_yaw for r in with_gyro],
-                                imu_delay)
+    scale, std = _fitted_scale(recordings, imu_delay)
     determined = (math.isfinite(std)
                   and abs(scale - 1.0) > max(3.0 * std, SCALE_SPREAD))
     record = {'gyro_scale_fitted': float(scale)}
