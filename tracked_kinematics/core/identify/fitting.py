@@ -215,6 +215,49 @@ def check_identified(result: FitResult, accept_uncertain: bool = False) -> list[
     return uncertain
 
 
+AT_BOUND = 1e-3
+"""A parameter within this (relative to the bound, at least absolute) of a bound ends on it."""
+
+
+def _bound_cause(param, side: str) -> str:
+    """Say what usually puts a parameter on one of its bounds."""
+    if param.name.startswith('scale'):
+        return ('the encoders report about twice the travel: a diameter given as '
+                '--sprocket-radius (or the ticks per revolution halved)' if side == 'lower' else
+                'the encoders report about half the travel: a radius given where the diameter '
+                'belongs (or the ticks per revolution doubled)')
+    if param.name in ('y_left', 'y_right', 'alpha'):
+        # chi = 1 (an ideal drive) is y_left's lower bound, y_right's and alpha's upper one.
+        ideal = (side == 'lower') == (param.name == 'y_left')
+        return ('the robot turns more than an ideal drive of this track width: --track-width '
+                'too large (off by a factor?), or the left and right tracks swapped'
+                if ideal else
+                'the robot turns far less than the tracks say: --track-width too small by a '
+                'factor, or a wrong sprocket radius')
+    return 'the data push it out of the physical range: a wrong vehicle dimension or sides swapped'
+
+
+def check_bounds(result: FitResult, accept_uncertain: bool = False) -> list[str]:
+    """
+    Refuse a fit that ends on a bound of its search space, naming the likely cause.
+
+    Returns the descriptions of the parameters on a bound (accepted with ``accept_uncertain``,
+    to be reported); raises :class:`UncertainError` otherwise (identify_icr's exit 3).
+    """
+    lo, hi = bounds(result.model)
+    found = []
+    for name, value, a, b in zip(result.model.param_names, result.p, lo, hi):
+        param = result.model.parameter(name)
+        for side, edge in (('lower', a), ('upper', b)):
+            if math.isfinite(edge) and abs(value - edge) <= AT_BOUND * max(1.0, abs(edge)):
+                found.append(f'{ros_names(result.model, [name])} ended on its {side} bound '
+                             f'{edge:.4g}: likely {_bound_cause(param, side)}')
+    if found and not accept_uncertain:
+        raise UncertainError('the fit ended on a bound of its search space: '
+                             + '; '.join(found) + ' (--accept-uncertain writes it anyway)')
+    return found
+
+
 def fit(model: MotionModel, segments: Segments, *, p0=None, method: str = 'lsq',
         heading_weight: float | None = DEFAULT_HEADING_WEIGHT, loss: str = 'soft_l1',
         f_scale: float | None = None, max_nfev: int | None = None, rounds: int = 2,
