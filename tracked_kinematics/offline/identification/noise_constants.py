@@ -262,8 +262,55 @@ def reference_extras(fit, recordings, options, track_width: float, base=None) ->
         return Extras({**values, **extra.values}, {**record, **extra.record},
                       {**report, **extra.report}, tuple(lines) + extra.lines)
     n_values, n_record, n_report, n_lines = done
+    n_lines = n_lines + held_priors(fit, track_width, n_values, n_record, n_report)
     return Extras({**values, **n_values}, {**record, **n_record},
                   {**report, 'covariance': n_report}, tuple(n_lines + lines))
+
+
+DISTANCE_SCALE_PRIOR = 0.05
+"""Relative uncertainty of a distance scale held at the nominal one (tyres under load, wear,
+longitudinal slip): the Warthog's runs of ../shared/realdata are 4 % short of nominal."""
+ICR_X_PRIOR = 0.1
+"""Uncertainty of an ``icr.x`` held at the base's, in track widths (the fits of
+../shared/realdata: 0.08 m on the Warthog, 0.06 m on the Marmotte)."""
+PRIOR_WINDOW = math.sqrt(LENGTHS[0] * LENGTHS[1])
+"""s: the window length at which the priors' error enters the noise model exactly."""
+
+
+def held_priors(fit, track_width: float, values: dict, record: dict, report: dict) -> list:
+    """
+    Add the uncertainty of what a reference calibration held to the noise model; its lines.
+
+    A distance scale held (no pose, GNSS or straight) is off by ``sigma_s`` = :data:`DISTANCE_
+    SCALE_PRIOR`: the path keeps its shape and its length is off by ``sigma_s d``, along the
+    motion: the ``timing`` term (``timing v v^T`` at both ends of a window) carries that
+    exactly for a window of :data:`PRIOR_WINDOW` s, ``timing += sigma_s^2 T^2 / 2``. An
+    ``icr.x`` held (no positions) moves the path sideways by about ``sigma_x`` per radian
+    turned: ``slip += sigma_x^2 theta_T``, ``theta_T`` the mean angle turned in ``T``. The
+    record says which constants were held and at what uncertainty.
+    """
+    held = list(fit.held)
+    lines, priors = [], {}
+    data = fit.report.get('data') or {}
+    moving_time = data.get('moving_segments', 0) * float(fit.report.get('segment_length', 1.0))
+    if 'distance_scale' in held:
+        sigma = DISTANCE_SCALE_PRIOR
+        values['covariance.timing'] += sigma ** 2 * PRIOR_WINDOW ** 2 / 2.0
+        priors['distance_scale'] = sigma
+    if 'icr.x' in held and moving_time > 0:
+        sigma = ICR_X_PRIOR * track_width
+        turned = float(data.get('turned_rad', 0.0)) / moving_time * PRIOR_WINDOW
+        values['covariance.slip'] += sigma ** 2 * turned
+        priors['icr.x'] = sigma
+    if priors:
+        record['covariance.held_prior'] = [f'{k} +- {v:.3g}' for k, v in priors.items()]
+        report['held_prior'] = priors
+        lines.append('noise model: the uncertainty of what was held added (' + ', '.join(
+            f'{k} +- {v:.3g}' + (' (relative)' if k == 'distance_scale' else ' m')
+            for k, v in priors.items()) + f', exact for windows of {PRIOR_WINDOW:.1f} s): '
+            f'timing {values["covariance.timing"]:.2e} s^2, slip '
+            f'{values["covariance.slip"]:.2e} m^2/rad written')
+    return lines
 
 
 def gyro_extras(recordings, topic: str, imu_delay='auto'):
