@@ -21,10 +21,9 @@ import math
 from tracked_kinematics.core import identify as ident
 from tracked_kinematics.core.errors import IdentificationError
 from tracked_kinematics.core.evaluate import fit_noise, held_out_windows, recording_windows
-from tracked_kinematics.core.gyro_odometry import fit_gyro_scale
 from tracked_kinematics.core.identify.reference.delays import sensor_delays
 from tracked_kinematics.core.identify.reference.fusion import (
-    bias_prior, BIAS_SIGMA_FLOOR, check_gyro_against_pose, fuse_heading)
+    bias_prior, BIAS_SIGMA_FLOOR, check_gyro_against_pose, fuse_heading, signed_gyro_scale)
 from tracked_kinematics.core.identify.segments import over_jumps
 
 LENGTHS = (5.0, 10.0)
@@ -384,14 +383,8 @@ def _bias(recordings, imu_delay: float, scale: float):
 
 
 def _fitted_scale(recordings, imu_delay: float):
-    """Return the gyro's scale against the pose's heading and its standard error."""
-    with_gyro = [r for r in recordings if r.gyro_t is not None and r.gyro_rate is not None
-                 and r.gt_t is not None]
-    if not with_gyro:
-        return 1.0, math.inf
-    return fit_gyro_scale([r.gyro_t for r in with_gyro], [r.gyro_rate for r in with_gyro],
-                          [r.gt_t for r in with_gyro], [r.gt_yaw for r in with_gyro],
-                          imu_delay)
+    """Return the gyro's scale against the pose's heading (negative: turns the other way)."""
+    return signed_gyro_scale(recordings, imu_delay)
 
 
 def _per_bag_delay(recordings, pooled: float):

@@ -22,6 +22,7 @@ import math
 import numpy as np
 
 from ..segments import stretches
+from ...gyro_odometry import fit_gyro_scale
 from ...recording import Recording
 
 MIN_WINDOW, MAX_WINDOW = 1.0, 30.0
@@ -80,6 +81,28 @@ def check_gyro_against_pose(scale: float, std: float) -> str:
     return ''
 
 
+def signed_gyro_scale(recordings, imu_delay: float) -> tuple[float, float]:
+    """
+    Return the gyro's scale against the pose's heading, negative for a gyro turning the other way.
+
+    :func:`tracked_kinematics.core.gyro_odometry.fit_gyro_scale` on the recordings with a gyro
+    rate and a pose (their delay removed), which knows no negative scale: when it finds none,
+    the same fit of the negated rate gives it. ``(1.0, inf)``: too few segments.
+    """
+    recs = [r for r in recordings if r.gyro_t is not None and r.gyro_rate is not None
+            and r.gt_t is not None]
+    if not recs:
+        return 1.0, math.inf
+    args = ([r.gyro_t for r in recs], [r.gyro_rate for r in recs], [r.gt_t for r in recs],
+            [r.gt_yaw for r in recs], imu_delay)
+    scale, std = fit_gyro_scale(*args)
+    if math.isfinite(std):
+        return scale, std
+    args = (args[0], [-r for r in args[1]]) + args[2:]
+    scale, std = fit_gyro_scale(*args)
+    return (-scale, std) if math.isfinite(std) else (1.0, math.inf)
+
+
 def _pieces(rec: Recording, gyro_t):
     """Yield index arrays of the pose samples inside gap-free stretches of both streams."""
     starts, ends = stretches(rec.gt_t)
@@ -127,17 +150,18 @@ def _noise(pieces, rate):
         return math.nan, math.nan
     mad = 1.4826 * float(np.median(np.abs(d - np.median(d))))
     sigma_pose = max(mad / math.sqrt(2.0), 1e-5)
-    # The drift over longer lags: var(lag L) = 2 sigma^2 + q^2 L (robustly, over ~5 s).
-    long_d = []
+    # The drift over a longer lag L, a bias (a straight line) taken out by second differences:
+    # var(r(t + L) - 2 r(t) + r(t - L)) = 6 sigma^2 + 2 q^2 L.
+    second = []
     lag = max(1, int(round(5.0 * rate)))
     for t, r in pieces:
-        if len(r) > lag:
-            long_d.append((r[lag:] - r[:-lag]) ** 2 / np.maximum(t[lag:] - t[:-lag], 1e-3))
-    if not long_d:
+        if len(r) > 2 * lag:
+            second.append(r[2 * lag:] - 2.0 * r[lag:-lag] + r[:-2 * lag])
+    if not second:
         return sigma_pose, 1e-3
-    excess = float(np.median(np.concatenate(long_d))) / 0.455   # median of chi2(1)
-    q2 = excess - 2.0 * sigma_pose ** 2 / (lag / rate)
-    return sigma_pose, math.sqrt(max(q2, 1e-8))
+    variance = float(np.median(np.concatenate(second) ** 2)) / 0.455   # median of chi2(1)
+    q2 = (variance - 6.0 * sigma_pose ** 2) / (2.0 * lag / rate)
+    return sigma_pose, math.sqrt(max(q2, 1e-10))
 
 
 def fuse_heading(recordings, imu_delay: float, gyro_scale: float = 1.0):
