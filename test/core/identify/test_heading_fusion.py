@@ -69,9 +69,19 @@ def test_a_diameter_given_as_radius_ends_on_the_scale_bound(drive):
     segments = ident.build_segments([doubled], 1.0)
     result = ident.fit(ident.build_model('icr_scales', B), segments, check=False)
     with pytest.raises(UncertainError, match='diameter given as --sprocket-radius'):
-        check_bounds(result)
-    accepted = check_bounds(result, accept_uncertain=True)
+        check_bounds(result, segments)
+    accepted = check_bounds(result, segments, accept_uncertain=True)
     assert any('scale.left' in a for a in accepted)
-    ok = ident.fit(ident.build_model('icr_scales', B), ident.build_segments([drive], 1.0),
-                   check=False)
-    assert check_bounds(ok) == []
+    right = ident.build_segments([drive], 1.0)
+    ok = ident.fit(ident.build_model('icr_scales', B), right, check=False)
+    assert check_bounds(ok, right) == []
+
+
+def test_an_icr_touching_its_physical_bound_is_not_refused(drive):
+    # A track that does not slip has its ICR on +-track_width / 2, the bound, where the data
+    # want it (the Marmotte on snow): here the Auriga's left ICR at 0.353 m, for a vehicle
+    # of track width 0.706 m.
+    segments = ident.build_segments([drive], 1.0)
+    result = ident.fit(ident.build_model('icr_scales', 2 * AURIGA[0]), segments, check=False)
+    assert result.p[0] == pytest.approx(AURIGA[0], abs=1e-3)
+    assert check_bounds(result, segments) == []

@@ -237,21 +237,53 @@ def _bound_cause(param, side: str) -> str:
     return 'the data push it out of the physical range: a wrong vehicle dimension or sides swapped'
 
 
-def check_bounds(result: FitResult, accept_uncertain: bool = False) -> list[str]:
-    """
-    Refuse a fit that ends on a bound of its search space, naming the likely cause.
+PINNED = 3.0
+"""Standard errors beyond a bound the unbounded optimum must lie for a fit to be pinned there."""
 
-    Returns the descriptions of the parameters on a bound (accepted with ``accept_uncertain``,
-    to be reported); raises :class:`UncertainError` otherwise (identify_icr's exit 3).
+
+def _unbounded_step(result: FitResult, segments: Segments) -> np.ndarray:
+    """Return the Gauss-Newton step from ``result.p`` with no bounds, over the inlier rows."""
+    problem = SegmentProblem(result.model, segments, result.heading_weight)
+    r = problem.residuals(result.p)
+    jac = problem.jacobian(result.p)
+    rows = np.repeat((np.abs(r.reshape(-1, 3)) <= 3.0 * result.f_scale).all(axis=1), 3)
+    if not np.any(rows):
+        rows[:] = True
+    step, *_ = np.linalg.lstsq(jac[rows], r[rows], rcond=None)
+    return -step   # the Jacobian is that of the residuals, measured minus predicted
+
+
+def check_bounds(result: FitResult, segments: Segments,
+                 accept_uncertain: bool = False) -> list[str]:
+    """
+    Refuse a fit pinned on a bound of its search space, naming the likely cause.
+
+    A parameter on a bound is pinned when the unbounded optimum (one Gauss-Newton step from
+    the fit, every parameter free) lies more than :data:`PINNED` standard errors beyond it:
+    the data want a value the physics excludes (a diameter given as the radius puts both
+    scales on 0.5). A parameter that merely touches a physical bound (a track that does not
+    slip: its ICR on ``+-track_width / 2``) is not refused.
+
+    Returns the descriptions of the pinned parameters (accepted with ``accept_uncertain``, to
+    be reported); raises :class:`UncertainError` otherwise (identify_icr's exit 3).
     """
     lo, hi = bounds(result.model)
+    on = [(i, side, edge) for i, (value, a, b) in enumerate(zip(result.p, lo, hi))
+          for side, edge in (('lower', a), ('upper', b))
+          if math.isfinite(edge) and abs(value - edge) <= AT_BOUND * max(1.0, abs(edge))]
+    if not on:
+        return []
+    target = result.p + _unbounded_step(result, segments)
     found = []
-    for name, value, a, b in zip(result.model.param_names, result.p, lo, hi):
-        param = result.model.parameter(name)
-        for side, edge in (('lower', a), ('upper', b)):
-            if math.isfinite(edge) and abs(value - edge) <= AT_BOUND * max(1.0, abs(edge)):
-                found.append(f'{ros_names(result.model, [name])} ended on its {side} bound '
-                             f'{edge:.4g}: likely {_bound_cause(param, side)}')
+    for i, side, edge in on:
+        beyond = (edge - target[i]) if side == 'lower' else (target[i] - edge)
+        std = result.std[i] if len(result.std) > i and np.isfinite(result.std[i]) else 0.0
+        if beyond <= PINNED * std:
+            continue
+        name = result.model.param_names[i]
+        found.append(f'{ros_names(result.model, [name])} ended on its {side} bound {edge:.4g} '
+                     f'(the data want {target[i]:.4g}): likely '
+                     f'{_bound_cause(result.model.parameter(name), side)}')
     if found and not accept_uncertain:
         raise UncertainError('the fit ended on a bound of its search space: '
                              + '; '.join(found) + ' (--accept-uncertain writes it anyway)')

@@ -364,7 +364,7 @@ def _fit_written(target, segments, start_of, settings, options, track_width, sca
     result = fit(target, segments, p0=start_of(target), heading_weight=options.heading_weight,
                  check=False, **settings)
     uncertain = check_identified(result, accept)
-    at_bounds = check_bounds(result, accept)
+    at_bounds = check_bounds(result, segments, accept)
     settings['heading_weight'] = result.heading_weight
     try:
         icr, source = result.icr, target.name
@@ -379,7 +379,7 @@ def _fit_written(target, segments, start_of, settings, options, track_width, sca
                 icr_fit = fit(icr_model, segments, p0=start_of(icr_model), check=False,
                               **settings)
                 check_identified(icr_fit, accept)
-            at_bounds += check_bounds(icr_fit, accept)
+            at_bounds += check_bounds(icr_fit, segments, accept)
             icr, source = icr_fit.icr, icr_model.name
     except ValueError as err:
         if isinstance(err, IdentificationError):
