@@ -37,8 +37,7 @@ from tracked_kinematics.core import identify as ident  # noqa: E402,I100
 from tracked_kinematics.core import noise_model as nm  # noqa: E402
 from tracked_kinematics.core.evaluate import noise  # noqa: E402
 from tracked_kinematics.offline.bags import (  # noqa: E402
-    CommandSource, EncoderSource, GroundTruthSource, read_evaluation_bag)
-from tracked_kinematics.offline.bags.reference_reader import read_reference_bag  # noqa: E402
+    EncoderSource, GroundTruthSource, read_recording)
 from tracked_kinematics.offline.model_evaluation import (  # noqa: E402
     gyro_references, pose_references, TerrainModel)
 
@@ -142,8 +141,8 @@ def warthog(base, found, tmp):
 def husky(base):
     """Fit on the first half of the Husky run (held-out blocks), check on the second half."""
     radius, width = VEHICLES['husky']
-    found = read_evaluation_bag(base / HUSKY, EncoderSource(sprocket_radius=radius),
-                                GroundTruthSource(TOPIC), CommandSource('none'))
+    found = (read_recording(base / HUSKY, EncoderSource(sprocket_radius=radius),
+                            ground_truth=GroundTruthSource(TOPIC)), None)
     (rec,) = pose_recordings(base, [HUSKY], {HUSKY: found})
     middle = 0.5 * (rec.enc_t[0] + rec.enc_t[-1])
     from tracked_kinematics.core.identify.holdout import crop_recording
@@ -167,7 +166,7 @@ def gyro(base):
     """Fit the heading-rate noise on the gyro of two Warthog runs, check on the third."""
     radius, width = VEHICLES['warthog']
     encoders = EncoderSource(sprocket_radius=radius)
-    found = {n: read_reference_bag(base / n, encoders, '/imu/data') for n in WARTHOG}
+    found = {n: read_recording(base / n, encoders, imu_topic='/imu/data') for n in WARTHOG}
     refs = gyro_references([base / n for n in WARTHOG], [found[n] for n in WARTHOG], width)
     recs = dict(zip(WARTHOG, (d.recording for d in refs.data)))
     print('bench_covariance_fit: gyro only (heading reference): track, turn and timing '
@@ -195,8 +194,8 @@ def main():
         print(f'bench_covariance_fit: no real data in {base}; give the folder as the argument')
         return 1
     radius, _ = VEHICLES['warthog']
-    found = {n: read_evaluation_bag(base / n, EncoderSource(sprocket_radius=radius),
-                                    GroundTruthSource(TOPIC), CommandSource('none'))
+    found = {n: (read_recording(base / n, EncoderSource(sprocket_radius=radius),
+                                ground_truth=GroundTruthSource(TOPIC)), None)
              for n in WARTHOG}
     with tempfile.TemporaryDirectory() as tmp:
         warthog(base, found, Path(tmp))

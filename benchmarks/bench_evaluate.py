@@ -27,9 +27,9 @@ from tracked_kinematics.core import evaluate as ev  # noqa: E402
 from tracked_kinematics.core import identify as ident  # noqa: E402
 from tracked_kinematics.core.kinematics import IcrParams  # noqa: E402
 from tracked_kinematics.offline.bags import (  # noqa: E402
-    CommandSource, EncoderSource, GroundTruthSource, read_bags, read_drive_bag,
-    read_evaluation_bag)
+    CommandSource, EncoderSource, GroundTruthSource, read_recording, read_recordings)
 from tracked_kinematics.offline.cli import evaluate_model  # noqa: E402
+from tracked_kinematics.offline.model_evaluation import commands_of  # noqa: E402
 from tracked_kinematics.params import (  # noqa: E402
     values_from_drivetrain, values_from_icr, write_params_file)
 
@@ -41,8 +41,8 @@ GT = GroundTruthSource('/icp/pose')
 
 
 def _fit(bags, radius, width):
-    recordings = read_bags([REALDATA / b for b in bags], EncoderSource(sprocket_radius=radius),
-                           GT)
+    recordings = read_recordings([REALDATA / b for b in bags],
+                                 EncoderSource(sprocket_radius=radius), ground_truth=GT)
     return ident.identify(recordings, 'icr_scales', width, holdout=0.0).icr
 
 
@@ -59,8 +59,9 @@ def terrain_files(folder: Path):
     files = {}
     name, radius, width = HUSKY
     files[name] = [_terrain(folder / 'husky_wetgrass.yaml', _fit([name], radius, width), radius)]
-    drives = [read_drive_bag(REALDATA / b, EncoderSource(sprocket_radius=WARTHOG_RADIUS))
-              for b in WARTHOG]
+    drives = read_recordings([REALDATA / b for b in WARTHOG],
+                             EncoderSource(sprocket_radius=WARTHOG_RADIUS),
+                             commands=CommandSource())
     drivetrain = ident.fit_drivetrain(drives).drivetrain
     everything = _fit(WARTHOG, WARTHOG_RADIUS, WARTHOG_WIDTH)
     for bag in WARTHOG:
@@ -92,8 +93,9 @@ def cost():
     seconds = 0.0
     for bag, radius, width in [HUSKY] + [(b, WARTHOG_RADIUS, WARTHOG_WIDTH) for b in WARTHOG]:
         start = time.perf_counter()
-        rec, found = read_evaluation_bag(REALDATA / bag, EncoderSource(sprocket_radius=radius),
-                                         GT, CommandSource('auto', track_width=width))
+        rec = read_recording(REALDATA / bag, EncoderSource(sprocket_radius=radius),
+                             ground_truth=GT, commands=CommandSource('auto', track_width=width))
+        found = commands_of(rec)
         phases['read'] += time.perf_counter() - start
         seconds += rec.duration
         start = time.perf_counter()

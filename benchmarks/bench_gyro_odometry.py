@@ -37,11 +37,10 @@ from tracked_kinematics.core import identify as ident  # noqa: E402
 from tracked_kinematics.core.gyro_odometry import (  # noqa: E402
     fit_gyro_scale, GyroConfig, replay)
 from tracked_kinematics.offline.bags import (  # noqa: E402
-    CommandSource, EncoderSource, GroundTruthSource, read_evaluation_bag)
-from tracked_kinematics.offline.bags.reference_reader import read_reference_bag  # noqa: E402
+    EncoderSource, GroundTruthSource, read_recording)
 from tracked_kinematics.offline.identification import fit as fit_icr, FitOptions  # noqa: E402
 from tracked_kinematics.offline.model_evaluation import (  # noqa: E402
-    evaluate_models, pose_references, TerrainModel, with_gyro)
+    evaluate_models, pose_references, TerrainModel)
 from tracked_kinematics.offline.terrain_file import terrain_text  # noqa: E402
 from tracked_kinematics.params import values_from_icr  # noqa: E402
 
@@ -64,9 +63,9 @@ def folder() -> Path:
 
 def read(base):
     """Read the three runs: encoders, gyro and ICP pose."""
-    return [read_reference_bag(base / n, EncoderSource(sprocket_radius=RADIUS),
-                               imu_topic='/imu/data',
-                               ground_truth=GroundTruthSource('/icp/pose')) for n in NAMES]
+    return [read_recording(base / n, EncoderSource(sprocket_radius=RADIUS),
+                           imu_topic='/imu/data',
+                           ground_truth=GroundTruthSource('/icp/pose')) for n in NAMES]
 
 
 def recording(ref):
@@ -176,10 +175,9 @@ def through_tools(base, refs, tmp: Path):
         tuned = tmp / f'tuned_ddc{test}.yaml'
         tuned.write_text(terrain_text(values_from_icr(ddc, RADIUS), tool='bench', date=''))
         bag = base / name
-        recording, cmds = read_evaluation_bag(bag, encoders, GroundTruthSource('/icp/pose'),
-                                              CommandSource('none'))
-        references = pose_references([bag], [(with_gyro(bag, recording, encoders, '/imu/data'),
-                                              cmds)], 'auto')
+        recording = read_recording(bag, encoders, ground_truth=GroundTruthSource('/icp/pose'),
+                                   imu_topic='/imu/data')
+        references = pose_references([bag], [(recording, None)], 'auto')
         report = evaluate_models(references, [TerrainModel(tuned), TerrainModel(grass)],
                                  ev.Settings(WINDOWS, track_width=WIDTH, min_speed=MIN_SPEED),
                                  sprocket_radius=RADIUS, fuse_imu=True)

@@ -26,7 +26,7 @@ ROOT = Path(__file__).resolve().parent.parent
 
 from tracked_kinematics.core import identify as ident  # noqa: E402,I100
 from tracked_kinematics.offline.bags import (  # noqa: E402
-    EncoderSource, GroundTruthSource, read_bags)
+    EncoderSource, GroundTruthSource, read_recordings)
 
 # name: (sprocket radius m, track width m, README latency s)
 BAGS = {
@@ -59,8 +59,8 @@ def run(label, names, base):
     """Identify one set of bags three ways and print the figures."""
     radius, width, _ = BAGS[names[0]]
     readme = [BAGS[n][2] for n in names]
-    recordings = read_bags([base / n for n in names], EncoderSource(sprocket_radius=radius),
-                           GroundTruthSource('/icp/pose'))
+    recordings = read_recordings([base / n for n in names], EncoderSource(sprocket_radius=radius),
+                                 ground_truth=GroundTruthSource('/icp/pose'))
     started = time.perf_counter()
     auto = ident.identify(recordings, 'icr_scales', width, ground_truth_delay='auto',
                           accept_uncertain=True)

@@ -37,8 +37,7 @@ from tracked_kinematics.core.sim.sensors import GnssModel, GyroModel  # noqa: E4
 from tracked_kinematics.core.sim.simulation import TwistTable  # noqa: E402
 from tracked_kinematics.offline.bag_simulation import simulate_bag  # noqa: E402
 from tracked_kinematics.offline.bags import (  # noqa: E402
-    EncoderSource, GroundTruthSource, read_bags)
-from tracked_kinematics.offline.bags.reference_reader import read_reference_bag  # noqa: E402
+    EncoderSource, GroundTruthSource, read_recording, read_recordings)
 from tracked_kinematics.offline.vehicle_file import load_vehicle  # noqa: E402
 
 WINDOWS = (30.0, 60.0, 120.0)
@@ -71,10 +70,10 @@ def real(base: Path) -> None:
     """Leave-one-out on the Warthog bags."""
     encoders = EncoderSource(sprocket_radius=0.3)
     paths = [base / n for n in WARTHOG]
-    gyro = [read_reference_bag(p, encoders, '/imu/data') for p in paths]
-    both = [read_reference_bag(p, encoders, '/imu/data', ground_truth=GroundTruthSource(
-        '/icp/pose')) for p in paths]
-    icp = read_bags(paths, encoders, GroundTruthSource('/icp/pose'))
+    gyro = read_recordings(paths, encoders, imu_topic='/imu/data')
+    both = read_recordings(paths, encoders, imu_topic='/imu/data',
+                           ground_truth=GroundTruthSource('/icp/pose'))
+    icp = read_recordings(paths, encoders, ground_truth=GroundTruthSource('/icp/pose'))
     print('bench_reference: Warthog grass, fit on the two other bags, scored on each against '
           'its ICP after 5-s windows: heading deg / position m')
     print(f'    {"held-out bag":<32}{"gyro fit":>16}{"ICP fit":>16}{"plain gyro":>16}'
@@ -98,8 +97,8 @@ def real(base: Path) -> None:
 def husky(base: Path) -> None:
     """Show the one line for the Husky log, whose /imu/data is empty."""
     try:
-        read_reference_bag(base / 'husky_wetgrass_part1',
-                           EncoderSource(sprocket_radius=0.15875), '/imu/data')
+        read_recording(base / 'husky_wetgrass_part1', EncoderSource(sprocket_radius=0.15875),
+                       imu_topic='/imu/data')
     except ident.SensorDataError as err:
         print(f'bench_reference: husky_wetgrass_part1: {err}')
 
@@ -125,11 +124,13 @@ def simulated(label, overrides) -> None:
     with tempfile.TemporaryDirectory() as tmp:
         train = _runs(tmp, table, overrides, (101, 102, 103, 104), 240.0)
         test = _runs(tmp, table, overrides, (201, 202, 203, 204), 60.0)
-        refs = [read_reference_bag(b, encoders, '/imu/data', '/gnss/fix') for b in train]
+        refs = read_recordings(train, encoders, imu_topic='/imu/data', gnss_topic='/gnss/fix')
         gyro_only = [ident.Recording(r.enc_t, r.left, r.right, gyro_t=r.gyro_t,
                                      gyro_rate=r.gyro_rate, name=r.name) for r in refs]
-        poses = read_bags(train, encoders, GroundTruthSource('/ground_truth/pose'))
-        truth = read_bags(test, encoders, GroundTruthSource('/ground_truth/pose'))
+        poses = read_recordings(train, encoders,
+                                ground_truth=GroundTruthSource('/ground_truth/pose'))
+        truth = read_recordings(test, encoders,
+                                ground_truth=GroundTruthSource('/ground_truth/pose'))
         fits = {'gyro': ident.fit_recordings(gyro_only, width).icr}
         for window in WINDOWS:
             fit = ident.fit_recordings(refs, width, position_window=window)

@@ -237,11 +237,10 @@ WARTHOG = ('warthog_grass_2024-07-18_16h59', 'warthog_grass_2024-07-29_14h04',
 
 def test_warthog_gyro_aided_beats_the_encoders_after_10_s():
     """Fit on two Warthog grass runs, score the third as evaluate_model does."""
-    from tracked_kinematics.offline.bags import EncoderSource, GroundTruthSource
-    from tracked_kinematics.offline.bags.reference_reader import read_reference_bag
+    from tracked_kinematics.offline.bags import EncoderSource, GroundTruthSource, read_recording
     paths = [realdata.bag(name) for name in WARTHOG]
-    refs = [read_reference_bag(p, EncoderSource(sprocket_radius=0.3), imu_topic='/imu/data',
-                               ground_truth=GroundTruthSource(realdata.TOPIC)) for p in paths]
+    refs = [read_recording(p, EncoderSource(sprocket_radius=0.3), imu_topic='/imu/data',
+                           ground_truth=GroundTruthSource(realdata.TOPIC)) for p in paths]
     recs = [ident.Recording(r.enc_t, r.left, r.right, *r.pose, name=r.name) for r in refs]
     fit = ident.identify(recs[:2], 'icr_scales', 1.08, ground_truth_delay='auto',
                          accept_uncertain=True)

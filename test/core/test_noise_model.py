@@ -307,14 +307,13 @@ def test_fitted_on_two_warthog_runs_covers_the_third():
     # the held-out run's 5-s and 10-s windows (evaluate_model's) scored. The set (the three
     # held-out runs) meets the acceptance band; today's default noise does not.
     from tracked_kinematics.core import identify as ident
-    from tracked_kinematics.offline.bags import (CommandSource, EncoderSource,
-                                                 GroundTruthSource, read_evaluation_bag)
+    from tracked_kinematics.offline.bags import EncoderSource, GroundTruthSource, read_recording
     from tracked_kinematics.offline.model_evaluation import pose_references
 
     bags = {n: realdata.bag(n) for n in WARTHOG}
     radius, width, _ = realdata.BAGS[WARTHOG[0]]
-    found = {n: read_evaluation_bag(bags[n], EncoderSource(sprocket_radius=radius),
-                                    GroundTruthSource(realdata.TOPIC), CommandSource('none'))
+    found = {n: (read_recording(bags[n], EncoderSource(sprocket_radius=radius),
+                                ground_truth=GroundTruthSource(realdata.TOPIC)), None)
              for n in WARTHOG}
 
     def recordings(names):

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from tracked_kinematics.core.models import ConstantIcr
 from tracked_kinematics.offline.bags import (
-    BagError, columns, EncoderSource, GroundTruthSource, joint_states, read_bag)
+    BagError, columns, EncoderSource, GroundTruthSource, joint_states, read_recording)
 
 GT = GroundTruthSource('/mocap/pose')
 
@@ -24,8 +24,8 @@ def bag_path(tmp_path, storage, name='run'):
 
 
 def assert_same_recording(got, rec, travel_atol=1e-9):
-    # Times are relative to the first sample; travel up to a constant offset.
-    t0 = min(rec.enc_t[0], rec.gt_t[0])
+    # Times are relative to the first encoder sample; travel up to a constant offset.
+    t0 = rec.enc_t[0]
     np.testing.assert_allclose(got.enc_t, rec.enc_t - t0, atol=2e-9)
     np.testing.assert_allclose(got.left - got.left[0], rec.left - rec.left[0], atol=travel_atol)
     np.testing.assert_allclose(got.right - got.right[0], rec.right - rec.right[0],
@@ -40,7 +40,7 @@ def assert_same_recording(got, rec, travel_atol=1e-9):
 def test_joint_positions_in_every_storage(tmp_path, rec, storage):
     path = bag_path(tmp_path, storage)
     write_bag(path, rec, storage)
-    got = read_bag(path, EncoderSource(), GT)
+    got = read_recording(path, EncoderSource(), ground_truth=GT)
     assert_same_recording(got, rec)
     assert got.name == str(path)
 
@@ -49,9 +49,9 @@ def test_joint_positions_in_every_storage(tmp_path, rec, storage):
 def test_fast_path_equals_deserialising_every_message(tmp_path, rec, storage, monkeypatch):
     path = bag_path(tmp_path, storage)
     write_bag(path, rec, storage)
-    fast = read_bag(path, EncoderSource(), GT)
+    fast = read_recording(path, EncoderSource(), ground_truth=GT)
     monkeypatch.setattr(joint_states._Layout, 'of', classmethod(lambda cls, raw, ros2: None))
-    slow = read_bag(path, EncoderSource(), GT)
+    slow = read_recording(path, EncoderSource(), ground_truth=GT)
     for name in ('enc_t', 'left', 'right', 'gt_t', 'gt_x', 'gt_y', 'gt_yaw'):
         np.testing.assert_array_equal(getattr(fast, name), getattr(slow, name))
 
@@ -61,16 +61,18 @@ def test_ground_truth_types(tmp_path, rec, ground_truth):
     path = bag_path(tmp_path, 'mcap')
     write_bag(path, rec, 'mcap', ground_truth=ground_truth)
     source = GroundTruthSource('/tf', parent_frame='map') if ground_truth == 'tf' else GT
-    assert_same_recording(read_bag(path, EncoderSource(), source), rec)
+    assert_same_recording(read_recording(path, EncoderSource(), ground_truth=source), rec)
 
 
 def test_tf_without_parent_takes_the_only_one(tmp_path, rec):
     path = bag_path(tmp_path, 'rosbag1')
     write_bag(path, rec, 'rosbag1', ground_truth='tf')
-    assert_same_recording(read_bag(path, EncoderSource(), GroundTruthSource('/tf')), rec)
+    assert_same_recording(read_recording(path, EncoderSource(),
+                                         ground_truth=GroundTruthSource('/tf')), rec)
     with pytest.raises(BagError, match=r'ground-truth transforms odom -> base_link on /tf; '
                        r'transforms present: map -> base_link'):
-        read_bag(path, EncoderSource(), GroundTruthSource('/tf', parent_frame='odom'))
+        read_recording(path, EncoderSource(),
+                       ground_truth=GroundTruthSource('/tf', parent_frame='odom'))
 
 
 def test_tf_with_two_parents_asks_which(tmp_path):
@@ -85,15 +87,16 @@ def test_tf_with_two_parents_asks_which(tmp_path):
             bag.write('/tf', t, bag.tf_message(t, 'odom', 'base_link', k, 0, 0))
     with pytest.raises(BagError, match='several transforms to base_link on /tf .map, odom are '
                        'parents.; choose one with --ground-truth-parent-frame'):
-        read_bag(path, EncoderSource(), GroundTruthSource('/tf'))
-    got = read_bag(path, EncoderSource(), GroundTruthSource('/tf', parent_frame='/odom'))
+        read_recording(path, EncoderSource(), ground_truth=GroundTruthSource('/tf'))
+    got = read_recording(path, EncoderSource(),
+                         ground_truth=GroundTruthSource('/tf', parent_frame='/odom'))
     assert len(got.gt_t) == 5
 
 
 def test_joint_velocities(tmp_path, rec):
     path = bag_path(tmp_path, 'sqlite3')
     write_bag(path, rec, 'sqlite3', encoder='velocities')
-    got = read_bag(path, EncoderSource(), GT)
+    got = read_recording(path, EncoderSource(), ground_truth=GT)
     # Trapezoidal travel of sampled speeds: close to, not equal to, the true travel.
     assert_same_recording(got, rec, travel_atol=0.05)
     np.testing.assert_allclose(np.diff(got.left), np.diff(rec.left), atol=2e-3)
@@ -106,8 +109,8 @@ def test_per_side_topics(tmp_path, rec, encoder, mode, atol):
     write_bag(path, rec, 'mcap', encoder=encoder)
     topics = {'track_speeds': ('/left_track/speed', '/right_track/speed'),
               'encoder_ticks': ('/left_track/ticks', '/right_track/ticks')}[mode]
-    got = read_bag(path, EncoderSource(mode=mode, left_topic=topics[0], right_topic=topics[1]),
-                   GT)
+    got = read_recording(path, EncoderSource(mode=mode, left_topic=topics[0],
+                                             right_topic=topics[1]), ground_truth=GT)
     assert_same_recording(got, rec, travel_atol=atol)
 
 
@@ -119,14 +122,14 @@ def test_ground_truth_offset_moves_to_base_link(tmp_path, rec):
                      rec.gt_y + s * ox + c * oy, np.angle(np.exp(1j * (rec.gt_yaw + oyaw))))
     path = bag_path(tmp_path, 'mcap')
     write_bag(path, body, 'mcap')
-    got = read_bag(path, EncoderSource(), GroundTruthSource('/mocap/pose',
-                                                            offset=(ox, oy, oyaw)))
+    got = read_recording(path, EncoderSource(),
+                         ground_truth=GroundTruthSource('/mocap/pose', offset=(ox, oy, oyaw)))
     assert_same_recording(got, rec)
 
 
 def test_missing_bag(tmp_path):
     with pytest.raises(BagError, match='^bag not found: .*nowhere$'):
-        read_bag(tmp_path / 'nowhere', EncoderSource(), GT)
+        read_recording(tmp_path / 'nowhere', EncoderSource(), ground_truth=GT)
 
 
 def test_missing_topic_lists_the_topics(tmp_path, rec):
@@ -134,10 +137,10 @@ def test_missing_topic_lists_the_topics(tmp_path, rec):
     write_bag(path, rec, 'mcap')
     with pytest.raises(BagError, match=r'no topic /vicon for the ground truth; topics present: '
                        r'/joint_states \(sensor_msgs/msg/JointState\), /mocap/pose'):
-        read_bag(path, EncoderSource(), GroundTruthSource('/vicon'))
+        read_recording(path, EncoderSource(), ground_truth=GroundTruthSource('/vicon'))
     with pytest.raises(BagError, match='topic /mocap/pose has type geometry_msgs/msg/PoseStamped;'
                        ' the encoders must be sensor_msgs/msg/JointState'):
-        read_bag(path, EncoderSource(topic='/mocap/pose'), GT)
+        read_recording(path, EncoderSource(topic='/mocap/pose'), ground_truth=GT)
 
 
 def test_unknown_joint_lists_the_names(tmp_path, rec):
@@ -145,7 +148,7 @@ def test_unknown_joint_lists_the_names(tmp_path, rec):
     write_bag(path, rec, 'sqlite3')
     with pytest.raises(BagError, match='joint left_wheel not in /joint_states; joint names '
                        'present: left_sprocket_joint, right_sprocket_joint'):
-        read_bag(path, EncoderSource(left_joints=('left_wheel',)), GT)
+        read_recording(path, EncoderSource(left_joints=('left_wheel',)), ground_truth=GT)
 
 
 @pytest.mark.parametrize('storage', ['sqlite3', 'mcap', 'rosbag1'])
@@ -158,7 +161,7 @@ def test_truncated_bag_is_a_one_line_error(tmp_path, rec, storage):
         data = next(p for p in path.iterdir() if p.suffix in ('.db3', '.mcap'))
     data.write_bytes(data.read_bytes()[:len(data.read_bytes()) // 2])
     with pytest.raises(BagError) as err:
-        read_bag(path, EncoderSource(), GT)
+        read_recording(path, EncoderSource(), ground_truth=GT)
     message = str(err.value)
     assert '\n' not in message
     assert message.startswith(f'cannot read bag {path}') or 'fewer than' in message
@@ -169,7 +172,7 @@ def test_garbage_file_is_a_one_line_error(tmp_path):
     path.write_bytes(b'not a bag at all' * 10)
     with pytest.raises(BagError,
                        match=r'^cannot read bag .*junk.bag: .*\(truncated or corrupt\?\)$'):
-        read_bag(path, EncoderSource(), GT)
+        read_recording(path, EncoderSource(), ground_truth=GT)
 
 
 def test_quaternion_yaw():

@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 from tracked_kinematics.offline.bag_simulation import simulate_bag
 from tracked_kinematics.offline.bags import (
-    BagError, CommandSource, EncoderSource, GroundTruthSource, read_drive_bag,
-    read_evaluation_bag)
+    BagError, CommandSource, EncoderSource, GroundTruthSource, read_recording)
 from tracked_kinematics.offline.cli import identify_drivetrain
+from tracked_kinematics.offline.model_evaluation import commands_of
 
 B = 0.42
 GT = GroundTruthSource('/ground_truth/pose')
@@ -35,47 +35,53 @@ def bags(sim, tmp_path_factory):
     return paths
 
 
+def read_with_commands(path, commands=CommandSource('auto')):
+    """Read as evaluate_model does: the recording and its commands (or None)."""
+    rec = read_recording(path, ENC, ground_truth=GT, commands=commands)
+    return rec, commands_of(rec)
+
+
 def test_cmd_vel_through_the_ideal_inverse_gives_the_setpoints_back(bags):
-    _, setpoints = read_evaluation_bag(bags['setpoints'], ENC, GT)
+    _, setpoints = read_with_commands(bags['setpoints'])
     assert setpoints[2] == 'setpoints'
     for kind in ('twist', 'twist_stamped'):
-        rec, cmd_vel = read_evaluation_bag(bags[kind], ENC, GT,
-                                           CommandSource('auto', track_width=B))
+        rec, cmd_vel = read_with_commands(bags[kind], CommandSource('auto', track_width=B))
         assert cmd_vel[2] == 'cmd_vel'
+        assert rec.cmd_vel.shape == (len(rec.cmd_vel_t), 2)
         np.testing.assert_allclose(cmd_vel[0], setpoints[0], atol=1e-9)
         np.testing.assert_allclose(cmd_vel[1], setpoints[1], atol=1e-12)
         assert rec.duration == pytest.approx(30.0, abs=0.1)
 
 
 def test_a_bag_without_commands_has_none_unless_asked(bags):
-    rec, found = read_evaluation_bag(bags['none'], ENC, GT)
+    rec, found = read_with_commands(bags['none'])
     assert found is None and len(rec.gt_t) > 100
     with pytest.raises(BagError, match='no topic /left_track/setpoint for the setpoints'):
-        read_evaluation_bag(bags['none'], ENC, GT, CommandSource('setpoints'))
-    _, none = read_evaluation_bag(bags['setpoints'], ENC, GT, CommandSource('none'))
+        read_with_commands(bags['none'], CommandSource('setpoints'))
+    _, none = read_with_commands(bags['setpoints'], CommandSource('none'))
     assert none is None
 
 
 def test_cmd_vel_needs_the_track_width(bags):
     with pytest.raises(BagError, match=r'needs the track width \(--track-width or --params\)'):
-        read_evaluation_bag(bags['twist'], ENC, GT, CommandSource('cmd_vel'))
+        read_with_commands(bags['twist'], CommandSource('cmd_vel'))
     with pytest.raises(BagError, match='topic /joint_states has type sensor_msgs/msg/JointState; '
                                        'the commands must be geometry_msgs/msg/Twist or '
                                        'geometry_msgs/msg/TwistStamped'):
-        read_evaluation_bag(bags['twist'], ENC, GT,
-                            CommandSource('cmd_vel', cmd_vel_topic='/joint_states',
-                                          track_width=B))
+        read_with_commands(bags['twist'], CommandSource('cmd_vel', cmd_vel_topic='/joint_states',
+                                                        track_width=B))
 
 
 def test_drive_bag_with_cmd_vel_has_the_same_commands(bags):
-    setpoints = read_drive_bag(bags['setpoints'], ENC)
-    cmd_vel = read_drive_bag(bags['twist_stamped'], ENC,
+    setpoints = read_recording(bags['setpoints'], ENC, commands=CommandSource())
+    cmd_vel = read_recording(bags['twist_stamped'], ENC,
                              commands=CommandSource('auto', track_width=B))
     np.testing.assert_allclose(cmd_vel.commands, setpoints.commands, atol=1e-12)
     np.testing.assert_allclose(cmd_vel.command_t, setpoints.command_t, atol=1e-9)
     with pytest.raises(BagError, match=r'no topic /left_track/setpoint for the setpoints \(nor '
                                        r'/cmd_vel for cmd_vel\); topics present: '):
-        read_drive_bag(bags['none'], ENC, commands=CommandSource('auto', track_width=B))
+        read_recording(bags['none'], ENC,
+                       commands=CommandSource('auto', track_width=B, required=True))
 
 
 def _fit(argv, capsys):

@@ -8,8 +8,7 @@ from rosbags.highlevel import AnyReader
 from tracked_kinematics.core.sim.sensors import GnssModel, GyroModel
 from tracked_kinematics.core.sim.simulation import TwistTable
 from tracked_kinematics.offline import bag_simulation as sim
-from tracked_kinematics.offline.bags import EncoderSource
-from tracked_kinematics.offline.bags.reference_reader import read_reference_bag
+from tracked_kinematics.offline.bags import EncoderSource, read_recording
 from tracked_kinematics.offline.cli import identify_icr
 from tracked_kinematics.offline.vehicle_file import load_vehicle
 from tracked_kinematics.params import read_params_file
@@ -65,8 +64,8 @@ def test_the_simulated_bag_carries_imu_and_gnss_as_robots_do(field):
         status = [reader.deserialize(raw, c.msgtype).status.status
                   for c, _, raw in reader.messages(connections=gnss)]
     assert set(status) == {-1, 0} and 0.01 < status.count(-1) / len(status) < 0.12
-    rec = read_reference_bag(field.bag, EncoderSource(sprocket_radius=0.1), '/imu/data',
-                             '/gnss/fix')
+    rec = read_recording(field.bag, EncoderSource(sprocket_radius=0.1), imu_topic='/imu/data',
+                         gnss_topic='/gnss/fix')
     # The gyro reads the true rate of LATENCY s before its stamp, plus its bias.
     steps = np.clip(np.searchsorted(field.run.t, rec.gyro_t - LATENCY, side='right') - 1, 0,
                     len(field.run.twist) - 1)
@@ -263,7 +262,7 @@ def test_the_reader_takes_the_orientation_only_when_it_turns(field, tmp_path, or
             yaw = float(run_.pose[k, 2]) if orientation == 'turning' else 0.0
             w = float(run_.twist[min(k, len(run_.twist) - 1), 2])
             bag.write('/imu/data', stamp, bag.imu(stamp, w, yaw=yaw))
-    rec = read_reference_bag(path, EncoderSource(sprocket_radius=0.1), '/imu/data')
+    rec = read_recording(path, EncoderSource(sprocket_radius=0.1), imu_topic='/imu/data')
     if orientation == 'turning':
         assert rec.gyro_rate is None
         assert np.allclose(np.unwrap(rec.gyro_yaw) - rec.gyro_yaw[0],

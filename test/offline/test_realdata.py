@@ -12,15 +12,15 @@ import numpy as np
 import pytest
 from tracked_kinematics.core import identify as ident
 from tracked_kinematics.core.integration import wrap_angle
-from tracked_kinematics.offline.bags import EncoderSource, GroundTruthSource, read_bags
+from tracked_kinematics.offline.bags import EncoderSource, GroundTruthSource, read_recordings
 from tracked_kinematics.offline.cli import identify_icr
 from tracked_kinematics.params import read_params_file
 
 
 def read(name):
     radius = realdata.BAGS[name][0]
-    return read_bags([realdata.bag(name)], EncoderSource(sprocket_radius=radius),
-                     GroundTruthSource(realdata.TOPIC))
+    return read_recordings([realdata.bag(name)], EncoderSource(sprocket_radius=radius),
+                           ground_truth=GroundTruthSource(realdata.TOPIC))
 
 
 def plain_correlation_delay(rec, start, end):

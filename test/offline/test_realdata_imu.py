@@ -13,8 +13,7 @@ import pytest
 from tracked_kinematics.core import evaluate as ev
 from tracked_kinematics.core import identify as ident
 from tracked_kinematics.core.kinematics import IcrParams
-from tracked_kinematics.offline.bags import EncoderSource, GroundTruthSource, read_bags
-from tracked_kinematics.offline.bags.reference_reader import read_reference_bag
+from tracked_kinematics.offline.bags import EncoderSource, GroundTruthSource, read_recordings
 from tracked_kinematics.offline.cli import identify_icr
 from tracked_kinematics.params import read_params_file
 
@@ -26,8 +25,8 @@ WIDTH = 1.08
 def bags():
     encoders = EncoderSource(sprocket_radius=0.3)
     paths = [realdata.bag(n) for n in WARTHOG]
-    gyro = [read_reference_bag(p, encoders, '/imu/data') for p in paths]
-    icp = read_bags(paths, encoders, GroundTruthSource(realdata.TOPIC))
+    gyro = read_recordings(paths, encoders, imu_topic='/imu/data')
+    icp = read_recordings(paths, encoders, ground_truth=GroundTruthSource(realdata.TOPIC))
     return gyro, icp
 
 

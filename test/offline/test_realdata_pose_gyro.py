@@ -15,8 +15,7 @@ from helpers import realdata
 import pytest
 from tracked_kinematics.core import evaluate as ev
 from tracked_kinematics.core.identify.procedure import IdentifyOptions
-from tracked_kinematics.offline.bags import EncoderSource, GroundTruthSource
-from tracked_kinematics.offline.bags.reference_reader import read_reference_bag
+from tracked_kinematics.offline.bags import EncoderSource, GroundTruthSource, read_recording
 from tracked_kinematics.offline.cli import identify_icr
 from tracked_kinematics.offline.identification.api import FitOptions
 from tracked_kinematics.offline.identification.combined import (
@@ -39,8 +38,8 @@ def without_pose(rec):
 @pytest.fixture(scope='module')
 def recordings():
     encoders = EncoderSource(sprocket_radius=RADIUS)
-    return [read_reference_bag(realdata.bag(n), encoders, GYRO, None,
-                               GroundTruthSource(realdata.TOPIC)) for n in GRASS]
+    return [read_recording(realdata.bag(n), encoders, imu_topic=GYRO,
+                           ground_truth=GroundTruthSource(realdata.TOPIC)) for n in GRASS]
 
 
 def options(names, **changes):
@@ -148,8 +147,8 @@ def test_marmotte_on_snow_fits_with_pose_and_gyro():
     name = 'marmotte_snow_2024-01-25_12h15_part1'
     radius, width = 0.116702, 0.592723
     path = realdata.bag(name)
-    rec = read_reference_bag(path, EncoderSource(sprocket_radius=radius), GYRO, None,
-                             GroundTruthSource(realdata.TOPIC))
+    rec = read_recording(path, EncoderSource(sprocket_radius=radius), imu_topic=GYRO,
+                         ground_truth=GroundTruthSource(realdata.TOPIC))
     train, test = time_split(rec, 0.6)
     opts = replace(options([name], imu_topic=GYRO), sprocket_radius=radius,
                    track_width=width)

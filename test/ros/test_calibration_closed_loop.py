@@ -24,7 +24,7 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy
 from std_msgs.msg import Bool, Float64, String
 from tracked_kinematics.core.kinematics import IcrParams
 from tracked_kinematics.offline.bag_simulation import simulate_bag
-from tracked_kinematics.offline.bags import EncoderSource, GroundTruthSource, read_bag
+from tracked_kinematics.offline.bags import EncoderSource, GroundTruthSource, read_recording
 from tracked_kinematics.offline.cli.tracked_kinematics_demo import dead_reckon
 from tracked_kinematics.params import icr_from_values, read_params_file
 
@@ -95,8 +95,8 @@ def _heldout_errors(tmp_path, fitted: IcrParams, paths=3, duration=60.0):
     for k, manoeuvres in enumerate(('random', 'sweep', 'mixed')[:paths]):
         sim = simulate_bag(tmp_path / f'heldout{k}', 'auriga_alpha', manoeuvres=manoeuvres,
                            duration=duration, seed=11 + k, storage='mcap')
-        rec = read_bag(sim.bag, EncoderSource(sprocket_radius=0.1),
-                       GroundTruthSource('/ground_truth/pose'))
+        rec = read_recording(sim.bag, EncoderSource(sprocket_radius=0.1),
+                             ground_truth=GroundTruthSource('/ground_truth/pose'))
         truth = sim.run.pose[-1]
         ends = [dead_reckon(icr, rec.left, rec.right)[-1] for icr in (ideal, fitted)]
         errors.append([[float(np.hypot(*(end[:2] - truth[:2]))),

@@ -57,6 +57,9 @@ class Recording:
         Stamp of time 0, ns, when the recording is to be written to a bag (else 0).
     name : str
         Where it came from (a bag path), for reports.
+    gyro_topic : str
+        The IMU topic the gyro stream was read from, for reports ('' when none was read; set
+        with no gyro stream when a topic found in the bag had no messages).
 
     """
 
@@ -84,6 +87,7 @@ class Recording:
     cmd_vel: np.ndarray | None = None
     t0_ns: int = 0
     name: str = ''
+    gyro_topic: str = ''
 
     def __post_init__(self):
         for names, finite, columns in _STREAMS:

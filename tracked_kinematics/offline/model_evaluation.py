@@ -7,7 +7,7 @@ bags, prints, writes and plots; the report's keys are in docs/tools/evaluate_mod
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from datetime import datetime, timezone
 import json
 import math
@@ -22,7 +22,6 @@ from tracked_kinematics.core.evaluate.consistency import (
     gyro_track, GyroHeading, window_consistency)
 from tracked_kinematics.core.evaluate.pieces import track_path
 from tracked_kinematics.core.kinematics import IcrParams
-from tracked_kinematics.offline.bags.reference_reader import read_reference_bag
 from tracked_kinematics.offline.errors import UsageError
 from tracked_kinematics.params import (
     drivetrain_from_values, gyro_config_from_values, icr_from_values, noise_model_from_values,
@@ -132,7 +131,8 @@ def pose_references(bags, found, delay='auto') -> References:
     bags : sequence of path-like
         The bags, for the records.
     found : sequence of (Recording, tuple or None)
-        What :func:`tracked_kinematics.offline.bags.read_evaluation_bag` returned for each.
+        Each bag's recording (:func:`tracked_kinematics.offline.bags.read_recording`) and
+        its commands (:func:`commands_of`).
     delay : 'auto' or float
         The ground-truth delay behind the encoders, s; ``'auto'`` estimates it.
 
@@ -162,9 +162,10 @@ def gyro_references(bags, found, track_width: float) -> References:
     """
     Make the gyro of each recording a heading-only reference: its bias and delay removed.
 
-    ``found`` is what :func:`~tracked_kinematics.offline.bags.reference_reader.read_reference_bag`
-    returned; ``track_width`` (m) is the ideal drive the gyro fit starts from. Raises
-    ExcitationError when the drives cannot time and de-bias the gyro.
+    ``found`` are the recordings read with the gyro
+    (:func:`tracked_kinematics.offline.bags.read_recording`); ``track_width`` (m) is the
+    ideal drive the gyro fit starts from. Raises ExcitationError when the drives cannot time
+    and de-bias the gyro.
     """
     try:
         gyro = ident.fit_recordings(found, track_width)
@@ -186,21 +187,29 @@ def gyro_references(bags, found, track_width: float) -> References:
     return References(tuple(data), tuple(records), account, 'imu')
 
 
-def with_gyro(bag, recording, encoders, topic: str, progress: bool = False):
+def commands_of(recording):
     """
-    Return a recording read from ``bag`` with the gyro of ``topic`` added, on its clock.
+    Return the commands of a recording as evaluate_model scores them, or None.
 
-    For evaluate_model's ``--fuse-imu``. Raises UsageError when the topic carries no angular
-    velocity, BagError when it is absent.
+    ``(t, values, kind)``: times (s), ``(N, 2)`` nominal track commands (m/s) held until the
+    next, and ``'cmd_vel'`` when they came from cmd_vel (the recording has its twists), else
+    ``'setpoints'``.
     """
-    gyro = read_reference_bag(bag, encoders, topic, progress=progress)
-    if gyro.gyro_rate is None:
+    if recording.command_t is None:
+        return None
+    kind = 'setpoints' if recording.cmd_vel_t is None else 'cmd_vel'
+    return recording.command_t, recording.commands, kind
+
+
+def check_gyro_rate(bag, recording, topic: str) -> None:
+    """
+    Refuse a recording whose gyro has no rate, for evaluate_model's ``--fuse-imu``.
+
+    Raises UsageError when the topic carries an orientation only.
+    """
+    if recording.gyro_rate is None:
         raise UsageError(f'--fuse-imu {topic}: {bag} has no angular velocity on it (an '
                          'orientation only): the gyro-aided odometry needs the rate')
-    # Both reads start the clock at their first stamp; the encoders are the same.
-    shift = float(gyro.enc_t[0] - recording.enc_t[0])
-    return replace(recording, gyro_t=np.asarray(gyro.gyro_t) - shift,
-                   gyro_rate=np.asarray(gyro.gyro_rate))
 
 
 # The report ------------------------------------------------------------------------------

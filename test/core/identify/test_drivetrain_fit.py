@@ -12,7 +12,7 @@ from tracked_kinematics.core.drivetrain import DriveTrain, FirstOrderLag, PidMot
 from tracked_kinematics.core.identify import (
     ExcitationError, fit_drivetrain, FitError, Recording, resample)
 from tracked_kinematics.offline.bag_simulation import simulate_bag
-from tracked_kinematics.offline.bags import EncoderSource, read_drive_bag
+from tracked_kinematics.offline.bags import CommandSource, EncoderSource, read_recording
 from tracked_kinematics.offline.bags.writer import BagWriter
 from tracked_kinematics.offline.cli import identify_drivetrain as cli
 from tracked_kinematics.params import (drivetrain_from_values, read_params_file,
@@ -254,7 +254,7 @@ def test_positions_only_joint_states_and_plot(sim_bag, tmp_path):
             if i % 2 == 0:
                 writer.write('/left_track/setpoint', stamp, writer.float64(run.commands[i, 0]))
                 writer.write('/right_track/setpoint', stamp, writer.float64(run.commands[i, 1]))
-    data = read_drive_bag(bag, EncoderSource(sprocket_radius=0.1))
+    data = read_recording(bag, EncoderSource(sprocket_radius=0.1), commands=CommandSource())
     t, speeds = data.track_speeds()
     assert data.speeds is None and data.commands.shape[1] == speeds.shape[1] == 2
     np.testing.assert_allclose(t, 0.5 * (data.enc_t[1:] + data.enc_t[:-1]), atol=1e-9)

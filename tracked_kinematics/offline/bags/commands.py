@@ -18,15 +18,16 @@ class Commands:
     """
     Setpoints per side, or cmd_vel through the ideal inverse -> track commands held until next.
 
-    Which stream is chosen when the bag is opened (:class:`CommandSource` ``kind``); with
-    ``required`` a bag without it is an error, else it simply has no commands.
+    Which stream is chosen when the bag is opened (:class:`CommandSource` ``kind``); a bag
+    without the stream asked for is an error, one without either of ``auto`` only when
+    ``required``, else it simply has no commands.
     """
 
-    def __init__(self, source: CommandSource, path: Path, ref_ns: int, required: bool = True):
+    def __init__(self, source: CommandSource, path: Path, ref_ns: int):
         self.source = source
         self.path = path
         self.ref_ns = ref_ns
-        self.required = required
+        self.required = source.required or source.kind != 'auto'
         self.kind = None      # 'setpoints' or 'cmd_vel' once chosen
         self.sides = {topic: Columns(2) for topic in source.setpoint_topics}
         self.twists = Columns(3)
@@ -81,11 +82,7 @@ class Commands:
         None when the bag has no commands (and none were required).
         """
         if self.kind == 'cmd_vel':
-            data = self.twists.array
-            data = sort_unique(data[np.all(np.isfinite(data), axis=1)])
-            if len(data) < 2:
-                raise BagError(f'{self.path}: fewer than two finite messages on '
-                               f'{self.source.cmd_vel_topic}')
+            data = self.body_twists()
             # The ideal inverse: V_l = v - w B / 2, V_r = v + w B / 2 (nominal track speeds).
             half = 0.5 * self.source.track_width
             return data[:, 0], np.column_stack([data[:, 1] - half * data[:, 2],
@@ -103,3 +100,12 @@ class Commands:
         held = [side[np.searchsorted(side[:, 0], command_t, side='right') - 1, 1]
                 for side in data]
         return command_t, np.column_stack(held)
+
+    def body_twists(self):
+        """Return the rows ``(t (ns), v, w)`` of the cmd_vel messages (kind ``cmd_vel``)."""
+        data = self.twists.array
+        data = sort_unique(data[np.all(np.isfinite(data), axis=1)])
+        if len(data) < 2:
+            raise BagError(f'{self.path}: fewer than two finite messages on '
+                           f'{self.source.cmd_vel_topic}')
+        return data

@@ -70,12 +70,6 @@ def topic_connections(reader: AnyReader, path: Path, topic: str, allowed, what: 
     return conns
 
 
-def topics_of_type(path, msgtype: str) -> list[str]:
-    """Return the topics of a bag that carry ``msgtype`` (e.g. ``sensor_msgs/msg/Imu``)."""
-    return guarded(Path(path), lambda reader, _: sorted(
-        {c.topic for c in reader.connections if c.msgtype == msgtype}))
-
-
 def guarded(path: Path, read, *args):
     """Open a bag and ``read(reader, path, *args)`` it; any reader failure is a BagError."""
     try:

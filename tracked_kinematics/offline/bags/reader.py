@@ -1,15 +1,19 @@
 """
-Read encoder travel, ground-truth poses and setpoints from rosbags into plain arrays.
+Read a bag into one :class:`~tracked_kinematics.core.recording.Recording`, in one pass.
 
-rosbag2 directories (sqlite3, mcap) and ROS 1 ``.bag`` files are read one bag at a time,
-streaming only the topics asked for (:mod:`.opening`), each message reduced to a few numbers
-in growing columns (:mod:`.columns`).
+:func:`read_recording` is the one bag reader of the package: identify_icr, evaluate_model,
+identify_drivetrain and the demo read every bag with it, once, asking for the streams they
+use (encoders always; ground truth, IMU, GNSS, commands as asked). rosbag2 directories
+(sqlite3, mcap) and ROS 1 ``.bag`` files are opened by :mod:`.opening`, streamed by the one
+message loop of :mod:`.streaming`, each message reduced to a few numbers in growing columns
+(:mod:`.columns`) by its decoder (:mod:`.joint_states`, :mod:`.side_streams`,
+:mod:`.ground_truth`, :mod:`.imu_gnss`, :mod:`.commands`). What the streams are:
+:mod:`.sources`.
 
-One message loop (:func:`.streaming.read_streams`) serves every reader: it feeds the encoder
-messages to their decoder (:mod:`.joint_states`, :mod:`.side_streams`) and the others to the
-decoder of the second stream, the ground truth (:mod:`.ground_truth`) for :func:`read_bag`,
-the commands (:mod:`.commands`) for :func:`read_drive_bag`, both for
-:func:`read_evaluation_bag`. What the streams are and how they are chosen: :mod:`.sources`.
+Time 0 is the first encoder sample of the bag (after both sides have started, for per-side
+topics): the encoders are the one stream every recording has, so a stream's times do not
+depend on which other streams were read, and ``t0_ns`` keeps the stamp of time 0. The other
+streams may start before it (negative times).
 """
 
 from __future__ import annotations
@@ -17,46 +21,32 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
-from rosbags.highlevel import AnyReader
+from tracked_kinematics.core.errors import SensorDataError
 from tracked_kinematics.core.recording import Recording
 from tracked_kinematics.offline.errors import BagError
 
 from .commands import Commands
 from .ground_truth import GroundTruth
+from .imu_gnss import Gnss, Imu, IMU_TYPES
 from .opening import guarded
-from .sources import CommandSource, EncoderSource, GroundTruthSource, SETPOINT_TOPICS
-from .streaming import read_streams
+from .sources import CommandSource, EncoderSource, GroundTruthSource
+from .streaming import encoder_stream, read_streams
+
+IMU_AUTO = 'auto'
+"""``imu_topic`` of :func:`read_recording`: the bag's one sensor_msgs/Imu topic, if any."""
 
 
-class _GroundTruthAndCommands:
-    """The ground truth and, when the bag has them, the commands: evaluate_model's stream."""
-
-    def __init__(self, sources, path: Path, ref_ns: int):
-        ground_truth, commands = sources
-        self.ground_truth = GroundTruth(ground_truth, path, ref_ns)
-        self.commands = Commands(commands, path, ref_ns, required=commands.kind != 'auto')
-        self._command_ids: set = set()
-
-    def connections(self, reader: AnyReader):
-        """Return the connections of both streams (checked)."""
-        ground_truth = self.ground_truth.connections(reader)
-        commands = [c for c in self.commands.connections(reader) if c not in ground_truth]
-        self._command_ids = {id(c) for c in commands}
-        return ground_truth + commands
-
-    def add(self, conn, msg, receive_ns) -> None:
-        if id(conn) in self._command_ids:
-            self.commands.add(conn, msg, receive_ns)
-        else:
-            self.ground_truth.add(conn, msg, receive_ns)
-
-
-def read_bag(path, encoders: EncoderSource, ground_truth: GroundTruthSource,
-             progress: bool = False) -> Recording:
+def read_recording(path, encoders: EncoderSource, *,
+                   ground_truth: GroundTruthSource | None = None,
+                   imu_topic: str | None = None, gnss_topic: str | None = None,
+                   commands: CommandSource | None = None,
+                   progress: bool = False) -> Recording:
     """
-    Read one bag into a :class:`Recording`.
+    Read the encoders and the streams asked for of one bag, in one pass.
 
-    Times are seconds from the first sample of either stream.
+    Times are seconds from the first encoder sample (the module's time-0 rule); ``t0_ns`` is
+    its stamp. The measured track speeds (``speed_t``, ``speeds``) are filled when the
+    JointStates carry velocities.
 
     Parameters
     ----------
@@ -64,130 +54,100 @@ def read_bag(path, encoders: EncoderSource, ground_truth: GroundTruthSource,
         rosbag2 directory or ROS 1 ``.bag`` file.
     encoders : EncoderSource
         Where the track encoders are.
-    ground_truth : GroundTruthSource
-        Where the ground-truth pose is.
+    ground_truth : GroundTruthSource, optional
+        A pose: ground truth or a pose reference (``gt_*``).
+    imu_topic : str, optional
+        sensor_msgs/Imu: the yaw rate, or the yaw of the orientation when every message gives
+        one that turns (``gyro_*``, :mod:`.imu_gnss`). :data:`IMU_AUTO`: the bag's one Imu
+        topic, none when it has none or several, and no gyro (not an error) when that topic
+        has no messages; ``gyro_topic`` says which.
+    gnss_topic : str, optional
+        sensor_msgs/NavSatFix or nav_msgs/Odometry positions (``gnss_*``).
+    commands : CommandSource, optional
+        The track commands (``command_*``, held until the next); cmd_vel also gives the body
+        twists (``cmd_vel_*``), so ``cmd_vel_t is not None`` tells which kind was read.
+        ``auto`` reads whichever the bag has, nothing when it has neither (unless
+        ``required``).
     progress : bool
         Show a progress bar on stderr.
 
     Raises
     ------
     BagError
-        For a missing or unreadable bag, a missing topic, joint or transform, or too few
-        samples; the message is one line.
+        For a missing or unreadable bag, a missing topic, joint or transform, a topic of
+        another type, or too few samples; the message is one line.
+    SensorDataError
+        For an Imu topic without messages (named, not :data:`IMU_AUTO`), a GNSS without a fix.
 
     """
-    return guarded(Path(path), _read_recording, encoders, ground_truth, progress)
+    streams = (ground_truth, imu_topic, gnss_topic, commands)
+    return guarded(Path(path), _read, encoders, streams, progress)
 
 
-def _read_recording(reader, path, encoders, ground_truth, progress) -> Recording:
-    enc, gt = read_streams(reader, path, encoders, GroundTruth, ground_truth, progress)
+def read_recordings(paths, encoders: EncoderSource, **streams) -> list[Recording]:
+    """Read several bags, one :class:`Recording` each, by :func:`read_recording`."""
+    return [read_recording(p, encoders, **streams) for p in paths]
+
+
+def _read(reader, path, encoders, streams, progress) -> Recording:
+    ground_truth, imu_topic, gnss_topic, commands = streams
+    ref_ns = reader.start_time
+    enc, enc_conns = encoder_stream(reader, path, encoders, ref_ns)
+    auto = imu_topic == IMU_AUTO
+    if auto:
+        found = sorted({c.topic for c in reader.connections if c.msgtype in IMU_TYPES})
+        imu_topic = found[0] if len(found) == 1 else None
+    decoders = {}
+    if imu_topic:
+        decoders['imu'] = Imu(imu_topic, path, ref_ns)
+    if gnss_topic:
+        decoders['gnss'] = Gnss(gnss_topic, path, ref_ns)
+    if ground_truth is not None:
+        decoders['pose'] = GroundTruth(ground_truth, path, ref_ns)
+    if commands is not None and commands.kind != 'none':
+        decoders['commands'] = Commands(commands, path, ref_ns)
+    read_streams(reader, path, enc, enc_conns, list(decoders.values()), progress)
+    return _assemble(path, enc, decoders, ref_ns, auto)
+
+
+def _assemble(path, enc, decoders, ref_ns: int, auto: bool) -> Recording:
+    """Put the decoded streams on the one clock: seconds from the first encoder sample."""
     enc_t, left, right = enc.travel()
-    gt_t, x, y, yaw = gt.poses()
-    t0 = min(enc_t[0], gt_t[0])
-    return Recording((enc_t - t0) * 1e-9, left, right, (gt_t - t0) * 1e-9, x, y, yaw,
-                     name=str(path))
+    t0 = enc_t[0]
 
+    def seconds(t):
+        return (np.asarray(t) - t0) * 1e-9
 
-def read_bags(paths, encoders: EncoderSource, ground_truth: GroundTruthSource,
-              progress: bool = False) -> list[Recording]:
-    """Read several bags, one :class:`Recording` each (see :func:`read_bag`)."""
-    return [read_bag(p, encoders, ground_truth, progress) for p in paths]
-
-
-def read_drive_bag(path, encoders: EncoderSource, setpoint_topics=SETPOINT_TOPICS,
-                   progress: bool = False, commands: CommandSource | None = None) -> Recording:
-    """
-    Read the commanded and measured track speeds of one bag, to identify its drive train.
-
-    Commands: std_msgs/Float64 setpoints per side (m/s of nominal track speed, as
-    cmd_vel_translator publishes them), timed by the bag's receive time; or, with
-    ``commands`` of kind ``cmd_vel`` (or ``auto`` on a bag without setpoints), the body twists
-    of a geometry_msgs/Twist or TwistStamped topic through the ideal inverse ``v -/+ w B / 2``
-    (TwistStamped timed by its stamp). Measured speeds: the joint velocities times the
-    sprocket radius when the JointStates carry them, else the encoder travel differentiated
-    between samples (stamped at the midpoints).
-
-    Parameters
-    ----------
-    path, encoders, progress
-        As :func:`read_bag`.
-    setpoint_topics : pair of str
-        Left and right setpoint topics (when ``commands`` is not given).
-    commands : CommandSource, optional
-        Where the commands are; default the setpoints on ``setpoint_topics``.
-
-    Returns
-    -------
-    Recording
-        With ``commands`` and, when the joints report them, ``speeds``
-        (:meth:`~tracked_kinematics.core.recording.Recording.track_speeds`); times in seconds
-        from the bag's start.
-
-    Raises
-    ------
-    BagError
-        For a missing or unreadable bag, a missing topic or joint, or too few messages.
-
-    """
-    if commands is None:
-        commands = CommandSource('setpoints', tuple(setpoint_topics))
-    elif commands.kind == 'none':
-        raise ValueError('a drive-train bag needs commands')
-    return guarded(Path(path), _read_drive, encoders, commands, progress)
-
-
-def _read_drive(reader, path, encoders, commands, progress) -> Recording:
-    enc, setpoints = read_streams(reader, path, encoders, Commands, commands, progress)
-    t, left, right = enc.travel()
+    fields = {}
     speeds = enc.velocities()
-    if speeds is None and len(t) < 2:
-        raise BagError(f'{path}: fewer than two encoder samples')
-    measured = {}
     if speeds is not None:
-        speed_t, v_left, v_right = speeds
-        measured = {'speed_t': np.asarray(speed_t) * 1e-9,
-                    'speeds': np.column_stack([v_left, v_right])}
-    command_t, values = setpoints.commands()
-    return Recording(t * 1e-9, left, right, command_t=command_t * 1e-9, commands=values,
-                     name=str(path), **measured)
-
-
-def read_evaluation_bag(path, encoders: EncoderSource, ground_truth: GroundTruthSource,
-                        commands: CommandSource = CommandSource('auto'),
-                        progress: bool = False):
-    """
-    Read the encoders, the ground truth and, when the bag has them, the commands of one bag.
-
-    One pass over the bag (evaluate_model). Times are seconds from the first sample of the
-    encoders or the ground truth, as :func:`read_bag`.
-
-    Returns
-    -------
-    recording : Recording
-    commands : tuple or None
-        ``(t, values, kind)``: times (s), ``(N, 2)`` nominal track commands (m/s) held until
-        the next, and ``'setpoints'`` or ``'cmd_vel'``; None when the bag has none (with
-        ``commands.kind`` ``auto`` or ``none``).
-
-    Raises
-    ------
-    BagError
-        As :func:`read_bag`; for commands of a kind asked for that the bag lacks; for cmd_vel
-        without a track width.
-
-    """
-    return guarded(Path(path), _read_evaluation, encoders, (ground_truth, commands), progress)
-
-
-def _read_evaluation(reader, path, encoders, sources, progress):
-    enc, other = read_streams(reader, path, encoders, _GroundTruthAndCommands, sources, progress)
-    enc_t, left, right = enc.travel()
-    gt_t, x, y, yaw = other.ground_truth.poses()
-    t0 = min(enc_t[0], gt_t[0])
-    recording = Recording((enc_t - t0) * 1e-9, left, right, (gt_t - t0) * 1e-9, x, y, yaw,
-                          name=str(path))
-    found = other.commands.commands()
-    if found is None:
-        return recording, None
-    command_t, values = found
-    return recording, ((command_t - t0) * 1e-9, values, other.commands.kind)
+        fields.update(speed_t=seconds(speeds[0]), speeds=np.column_stack(speeds[1:]))
+    if 'pose' in decoders:
+        t, x, y, yaw = decoders['pose'].poses()
+        fields.update(gt_t=seconds(t), gt_x=x, gt_y=y, gt_yaw=yaw)
+    if 'imu' in decoders:
+        fields['gyro_topic'] = decoders['imu'].topic
+        try:
+            t, rate, yaw = decoders['imu'].gyro()
+        except SensorDataError:
+            if not auto:
+                raise
+        else:
+            fields['gyro_t'] = seconds(t)
+            fields['gyro_rate' if rate is not None else 'gyro_yaw'] = \
+                rate if rate is not None else yaw
+    if 'gnss' in decoders:
+        t, x, y = decoders['gnss'].positions()
+        fields.update(gnss_t=seconds(t), gnss_x=x, gnss_y=y)
+    if 'commands' in decoders:
+        found = decoders['commands'].commands()
+        if found is not None:
+            fields.update(command_t=seconds(found[0]), commands=found[1])
+        if decoders['commands'].kind == 'cmd_vel':
+            twists = decoders['commands'].body_twists()
+            fields.update(cmd_vel_t=seconds(twists[:, 0]), cmd_vel=twists[:, 1:])
+    try:
+        return Recording(seconds(enc_t), left, right, t0_ns=int(ref_ns + round(t0)),
+                         name=str(path), **fields)
+    except ValueError as err:
+        raise BagError(f'{path}: {err}') from None

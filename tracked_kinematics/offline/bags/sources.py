@@ -30,7 +30,7 @@ GROUND_TRUTH_TYPES = ('nav_msgs/msg/Odometry', 'geometry_msgs/msg/PoseStamped',
                       'geometry_msgs/msg/PoseWithCovarianceStamped', 'tf2_msgs/msg/TFMessage')
 """Message types a ground-truth topic may carry."""
 SETPOINT_TOPICS = ('/left_track/setpoint', '/right_track/setpoint')
-"""Default left and right setpoint topics of :func:`.reader.read_drive_bag`."""
+"""Default left and right setpoint topics."""
 CMD_VEL_TOPIC = '/cmd_vel'
 """Default body-twist command topic (a base driven as diff_drive_controller is)."""
 CMD_VEL_TYPES = ('geometry_msgs/msg/Twist', 'geometry_msgs/msg/TwistStamped')
@@ -124,6 +124,9 @@ class CommandSource:
         geometry_msgs/Twist or TwistStamped topic.
     track_width : float
         m: the ``B`` of the ideal inverse, needed for cmd_vel (NaN: not known).
+    required : bool
+        With ``auto``: a bag with neither is an error (else it has no commands). The kinds
+        ``setpoints`` and ``cmd_vel`` are always required.
 
     """
 
@@ -131,6 +134,7 @@ class CommandSource:
     setpoint_topics: tuple = SETPOINT_TOPICS
     cmd_vel_topic: str = CMD_VEL_TOPIC
     track_width: float = math.nan
+    required: bool = False
 
     def __post_init__(self):
         if self.kind not in COMMAND_KINDS:

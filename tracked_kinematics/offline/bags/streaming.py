@@ -1,10 +1,8 @@
 """
-The one message loop: the encoder messages to their decoder, the others to a second decoder.
+The one message loop: the encoder messages to their decoder, the others to theirs.
 
-:func:`read_streams` serves every reader of the sub-package: the second stream is the ground truth
-for :func:`.reader.read_bag`, the commands for :func:`.reader.read_drive_bag`, both for
-:func:`.reader.read_evaluation_bag`, the references for
-:func:`.reference_reader.read_reference_bag`.
+:func:`read_streams` is the single pass over a bag of :func:`.reader.read_recording`: every
+stream asked for (encoders, ground truth, IMU, GNSS, commands) is decoded from the same loop.
 """
 
 from __future__ import annotations
@@ -14,7 +12,7 @@ from .opening import Progress, topic_connections
 from .side_streams import SideStream
 
 
-def _encoder_stream(reader, path, encoders, ref_ns):
+def encoder_stream(reader, path, encoders, ref_ns):
     """Return the collector of the encoder messages and the bag connections it reads."""
     decoder = encoders.decoder()
     enc = (SideStream(encoders, path, ref_ns) if decoder.per_side
@@ -24,47 +22,41 @@ def _encoder_stream(reader, path, encoders, ref_ns):
                                             'encoders')]
 
 
-def read_streams(reader, path, encoders, kind, source, progress):
+def read_streams(reader, path, enc, enc_conns, decoders, progress):
     """
-    Stream the encoder messages and those of one other stream: the one message loop.
+    Stream the messages of the encoders and of every other decoder: the one message loop.
 
     Parameters
     ----------
     reader : AnyReader
         The open bag.
     path : Path
-        Its path, for the messages.
-    encoders : EncoderSource
-        Where the encoders are.
-    kind : type
-        Decoder of the other stream, made as ``kind(source, path, reader.start_time)``; it
-        gives the bag connections it reads (checked) by ``connections(reader)`` and takes
-        each message by ``add(connection, message, receive_ns)``.
-    source
-        What the other stream is (a :class:`GroundTruthSource`, the setpoint topics).
+        Its path, for the progress bar.
+    enc, enc_conns
+        The encoder collector and its connections (:func:`encoder_stream`).
+    decoders : sequence
+        Decoders of the other streams: each gives the bag connections it reads (checked) by
+        ``connections(reader)``, asked in order, and takes each message by
+        ``add(connection, message, receive_ns)``; a topic two of them read goes to both.
     progress : bool
         Show a progress bar on stderr.
 
-    Returns
-    -------
-    tuple
-        The encoder decoder and the other decoder, fed with every message.
-
     """
-    ref_ns = reader.start_time
-    enc, enc_conns = _encoder_stream(reader, path, encoders, ref_ns)
-    other = kind(source, path, ref_ns)
-    other_conns = other.connections(reader)
-    other_ids = {id(c) for c in other_conns}
-    conns = enc_conns + [c for c in other_conns if c not in enc_conns]
+    targets = {}
+    for decoder in decoders:
+        for conn in decoder.connections(reader):
+            targets.setdefault(id(conn), (conn, []))[1].append(decoder)
+    enc_ids = {id(c) for c in enc_conns}
+    conns = enc_conns + [c for c, _ in targets.values() if id(c) not in enc_ids]
     bar = Progress(sum(c.msgcount for c in conns), path.name, progress)
     try:
         for conn, receive_ns, raw in reader.messages(connections=conns):
-            if id(conn) in other_ids:
-                other.add(conn, reader.deserialize(raw, conn.msgtype), receive_ns)
-            else:
+            if id(conn) in enc_ids:
                 enc.feed(reader, conn, receive_ns, raw)
+            if id(conn) in targets:
+                msg = reader.deserialize(raw, conn.msgtype)
+                for decoder in targets[id(conn)][1]:
+                    decoder.add(conn, msg, receive_ns)
             bar.step()
     finally:
         bar.close()
-    return enc, other

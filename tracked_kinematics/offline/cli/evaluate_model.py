@@ -34,16 +34,15 @@ import sys
 
 import numpy as np
 from tracked_kinematics.core import evaluate as ev
-from tracked_kinematics.offline.bags import read_evaluation_bag
-from tracked_kinematics.offline.bags.reference_reader import read_reference_bag
+from tracked_kinematics.offline.bags import read_recording
 from tracked_kinematics.offline.cli.common import (
     add_command_arguments, add_ground_truth_arguments, add_vehicle_groups,
     add_window_selection_arguments, command_source, encoder_source, ground_truth_source,
     identification_parser, positive, require_vehicle, run_main)
 from tracked_kinematics.offline.errors import UsageError
 from tracked_kinematics.offline.model_evaluation import (
-    evaluate_models, gyro_references, pose_references, read_terrain_models, References,
-    with_gyro)
+    check_gyro_rate, commands_of, evaluate_models, gyro_references, pose_references,
+    read_terrain_models, References)
 from tracked_kinematics.offline.outputs import Outputs
 from tracked_kinematics.params import positive as check_positive
 
@@ -160,16 +159,18 @@ def _read(args, track_width, radius) -> References:
     encoders = encoder_source(args, radius)
     progress = sys.stderr.isatty()
     if args.imu_topic:
-        found = [read_reference_bag(bag, encoders, args.imu_topic, progress=progress)
+        found = [read_recording(bag, encoders, imu_topic=args.imu_topic, progress=progress)
                  for bag in args.bags]
         return gyro_references(args.bags, found, track_width)
-    ground_truth = ground_truth_source(args)
-    commands = command_source(args, track_width)
-    found = [read_evaluation_bag(bag, encoders, ground_truth, commands, progress)
-             for bag in args.bags]
+    # One pass over each bag: the pose, the commands and, with --fuse-imu, the gyro.
+    streams = {'ground_truth': ground_truth_source(args), 'imu_topic': args.fuse_imu,
+               'commands': command_source(args, track_width)}
+    recordings = [read_recording(bag, encoders, progress=progress, **streams)
+                  for bag in args.bags]
     if args.fuse_imu:
-        found = [(with_gyro(bag, recording, encoders, args.fuse_imu, progress), cmds)
-                 for bag, (recording, cmds) in zip(args.bags, found)]
+        for bag, recording in zip(args.bags, recordings):
+            check_gyro_rate(bag, recording, args.fuse_imu)
+    found = [(recording, commands_of(recording)) for recording in recordings]
     return pose_references(args.bags, found, args.ground_truth_delay)
 
 

@@ -21,6 +21,7 @@ docs/parameters.md.
 from __future__ import annotations
 
 import argparse
+from dataclasses import replace
 from datetime import datetime, timezone
 import math
 from pathlib import Path
@@ -29,13 +30,13 @@ import sys
 from tracked_kinematics.core.drivetrain import LOOP_KINDS
 from tracked_kinematics.core.errors import InvalidParameters
 from tracked_kinematics.core.identify import fit_drivetrain
-from tracked_kinematics.offline.bags import read_drive_bag
+from tracked_kinematics.offline.bags import read_recording
 from tracked_kinematics.offline.cli.common import (
     add_base_file_argument, add_command_arguments, add_encoder_arguments, add_output_argument,
     add_plot_output, add_report_arguments, add_sprocket_radius_argument, bag_tool_parser,
     bounded, command_source, encoder_source, positive, read_base_file, report_json,
     require_vehicle, run_main, write_together)
-from tracked_kinematics.offline.errors import UsageError
+from tracked_kinematics.offline.errors import BagError, UsageError
 from tracked_kinematics.offline.outputs import Outputs
 from tracked_kinematics.offline.terrain_file import terrain_text, terrain_values
 from tracked_kinematics.params import (
@@ -168,7 +169,7 @@ def _check_grid(args, recordings) -> None:
         return
     seconds = 0.0
     for r in recordings:
-        times = [t for t in (r.command_t, r.speed_t) if len(t)]
+        times = [t for t in (r.command_t, r.speed_t) if t is not None and len(t)]
         if times:
             seconds += max(float(t[-1]) for t in times) - min(float(t[0]) for t in times)
     samples = seconds / args.dt
@@ -186,9 +187,12 @@ def _identify(args, out, outputs) -> None:
     base_values, radius, base = _base(args)
     encoders = encoder_source(args, radius)
     progress = sys.stderr.isatty()
-    commands = command_source(args, args.track_width)
-    recordings = [read_drive_bag(b, encoders, progress=progress, commands=commands)
+    commands = replace(command_source(args, args.track_width), required=True)
+    recordings = [read_recording(b, encoders, commands=commands, progress=progress)
                   for b in args.bags]
+    for r in recordings:
+        if r.speed_t is None and len(r.enc_t) < 2:
+            raise BagError(f'{r.name}: fewer than two encoder samples')
     _check_grid(args, recordings)
     result = fit_drivetrain(recordings, loop=args.loop, dt=args.dt, max_delay=args.max_delay,
                             max_gap=args.max_gap, base=base)

@@ -47,12 +47,12 @@ from tracked_kinematics.core.gyro_odometry import GyroConfig, replay
 from tracked_kinematics.core.integration import wrap_angle
 from tracked_kinematics.core.kinematics import IcrParams
 from tracked_kinematics.core.models import ConstantIcr
+from tracked_kinematics.core.recording import Recording
 from tracked_kinematics.core.sim.sensors import GyroModel
 from tracked_kinematics.core.sim.simulation import TwistTable
 from tracked_kinematics.offline.bag_simulation import (
     GROUND_TRUTH_TOPICS, IMU_TOPIC, JOINTS, simulate_bag)
-from tracked_kinematics.offline.bags import EncoderSource, GroundTruthSource
-from tracked_kinematics.offline.bags.reference_reader import read_reference_bag
+from tracked_kinematics.offline.bags import EncoderSource, GroundTruthSource, read_recording
 from tracked_kinematics.offline.cli.common import (
     add_force_argument, add_plot_output, ArgumentParser, bounded, run_main, SEED,
     write_together)
@@ -92,6 +92,8 @@ class PathResult:
         True pose and the two dead reckonings at each encoder sample.
     gyro_aided : ndarray, shape (N, 3)
         The identified ICRs with the gyro's heading (odometry_node with ``imu_topic``).
+    recording : Recording or None
+        Its bag as read (encoders, ground truth, gyro), for the covariance check.
 
     """
 
@@ -104,6 +106,7 @@ class PathResult:
     ideal: np.ndarray
     identified: np.ndarray
     gyro_aided: np.ndarray
+    recording: Recording | None = None
 
     def errors(self, which: str) -> tuple[float, float, float]:
         """
@@ -219,10 +222,9 @@ def heldout_path(k: int, args, overrides, table, identified: IcrParams,
                        force=bool(getattr(args, 'force', False)), parents=False,
                        imu=GYRO)
     radius = sim.vehicle.robot.encoders.sprocket_radius
-    rec = read_reference_bag(sim.bag, EncoderSource(left_joints=JOINTS[:1],
-                                                    right_joints=JOINTS[1:],
-                                                    sprocket_radius=radius),
-                             IMU_TOPIC, ground_truth=GroundTruthSource(GT_TOPIC))
+    rec = read_recording(sim.bag, EncoderSource(left_joints=JOINTS[:1], right_joints=JOINTS[1:],
+                                                sprocket_radius=radius),
+                         imu_topic=IMU_TOPIC, ground_truth=GroundTruthSource(GT_TOPIC))
     run = sim.run
     if len(rec.enc_t) != len(run.t):
         raise RuntimeError(f'{sim.bag}: read {len(rec.enc_t)} encoder samples, wrote '
@@ -232,7 +234,7 @@ def heldout_path(k: int, args, overrides, table, identified: IcrParams,
                          gyro)
     return PathResult(name, manoeuvres, seed, run.duration, run.distance, run.pose,
                       dead_reckon(ideal, rec.left, rec.right),
-                      dead_reckon(identified, rec.left, rec.right), aided)
+                      dead_reckon(identified, rec.left, rec.right), aided, rec)
 
 
 def print_table(results, out) -> tuple[float, float]:
@@ -471,18 +473,14 @@ def _consistency(directory, yaml_path, results, spec, force, out) -> None:
     """Score the held-out bags as evaluate_model --fuse-imu does: the covariance's coverage."""
     from tracked_kinematics.core import evaluate as ev
     from tracked_kinematics.core.errors import ExcitationError
-    from tracked_kinematics.offline.bags import CommandSource, read_evaluation_bag
     from tracked_kinematics.offline.model_evaluation import (
-        evaluate_models, pose_references, TerrainModel, with_gyro)
+        check_gyro_rate, evaluate_models, pose_references, TerrainModel)
     from tracked_kinematics.offline.model_evaluation_plot import plot_consistency
-    encoders = EncoderSource(left_joints=JOINTS[:1], right_joints=JOINTS[1:],
-                             sprocket_radius=spec.robot.encoders.sprocket_radius)
     bags = [directory / 'heldout' / r.name for r in results]
     found = []
-    for bag in bags:
-        recording, cmds = read_evaluation_bag(bag, encoders, GroundTruthSource(GT_TOPIC),
-                                              CommandSource('none'))
-        found.append((with_gyro(bag, recording, encoders, IMU_TOPIC), cmds))
+    for bag, result in zip(bags, results):   # the recordings the paths were read into
+        check_gyro_rate(bag, result.recording, IMU_TOPIC)
+        found.append((result.recording, None))
     model = TerrainModel(yaml_path)
     settings = ev.Settings((5.0, 10.0), track_width=spec.robot.vehicle.track_width,
                            min_speed=0.1)

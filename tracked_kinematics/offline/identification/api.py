@@ -17,10 +17,9 @@ from tracked_kinematics.core.errors import (IdentificationError, InvalidParamete
                                             SensorDataError)
 from tracked_kinematics.core.identify.procedure import IdentifyOptions
 from tracked_kinematics.core.kinematics import IcrParams
-from tracked_kinematics.offline.bags import EncoderSource, GroundTruthSource, read_bags
-from tracked_kinematics.offline.bags.opening import topics_of_type
-from tracked_kinematics.offline.bags.reference_reader import read_reference_bag
-from tracked_kinematics.offline.errors import BagError, UsageError
+from tracked_kinematics.offline.bags import (EncoderSource, GroundTruthSource, IMU_AUTO,
+                                             read_recordings)
+from tracked_kinematics.offline.errors import UsageError
 from tracked_kinematics.offline.outputs import Outputs
 from tracked_kinematics.offline.terrain_file import terrain_text
 from tracked_kinematics.offline.tooling import (
@@ -135,29 +134,25 @@ def fit(options: FitOptions, *, date: str | None = None) -> FitResult:
     check_options(options)
     base_values, base, track_width, radius = _vehicle(options)
     encoders = replace(checked_encoders(options.encoders), sprocket_radius=radius)
-    progress = sys.stderr.isatty()
+    # Each bag read once; without a gyro or GNSS reference, the pose fit's bags with their
+    # one gyro, if they carry one (_with_gyro).
+    given_gyro = options.uses_references or options.pose_and_gyro
+    recordings = read_recordings(
+        options.bags, encoders, ground_truth=options.ground_truth,
+        imu_topic=options.imu_topic if given_gyro else IMU_AUTO,
+        gnss_topic=options.gnss_topic, progress=sys.stderr.isatty())
     if options.pose_and_gyro:
-        recordings = [read_reference_bag(b, encoders, options.imu_topic, None,
-                                         options.ground_truth, progress=progress)
-                      for b in options.bags]
         return icr_from_pose_and_gyro(recordings, options, options.imu_topic, track_width,
                                       radius, base=base, base_values=base_values, date=date)
     if options.uses_references:
-        recordings = [read_reference_bag(b, encoders, options.imu_topic, options.gnss_topic,
-                                         options.ground_truth, progress=progress)
-                      for b in options.bags]
         return icr_from_references(recordings, options, track_width, radius, base=base,
                                    base_values=base_values, date=date)
-    recordings = read_bags(options.bags, encoders, options.ground_truth, progress=progress)
     found = icr_from_poses(recordings, options, track_width, radius, base=base,
                            base_values=base_values, date=date)
-    return _with_gyro(found, options, encoders, progress)
+    return _with_gyro(found, recordings)
 
 
-IMU_TYPE = 'sensor_msgs/msg/Imu'
-
-
-def _with_gyro(found: FitResult, options: FitOptions, encoders, progress) -> FitResult:
+def _with_gyro(found: FitResult, recordings) -> FitResult:
     """
     Add the gyro's constants to a pose fit whose bags carry one gyro topic, the same in each.
 
@@ -167,15 +162,16 @@ def _with_gyro(found: FitResult, options: FitOptions, encoders, progress) -> Fit
     """
     if found.identification is None:    # spin in place: the ICRs alone
         return found
-    topics = {tuple(topics_of_type(bag, IMU_TYPE)) for bag in options.bags}
-    if len(topics) != 1 or len(next(iter(topics))) != 1:
+    topics = {r.gyro_topic for r in recordings}
+    if len(topics) != 1 or not next(iter(topics)):
         return found
-    topic = next(iter(topics))[0]
+    topic = next(iter(topics))
     try:
-        recordings = [read_reference_bag(bag, encoders, topic, None, options.ground_truth,
-                                         progress=progress) for bag in options.bags]
+        empty = next((r.name for r in recordings if r.gyro_t is None), None)
+        if empty is not None:
+            raise SensorDataError(f'{empty}: no Imu messages on {topic}')
         extras = gyro_extras(recordings, topic)[0]
-    except (BagError, SensorDataError, IdentificationError, ValueError) as err:
+    except (SensorDataError, IdentificationError, ValueError) as err:
         return replace(found, lines=found.lines + (
             f'gyro {topic}: not used ({err}); imu_delay and gyro_scale not written',))
     values, report, lines = dict(found.values), dict(found.report), list(found.lines)

@@ -27,7 +27,7 @@ def icr_from_poses(recordings, options, track_width: float, sprocket_radius: flo
     Parameters
     ----------
     recordings : sequence of Recording
-        ``options.bags`` as read (:func:`tracked_kinematics.offline.bags.read_bags`).
+        ``options.bags`` as read (:func:`tracked_kinematics.offline.bags.read_recordings`).
     options : FitOptions
         What to fit (:class:`.api.FitOptions`).
     track_width, sprocket_radius : float

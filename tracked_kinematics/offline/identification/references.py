@@ -2,8 +2,8 @@
 identify_icr without a ground-truth pose: the gyro as the reference, GNSS or a straight drive.
 
 :func:`icr_from_references` calibrates with :func:`tracked_kinematics.core.identify.
-fit_recordings` on recordings read by :func:`tracked_kinematics.offline.bags.reference_reader.
-read_reference_bag` and returns the :class:`.report.FitResult`, with ``identification.
+fit_recordings` on recordings read by :func:`tracked_kinematics.offline.bags.read_recording`
+and returns the :class:`.report.FitResult`, with ``identification.
 reference``, ``identification.determined`` and ``identification.held`` (docs/tools/identify_icr.md,
 "What it writes") and ``identification.imu_delay`` in the terrain values.
 """

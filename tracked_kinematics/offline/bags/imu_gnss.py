@@ -1,0 +1,110 @@
+"""
+Decode an IMU's gyro and GNSS positions: the references of a robot without ground truth.
+
+:class:`Imu`: sensor_msgs/Imu, the yaw rate ``angular_velocity.z``, or the yaw of
+``orientation`` when every message gives one (``orientation_covariance[0] != -1``) and it
+turns at all. :class:`Gnss`: sensor_msgs/NavSatFix with ``status.status >= 0``, converted to
+the east-north plane at the first fix by :mod:`tracked_kinematics.core.geodesy`; or
+nav_msgs/Odometry, navsat_transform's, positions only.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+from tracked_kinematics.core.errors import SensorDataError
+from tracked_kinematics.core.geodesy import geodetic_to_enu, GeoOrigin
+
+from .columns import Columns, header_stamp, sort_unique
+from .opening import topic_connections
+
+IMU_TYPES = ('sensor_msgs/msg/Imu',)
+GNSS_TYPES = ('sensor_msgs/msg/NavSatFix', 'nav_msgs/msg/Odometry')
+
+
+class Imu:
+    """Imu messages -> time, yaw rate, yaw of the orientation (when given)."""
+
+    def __init__(self, topic: str, path: Path, ref_ns: int):
+        self.topic = topic
+        self.path = path
+        self.ref_ns = ref_ns
+        self.columns = Columns(4)          # t, wz, yaw, orientation given
+
+    def connections(self, reader):
+        """Return the bag connections of the IMU topic (checked)."""
+        return topic_connections(reader, self.path, self.topic, IMU_TYPES, 'IMU')
+
+    def add(self, conn, msg, receive_ns) -> None:
+        q = msg.orientation
+        given = float(msg.orientation_covariance[0]) != -1.0 \
+            and (q.x, q.y, q.z, q.w) != (0.0, 0.0, 0.0, 0.0)
+        yaw = float(np.arctan2(2.0 * (q.w * q.z + q.x * q.y),
+                               1.0 - 2.0 * (q.y * q.y + q.z * q.z))) if given else np.nan
+        self.columns.append((header_stamp(msg.header, receive_ns, self.ref_ns),
+                             float(msg.angular_velocity.z), yaw, float(given)))
+
+    def gyro(self):
+        """Return times (ns), and rates or yaw (one is None)."""
+        data = self.columns.array
+        if len(data) == 0:
+            raise SensorDataError(f'{self.path}: no Imu messages on {self.topic}')
+        data = sort_unique(data)
+        t, wz, yaw, given = data.T
+        # An orientation that never turns (a driver filling identity with covariance 0 instead
+        # of -1) is no heading: the rates are used then.
+        turns = np.all(np.isfinite(yaw)) and np.ptp(np.unwrap(yaw)) > 1e-3
+        if np.all(given > 0) and turns:
+            return t, None, yaw
+        return t, wz, None
+
+
+class Gnss:
+    """NavSatFix or Odometry messages -> time, x, y in a local plane."""
+
+    def __init__(self, topic: str, path: Path, ref_ns: int):
+        self.topic = topic
+        self.path = path
+        self.ref_ns = ref_ns
+        self.columns = Columns(5)         # t, a, b, c, status (lat, lon, alt or x, y, nan)
+        self.kind = ''
+
+    def connections(self, reader):
+        """Return the bag connections of the GNSS topic (checked)."""
+        return topic_connections(reader, self.path, self.topic, GNSS_TYPES, 'GNSS')
+
+    def add(self, conn, msg, receive_ns) -> None:
+        t = header_stamp(msg.header, receive_ns, self.ref_ns)
+        if conn.msgtype == 'sensor_msgs/msg/NavSatFix':
+            self.kind = 'navsatfix'
+            self.columns.append((t, msg.latitude, msg.longitude, msg.altitude,
+                                 float(msg.status.status)))
+        else:
+            self.kind = 'odometry'
+            p = msg.pose.pose.position
+            self.columns.append((t, p.x, p.y, np.nan, 0.0))
+
+    def positions(self):
+        """Return times (ns), x, y in a local plane; the no-fix samples dropped."""
+        data = sort_unique(self.columns.array)
+        if self.kind == 'navsatfix':
+            fix = (data[:, 4] >= 0) & np.all(np.isfinite(data[:, 1:3]), axis=1)
+            if not np.any(fix):
+                raise SensorDataError(
+                    f'{self.path}: the GNSS on {self.topic} has no fix in '
+                    f'{len(data)} messages (status < 0 or no position): nothing to calibrate '
+                    'the distance with')
+            data = data[fix]
+            lat, lon, alt = data[:, 1], data[:, 2], data[:, 3]
+            origin = GeoOrigin(float(lat[0]), float(lon[0]),
+                               float(alt[0]) if np.isfinite(alt[0]) else 0.0)
+            x, y, _ = geodetic_to_enu(lat, lon, alt, origin)
+            t = data[:, 0]
+        else:
+            data = data[np.all(np.isfinite(data[:, 1:3]), axis=1)]
+            t, x, y = data[:, 0], data[:, 1], data[:, 2]
+        if len(t) < 3:
+            raise SensorDataError(f'{self.path}: fewer than three GNSS positions on '
+                                  f'{self.topic}')
+        return t, x, y
