@@ -69,8 +69,8 @@ def folds(recordings, tmp_path_factory):
         gyro = icr_from_references([without_pose(r) for r in train],
                                    options(names, ground_truth=None, imu_topic=GYRO),
                                    WIDTH, RADIUS)
-        models = [write(tmp, k, f) for k, f in (('pose', pose), ('both', both),
-                                                 ('gyro', gyro))]
+        files = (('pose', pose), ('both', both), ('gyro', gyro))
+        models = [write(tmp, k, f) for k, f in files]
         refs = pose_references([name], [(recordings[held], None)])
         report = evaluate_models(refs, models, ev.Settings(track_width=WIDTH, min_speed=0.1),
                                  sprocket_radius=RADIUS, fuse_imu=True)

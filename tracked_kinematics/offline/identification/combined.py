@@ -136,13 +136,13 @@ def icr_from_pose_and_gyro(recordings, options, topic: str, track_width: float,
         if math.isnan(pose_score) or fused_score < (1.0 - MARGIN) * pose_score:
             chosen = fused
             why = ('kept: pose + gyro' if math.isnan(pose_score) else
-                   f'kept: pose + gyro ({fused_score:.3f} m against the pose alone\'s '
+                   f"kept: pose + gyro ({fused_score:.3f} m against the pose alone's "
                    f'{pose_score:.3f} m on {how}, mean position error after 5 s and 10 s)')
         else:
-            why = (f'kept: the pose alone ({pose_score:.3f} m against pose + gyro\'s '
+            why = (f"kept: the pose alone ({pose_score:.3f} m against pose + gyro's "
                    f'{fused_score:.3f} m on {how}, mean position error after 5 s and 10 s; '
                    f'pose + gyro is kept when {MARGIN:.0%} better); '
-                   'the gyro\'s constants are written all the same')
+                   "the gyro's constants are written all the same")
         choice = [f'pose + gyro {topic}: {noise}; {why}']
         extras = replace(extras, record={
             **extras.record, 'fused_heading': chosen is fused,

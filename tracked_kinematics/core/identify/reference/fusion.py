@@ -141,11 +141,7 @@ def _offsets(rec, gyro_t, heading):
 
 def _noise(pieces, rate):
     """Return the pose's white noise and the gyro's random walk from the offsets' increments."""
-    steps, gaps = [], []
-    for t, r in pieces:
-        steps.append(np.diff(r))
-        gaps.append(np.diff(t))
-    d, dt = np.concatenate(steps), np.concatenate(gaps)
+    d = np.concatenate([np.diff(r) for _, r in pieces])
     if d.size < 10:
         return math.nan, math.nan
     mad = 1.4826 * float(np.median(np.abs(d - np.median(d))))
