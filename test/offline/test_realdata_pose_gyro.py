@@ -17,7 +17,7 @@ from tracked_kinematics.core import evaluate as ev
 from tracked_kinematics.core.identify.procedure import IdentifyOptions
 from tracked_kinematics.offline.bags import EncoderSource, GroundTruthSource, read_recording
 from tracked_kinematics.offline.cli import identify_icr
-from tracked_kinematics.offline.identification.api import FitOptions
+from tracked_kinematics.offline.identification.api import fit, FitOptions
 from tracked_kinematics.offline.identification.combined import (
     icr_from_pose_and_gyro, time_split)
 from tracked_kinematics.offline.identification.poses import icr_from_poses
@@ -63,7 +63,8 @@ def folds(recordings, tmp_path_factory):
         tmp = tmp_path_factory.mktemp(f'fold{held}')
         train = [r for k, r in enumerate(recordings) if k != held]
         names = [n for k, n in enumerate(GRASS) if k != held]
-        pose = icr_from_poses(train, options(names), WIDTH, RADIUS)
+        # The pose alone as identify_icr writes it: with the gyro found in the bags.
+        pose = fit(options([str(realdata.bag(n)) for n in names]))
         both = icr_from_pose_and_gyro(train, options(names, imu_topic=GYRO), GYRO, WIDTH,
                                       RADIUS)
         gyro = icr_from_references([without_pose(r) for r in train],
@@ -102,9 +103,10 @@ def test_gyro_only_covariance_is_consistent_on_the_held_out_run(folds, held):
     models, _ = folds[held]
     for length in ('5', '10'):
         inside = windows(models, 'gyro')[length]['consistency']['inside_95']
-        # Measured 0.96-0.99 after 5 s and 0.85-0.95 after 10 s (0.26-0.60 before the
-        # held distance scale and icr.x entered the covariance).
-        assert 0.84 <= inside <= 0.995, (length, inside)
+        # Measured 0.96-0.99 after 5 s and 0.89-0.97 after 10 s (0.26-0.60 before the
+        # held distance scale and icr.x entered the covariance). The target is 0.85-0.98:
+        # the 5-s windows of the 2024-07-18 run, 0.990, are a little over-covered.
+        assert 0.85 <= inside <= 0.995, (length, inside)
 
 
 def test_a_gyro_mounted_upside_down_is_left_out(recordings):
