@@ -63,7 +63,9 @@ def test_pose_and_gyro_write_the_noise_model_imu_delay_and_gyro_scale(bags, tmp_
     assert values['identification.covariance.held_out'] == 'held-out time blocks'
     assert values['identification.covariance.windows'] > 100
     assert report['covariance']['model']['turn'] == values['covariance.turn']
-    assert report['gyro_scale']['written'] == values['gyro_scale']
+    assert report['gyro']['gyro_scale'] == values['gyro_scale']
+    # One fit of the segments on the pose and the gyro: the table and the choice are printed.
+    assert 'hold-out:' in text and 'pose + gyro' in text and 'kept:' in text
     assert 'noise model (pose errors' in text and 'gyro scale (measured / true)' in text
 
 
@@ -82,9 +84,15 @@ def test_gyro_alone_fits_what_the_heading_determines_and_holds_slip(bags, tmp_pa
     assert 'gyro_scale' not in values   # no pose: the scale cannot be told from chi
     assert values['identification.covariance.errors'] == 'heading'
     assert values['identification.covariance.held'] == ['slip']
-    assert values['covariance.slip'] == pytest.approx(2e-2)   # the prior's
+    # The prior's slip, and the held icr.x's uncertainty (0.1 track width) on top of it;
+    # the held distance scale's (5 %) in the timing term.
+    assert values['covariance.slip'] > 2e-2
+    assert values['identification.covariance.held_prior'] == ['distance_scale +- 0.05',
+                                                              'icr.x +- 0.042']
+    assert values['covariance.timing'] >= 0.05 ** 2 * 50.0 / 2.0
     assert report['covariance']['held'] == ['slip']
     assert 'held at the prior: slip' in text
+    assert 'the uncertainty of what was held added' in text
 
 
 def test_pose_alone_on_two_bags_holds_each_out_in_turn(bags, tmp_path, capsys):

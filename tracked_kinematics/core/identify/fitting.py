@@ -215,6 +215,81 @@ def check_identified(result: FitResult, accept_uncertain: bool = False) -> list[
     return uncertain
 
 
+AT_BOUND = 1e-3
+"""A parameter within this (relative to the bound, at least absolute) of a bound ends on it."""
+
+
+def _bound_cause(param, side: str) -> str:
+    """Say what usually puts a parameter on one of its bounds."""
+    if param.name.startswith('scale'):
+        return ('the encoders report about twice the travel: a diameter given as '
+                '--sprocket-radius (or the ticks per revolution halved)' if side == 'lower' else
+                'the encoders report about half the travel: a radius given where the diameter '
+                'belongs (or the ticks per revolution doubled)')
+    if param.name in ('y_left', 'y_right', 'alpha'):
+        # chi = 1 (an ideal drive) is y_left's lower bound, y_right's and alpha's upper one.
+        ideal = (side == 'lower') == (param.name == 'y_left')
+        return ('the robot turns more than an ideal drive of this track width: --track-width '
+                'too large (off by a factor?), or the left and right tracks swapped'
+                if ideal else
+                'the robot turns far less than the tracks say: --track-width too small by a '
+                'factor, or a wrong sprocket radius')
+    return 'the data push it out of the physical range: a wrong vehicle dimension or sides swapped'
+
+
+PINNED = 3.0
+"""Standard errors beyond a bound the unbounded optimum must lie for a fit to be pinned there."""
+
+
+def _unbounded_step(result: FitResult, segments: Segments) -> np.ndarray:
+    """Return the Gauss-Newton step from ``result.p`` with no bounds, over the inlier rows."""
+    problem = SegmentProblem(result.model, segments, result.heading_weight)
+    r = problem.residuals(result.p)
+    jac = problem.jacobian(result.p)
+    rows = np.repeat((np.abs(r.reshape(-1, 3)) <= 3.0 * result.f_scale).all(axis=1), 3)
+    if not np.any(rows):
+        rows[:] = True
+    step, *_ = np.linalg.lstsq(jac[rows], r[rows], rcond=None)
+    return -step   # the Jacobian is that of the residuals, measured minus predicted
+
+
+def check_bounds(result: FitResult, segments: Segments,
+                 accept_uncertain: bool = False) -> list[str]:
+    """
+    Refuse a fit pinned on a bound of its search space, naming the likely cause.
+
+    A parameter on a bound is pinned when the unbounded optimum (one Gauss-Newton step from
+    the fit, every parameter free) lies more than :data:`PINNED` standard errors beyond it:
+    the data want a value the physics excludes (a diameter given as the radius puts both
+    scales on 0.5). A parameter that merely touches a physical bound (a track that does not
+    slip: its ICR on ``+-track_width / 2``) is not refused.
+
+    Returns the descriptions of the pinned parameters (accepted with ``accept_uncertain``, to
+    be reported); raises :class:`UncertainError` otherwise (identify_icr's exit 3).
+    """
+    lo, hi = bounds(result.model)
+    on = [(i, side, edge) for i, (value, a, b) in enumerate(zip(result.p, lo, hi))
+          for side, edge in (('lower', a), ('upper', b))
+          if math.isfinite(edge) and abs(value - edge) <= AT_BOUND * max(1.0, abs(edge))]
+    if not on:
+        return []
+    target = result.p + _unbounded_step(result, segments)
+    found = []
+    for i, side, edge in on:
+        beyond = (edge - target[i]) if side == 'lower' else (target[i] - edge)
+        std = result.std[i] if len(result.std) > i and np.isfinite(result.std[i]) else 0.0
+        if beyond <= PINNED * std:
+            continue
+        name = result.model.param_names[i]
+        found.append(f'{ros_names(result.model, [name])} ended on its {side} bound {edge:.4g} '
+                     f'(the data want {target[i]:.4g}): likely '
+                     f'{_bound_cause(result.model.parameter(name), side)}')
+    if found and not accept_uncertain:
+        raise UncertainError('the fit ended on a bound of its search space: '
+                             + '; '.join(found) + ' (--accept-uncertain writes it anyway)')
+    return found
+
+
 def fit(model: MotionModel, segments: Segments, *, p0=None, method: str = 'lsq',
         heading_weight: float | None = DEFAULT_HEADING_WEIGHT, loss: str = 'soft_l1',
         f_scale: float | None = None, max_nfev: int | None = None, rounds: int = 2,

@@ -19,7 +19,7 @@ import numpy as np
 
 from .delay import correct_ground_truth, DelayEstimate, estimate_delays, fixed_delay
 from .excitation import check_excitation, Excitation
-from .fitting import check_identified, fit, FitResult
+from .fitting import check_bounds, check_identified, fit, FitResult
 from .holdout import ErrorStats, HoldOut, MIN_SEGMENTS, MIN_WINDOWS, prediction_errors
 from .problem import DEFAULT_HEADING_WEIGHT
 from .search_space import build_model, COMPARE_MODELS
@@ -141,6 +141,9 @@ class Identification:
         Mean track speed from which a held-out window was scored, m/s (None: every window).
     windows_total : int
         Held-out windows over all folds before that selection (those over a jump left out).
+    at_bounds : list of str
+        Parameters that ended on a bound of the search space, accepted
+        (``accept_uncertain``), with the likely cause (:func:`.fitting.check_bounds`).
 
     """
 
@@ -164,6 +167,7 @@ class Identification:
     jump_segments: int = 0
     min_speed: float | None = None
     windows_total: int = 0
+    at_bounds: list = field(default_factory=list)
 
     def evaluation(self, name: str) -> ModelEvaluation | None:
         """Return the evaluation of one model, or None."""
@@ -277,69 +281,24 @@ def identify(recordings, model: str = 'icr_scales', track_width: float = 0.42, *
 
     """
     options = replace(options, **changes) if changes else options
-    method, segment_length, heading_weight = (options.method, options.segment_length,
-                                              options.heading_weight)
-    loss, min_travel, max_nfev = options.loss, options.min_travel, options.max_nfev
-    holdout, holdout_block, window = options.holdout, options.holdout_block, options.window
-    compare, ground_truth_delay = options.compare, options.ground_truth_delay
-    accept_uncertain, min_speed = options.accept_uncertain, options.min_speed
     seconds = {}
     started = time.perf_counter()
-    recordings = list(recordings)
-    if isinstance(ground_truth_delay, str):
-        if ground_truth_delay != 'auto':
-            raise ValueError(f"ground_truth_delay must be a number of seconds or 'auto', got "
-                             f'{ground_truth_delay!r}')
-        delay, each = estimate_delays(recordings)
-    else:
-        delay, each = fixed_delay(ground_truth_delay or 0.0), []
-    removed = [e.delay for e in each] if each else [delay.delay] * len(recordings)
-    recordings = [correct_ground_truth([r], d)[0] for r, d in zip(recordings, removed)]
+    recordings, delay, each = _remove_delay(list(recordings), options.ground_truth_delay)
     seconds['delay'] = time.perf_counter() - started
 
     started = time.perf_counter()
     scales = (base.scale_left, base.scale_right) if base is not None else (1.0, 1.0)
     target = build_model(model, track_width, scales)
-    all_segments = build_segments(recordings, segment_length)
-    if len(all_segments) == 0:
-        raise ExcitationError(_why_no_segments(recordings, segment_length))
-    # The ground truth over a jump (a re-localisation, a glitch) says nothing of the motion.
-    jumped = over_jumps(all_segments, recordings, track_width)
-    all_segments = all_segments.select(~jumped)
-    excitation = Excitation.of(all_segments, min_travel)
-    check_excitation(target, excitation)
-    segments = all_segments.select(all_segments.travel >= min_travel)
+    segments, excitation, jumped = _moving_segments(recordings, target, options, track_width)
     seconds['segments'] = time.perf_counter() - started
 
     def start_of(m):
         return None if base is None else m.start_from(base)
 
-    settings = {'method': method, 'loss': loss, 'max_nfev': max_nfev}
+    settings = {'method': options.method, 'loss': options.loss, 'max_nfev': options.max_nfev}
     started = time.perf_counter()
-    result = fit(target, segments, p0=start_of(target), heading_weight=heading_weight,
-                 check=False, **settings)
-    uncertain = check_identified(result, accept_uncertain)
-    # Every other fit weighs heading as this one does (its loss scale is its own: a worse
-    # model has larger residuals, which are not outliers).
-    settings['heading_weight'] = result.heading_weight
-    try:
-        icr, source = result.icr, target.name
-        if not target.constant_icr:
-            icr_model = build_model('icr_scales', track_width)
-            try:
-                icr_fit = fit(icr_model, segments, p0=start_of(icr_model), check=False,
-                              **settings)
-                check_identified(icr_fit, accept_uncertain)
-            except ExcitationError:
-                icr_model = build_model('icr', track_width, scales)
-                icr_fit = fit(icr_model, segments, p0=start_of(icr_model), check=False,
-                              **settings)
-                check_identified(icr_fit, accept_uncertain)
-            icr, source = icr_fit.icr, icr_model.name
-    except ValueError as err:
-        if isinstance(err, IdentificationError):
-            raise
-        raise FitError(f'the fit gave an invalid ICR model: {err}') from None
+    result, icr, source, uncertain, at_bounds = _fit_written(
+        target, segments, start_of, settings, options, track_width, scales)
     seconds['fit'] = time.perf_counter() - started
 
     started = time.perf_counter()
@@ -352,9 +311,88 @@ def identify(recordings, model: str = 'icr_scales', track_width: float = 0.42, *
 
     started = time.perf_counter()
     data_time = _data_time(recordings, segments)
-    held = None
-    evaluations = []
-    windows_total = 0
+    held, evaluations, windows_total = _compare(recordings, segments, data_time, options,
+                                                track_width, scales, start_of, settings)
+    seconds['holdout'] = time.perf_counter() - started
+    return Identification(result, icr, source, excitation, held, evaluations,
+                          options.segment_length, options.window, seconds, delay=delay,
+                          delays=each, ddc=ddc, ddc_error=ddc_error, uncertain=uncertain,
+                          time=data_time, recordings=recordings,
+                          jumps=sum(len(ground_truth_jumps(r, track_width)) for r in recordings),
+                          jump_segments=int(np.count_nonzero(jumped)),
+                          min_speed=options.min_speed, windows_total=windows_total,
+                          at_bounds=at_bounds)
+
+
+def _remove_delay(recordings, ground_truth_delay):
+    """Estimate (or take) the ground-truth delay and remove it: (recordings, delay, each)."""
+    if isinstance(ground_truth_delay, str):
+        if ground_truth_delay != 'auto':
+            raise ValueError(f"ground_truth_delay must be a number of seconds or 'auto', got "
+                             f'{ground_truth_delay!r}')
+        delay, each = estimate_delays(recordings)
+    else:
+        delay, each = fixed_delay(ground_truth_delay or 0.0), []
+    removed = [e.delay for e in each] if each else [delay.delay] * len(recordings)
+    return ([correct_ground_truth([r], d)[0] for r, d in zip(recordings, removed)], delay,
+            each)
+
+
+def _moving_segments(recordings, target, options, track_width):
+    """Cut the segments, drop those over jumps, check the excitation; keep the moving ones."""
+    all_segments = build_segments(recordings, options.segment_length)
+    if len(all_segments) == 0:
+        raise ExcitationError(_why_no_segments(recordings, options.segment_length))
+    # The ground truth over a jump (a re-localisation, a glitch) says nothing of the motion.
+    jumped = over_jumps(all_segments, recordings, track_width)
+    all_segments = all_segments.select(~jumped)
+    excitation = Excitation.of(all_segments, options.min_travel)
+    check_excitation(target, excitation)
+    return (all_segments.select(all_segments.travel >= options.min_travel), excitation,
+            jumped)
+
+
+def _fit_written(target, segments, start_of, settings, options, track_width, scales):
+    """
+    Fit the requested model and the constant-ICR model to write; check both.
+
+    Returns ``(result, icr, source, uncertain, at_bounds)`` and sets ``settings``'s heading
+    weight to the main fit's: every other fit weighs heading as it does (its loss scale is
+    its own: a worse model has larger residuals, which are not outliers).
+    """
+    accept = options.accept_uncertain
+    result = fit(target, segments, p0=start_of(target), heading_weight=options.heading_weight,
+                 check=False, **settings)
+    uncertain = check_identified(result, accept)
+    at_bounds = check_bounds(result, segments, accept)
+    settings['heading_weight'] = result.heading_weight
+    try:
+        icr, source = result.icr, target.name
+        if not target.constant_icr:
+            icr_model = build_model('icr_scales', track_width)
+            try:
+                icr_fit = fit(icr_model, segments, p0=start_of(icr_model), check=False,
+                              **settings)
+                check_identified(icr_fit, accept)
+            except ExcitationError:
+                icr_model = build_model('icr', track_width, scales)
+                icr_fit = fit(icr_model, segments, p0=start_of(icr_model), check=False,
+                              **settings)
+                check_identified(icr_fit, accept)
+            at_bounds += check_bounds(icr_fit, segments, accept)
+            icr, source = icr_fit.icr, icr_model.name
+    except ValueError as err:
+        if isinstance(err, IdentificationError):
+            raise
+        raise FitError(f'the fit gave an invalid ICR model: {err}') from None
+    return result, icr, source, uncertain, at_bounds
+
+
+def _compare(recordings, segments, data_time, options, track_width, scales, start_of,
+             settings):
+    """Measure every compared model on held-out blocks: (held, evaluations, windows_total)."""
+    window, min_speed, holdout = options.window, options.min_speed, options.holdout
+    held, evaluations, windows_total = None, [], 0
 
     def scored(windows):
         """Return the windows scored and how many there were apart from jumps (idle too)."""
@@ -364,11 +402,11 @@ def identify(recordings, model: str = 'icr_scales', track_width: float = 0.42, *
     if holdout > 0:
         # Blocks long enough for windows, unless no window fits in any piece.
         fits = window if data_time.longest_piece >= window else 0.0
-        held = HoldOut.choose(segments, holdout, holdout_block, fits)
+        held = HoldOut.choose(segments, holdout, options.holdout_block, fits)
         if held is not None and len(scored(held.windows(recordings, window))[0]) < MIN_WINDOWS \
                 and np.count_nonzero(held.inside(segments, 0)) < MIN_SEGMENTS:
             # Too little held out for a comparison: hold every block out once, in turn.
-            held = HoldOut.choose(segments, holdout, holdout_block, fits,
+            held = HoldOut.choose(segments, holdout, options.holdout_block, fits,
                                   folds=max(2, int(round(1.0 / holdout))))
     if held is not None:
         folds = []
@@ -377,16 +415,9 @@ def identify(recordings, model: str = 'icr_scales', track_width: float = 0.42, *
             windows, total = scored(held.windows(recordings, window, f))
             windows_total += total
             folds.append((segments.select(held.outside(segments, f)), test, windows))
-        for name in compare:
+        for name in options.compare:
             evaluations.append(_evaluate(name, track_width, scales, folds, start_of, settings))
-    seconds['holdout'] = time.perf_counter() - started
-    return Identification(result, icr, source, excitation, held, evaluations, segment_length,
-                          window, seconds, delay=delay, delays=each, ddc=ddc, ddc_error=ddc_error,
-                          uncertain=uncertain, time=data_time,
-                          recordings=recordings,
-                          jumps=sum(len(ground_truth_jumps(r, track_width)) for r in recordings),
-                          jump_segments=int(np.count_nonzero(jumped)),
-                          min_speed=min_speed, windows_total=windows_total)
+    return held, evaluations, windows_total
 
 
 def moving(windows: Segments, min_speed: float | None) -> np.ndarray:

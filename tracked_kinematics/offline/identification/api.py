@@ -27,6 +27,7 @@ from tracked_kinematics.offline.tooling import (
 from tracked_kinematics.params import (
     check_values, icr_from_values, TERRAIN_DEFAULTS, TERRAIN_PARAMS)
 
+from .combined import icr_from_pose_and_gyro
 from .noise_constants import add_extras, gyro_extras
 from .poses import icr_from_poses
 from .references import icr_from_references
@@ -94,9 +95,16 @@ class FitOptions:
         default_factory=lambda: IdentifyOptions(ground_truth_delay='auto'))
 
     @property
+    def pose_and_gyro(self) -> bool:
+        """Whether a pose and a gyro, and nothing else, are the references (:mod:`.combined`)."""
+        return bool(self.ground_truth is not None and self.imu_topic and not self.gnss_topic
+                    and self.straight_distance is None and not self.spin_in_place)
+
+    @property
     def uses_references(self) -> bool:
         """Whether a gyro, GNSS or a measured straight is the reference (:mod:`.references`)."""
-        return bool(self.imu_topic or self.gnss_topic or self.straight_distance is not None)
+        return bool(self.imu_topic or self.gnss_topic or self.straight_distance is not None) \
+            and not self.pose_and_gyro
 
 
 def fit(options: FitOptions, *, date: str | None = None) -> FitResult:
@@ -128,10 +136,14 @@ def fit(options: FitOptions, *, date: str | None = None) -> FitResult:
     encoders = replace(checked_encoders(options.encoders), sprocket_radius=radius)
     # Each bag read once; without a gyro or GNSS reference, the pose fit's bags with their
     # one gyro, if they carry one (_with_gyro).
+    given_gyro = options.uses_references or options.pose_and_gyro
     recordings = read_recordings(
         options.bags, encoders, ground_truth=options.ground_truth,
-        imu_topic=options.imu_topic if options.uses_references else IMU_AUTO,
+        imu_topic=options.imu_topic if given_gyro else IMU_AUTO,
         gnss_topic=options.gnss_topic, progress=sys.stderr.isatty())
+    if options.pose_and_gyro:
+        return icr_from_pose_and_gyro(recordings, options, options.imu_topic, track_width,
+                                      radius, base=base, base_values=base_values, date=date)
     if options.uses_references:
         return icr_from_references(recordings, options, track_width, radius, base=base,
                                    base_values=base_values, date=date)
@@ -158,7 +170,7 @@ def _with_gyro(found: FitResult, recordings) -> FitResult:
         empty = next((r.name for r in recordings if r.gyro_t is None), None)
         if empty is not None:
             raise SensorDataError(f'{empty}: no Imu messages on {topic}')
-        extras = gyro_extras(recordings, topic)
+        extras = gyro_extras(recordings, topic)[0]
     except (SensorDataError, IdentificationError, ValueError) as err:
         return replace(found, lines=found.lines + (
             f'gyro {topic}: not used ({err}); imu_delay and gyro_scale not written',))

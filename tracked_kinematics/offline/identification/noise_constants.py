@@ -21,8 +21,9 @@ import math
 from tracked_kinematics.core import identify as ident
 from tracked_kinematics.core.errors import IdentificationError
 from tracked_kinematics.core.evaluate import fit_noise, held_out_windows, recording_windows
-from tracked_kinematics.core.gyro_odometry import fit_gyro_scale
 from tracked_kinematics.core.identify.reference.delays import sensor_delays
+from tracked_kinematics.core.identify.reference.fusion import (
+    bias_prior, BIAS_SIGMA_FLOOR, check_gyro_against_pose, fuse_heading, signed_gyro_scale)
 from tracked_kinematics.core.identify.segments import over_jumps
 
 LENGTHS = (5.0, 10.0)
@@ -260,42 +261,133 @@ def reference_extras(fit, recordings, options, track_width: float, base=None) ->
         return Extras({**values, **extra.values}, {**record, **extra.record},
                       {**report, **extra.report}, tuple(lines) + extra.lines)
     n_values, n_record, n_report, n_lines = done
+    n_lines = n_lines + held_priors(fit, track_width, n_values, n_record, n_report)
     return Extras({**values, **n_values}, {**record, **n_record},
                   {**report, 'covariance': n_report}, tuple(n_lines + lines))
 
 
-def gyro_extras(recordings, topic: str) -> Extras:
+DISTANCE_SCALE_PRIOR = 0.05
+"""Relative uncertainty of a distance scale held at the nominal one (tyres under load, wear,
+longitudinal slip): the Warthog's runs of ../shared/realdata are 4 % short of nominal."""
+ICR_X_PRIOR = 0.1
+"""Uncertainty of an ``icr.x`` held at the base's, in track widths (the fits of
+../shared/realdata: 0.08 m on the Warthog, 0.06 m on the Marmotte)."""
+PRIOR_WINDOW = max(LENGTHS)
+"""s: the window length at which the priors' error enters the noise model exactly (shorter
+windows get more than theirs: on the held-out Warthog grass runs 96-99 % of the 5-s windows
+lie inside the 95 % ellipse, 89-97 % of the 10-s ones; 85-95 % with the geometric mean of
+the lengths, 7.1 s)."""
+
+
+def held_priors(fit, track_width: float, values: dict, record: dict, report: dict) -> list:
+    """
+    Add the uncertainty of what a reference calibration held to the noise model; its lines.
+
+    A distance scale held (no pose, GNSS or straight) is off by ``sigma_s`` = :data:`DISTANCE_
+    SCALE_PRIOR`: the path keeps its shape and its length is off by ``sigma_s d``, along the
+    motion: the ``timing`` term (``timing v v^T`` at both ends of a window) carries that
+    exactly for a window of :data:`PRIOR_WINDOW` s, ``timing += sigma_s^2 T^2 / 2``. An
+    ``icr.x`` held (no positions) moves the path sideways by about ``sigma_x`` per radian
+    turned: ``slip += sigma_x^2 theta_T``, ``theta_T`` the mean angle turned in ``T``. The
+    record says which constants were held and at what uncertainty.
+    """
+    held = list(fit.held)
+    lines, priors = [], {}
+    data = fit.report.get('data') or {}
+    moving_time = data.get('moving_segments', 0) * float(fit.report.get('segment_length', 1.0))
+    if 'distance_scale' in held:
+        sigma = DISTANCE_SCALE_PRIOR
+        values['covariance.timing'] += sigma ** 2 * PRIOR_WINDOW ** 2 / 2.0
+        priors['distance_scale'] = sigma
+    if 'icr.x' in held and moving_time > 0:
+        sigma = ICR_X_PRIOR * track_width
+        turned = float(data.get('turned_rad', 0.0)) / moving_time * PRIOR_WINDOW
+        values['covariance.slip'] += sigma ** 2 * turned
+        priors['icr.x'] = sigma
+    if priors:
+        record['covariance.held_prior'] = [f'{k} +- {v:.3g}' for k, v in priors.items()]
+        report['held_prior'] = priors
+        lines.append('noise model: the uncertainty of what was held added (' + ', '.join(
+            f'{k} +- {v:.3g}' + (' (relative)' if k == 'distance_scale' else ' m')
+            for k, v in priors.items()) + f', exact for windows of {PRIOR_WINDOW:.1f} s): '
+            f'timing {values["covariance.timing"]:.2e} s^2, slip '
+            f'{values["covariance.slip"]:.2e} m^2/rad written')
+    return lines
+
+
+def gyro_extras(recordings, topic: str, imu_delay='auto'):
     """
     Return the gyro's constants of a pose identification whose bags also carry a gyro.
 
     ``recordings`` (as read with the gyro on ``topic`` and the pose): ``imu_delay`` (the
-    gyro's stamps against the encoders, model-free, as ``--imu-topic`` estimates it) and
-    ``gyro_scale`` (against the pose's heading), so that odometry_node's ``imu_topic`` and
-    evaluate_model's ``--fuse-imu`` use the gyro at the right time; the ICRs stay the pose
-    fit's.
+    gyro's stamps against the encoders, model-free, as ``--imu-topic`` estimates it, or as
+    given), ``gyro_scale`` (against the pose's heading), ``gyro_bias`` and ``gyro_bias_sigma``
+    (its drift against the pose's heading, :func:`~tracked_kinematics.core.identify.reference.
+    fusion.bias_prior`), so that odometry_node's ``imu_topic`` and evaluate_model's
+    ``--fuse-imu`` use the gyro at the right time. A gyro that does not turn as the pose does
+    (:func:`~tracked_kinematics.core.identify.reference.fusion.check_gyro_against_pose`: sign,
+    axis, clock) is refused: none of its constants are written, and the line says why.
+
+    Returns
+    -------
+    extras : Extras
+    gyro : tuple or None
+        ``(recordings with the pose's delay removed, imu_delay, gyro scale to divide out)``
+        for a gyro to fuse; None for a refused or untimed one.
+
     """
     try:
-        imu, pose = sensor_delays(list(recordings), 'auto', 'auto')
+        imu, pose = sensor_delays(list(recordings), imu_delay, 'auto')
     except (IdentificationError, ValueError) as err:
         return Extras(record={'gyro_topic': topic, 'imu_delay_method': f'not determined: {err}'},
                       lines=(f'gyro {topic}: delay not determined ({err}); imu_delay not '
-                             'written',))
+                             'written',)), None
     if not imu.determined:
         return Extras(record={'gyro_topic': topic, 'imu_delay_method': 'not determined'},
                       lines=(f'gyro {topic}: delay not determined ({imu.problem}); imu_delay '
-                             'not written',))
+                             'not written',)), None
     imu_delay = float(imu.delay)
     shifted = _per_bag_delay(list(recordings), float(pose.delay))
+    scale, std = _fitted_scale(shifted, imu_delay)
+    refused = check_gyro_against_pose(scale, std)
+    if refused:
+        return Extras(record={'gyro_topic': topic, 'gyro_refused': refused},
+                      report={'gyro': {'topic': topic, 'refused': refused}},
+                      lines=(f'gyro {topic}: left out ({refused}); imu_delay, gyro_scale and '
+                             'gyro_bias not written',)), None
     scale_lines, scale_values, scale_record = _gyro_scale(shifted, imu_delay)
     record = {'gyro_topic': topic, 'imu_delay': imu_delay,
               'imu_delay_method': imu.uncertainty or 'not determined', **scale_record}
     if math.isfinite(imu.std):
         record['imu_delay_std'] = float(imu.std)
-    report = {'gyro': {'topic': topic, 'imu_delay': imu_delay,
-                       'gyro_scale': scale_values['gyro_scale']}}
-    lines = (f'gyro {topic} (found in the bags): imu_delay {imu_delay:+.3f} s',
-             *scale_lines)
-    return Extras({'imu_delay': imu_delay, **scale_values}, record, report, lines)
+    written = scale_values['gyro_scale']
+    bias_values, bias_line = _bias(shifted, imu_delay, written)
+    report = {'gyro': {'topic': topic, 'imu_delay': imu_delay, 'gyro_scale': written,
+                       **bias_values}}
+    lines = (f'gyro {topic}: imu_delay {imu_delay:+.3f} s', *scale_lines, bias_line)
+    return (Extras({'imu_delay': imu_delay, **scale_values, **bias_values}, record, report,
+                   lines), (shifted, imu_delay, written))
+
+
+def _bias(recordings, imu_delay: float, scale: float):
+    """Return the gyro bias prior (terrain values) and its line, from the drift on the pose."""
+    try:
+        _, fusion = fuse_heading(recordings, imu_delay, scale)
+    except ValueError as err:
+        return {}, f'gyro bias: not measured ({err}); gyro_bias not written'
+    bias, sigma = bias_prior(fusion.biases)
+    if not math.isfinite(bias):
+        return {}, 'gyro bias: not measured; gyro_bias not written'
+    per = ', '.join(f'{b:+.5f}' for b in fusion.biases)
+    return ({'gyro_bias': bias, 'gyro_bias_sigma': sigma},
+            f'gyro bias {bias:+.5f} +- {sigma:.4f} rad/s (per bag {per}; the sigma is the '
+            'spread between bags, at least '
+            f'{BIAS_SIGMA_FLOOR:g} rad/s: the run-to-run change a restart sees)')
+
+
+def _fitted_scale(recordings, imu_delay: float):
+    """Return the gyro's scale against the pose's heading (negative: turns the other way)."""
+    return signed_gyro_scale(recordings, imu_delay)
 
 
 def _per_bag_delay(recordings, pooled: float):
@@ -317,12 +409,7 @@ def _per_bag_delay(recordings, pooled: float):
 
 def _gyro_scale(recordings, imu_delay: float):
     """Return the printed lines, terrain values and record of the gyro scale fit."""
-    with_gyro = [r for r in recordings if r.gyro_t is not None and r.gyro_rate is not None
-                 and r.gt_t is not None]
-    scale, std = fit_gyro_scale([r.gyro_t for r in with_gyro],
-                                [r.gyro_rate for r in with_gyro],
-                                [r.gt_t for r in with_gyro], [r.gt_yaw for r in with_gyro],
-                                imu_delay)
+    scale, std = _fitted_scale(recordings, imu_delay)
     determined = (math.isfinite(std)
                   and abs(scale - 1.0) > max(3.0 * std, SCALE_SPREAD))
     record = {'gyro_scale_fitted': float(scale)}

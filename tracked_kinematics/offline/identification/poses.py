@@ -124,6 +124,8 @@ def _segment_extras(result, bags, date, segment_length) -> dict:
     extras.update({f'parameters.{n}': v for n, v in fitted.params.items()})
     if result.uncertain:
         extras['uncertain'] = [u.name for u in result.uncertain]
+    if result.at_bounds:
+        extras['at_bounds'] = list(result.at_bounds)
     chosen = result.evaluation(result.icr_source)
     ideal, ddc = result.evaluation('ideal'), result.evaluation('tuned_ddc')
     # Held-out improvements only where there are held-out windows to compare.
@@ -316,6 +318,8 @@ def _table(result, recordings, radius, tool, lines) -> None:
                  f'{fitted.heading_weight:.2f} m/rad')
     for u in result.uncertain:
         lines.append(f'accepted (--accept-uncertain): {u.describe()}')
+    for bound in result.at_bounds:
+        lines.append(f'accepted (--accept-uncertain): {bound}')
     _holdout_table(result, lines)
     _ddc_lines(result, radius, lines)
 
