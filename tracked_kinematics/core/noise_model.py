@@ -50,7 +50,7 @@ import math
 
 import numpy as np
 
-from .covariance import body_jacobian, TWIST_TIME
+from .covariance import body_jacobian, saturate, TWIST_TIME
 from .kinematics import IcrParams
 
 # Chi-square quantiles of 2 degrees of freedom (the 50 % and 95 % ellipses) and of 1 (the
@@ -323,6 +323,27 @@ def timing_covariance(model: NoiseModel, v_x: float, v_y: float, w: float):
     """
     k = model.timing
     return (k * v_x * v_x, k * v_x * v_y, k * v_x * w, k * v_y * v_y, k * v_y * w, k * w * w)
+
+
+def published_covariance(upper, pose, twist, start_twist, model: NoiseModel | None):
+    """
+    Return the pose covariance published: ``upper`` plus the time error at both ends.
+
+    The time error (variance ``model.timing``, s^2) at the end moves the pose by its fixed-
+    frame rate (``twist`` rotated by ``pose``'s heading); at the start (the reset) it moves
+    the start pose by ``start_twist`` and turns it by ``w0 dt``, which swings the whole
+    displacement ``(x, y)`` since: ``(u_x - w0 y, u_y + w0 x, w0)`` (the lever arm). Both
+    independent, not accumulated. ``model`` None: ``upper`` unchanged.
+    """
+    if model is None or not model.timing > 0.0:
+        return upper
+    x, y, theta = pose
+    v_x, v_y, w = twist
+    c, s = math.cos(theta), math.sin(theta)
+    end = timing_covariance(model, c * v_x - s * v_y, s * v_x + c * v_y, w)
+    u_x, u_y, w0 = start_twist
+    start = timing_covariance(model, u_x - w0 * y, u_y + w0 * x, w0)
+    return saturate(tuple(p + e + s0 for p, e, s0 in zip(upper, end, start)))
 
 
 def _prefix(values):
