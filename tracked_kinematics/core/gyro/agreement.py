@@ -21,7 +21,7 @@ import math
 MEMORY = 20.0
 
 #: rad turned before a verdict.
-MIN_TURN = 0.3
+MIN_TURN = 0.1
 
 #: Largest standard error of the ratio for a verdict.
 MAX_RATIO_STD = 0.2

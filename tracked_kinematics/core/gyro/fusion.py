@@ -449,8 +449,7 @@ class GyroOdometry(Published):
             white = q2 * dt / (scale * scale) + finite_square(cfg.scale_std * dpsi_g)
             var_g = white + sb2 * dt * cfg.bias_horizon / (scale * scale)
             gain = var_e / (var_e + var_g) if var_e + var_g > 0.0 else 0.0
-            if self.check.verdict == PENDING and not self._plausible(dpsi_g, dpsi_e, var_e,
-                                                                      var_g):
+            if self.check.verdict == PENDING and not self._plausible(dpsi_g, dpsi_e):
                 gain = 0.0
             dpsi = dpsi_e + gain * (dpsi_g - dpsi_e) if gain > 0.0 else dpsi_e
             var = (1.0 - gain) ** 2 * var_e + (gain * gain * white if gain > 0.0 else 0.0)
@@ -537,15 +536,15 @@ class GyroOdometry(Published):
         return out
 
     @staticmethod
-    def _plausible(dpsi_g, dpsi_e, var_e, var_g) -> bool:
+    def _plausible(dpsi_g, dpsi_e) -> bool:
         """
         Whether a step's gyro increment may be fused before the agreement check has spoken.
 
-        Within half the model's increment of it, or three standard deviations: a gyro that
-        turns the other way is not fused while the check gathers its evidence.
+        Within half the model's increment of it, and both turning (the check decides within
+        about 0.1 rad of turning): a gyro that turns the other way, at another scale or not
+        at all is not fused while the check gathers its evidence.
         """
-        gap = abs(dpsi_g - dpsi_e)
-        return gap <= 0.5 * abs(dpsi_e) or gap * gap <= 9.0 * (var_e + var_g)
+        return abs(dpsi_g - dpsi_e) <= 0.5 * abs(dpsi_e)
 
     def _model_variance(self, dpsi_e, big):
         cfg = self._config
