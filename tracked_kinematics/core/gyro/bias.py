@@ -58,6 +58,7 @@ BIAS_STEP = 0.005
 
 #: Segments over which the normalised innovations are averaged, and their smallest mean.
 NIS_MEMORY = 50
+NIS_PRIOR = 10
 MIN_NIS = 0.1
 
 #: Standard deviations beyond which a standstill is not one (it turns).
@@ -197,8 +198,11 @@ class TurnBias:
         q = self.noise
         r = (scale * scale * model_var + q * q * h[1]) * self._nis
         nis = self.update(h, y, r) * self._nis
+        # The mean, with NIS_PRIOR segments of 1 before the first (a few lucky segments
+        # must not make the filter overconfident), forgetting beyond NIS_MEMORY.
         self._segments += 1
-        self._nis = max(MIN_NIS, self._nis + (nis - self._nis) / min(self._segments, NIS_MEMORY))
+        weight = 1.0 / min(self._segments + NIS_PRIOR, NIS_MEMORY)
+        self._nis = max(MIN_NIS, self._nis + weight * (nis - self._nis))
 
     # Standstill ------------------------------------------------------------------------
 

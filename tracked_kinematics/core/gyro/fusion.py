@@ -219,7 +219,7 @@ class GyroOdometry(Published):
             Whether the sample was taken (plausible and in time order).
 
         """
-        fault = self.samples.add(t, wz)
+        fault = self.samples.add(float(t), float(wz))
         if fault == 'order':
             return False
         if fault:
@@ -262,6 +262,7 @@ class GyroOdometry(Published):
         integral there; the pose is kept. Returns False, with the state unchanged, for a
         non-finite input, ``dt <= 0`` or a travel beyond :data:`..odometry.MAX_STEP_TRAVEL`.
         """
+        t, d_left, d_right, dt = float(t), float(d_left), float(d_right), float(dt)
         if not (math.isfinite(t) and math.isfinite(d_left) and math.isfinite(d_right)
                 and math.isfinite(dt) and dt > 0.0 and abs(d_left) <= MAX_STEP_TRAVEL
                 and abs(d_right) <= MAX_STEP_TRAVEL and math.isfinite(d_left / dt)
@@ -547,8 +548,19 @@ class GyroOdometry(Published):
         return abs(dpsi_g - dpsi_e) <= 0.5 * abs(dpsi_e)
 
     def _model_variance(self, dpsi_e, big):
+        """
+        The model's heading variance over a step: its slip error, and what the gyro has shown.
+
+        ``model_yaw_rel_std`` of the increment, and, once the gyro agrees with the tracks,
+        the turn gain it measured against the spread in force (``k W / gyro_scale - 1``: the
+        model's systematic error when the slip is not adapted), plus the veer per metre.
+        """
         cfg = self._config
-        return (cfg.model_yaw_rel_std * dpsi_e) ** 2 + cfg.model_yaw_var_per_m * 0.5 * big
+        rel2 = cfg.model_yaw_rel_std ** 2
+        if self.check.verdict == AGREES:
+            off = self.filter.k * self._spread / cfg.gyro_scale - 1.0
+            rel2 += off * off
+        return rel2 * dpsi_e * dpsi_e + cfg.model_yaw_var_per_m * 0.5 * big
 
     # Outputs ---------------------------------------------------------------------------
 
