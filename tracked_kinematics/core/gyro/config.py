@@ -111,7 +111,7 @@ class GyroConfig:
     adapt_turn: float = 30.0
     adapt_segment: float = 1.0
     adapt_prior: float = 0.3
-    bias_std: float = 0.01
+    bias_std: float = 0.03
     bias_horizon: float = 10.0
 
     def __post_init__(self):
