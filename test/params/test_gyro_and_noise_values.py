@@ -23,7 +23,7 @@ def test_missing_values_are_the_nodes_defaults():
     # The gates are on by default (issue 35), from a ground vehicle's limits; 0 turns them off.
     assert (gyro.saturation, gyro.max_jump) == (defaults['imu_saturation'],
                                                 defaults['imu_max_jump'])
-    assert 0.0 < gyro.max_jump < gyro.saturation < math.inf
+    assert (gyro.saturation, gyro.max_jump) == (10.0, 5.0)
     off = gyro_config_from_values({'imu_saturation': 0.0, 'imu_max_jump': 0.0})
     assert off.saturation == math.inf and off.max_jump == math.inf
     assert (gyro.gyro_bias, gyro.gyro_bias_sigma) == (0.0, 0.0)     # no prior

@@ -426,15 +426,21 @@ def window_bases(icr: IcrParams, d_left, d_right, dt, start, end):
         bases[:, k, :2, 2] = sum_c + qe * sum_v[:, None] - sum_vq
         bases[:, k, 2, :2] = bases[:, k, :2, 2]
         bases[:, k, 2, 2] = sum_v
-    # Timing: the pose rate at each end (that of the step ending there), fixed frame.
+    # Timing: the pose rate at each end (that of the step ending there), fixed frame. At the
+    # start a time error also turns the start heading by w0 dt, which swings the whole
+    # displacement since: the lever arm (-w0 dy, w0 dx), as published_covariance's.
     rate = body / np.asarray(dt, float)[:, None]
     k = TERMS.index('timing')
+    lever_x, lever_y = px[end] - px[start], py[end] - py[start]
     for at in (start, end):
         step = np.clip(at - 1, 0, len(dth) - 1)
         h = heading[at]
         u = np.column_stack([np.cos(h) * rate[step, 0] - np.sin(h) * rate[step, 1],
                              np.sin(h) * rate[step, 0] + np.cos(h) * rate[step, 1],
                              rate[step, 2]])
+        if at is start:
+            u[:, 0] -= rate[step, 2] * lever_y
+            u[:, 1] += rate[step, 2] * lever_x
         bases[:, k] += u[:, :, None] * u[:, None, :]
     # To the frame of the window's start heading.
     h0 = heading[start]

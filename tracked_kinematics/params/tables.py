@@ -14,7 +14,7 @@ from tracked_kinematics.core.command import TRACK_SPEED_ENVELOPE
 from tracked_kinematics.core.covariance import TrackNoise
 from tracked_kinematics.core.drivetrain import LOOP_KINDS
 from tracked_kinematics.core.encoder_modes import ENCODER_DECODERS, JointStatesDecoder, TICK_TYPES
-from tracked_kinematics.core.gyro import GyroConfig, MAX_RATE_JUMP, MAX_YAW_RATE
+from tracked_kinematics.core.gyro import GyroConfig, PLAUSIBLE_RATE_JUMP, PLAUSIBLE_YAW_RATE
 from tracked_kinematics.core.noise_model import PRIOR
 
 from .spec import (Derived, described_as, finite, non_negative, one_of, ParamSpec, positive,
@@ -270,11 +270,11 @@ GYRO_PARAMS: tuple[ParamSpec, ...] = (
     ParamSpec('imu_timeout', _DEFAULT_GYRO.timeout,
               'Seconds without a gyro sample after which the heading falls back to the '
               'encoders', 's', positive, low=0.001, high=60.0),
-    ParamSpec('imu_saturation', MAX_YAW_RATE,
+    ParamSpec('imu_saturation', PLAUSIBLE_YAW_RATE,
               'Gyro readings at or beyond this |rate| are implausible: refused, heading from '
               'the encoders (default: beyond any ground vehicle, a 0.4-m wide robot pivoting '
               'at 2 m/s; 0: off)', 'rad/s', non_negative, low=0.0, high=1000.0),
-    ParamSpec('imu_max_jump', MAX_RATE_JUMP,
+    ParamSpec('imu_max_jump', PLAUSIBLE_RATE_JUMP,
               'Largest plausible change of the gyro rate between consecutive samples; '
               'beyond: refused (default: 100 rad/s^2, beyond what friction allows a ground '
               'vehicle, over a 20-Hz period; 0: off)', 'rad/s', non_negative, low=0.0,

@@ -10,10 +10,10 @@ Gyro-aided odometry, in parts a reader can hold.
 
 from .agreement import AgreementCheck
 from .bias import TurnBias
-from .config import ENCODERS, ERROR, GYRO, GyroConfig, MAX_RATE_JUMP, MAX_YAW_RATE, OK, WARN
+from .config import ENCODERS, ERROR, GYRO, GyroConfig, PLAUSIBLE_RATE_JUMP, PLAUSIBLE_YAW_RATE, OK, WARN
 from .fusion import GyroOdometry, MIN_CHI, NOT_A_FAULT
 from .replay import fit_gyro_scale, replay
 
 __all__ = ['AgreementCheck', 'ENCODERS', 'ERROR', 'fit_gyro_scale', 'GYRO', 'GyroConfig',
-           'GyroOdometry', 'MAX_RATE_JUMP', 'MAX_YAW_RATE', 'MIN_CHI', 'NOT_A_FAULT', 'OK',
+           'GyroOdometry', 'PLAUSIBLE_RATE_JUMP', 'PLAUSIBLE_YAW_RATE', 'MIN_CHI', 'NOT_A_FAULT', 'OK',
            'replay', 'TurnBias', 'WARN']

@@ -3,8 +3,8 @@ How the gyro is read, trusted and checked: :class:`GyroConfig` and the plausibil
 
 The limits of a ground vehicle that set the default gates (docs/nodes/odometry_node.md,
 "Plausibility gates"): no tracked or skid-steer robot turns faster than
-:data:`MAX_YAW_RATE` (a pivot at 2 m/s of track speed on a 0.4-m track width is 10 rad/s),
-and none changes its yaw rate by more than :data:`MAX_RATE_JUMP` between two samples
+:data:`PLAUSIBLE_YAW_RATE` (a pivot at 2 m/s of track speed on a 0.4-m track width is 10 rad/s),
+and none changes its yaw rate by more than :data:`PLAUSIBLE_RATE_JUMP` between two samples
 (a yaw acceleration of 100 rad/s^2, three times what a friction coefficient of 1 allows a
 0.6-m robot, over 50 ms, a 20-Hz IMU's period).
 """
@@ -24,11 +24,11 @@ WARN = 'warn'
 ERROR = 'error'
 
 #: rad/s: the default ``saturation``: beyond any ground vehicle's yaw rate.
-MAX_YAW_RATE = 10.0
+PLAUSIBLE_YAW_RATE = 10.0
 
 #: rad/s: the default ``max_jump``: beyond any change of a ground vehicle's yaw rate
 #: between two samples of a 20-Hz IMU.
-MAX_RATE_JUMP = 5.0
+PLAUSIBLE_RATE_JUMP = 5.0
 
 #: s: sums of step durations are compared with their thresholds this much early, so that
 #: regular steps whose durations differ in the last bit (a node's ``ns * 1e-9`` against a
@@ -104,8 +104,8 @@ class GyroConfig:
     still_speed: float = 0.005
     still_time: float = 0.3
     timeout: float = 0.5
-    saturation: float = MAX_YAW_RATE
-    max_jump: float = MAX_RATE_JUMP
+    saturation: float = PLAUSIBLE_YAW_RATE
+    max_jump: float = PLAUSIBLE_RATE_JUMP
     recover_time: float = 0.5
     adapt: bool = False
     adapt_turn: float = 30.0
