@@ -173,6 +173,26 @@ def test_timing_adds_the_rate_at_both_ends():
     assert p[0] == pytest.approx(np.diag([2 * 0.01 * 0.25, 0.0, 0.0]), abs=1e-12)
 
 
+def test_timing_at_the_start_swings_the_window_with_its_lever_arm():
+    # Issue 35: a window that starts in a spin (1 rad/s) and then drives 2 m straight. A time
+    # error dt at the start turns the start heading by dt rad: the end moves 2 dt sideways.
+    spin = int(0.5 / DT)
+    d_left = np.r_[np.full(spin, -0.5 * DT), np.full(100, 2.0 / 100)]
+    d_right = np.r_[np.full(spin, 0.5 * DT), np.full(100, 2.0 / 100)]
+    icr = IcrParams(1.0, 0.5, -0.5)
+    model = nm.NoiseModel(track=0.0, turn=0.0, slip=0.0, timing=0.01, floor=0.0)
+    bases, motion = nm.window_bases(icr, d_left, d_right, np.full(len(d_left), DT), [spin],
+                                    [len(d_left)])
+    p = np.einsum('wmij,m->wij', bases, model.constants)[0]
+    assert motion[0, :2] == pytest.approx([2.0, 0.0], abs=1e-9)
+    # The start's rate is the spin's (1 rad/s, no translation): lateral 0.01 * 2^2.
+    assert p[1, 1] == pytest.approx(0.01 * 4.0, rel=0.01)
+    # The same from the published covariance of the node's path (reset at the spin's end).
+    published = nm.published_covariance((0.0,) * 6, (2.0, 0.0, 0.0), (2.0 / 100 / DT, 0.0, 0.0),
+                                        (0.0, 0.0, 1.0), model)
+    assert published[3] == pytest.approx(p[1, 1], rel=0.01)
+
+
 # Consistency -----------------------------------------------------------------------------
 
 

@@ -138,3 +138,61 @@ def test_the_node_publishes_evaluate_models_gyro_aided_trajectory(
     assert position < 1e-6 and heading < 1e-6
     # The check can fail: the encoders-only path of the same file is far off the node's.
     assert np.abs(model[:, 2] - got[:, 2]).max() > 1e-3
+
+
+def test_the_covariance_published_is_the_one_evaluate_model_scores(
+        offline, ros_context, executor):
+    """Issue 35: one covariance. The node reset every 5 s, and core's replay with resets."""
+    from std_srvs.srv import Trigger
+    from tracked_kinematics.core.gyro import replay
+    from tracked_kinematics.core.noise_model import NoiseModel
+    from tracked_kinematics.offline.model_evaluation import TerrainModel, track_noise_of
+
+    values = {k: v for k, v in read_params_file(offline['terrain']).items()
+              if not k.startswith(NOT_PARAMETERS)}
+    node = OdometryNode(context=ros_context, parameter_overrides=[
+        Parameter(k, value=v) for k, v in {**values, 'imu_topic': 'imu'}.items()])
+    executor.add_node(node)
+    encoders = Driver(ros_context, executor, lambda: node.encoder.received)
+    imu = Driver(ros_context, executor, lambda: node.imu.count.count, node=encoders.node)
+    odom = []
+    encoders.node.create_subscription(OdometryMsg, 'odom', odom.append, QoSProfile(
+        depth=5000, reliability=ReliabilityPolicy.RELIABLE))
+    client = encoders.node.create_client(Trigger, 'odometry_node/reset')
+    assert spin_until(executor, lambda: node.count_subscribers('odom') >= 1)
+    assert client.wait_for_service(timeout_sec=2.0)
+
+    events = bag_messages(offline['bag'])
+    enc = [(ns, msg) for ns, kind, msg in events if kind == 1]
+    gyro = [(ns, msg) for ns, kind, msg in events if kind == 0]
+    origin = enc[0][0] // 1_000_000_000 * 1_000_000_000     # the node's time origin
+    enc_t = np.array([(ns - origin) * 1e-9 for ns, _ in enc])
+    radius = values['sprocket_radius']
+    left = np.array([m.position[0] for _, m in enc]) * radius
+    right = np.array([m.position[1] for _, m in enc]) * radius
+    resets = np.zeros(len(enc), dtype=bool)
+    resets[np.flatnonzero(np.diff(np.floor((enc_t - enc_t[0]) / 5.0)) > 0) + 1] = True
+    k = 0
+    for _, kind, msg in events:
+        if kind == 0:
+            assert imu.send(msg, 'imu')
+            continue
+        assert encoders.send(msg)
+        if resets[k]:
+            assert spin_until(executor, lambda: len(odom) >= k)
+            future = client.call_async(Trigger.Request())
+            assert spin_until(executor, future.done)
+        k += 1
+    assert spin_until(executor, lambda: len(odom) >= len(enc) - 1)
+
+    model = TerrainModel(offline['terrain'])
+    terms = NoiseModel(0.0, model.noise.turn, model.noise.slip, model.noise.timing, 0.0)
+    _, _, odo = replay(enc_t, left, right, [(ns - origin) * 1e-9 for ns, _ in gyro],
+                       [m.angular_velocity.z for _, m in gyro], model.icr, model.gyro,
+                       resets=resets, noise=track_noise_of(model.values), terms=terms)
+    ends = np.flatnonzero(resets)
+    published = np.array([[odom[i - 1].pose.covariance[j] for j in (0, 1, 7)] for i in ends])
+    scored = odo.published[ends][:, [0, 1, 3]]
+    assert node.odometry.source == 'gyro'
+    assert len(ends) >= 2 and np.all(scored[:, 0] > 0.0)
+    np.testing.assert_allclose(published, scored, rtol=1e-6, atol=1e-12)

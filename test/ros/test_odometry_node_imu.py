@@ -131,7 +131,10 @@ def test_gyro_heading_matches_replay_and_the_truth(graph):
     true_rate = (truth[-1] - truth[-2]) * 50.0
     assert msgs[-1].twist.twist.angular.z == pytest.approx(true_rate, abs=0.02)
     # The slip adapted: the ICR spread widened (the ground turns the robot less), on ~/icr.
-    assert spin_until(g.executor, lambda: g.icr, 3.0)
+    # ~/icr is published on the node's check timer: the last one after the last step.
+    final = (end.icr.y_left, end.icr.y_right)
+    assert spin_until(g.executor, lambda: g.icr and abs(g.icr[-1].data[0] - final[0]) < 1e-6,
+                      3.0)
     y_left, y_right = g.icr[-1].data[:2]
     assert y_left - y_right > 1.03 * (AURIGA.y_left - AURIGA.y_right)
     assert (y_left, y_right) == pytest.approx((end.icr.y_left, end.icr.y_right), abs=1e-6)

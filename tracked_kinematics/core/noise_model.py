@@ -50,7 +50,7 @@ import math
 
 import numpy as np
 
-from .covariance import body_jacobian, TWIST_TIME
+from .covariance import body_jacobian, saturate, TWIST_TIME
 from .kinematics import IcrParams
 
 # Chi-square quantiles of 2 degrees of freedom (the 50 % and 95 % ellipses) and of 1 (the
@@ -325,6 +325,27 @@ def timing_covariance(model: NoiseModel, v_x: float, v_y: float, w: float):
     return (k * v_x * v_x, k * v_x * v_y, k * v_x * w, k * v_y * v_y, k * v_y * w, k * w * w)
 
 
+def published_covariance(upper, pose, twist, start_twist, model: NoiseModel | None):
+    """
+    Return the pose covariance published: ``upper`` plus the time error at both ends.
+
+    The time error (variance ``model.timing``, s^2) at the end moves the pose by its fixed-
+    frame rate (``twist`` rotated by ``pose``'s heading); at the start (the reset) it moves
+    the start pose by ``start_twist`` and turns it by ``w0 dt``, which swings the whole
+    displacement ``(x, y)`` since: ``(u_x - w0 y, u_y + w0 x, w0)`` (the lever arm). Both
+    independent, not accumulated. ``model`` None: ``upper`` unchanged.
+    """
+    if model is None or not model.timing > 0.0:
+        return upper
+    x, y, theta = pose
+    v_x, v_y, w = twist
+    c, s = math.cos(theta), math.sin(theta)
+    end = timing_covariance(model, c * v_x - s * v_y, s * v_x + c * v_y, w)
+    u_x, u_y, w0 = start_twist
+    start = timing_covariance(model, u_x - w0 * y, u_y + w0 * x, w0)
+    return saturate(tuple(p + e + s0 for p, e, s0 in zip(upper, end, start)))
+
+
 def _prefix(values):
     """Cumulative sums with a leading zero along axis 0."""
     values = np.asarray(values, float)
@@ -405,15 +426,21 @@ def window_bases(icr: IcrParams, d_left, d_right, dt, start, end):
         bases[:, k, :2, 2] = sum_c + qe * sum_v[:, None] - sum_vq
         bases[:, k, 2, :2] = bases[:, k, :2, 2]
         bases[:, k, 2, 2] = sum_v
-    # Timing: the pose rate at each end (that of the step ending there), fixed frame.
+    # Timing: the pose rate at each end (that of the step ending there), fixed frame. At the
+    # start a time error also turns the start heading by w0 dt, which swings the whole
+    # displacement since: the lever arm (-w0 dy, w0 dx), as published_covariance's.
     rate = body / np.asarray(dt, float)[:, None]
     k = TERMS.index('timing')
+    lever_x, lever_y = px[end] - px[start], py[end] - py[start]
     for at in (start, end):
         step = np.clip(at - 1, 0, len(dth) - 1)
         h = heading[at]
         u = np.column_stack([np.cos(h) * rate[step, 0] - np.sin(h) * rate[step, 1],
                              np.sin(h) * rate[step, 0] + np.cos(h) * rate[step, 1],
                              rate[step, 2]])
+        if at is start:
+            u[:, 0] -= rate[step, 2] * lever_y
+            u[:, 1] += rate[step, 2] * lever_x
         bases[:, k] += u[:, :, None] * u[:, None, :]
     # To the frame of the window's start heading.
     h0 = heading[start]

@@ -16,7 +16,7 @@ from .covariance import (
     arc_step, body_jacobian, full_matrix, propagate, saturate, TrackNoise, travel_jacobian,
     twist_covariance, TWIST_TIME, twist_variances)
 from .kinematics import IcrParams
-from .noise_model import NoiseModel, turn_slip, turn_slip_step
+from .noise_model import NoiseModel, published_covariance, turn_slip, turn_slip_step
 
 _ZERO_COVARIANCE = (0.0,) * 6
 
@@ -30,7 +30,57 @@ MAX_STEP_TRAVEL = 1e9
 _HEADING_WRAP = 1e6
 
 
-class Odometry:
+class Published:
+    """
+    What odometry_node publishes from either odometry: one interface, one covariance.
+
+    :class:`Odometry` and :class:`.gyro.GyroOdometry` are stepped with :meth:`step`, fed gyro
+    samples with ``imu`` (the former refuses them), published with :meth:`publish` and reset
+    with :meth:`reset`; the node and evaluate_model ``--fuse-imu`` call the same methods, so
+    the covariance scored is the one published.
+    """
+
+    timing: NoiseModel | None = None
+    source = 'encoders'
+    reason = 'imu_topic is empty'
+    level = 'ok'
+    _last_twist = (0.0, 0.0, 0.0)
+
+    def set_timing(self, model: NoiseModel | None) -> None:
+        """Publish with the ``timing`` term of ``model`` (none when None or 0)."""
+        self.timing = model if model is not None and model.timing > 0.0 else None
+
+    def reset(self) -> None:
+        """Return the pose to zero with zero covariance; the time error at the start stays."""
+        self.pose = (0.0, 0.0, 0.0)
+        self.covariance_upper = _ZERO_COVARIANCE
+        self.steps = 0
+        # A robot reset while it moves has its time error at the start too: the rates then
+        # (the last twist published), in the new frame (heading 0).
+        self._start_twist = self._last_twist
+
+    def publish(self):
+        """
+        Return what is published now: ``(pose, pose covariance, twist, twist covariance)``.
+
+        The twist is the mean since the last call (``take_twist``); the pose covariance the
+        propagated one plus the time error at both ends of the interval since the last reset
+        (:func:`.noise_model.published_covariance`).
+        """
+        twist, twist_covariance = self.take_twist()
+        if all(map(math.isfinite, twist)):
+            self._last_twist = twist
+        covariance = published_covariance(self.covariance_upper, self.pose, twist,
+                                          self._start_twist, self.timing)
+        return self.pose, covariance, twist, twist_covariance
+
+    @staticmethod
+    def _wrapped(theta: float) -> float:
+        """Bring a heading that grew beyond :data:`_HEADING_WRAP` back into [-pi, pi]."""
+        return math.remainder(theta, 2.0 * math.pi) if abs(theta) > _HEADING_WRAP else theta
+
+
+class Odometry(Published):
     """
     Dead reckoning of a tracked vehicle through its tread ICRs.
 
@@ -49,6 +99,18 @@ class Odometry:
         self.set_model(icr, noise if noise is not None else TrackNoise(), terms)
         self.reset()
 
+    def imu(self, t: float, wz: float) -> bool:
+        """Refuse a gyro sample: this odometry has none (False)."""
+        return False
+
+    def step(self, t: float, d_left: float, d_right: float, dt: float) -> bool:
+        """
+        Integrate one step ending at ``t`` (s): :meth:`update`, as the gyro-aided odometry's.
+
+        ``t`` is not used here: the tracks alone need no clock.
+        """
+        return self.update(d_left, d_right, dt)
+
     def set_model(self, icr: IcrParams, noise: TrackNoise | None = None,
                   terms: NoiseModel | None = None) -> None:
         """Use another kinematic model (and noise) from the next step on; keep the pose."""
@@ -61,9 +123,7 @@ class Odometry:
 
     def reset(self) -> None:
         """Return the pose to zero with zero covariance, and restart the twist window."""
-        self.pose = (0.0, 0.0, 0.0)
-        self.covariance_upper = _ZERO_COVARIANCE
-        self.steps = 0
+        super().reset()
         self._clear_window()
 
     def _clear_window(self) -> None:
@@ -104,10 +164,7 @@ class Odometry:
             covariance = turn_slip_step(
                 covariance, *turn_slip(terms, self.icr.track_width, dx, dtheta), m)
         covariance = saturate(covariance)
-        theta += dtheta
-        if abs(theta) > _HEADING_WRAP:
-            theta = math.remainder(theta, 2.0 * math.pi)
-        pose = (x + delta_x, y + delta_y, theta)
+        pose = (x + delta_x, y + delta_y, self._wrapped(theta + dtheta))
         if not (math.isfinite(pose[0]) and math.isfinite(pose[1])
                 and math.isfinite(covariance[0]) and math.isfinite(covariance[3])):
             return False

@@ -19,13 +19,13 @@ from tracked_kinematics.core import identify as ident
 from tracked_kinematics.core.errors import ExcitationError, InvalidParameters
 from tracked_kinematics.core.estimate.config import EstimatorConfig
 from tracked_kinematics.core.evaluate.consistency import (
-    gyro_track, GyroHeading, window_consistency)
-from tracked_kinematics.core.evaluate.pieces import track_path
+    gyro_track, gyro_window_consistency, window_consistency)
+from tracked_kinematics.core.covariance import TrackNoise
 from tracked_kinematics.core.kinematics import IcrParams
 from tracked_kinematics.offline.errors import UsageError
 from tracked_kinematics.params import (
     drivetrain_from_values, gyro_config_from_values, icr_from_values, noise_model_from_values,
-    read_params_file, values_from_drivetrain)
+    NOISE_PARAMS, read_params_file, values_from_drivetrain)
 
 TOOL = 'evaluate_model'
 
@@ -296,7 +296,8 @@ def evaluate_models(references: References, models, settings: ev.Settings, *,
                               'without a gap: nothing to score')
     normalised = {}
     if references.reference == 'pose':
-        normalised = _consistency(evaluation, models, candidates, runs, settings)
+        normalised = _consistency(evaluation, models, candidates, settings,
+                                  [d.recording for d in references.data])
     content = _finite(_content(references, models, evaluation, candidates, runs, settings,
                                sprocket_radius, command_source))
     if references.reference == 'imu':
@@ -304,11 +305,13 @@ def evaluate_models(references: References, models, settings: ev.Settings, *,
     return EvaluationReport(content, evaluation, normalised)
 
 
-def _consistency(evaluation, models, candidates, runs, settings) -> dict:
+def _consistency(evaluation, models, candidates, settings, recordings) -> dict:
     """
     Add ``odometry.windows.<s>.consistency`` to each file's entries (and its ``+imu``'s).
 
-    Returns the normalised errors per model and window length for the plot.
+    A ``+imu`` entry scores the covariance the gyro-aided odometry_node publishes, computed
+    by the node's code (:func:`gyro_window_consistency`: reset every window). Returns the
+    normalised errors per model and window length for the plot.
     """
     by_name = {m.name: m for m in models}
     out = {}
@@ -317,21 +320,26 @@ def _consistency(evaluation, models, candidates, runs, settings) -> dict:
         model = by_name.get(c.name[:-len('+imu')] if gyro else c.name)
         if model is None or c.runs is not None:
             continue
-        heading = grid_paths = None
-        paths = evaluation.paths[c.name]
         if gyro:
-            odos = [odo for _, _, odo in runs[c.name]]
-            heading = GyroHeading(float(np.median([o.gyro_noise for o in odos])),
-                                  model.gyro.scale_std)
-            grid_paths = [track_path(p, *c.tracks[p.recording], p.grid)
-                          for p in evaluation.pieces]
-        found = window_consistency(evaluation.pieces, paths, c.icr, model.noise,
-                                   settings.windows, settings.min_speed, heading, grid_paths)
+            found = gyro_window_consistency(recordings, evaluation.pieces, c.icr, model.gyro,
+                                            track_noise_of(model.values), model.noise,
+                                            settings.windows, settings.min_speed)
+        else:
+            found = window_consistency(evaluation.pieces, evaluation.paths[c.name], c.icr,
+                                       model.noise, settings.windows, settings.min_speed)
         windows = evaluation.models[c.name]['odometry']['windows']
         for length, result in found.items():
             windows[ev.window_key(length)]['consistency'] = result['consistency']
         out[c.name] = {length: result['normalised'] for length, result in found.items()}
     return out
+
+
+def track_noise_of(values) -> TrackNoise:
+    """Return the tracks' random walk odometry_node publishes with, from a terrain file."""
+    value = {spec.name: float(values.get(spec.name, spec.default)) for spec in NOISE_PARAMS
+             if spec.name in ('covariance.k_left', 'covariance.k_right', 'covariance.floor')}
+    return TrackNoise(value['covariance.k_left'], value['covariance.k_right'],
+                      value['covariance.floor'])
 
 
 def _icr_summary(icr: IcrParams) -> dict:

@@ -14,7 +14,7 @@ from tracked_kinematics.core.command import TRACK_SPEED_ENVELOPE
 from tracked_kinematics.core.covariance import TrackNoise
 from tracked_kinematics.core.drivetrain import LOOP_KINDS
 from tracked_kinematics.core.encoder_modes import ENCODER_DECODERS, JointStatesDecoder, TICK_TYPES
-from tracked_kinematics.core.gyro_odometry import GyroConfig
+from tracked_kinematics.core.gyro import GyroConfig, PLAUSIBLE_RATE_JUMP, PLAUSIBLE_YAW_RATE
 from tracked_kinematics.core.noise_model import PRIOR
 
 from .spec import (Derived, described_as, finite, non_negative, one_of, ParamSpec, positive,
@@ -270,12 +270,22 @@ GYRO_PARAMS: tuple[ParamSpec, ...] = (
     ParamSpec('imu_timeout', _DEFAULT_GYRO.timeout,
               'Seconds without a gyro sample after which the heading falls back to the '
               'encoders', 's', positive, low=0.001, high=60.0),
-    ParamSpec('imu_saturation', 0.0,
-              'Gyro readings at or beyond this |rate| are saturated: encoders (0: unknown, '
-              'off)', 'rad/s', non_negative, low=0.0, high=1000.0),
-    ParamSpec('imu_max_jump', 0.0,
+    ParamSpec('imu_saturation', PLAUSIBLE_YAW_RATE,
+              'Gyro readings at or beyond this |rate| are implausible: refused, heading from '
+              'the encoders (default: beyond any ground vehicle, a 0.4-m wide robot pivoting '
+              'at 2 m/s; 0: off)', 'rad/s', non_negative, low=0.0, high=1000.0),
+    ParamSpec('imu_max_jump', PLAUSIBLE_RATE_JUMP,
               'Largest plausible change of the gyro rate between consecutive samples; '
-              'beyond: encoders (0: off)', 'rad/s', non_negative, low=0.0, high=1000.0),
+              'beyond: refused (default: 100 rad/s^2, beyond what friction allows a ground '
+              'vehicle, over a 20-Hz period; 0: off)', 'rad/s', non_negative, low=0.0,
+              high=1000.0),
+    ParamSpec('gyro_bias', _DEFAULT_GYRO.gyro_bias,
+              "The gyro's bias before anything is measured (identify_icr's gyro fit)",
+              'rad/s', finite, low=-1.0, high=1.0),
+    ParamSpec('gyro_bias_sigma', _DEFAULT_GYRO.gyro_bias_sigma,
+              'Uncertainty (1 sigma) of gyro_bias; 0: no prior, the bias is unknown until a '
+              'standstill or the drive measures it', 'rad/s', non_negative, low=0.0,
+              high=1.0),
     ParamSpec('adapt_slip', True,
               'Adapt the ICR spread online from the gyro (published on ~/icr)'),
 )

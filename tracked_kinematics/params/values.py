@@ -10,7 +10,7 @@ from typing import Any
 from tracked_kinematics.core.command import CommandLimits
 from tracked_kinematics.core.drivetrain import DriveTrain, FirstOrderLag, PidMotor
 from tracked_kinematics.core.errors import InvalidParameters
-from tracked_kinematics.core.gyro_odometry import GyroConfig
+from tracked_kinematics.core.gyro import GyroConfig
 from tracked_kinematics.core.kinematics import IcrParams
 from tracked_kinematics.core.noise_model import NoiseModel
 
@@ -155,8 +155,8 @@ def gyro_config_from_values(values: Mapping[str, Any]) -> GyroConfig:
     Return how odometry_node reads its gyro, from its parameters or a terrain file's values.
 
     The keys of :data:`.tables.GYRO_PARAMS` (their defaults for the missing ones; 0 for
-    ``imu_saturation`` and ``imu_max_jump``: none), checked by that table. What
-    :func:`~tracked_kinematics.core.gyro_odometry.replay` must be given to reproduce the
+    ``imu_saturation`` and ``imu_max_jump`` turns those gates off), checked by that table.
+    What :func:`~tracked_kinematics.core.gyro.replay` must be given to reproduce the
     node (evaluate_model ``--fuse-imu``). Raises :class:`InvalidParameters` naming a value the
     table refuses.
     """
@@ -167,6 +167,7 @@ def gyro_config_from_values(values: Mapping[str, Any]) -> GyroConfig:
     return GyroConfig(
         imu_delay=value['imu_delay'], gyro_scale=value['gyro_scale'],
         gyro_noise=value['covariance.gyro_noise'], timeout=value['imu_timeout'],
+        gyro_bias=value['gyro_bias'], gyro_bias_sigma=value['gyro_bias_sigma'],
         saturation=value['imu_saturation'] or math.inf,
         max_jump=value['imu_max_jump'] or math.inf, adapt=value['adapt_slip'])
 

@@ -3,8 +3,8 @@ odometry_node: track encoders to nav_msgs/Odometry through the tread-ICR kinemat
 
 A thin adapter: :class:`~tracked_kinematics.ros.encoder_input.EncoderInput` gives travel
 steps, :class:`~tracked_kinematics.core.odometry.Odometry` integrates them (or, with an
-``imu_topic``, :class:`~tracked_kinematics.core.gyro_odometry.GyroOdometry`, fed the gyro's
-samples too), this node fills ``odom`` and the transform. See docs/nodes/odometry_node.md.
+``imu_topic``, :class:`~tracked_kinematics.core.gyro.GyroOdometry`, fed the gyro's
+samples too; both called the same way), this node fills ``odom`` and the transform. See docs/nodes/odometry_node.md.
 """
 
 from __future__ import annotations
@@ -21,17 +21,18 @@ from rclpy.exceptions import InvalidHandle
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import Imu
 from std_msgs.msg import Float64MultiArray, MultiArrayDimension
-from tracked_kinematics.core.covariance import saturate, TrackNoise
-from tracked_kinematics.core.gyro_odometry import ENCODERS, GYRO, GyroOdometry
+from tracked_kinematics.core.covariance import TrackNoise
+from tracked_kinematics.core.gyro import ENCODERS, ERROR as GYRO_ERROR, GYRO, GyroOdometry
+from tracked_kinematics.core.gyro import NOT_A_FAULT
 from tracked_kinematics.core.integration import quaternion_from_yaw
 from tracked_kinematics.core.kinematics import eccentricity, IcrParams, steering_efficiency
-from tracked_kinematics.core.noise_model import NoiseModel, timing_covariance
+from tracked_kinematics.core.noise_model import NoiseModel
 from tracked_kinematics.core.odometry import Odometry
 from tracked_kinematics.params import gyro_config_from_values, icr_from_values, TERRAIN_PARAMS
 from tracked_kinematics.params.node_tables import NODE_PARAMS
 from tracked_kinematics.ros.encoder_input import (
     check_encoder_values, EncoderInput, WARN_PERIOD)
-from tracked_kinematics.ros.health import Health, WARN
+from tracked_kinematics.ros.health import ERROR, Health, WARN
 from tracked_kinematics.ros.icr_push import IcrPusher
 from tracked_kinematics.ros.imu_reader import ImuReader, raw_stamp_key
 from tracked_kinematics.ros.input_topic import CHECK_PERIOD, InputTopic, steady_timer
@@ -47,7 +48,7 @@ NODE_NAME = 'odometry_node'
 ICR_LAYOUT = ('y_left', 'y_right', 'x', 'chi', 'e')
 
 # Reasons the gyro is not used that are no fault of the IMU (no warning, no WARN level).
-_NOT_A_FAULT = ('no gyro sample yet', 'the gyro bias is not known yet')
+_NOT_A_FAULT = NOT_A_FAULT
 
 
 PARAMS = NODE_PARAMS[NODE_NAME]
@@ -133,8 +134,6 @@ class OdometryNode(TableNode):
         self._transform = None
         self._tf_warned = False
         self._last_publish_ns = None
-        self._last_twist = (0.0, 0.0, 0.0)
-        self._start_timing = (0.0,) * 6
         self.encoder = None
         self._apply(values)
         self.encoder = EncoderInput(self, values, self._on_step, check_timer=False)
@@ -202,7 +201,8 @@ class OdometryNode(TableNode):
         msg.layout.dim = [MultiArrayDimension(label=','.join(ICR_LAYOUT), size=5, stride=5)]
         msg.data = data
         self._icr_publisher.publish(msg)
-        if data[3] <= 1.0:
+        # A gyro refused (it disagrees with the tracks) adapts nothing and pushes nothing.
+        if data[3] <= 1.0 and self.odometry.level != GYRO_ERROR:
             self._pusher.push(tuple(data[:3]), self.params.values)
 
     def _report_heading(self, report) -> None:
@@ -216,6 +216,9 @@ class OdometryNode(TableNode):
         report.add('heading source', odometry.source)
         report.add('heading source reason', reason or 'the gyro is healthy, its bias known')
         report.add('gyro bias (rad/s)', f'{odometry.bias:.6g}')
+        report.add('gyro bias sigma (rad/s)', f'{odometry.bias_std:.3g}')
+        report.add('gyro against the tracks', f'{odometry.check.verdict} (ratio '
+                   f'{odometry.check.ratio:.3g})')
         report.add('gyro noise (rad/s/sqrt(Hz))', f'{odometry.gyro_noise:.3g}')
         icr = odometry.icr
         report.add('icr.y_left in force (m)', f'{icr.y_left:.6g}')
@@ -224,7 +227,9 @@ class OdometryNode(TableNode):
         report.add('heading source switches', odometry.switches)
         if self._pusher.count:
             report.add('icr pushes accepted', self._pusher.count)
-        if odometry.source == ENCODERS and not reason.startswith(_NOT_A_FAULT):
+        if odometry.level == GYRO_ERROR:
+            report.merge(ERROR, f'gyro refused, heading from the encoders: {reason}')
+        elif odometry.source == ENCODERS and not reason.startswith(_NOT_A_FAULT):
             report.merge(WARN, f'heading from the encoders: {reason}')
 
     def _take_imu(self) -> None:
@@ -299,7 +304,7 @@ class OdometryNode(TableNode):
         """Take (new) parameter values into use from the next encoder step on."""
         odometry = self.odometry
         terms = _terms(values)
-        self._timing = terms if terms.timing > 0.0 else None
+        odometry.set_timing(terms)
         if self._gyro:
             icr = self._icr(values)
             if icr != odometry.model:
@@ -350,11 +355,11 @@ class OdometryNode(TableNode):
             if reader.origin is None:
                 reader.origin = stamp_ns // 1_000_000_000
             t = (stamp_ns - reader.origin * 1_000_000_000) * 1e-9
-            accepted = self.odometry.update(t, d_left, d_right, dt)
-            if self.odometry.source != self._source:
-                self._switched()
         else:
-            accepted = self.odometry.update(d_left, d_right, dt)
+            t = stamp_s
+        accepted = self.odometry.step(t, d_left, d_right, dt)
+        if self._gyro and self.odometry.source != self._source:
+            self._switched()
         if not accepted:
             self.get_logger().warning(
                 f'encoder step refused by the odometry (travel {d_left!r}, {d_right!r} m over '
@@ -373,31 +378,13 @@ class OdometryNode(TableNode):
             self._last_publish_ns = now_ns
 
     def _publish(self, sec: int, nanosec: int) -> bool:
-        odometry = self.odometry
-        x, y, theta = odometry.pose
-        if self._gyro:
-            twist = odometry.take_twist()
-            twist_covariance = odometry.twist_covariance
-        else:
-            twist, twist_covariance = odometry.take_twist()
-        pose_covariance = odometry.covariance_upper
-        if self._timing is not None:
-            # The time error at the end of the interval, at the current rates (fixed frame):
-            # published, not accumulated.
-            # With the one at the start (the last ~/reset's rates), as evaluate_model's
-            # windows have both ends (core.noise_model.window_bases).
-            v_x, v_y, w = twist
-            cos_t, sin_t = math.cos(theta), math.sin(theta)
-            extra = timing_covariance(self._timing, cos_t * v_x - sin_t * v_y,
-                                      sin_t * v_x + cos_t * v_y, w)
-            start = self._start_timing
-            pose_covariance = saturate(tuple(
-                p + e + s0 for p, e, s0 in zip(pose_covariance, extra, start)))
+        # The core's publish: the pose covariance with the time error at both ends of the
+        # interval since the last reset, as evaluate_model scores it.
+        (x, y, theta), pose_covariance, twist, twist_covariance = self.odometry.publish()
         if not all(map(math.isfinite, twist + twist_covariance)):
             self.get_logger().warning(
                 f'non-finite twist {twist} not published', throttle_duration_sec=WARN_PERIOD)
             return False
-        self._last_twist = twist
         # The yaw as a quaternion with w >= 0 (theta itself is continuous, not wrapped).
         _, _, qz, qw = quaternion_from_yaw(theta)
         if qw < 0.0:
@@ -415,12 +402,10 @@ class OdometryNode(TableNode):
         return True
 
     def _reset(self) -> None:
+        # The pose and its accumulated covariance are zero; the core keeps the time error at
+        # the start (the rates then, in the new frame).
         self.odometry.reset()
         self._last_publish_ns = None
-        # The pose and its accumulated covariance are zero; a robot reset while it moves has
-        # its time error at the start too (the rates then, in the new frame: heading 0).
-        self._start_timing = (timing_covariance(self._timing, *self._last_twist)
-                              if self._timing is not None else (0.0,) * 6)
 
 
 def _long_lived_node() -> OdometryNode:

@@ -6,17 +6,19 @@ odometry) over a recording as the node receives it; :func:`window_consistency` m
 evaluate_model's windows, how often the final position errors fall inside the 50 % and 95 %
 ellipses of the covariance the odometry publishes (the terrain file's noise model,
 :mod:`..noise_model`, propagated along the window) and returns the normalised errors for the
-plot. docs/tools/evaluate_model.md, "Consistency".
+plot; :func:`gyro_window_consistency` does the same for the gyro-aided odometry with the
+covariance it publishes, computed by the same code as the node's (reset every window).
+docs/tools/evaluate_model.md, "Consistency".
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 
 import numpy as np
 
 from .pieces import moving_windows
-from ..gyro_odometry import GyroConfig, replay
+from ..covariance import TrackNoise
+from ..gyro import GyroConfig, replay
 from ..identify import Recording
 from ..kinematics import IcrParams
 from ..noise_model import consistency, covariances, NoiseModel, window_bases
@@ -54,18 +56,6 @@ def gyro_track(recording: Recording, icr: IcrParams, config: GyroConfig):
     return grid, poses, odo
 
 
-@dataclass(frozen=True)
-class GyroHeading:
-    """
-    The heading noise of the gyro-aided odometry: per step ``noise^2 dt + (scale_std dtheta)^2``.
-
-    ``noise`` rad/s/sqrt(Hz) (the gyro's rate noise density), ``scale_std`` relative.
-    """
-
-    noise: float
-    scale_std: float
-
-
 def _motion(path, i, j):
     """Motion from samples ``i`` to ``j`` of a path in the frame of ``i``: (W, 3)."""
     c, s = np.cos(path[i, 2]), np.sin(path[i, 2])
@@ -77,46 +67,6 @@ def _prefix(values):
     return np.concatenate([np.zeros((1,) + values.shape[1:]), np.cumsum(values, axis=0)])
 
 
-def heading_noise_covariances(grid_path, variances, start, end) -> np.ndarray:
-    """
-    Position covariances (W, 2, 2) of windows from independent heading errors of each step.
-
-    A heading error of variance ``v_k`` at step ``k`` (acting at its middle) moves the end of
-    the window by ``dtheta (q_end - q_k)``, ``q = (-y, x)`` (:func:`..noise_model.window_bases`
-    does the same for its terms); in the frame of the heading at ``start``.
-
-    Parameters
-    ----------
-    grid_path : ndarray, shape (K, 3)
-        The path at the step boundaries.
-    variances : ndarray, shape (K - 1,)
-        Heading variance of each step, rad^2.
-    start, end : ndarray of int, shape (W,)
-        Step boundaries of each window.
-
-    """
-    p = np.asarray(grid_path, float)
-    v = np.asarray(variances, float)
-    q = np.column_stack([-0.5 * (p[:-1, 1] + p[1:, 1]), 0.5 * (p[:-1, 0] + p[1:, 0])])
-    qe = np.column_stack([-p[end, 1], p[end, 0]])
-
-    def over(values):
-        prefix = _prefix(values)
-        return prefix[end] - prefix[start]
-
-    sum_v = over(v)
-    sum_vq = over(v[:, None] * q)
-    sum_vqq = over(v[:, None, None] * q[:, :, None] * q[:, None, :])
-    cov = (sum_v[:, None, None] * qe[:, :, None] * qe[:, None, :]
-           - qe[:, :, None] * sum_vq[:, None, :] - sum_vq[:, :, None] * qe[:, None, :]
-           + sum_vqq)
-    h0 = p[start, 2]
-    c0, s0 = np.cos(h0), np.sin(h0)
-    r0 = np.stack([np.stack([c0, s0], -1), np.stack([-s0, c0], -1)], -2)
-    cov = r0 @ cov @ np.swapaxes(r0, 1, 2)
-    return 0.5 * (cov + np.swapaxes(cov, 1, 2))
-
-
 def normalised_errors(errors_xy, covariances_xy) -> np.ndarray:
     """Return ``L^-1 e`` (W, 2) for ``P = L L^T``: standard normal when ``P`` is right."""
     chol = np.linalg.cholesky(np.asarray(covariances_xy, float))
@@ -124,15 +74,13 @@ def normalised_errors(errors_xy, covariances_xy) -> np.ndarray:
 
 
 def window_consistency(pieces, paths, icr: IcrParams, model: NoiseModel, lengths,
-                       min_speed: float | None, gyro: GyroHeading | None = None,
-                       grid_paths=None) -> dict:
+                       min_speed: float | None) -> dict:
     """
     Consistency of the published position covariance on evaluate_model's windows.
 
     The covariance of each window's final position relative to its start is the noise model's
-    propagated along the encoders' steps (:func:`..noise_model.window_bases`); with ``gyro``,
-    the heading comes from the gyro: ``turn`` is dropped and the gyro's heading noise
-    (:class:`GyroHeading`) propagated along ``grid_paths`` instead.
+    propagated along the encoders' steps (:func:`..noise_model.window_bases`). The gyro-aided
+    odometry's is :func:`gyro_window_consistency`'s.
 
     Parameters
     ----------
@@ -148,10 +96,6 @@ def window_consistency(pieces, paths, icr: IcrParams, model: NoiseModel, lengths
         Window lengths, s.
     min_speed : float or None
         As :func:`.pieces.moving_windows`.
-    gyro : GyroHeading, optional
-        The heading from the gyro.
-    grid_paths : sequence of ndarray, shape (K, 3), optional
-        With ``gyro``: the odometry at each piece's grid.
 
     Returns
     -------
@@ -160,27 +104,131 @@ def window_consistency(pieces, paths, icr: IcrParams, model: NoiseModel, lengths
         (W,) and ``normalised`` (W, 2) (:func:`normalised_errors`).
 
     """
-    used = model
-    if gyro is not None:
-        used = NoiseModel(model.track, 0.0, model.slip, model.timing, model.floor)
     out = {}
     for length in lengths:
         errors, covs = [], []
-        for k, (piece, path) in enumerate(zip(pieces, paths)):
+        for piece, path in zip(pieces, paths):
             i, j, _ = moving_windows(piece, float(length), min_speed)
             if len(i) == 0:
                 continue
             d_left, d_right, dt = piece.steps
             start, end = piece.at[i], piece.at[j]
             bases, _ = window_bases(icr, d_left, d_right, dt, start, end)
-            cov = covariances(bases, used)
-            if gyro is not None:
-                grid_path = grid_paths[k]
-                dth = np.diff(grid_path[:, 2])
-                v = gyro.noise ** 2 * dt + (gyro.scale_std * dth) ** 2
-                cov = cov + heading_noise_covariances(grid_path, v, start, end)
+            cov = covariances(bases, model)
             errors.append(_motion(path, i, j)[:, :2] - _motion(piece.truth, i, j)[:, :2])
             covs.append(cov)
+        e = np.concatenate(errors) if errors else np.zeros((0, 2))
+        p = np.concatenate(covs) if covs else np.zeros((0, 2, 2))
+        c = consistency(e, p)
+        z = normalised_errors(e, p) if len(e) else np.zeros((0, 2))
+        out[float(length)] = {'consistency': c, 'nees': np.sum(z * z, 1), 'normalised': z}
+    return out
+
+
+def reset_windows(enc_t, left, right, pieces, length: float, min_speed: float | None):
+    """
+    Back-to-back windows of ``length`` s inside the pieces, on the encoder samples.
+
+    As odometry_node reset every ``length`` s by ``~/reset`` scores itself: a window runs
+    from an encoder sample to the first one ``length`` s later, within one piece (never
+    across a gap), kept when its tracks' mean speed is at least ``min_speed`` m/s.
+
+    Returns
+    -------
+    start, end : ndarray of int
+        Encoder sample indices of each window.
+    resets : ndarray of bool, shape (N,)
+        Where to reset (each piece's first sample and each window's end).
+
+    """
+    enc_t = np.asarray(enc_t, float)
+    resets = np.zeros(len(enc_t), dtype=bool)
+    starts, ends = [], []
+    for piece in pieces:
+        first = int(np.searchsorted(enc_t, piece.t[0]))
+        last = int(np.searchsorted(enc_t, piece.t[-1], side='right')) - 1
+        if last <= first:
+            continue
+        resets[first] = True
+        k = first
+        while True:
+            e = int(np.searchsorted(enc_t, enc_t[k] + length - 1e-9))
+            if e > last:
+                break
+            resets[e] = True
+            travel = 0.5 * (np.sum(np.abs(np.diff(left[k:e + 1])))
+                            + np.sum(np.abs(np.diff(right[k:e + 1]))))
+            if min_speed is None or travel >= min_speed * (enc_t[e] - enc_t[k]):
+                starts.append(k)
+                ends.append(e)
+            k = e
+    return np.asarray(starts, int), np.asarray(ends, int), resets
+
+
+def _truth_at(piece, times):
+    """The piece's ground truth interpolated at ``times`` (inside it): (T, 3)."""
+    return np.column_stack([np.interp(times, piece.t, piece.truth[:, k]) for k in range(3)])
+
+
+def gyro_window_consistency(recordings, pieces, icr: IcrParams, config: GyroConfig,
+                            noise: TrackNoise, model: NoiseModel, lengths,
+                            min_speed: float | None) -> dict:
+    """
+    Consistency of the covariance the gyro-aided odometry_node publishes, reset every window.
+
+    Each recording is replayed through :class:`..gyro.GyroOdometry` as the node is fed, with
+    a reset at the start of each window (:func:`reset_windows`); the covariance scored is the
+    one the node publishes at the window's end (:meth:`..gyro.GyroOdometry.publish`: the
+    propagated covariance with the bias's share, and the time error at both ends), the error
+    that of its pose against the ground truth's motion over the window.
+
+    Parameters
+    ----------
+    recordings : sequence of Recording
+        With a gyro (``gyro_t``, ``gyro_rate``).
+    pieces : sequence of Piece
+        The gap-free stretches scored (``piece.recording`` indexes ``recordings``).
+    icr, config : IcrParams, GyroConfig
+        The terrain file, as the node reads it.
+    noise, model : TrackNoise, NoiseModel
+        The tracks' noise and the turn, slip and timing terms, as the node publishes them.
+    lengths : sequence of float
+        Window lengths, s.
+    min_speed : float or None
+        As :func:`.pieces.moving_windows`.
+
+    Returns
+    -------
+    dict
+        As :func:`window_consistency`.
+
+    """
+    terms = NoiseModel(0.0, model.turn, model.slip, model.timing, 0.0)
+    out = {}
+    for length in lengths:
+        errors, covs = [], []
+        for r, rec in enumerate(recordings):
+            mine = [p for p in pieces if p.recording == r]
+            if not mine or rec.gyro_t is None:
+                continue
+            start, end, resets = reset_windows(rec.enc_t, rec.left, rec.right, mine,
+                                               float(length), min_speed)
+            if len(start) == 0:
+                continue
+            poses, _, odo = replay(rec.enc_t, rec.left, rec.right, rec.gyro_t, rec.gyro_rate,
+                                   icr, config, resets=resets, noise=noise, terms=terms)
+            for piece in mine:
+                inside = (rec.enc_t[start] >= piece.t[0]) & (rec.enc_t[end] <= piece.t[-1])
+                if not np.any(inside):
+                    continue
+                a, b = start[inside], end[inside]
+                truth = _motion(np.vstack([_truth_at(piece, rec.enc_t[a]),
+                                           _truth_at(piece, rec.enc_t[b])]),
+                                np.arange(len(a)), len(a) + np.arange(len(a)))
+                errors.append(poses[b, :2] - truth[:, :2])
+                p = odo.published[b]
+                covs.append(np.stack([np.stack([p[:, 0], p[:, 1]], -1),
+                                      np.stack([p[:, 1], p[:, 3]], -1)], -2))
         e = np.concatenate(errors) if errors else np.zeros((0, 2))
         p = np.concatenate(covs) if covs else np.zeros((0, 2, 2))
         c = consistency(e, p)

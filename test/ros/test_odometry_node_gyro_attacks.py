@@ -1,0 +1,77 @@
+"""odometry_node with imu_topic under hostile input (issue 35): each failed on the old node."""
+
+import math
+
+from helpers.gyro_drive import gyro_drive, true_heading
+import numpy as np
+import pytest
+from test_odometry_node_imu import AURIGA, Graph, planar, yaws
+from tracked_kinematics.ros.health import ERROR
+
+pytestmark = pytest.mark.ros
+
+T0 = 10.0
+
+
+@pytest.fixture
+def graph(ros_context, executor, capfd):
+    def make(overrides=None):
+        return Graph(ros_context, executor, capfd, overrides)
+    return make
+
+
+def drive(seconds=10.0, seed=0, **kwargs):
+    t, left, right, tg, wg = gyro_drive(
+        AURIGA, **{'seconds': seconds, 'still': 3.5, 'gyro_rate': 100.0, 'seed': seed,
+                   **kwargs})
+    return T0 + t, left, right, T0 + tg, wg
+
+
+def finite(msgs):
+    return all(np.all(np.isfinite(planar(m.pose.covariance))) and math.isfinite(
+        m.pose.pose.position.x) and math.isfinite(m.twist.twist.angular.z) for m in msgs)
+
+
+def test_stamps_going_back_with_the_imu_on(graph):
+    # Before: TypeError in GyroOdometry._gyro_increment, the node exited 1.
+    g = graph()
+    t, left, right, tg, wg = drive()
+    first = g.feed(t, left, right, tg, wg)
+    assert g.node.odometry.source == 'gyro'
+    # The same drive again, 30 s earlier (a bag played in a loop), the tracks carrying on.
+    again = g.feed(t - 30.0, left + left[-1], right + right[-1], tg - 30.0, wg)
+    assert finite(first + again)
+    assert g.node.odometry.source == 'gyro'
+    truth = true_heading(AURIGA, t, left, right)
+    turned = yaws(again)[-1] - yaws(again)[0]
+    assert turned == pytest.approx(truth[-1] - truth[1], abs=0.05)
+
+
+@pytest.mark.parametrize('value', [1e20, 1e200, math.nan, math.inf, -1e308])
+def test_one_garbage_sample(graph, value):
+    # Before: 1e200 raised OverflowError (the node died), 1e20 froze the heading for good.
+    g = graph()
+    t, left, right, tg, wg = drive(seconds=16.0)
+    wg = wg.copy()
+    wg[np.searchsorted(tg, T0 + 6.0)] = value
+    msgs = g.feed(t, left, right, tg, wg)
+    assert finite(msgs)
+    assert g.stderr.warnings('odometry_node', 'heading from the encoders until')
+    # A clean drive afterwards turns right (the truth from 9 s on, within 0.03 rad).
+    truth = true_heading(AURIGA, t, left, right)
+    after = np.flatnonzero(t[1:] >= T0 + 9.0)
+    turned = yaws(msgs)[after[-1]] - yaws(msgs)[after[0]]
+    assert turned == pytest.approx(truth[1:][after[-1]] - truth[1:][after[0]], abs=0.03)
+    assert g.node.odometry.source == 'gyro'
+
+
+def test_an_upside_down_imu_is_refused_with_an_error(graph):
+    # Before: the heading turned the wrong way with OK on /diagnostics.
+    g = graph()
+    t, left, right, tg, wg = drive(seconds=16.0)
+    g.feed(t, left, right, tg, -wg)
+    report = {v.key: v.value for v in g.node.health.report().values}
+    status = g.node.health.report()
+    assert g.node.odometry.source == 'encoders'
+    assert status.level == ERROR and 'other way' in status.message
+    assert 'upside down' in report['heading source reason']

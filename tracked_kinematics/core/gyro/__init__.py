@@ -1,0 +1,19 @@
+"""
+Gyro-aided odometry, in parts a reader can hold.
+
+:mod:`.config` how the gyro is read (:class:`GyroConfig`, the plausibility limits);
+:mod:`.samples` the samples on the encoders' clock (gates, stamp order, a bounded buffer);
+:mod:`.bias` the bias and turn gain against the tracks, and the noise density;
+:mod:`.agreement` whether the gyro sees the tracks' turns (sign, scale);
+:mod:`.fusion` the odometry (:class:`GyroOdometry`); :mod:`.replay` a recording through it.
+"""
+
+from .agreement import AgreementCheck
+from .bias import TurnBias
+from .config import ENCODERS, ERROR, GYRO, GyroConfig, PLAUSIBLE_RATE_JUMP, PLAUSIBLE_YAW_RATE, OK, WARN
+from .fusion import GyroOdometry, MIN_CHI, NOT_A_FAULT
+from .replay import fit_gyro_scale, replay
+
+__all__ = ['AgreementCheck', 'ENCODERS', 'ERROR', 'fit_gyro_scale', 'GYRO', 'GyroConfig',
+           'GyroOdometry', 'PLAUSIBLE_RATE_JUMP', 'PLAUSIBLE_YAW_RATE', 'MIN_CHI', 'NOT_A_FAULT', 'OK',
+           'replay', 'TurnBias', 'WARN']
