@@ -39,7 +39,7 @@ SLIP = 0.8    # gyro_drive's: the ground turns the robot 0.8 times what the mode
 
 
 def imu(t, omega=(0.0, 0.0, 0.0), quaternion=None, frame=''):
-    """An Imu at ``t``: rates in its frame, an orientation (x, y, z, w) or none (-1)."""
+    """Return an Imu at ``t``: rates in its frame, an orientation (x, y, z, w) or none (-1)."""
     msg = Imu()
     msg.header.stamp = stamp(t)
     msg.header.frame_id = frame
@@ -115,7 +115,7 @@ def graph(ros_context, executor, capfd):
 
 
 def drive(**kwargs):
-    """A gyro_drive: encoder streams, the gyro's times and the true body rate there."""
+    """Return a gyro_drive: encoder streams, the gyro's times and the true body rate there."""
     t, left, right, tg, reading = gyro_drive(
         AURIGA, **{'seconds': 8.0, 'still': 3.5, 'gyro_rate': 100.0, **kwargs})
     _, _, _, _, rate = gyro_drive(AURIGA, **{'seconds': 8.0, 'still': 3.5, 'gyro_rate': 100.0,
@@ -268,8 +268,8 @@ def foreign_publisher(ros_domain):
     ('other_clock', "s from the encoders' time"),
     ('garbage', 'every sample refused by the odometry (the gyro reads a non-finite value)'),
 ])
-def test_an_imu_topic_without_a_usable_sample_warns_with_the_reason(graph, case, reason,
-                                                                   request):
+def test_an_imu_topic_without_a_usable_sample_warns_with_the_reason(
+        graph, case, reason, request):
     if case == 'wrong_type':
         request.getfixturevalue('foreign_publisher')
     g = graph({'imu_topic': 'imu_typo' if case == 'typo' else 'imu'})
