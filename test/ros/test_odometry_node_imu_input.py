@@ -371,3 +371,23 @@ def test_a_sample_stamped_in_2038_does_not_shut_the_gyro_out(graph):
     assert abs(yaws(odom)[-1] - truth[-1]) < 0.03
     assert g.stderr.warnings('odometry_node', "s from the encoders' time")
     assert g.node._imu_input.counts['clock'] == 1
+
+
+@pytest.mark.parametrize('frame', ['', 'a', 'imu_link', 'x' * 13])
+def test_read_sample_reads_what_rclpy_reads(frame):
+    from rclpy.serialization import serialize_message
+    from tracked_kinematics.ros.imu_reader import ImuReader
+    reader = ImuReader()
+    for omega, quaternion in (((0.1, -0.2, 0.3), (0.1, 0.2, 0.3, 0.9)),
+                              ((math.nan, 1e300, -0.0), None), ((4.0, 5.0, 6.0), (0, 0, 0, 0))):
+        msg = imu(12.000000007, omega, quaternion, frame)
+        data = serialize_message(msg)
+        for _ in range(2):   # the first by rclpy, the second in place
+            sample = reader.read_sample(data)
+            assert sample.stamp_ns == 12_000_000_007 and sample.frame_id == frame
+            np.testing.assert_array_equal(sample.omega, omega)
+            assert sample.has_orientation == (quaternion is not None)
+            if quaternion is not None:
+                np.testing.assert_array_equal(sample.quaternion, quaternion)
+        assert len(reader._starts) == 1
+    assert reader.read_sample(b'\x00\x01\x00\x00garbage') is None
