@@ -1,4 +1,4 @@
-"""The gyro in the vehicle frame: core.imu_frame against scipy's rotations and finite differences."""
+"""The gyro in the vehicle frame: core.imu_frame against scipy and finite differences."""
 
 import math
 
