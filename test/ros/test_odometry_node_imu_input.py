@@ -70,7 +70,7 @@ class Graph:
         self.stderr = Stderr(capfd)
         self.encoders = Driver(ros_context, executor, lambda: self.node.encoder.received)
         self.imu = Driver(ros_context, executor, lambda: self.node.imu.count.count,
-                          node=self.encoders.node)
+                          node=self.encoders.node)   # (None without imu_topic: not used)
         self.odom, self.statuses = [], []
         self.encoders.node.create_subscription(
             OdometryMsg, 'odom', self.odom.append,
@@ -292,6 +292,15 @@ def test_a_healthy_imu_raises_no_warn(graph):
     assert not pump(g, lambda: g.warned('no usable gyro sample'), timeout=5.0)
     assert g.statuses and g.statuses[-1].level == DiagnosticStatus.OK
     assert g.node._imu_input.counts['used'] > 100
+
+
+def test_without_imu_topic_the_status_is_ok(graph):
+    """docs/diagnostics.md once said WARN: the heading is the encoders', which is no fault."""
+    g = graph({'imu_topic': ''})
+    assert pump(g, lambda: g.statuses, imu_topic=None)
+    assert g.statuses[-1].level == DiagnosticStatus.OK
+    values = {v.key: v.value for v in g.statuses[-1].values}
+    assert values['heading source reason'] == 'imu_topic is empty'
 
 
 def test_another_clock_is_not_buffered(graph):
