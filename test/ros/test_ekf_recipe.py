@@ -21,7 +21,7 @@ OVERLAY = ROOT / 'config' / 'odometry_node_for_ekf.yaml'
 
 # The parameters of robot_localization's params/ekf.yaml (ros2 / jazzy-devel branches of
 # github.com/cra-ros-pkg/robot_localization), the sensor ones for index 0.
-ROBOT_LOCALIZATION = frozenset('''
+ROBOT_LOCALIZATION = frozenset("""
     frequency sensor_timeout two_d_mode transform_time_offset transform_timeout
     print_diagnostics debug debug_out_file publish_tf publish_acceleration
     permit_corrected_publication map_frame odom_frame base_link_frame world_frame
@@ -33,7 +33,7 @@ ROBOT_LOCALIZATION = frozenset('''
     use_control stamped_control control_timeout control_config acceleration_limits
     acceleration_gains deceleration_limits deceleration_gains process_noise_covariance
     initial_estimate_covariance smooth_lagged_data history_length
-'''.split())
+""".split())
 
 # robot_localization's measurement vector: x y z roll pitch yaw vx vy vz vroll vpitch vyaw ax
 # ay az.
