@@ -12,7 +12,7 @@ from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import Imu
 from std_msgs.msg import Float64MultiArray
-from tracked_kinematics.core.covariance import TrackNoise
+from tracked_kinematics.core.covariance import message_twist_covariance, TrackNoise
 from tracked_kinematics.core.gyro_odometry import replay
 from tracked_kinematics.core.odometry import Odometry
 from tracked_kinematics.params import (gyro_config_from_values, icr_from_values,
@@ -226,7 +226,9 @@ def test_without_imu_topic_the_output_is_today_s(graph):
             assert (m.twist.twist.linear.x, m.twist.twist.linear.y,
                     m.twist.twist.angular.z) == twist
             if overrides:
-                assert tuple(planar(m.twist.covariance)[np.triu_indices(3)]) == covariance
+                # Per message: the 1-s mean's covariance over the step's interval (dt).
+                assert tuple(planar(m.twist.covariance)[np.triu_indices(3)]) == \
+                    message_twist_covariance(covariance, step[-1])
                 assert tuple(planar(m.pose.covariance)[np.triu_indices(3)]) == \
                     today.covariance_upper
         g.node.destroy_node()

@@ -145,6 +145,30 @@ def twist_variances(noise: TrackNoise, distance_rate_left: float,
                                   distance_rate_right * TWIST_TIME)
 
 
+def message_twist_covariance(upper, interval: float):
+    """
+    Scale a twist covariance of the mean over :data:`TWIST_TIME` to one message's interval.
+
+    The noise terms are random walks in the travel (variance linear in the increment), so the
+    mean twist over ``interval`` s has ``TWIST_TIME / interval`` times the variance of the
+    mean over :data:`TWIST_TIME`: messages at any rate then carry, fused as independent
+    measurements (robot_localization), the information of the 1-s mean per second. See
+    docs/nodes/odometry_node.md, "Using it with robot_localization".
+
+    Parameters
+    ----------
+    upper : tuple of float, 6
+        Upper triangle ``(xx, xy, xt, yy, yt, tt)`` of the 1-s mean's covariance.
+    interval : float
+        s the message's mean twist spans (> 0; anything else returns ``upper``).
+
+    """
+    if not interval > 0.0:
+        return upper
+    factor = TWIST_TIME / interval
+    return tuple(v * factor for v in upper)
+
+
 def saturate(p, limit: float = MAX_VARIANCE):
     """
     Cap every variance of an upper triangle ``p`` at ``limit``, keeping it a covariance.

@@ -42,8 +42,13 @@ ODOMETRY_PARAMS: tuple[ParamSpec, ...] = (
               'step', 'Hz', zero_or_at_least(0.01, 'Hz'), low=0.0, high=10000.0),
     *NOISE_PARAMS,
     ParamSpec('imu_topic', '',
-              "sensor_msgs/Imu topic whose angular_velocity.z gives the heading ('' = off: "
-              'the encoders alone)', check=_topic_or_empty, read_only=True),
+              'sensor_msgs/Imu topic whose angular velocity, turned into base_frame, gives the '
+              "heading ('' = off: the encoders alone)", check=_topic_or_empty, read_only=True),
+    *(ParamSpec(f'imu_mount.{axis}', 0.0,
+                f"{axis.capitalize()} of the IMU's frame in base_frame (URDF rpy; roll pi: an "
+                'IMU with z down, or NED); all 0 and tf2_ros importable: the frame_id through '
+                'TF', 'rad', finite, low=-2.0 * math.pi, high=2.0 * math.pi)
+      for axis in ('roll', 'pitch', 'yaw')),
     *GYRO_PARAMS,
     ParamSpec('push_to', [],
               'Nodes (cmd_vel_translator) whose icr.* parameters are set to the adapted ICRs: '

@@ -1,16 +1,17 @@
 """
-The stamp and z rate of a serialised sensor_msgs/Imu, read in place.
+The stamp, angular velocity and orientation of a serialised sensor_msgs/Imu, read in place.
 
 rclpy's conversion of an Imu (three 9-element covariance arrays) costs about 25 us; odometry_node
-reads two numbers of it, at up to a few hundred hertz. The first message of each size is read by
-rclpy and the offset of ``angular_velocity.z`` checked against it; later ones of that size are
-read with :func:`struct.unpack_from`, as :class:`.encoder_input.JointStateReader` does.
+reads a few numbers of it, at up to a few hundred hertz. The first message of each size is read
+by rclpy and the offsets checked against it; later ones of that size are read with
+:func:`struct.unpack_from`, as :class:`.encoder_input.JointStateReader` does.
 """
 
 from __future__ import annotations
 
 import math
 import struct
+from typing import NamedTuple
 
 from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import Imu
@@ -20,9 +21,24 @@ _HEAD = 4
 _STAMP = struct.Struct('<iI')
 _COUNT = struct.Struct('<I')
 _DOUBLE = struct.Struct('<d')
+_QUATERNION = struct.Struct('<4d')
+_VECTOR = struct.Struct('<3d')
 # From the 8-aligned orientation to angular_velocity.z: orientation (4 doubles), its
 # covariance (9), angular_velocity.x and .y.
 _TO_RATE_Z = 8 * (4 + 9 + 2)
+# From the orientation to orientation_covariance[0], and to angular_velocity.x.
+_TO_COVARIANCE = 8 * 4
+_TO_RATE = 8 * (4 + 9)
+
+
+class ImuSample(NamedTuple):
+    """What odometry_node reads of an Imu: the stamp (ns), the rates, the orientation."""
+
+    stamp_ns: int
+    omega: tuple           # angular_velocity (x, y, z), rad/s, in frame_id
+    quaternion: tuple      # orientation (x, y, z, w)
+    has_orientation: bool  # orientation_covariance[0] != -1 (REP-145: -1 means none)
+    frame_id: str
 
 
 def stamp_key(msg) -> int:
@@ -52,7 +68,45 @@ class ImuReader:
 
     def __init__(self):
         self._offsets: dict[int, int] = {}   # message size -> offset of angular_velocity.z
+        self._starts: dict[int, int] = {}    # message size -> offset of the orientation
         self.origin: int | None = None
+
+    def seconds(self, stamp_ns: int) -> float:
+        """Return a stamp (ns) in s from ``origin`` (set from this stamp when None)."""
+        sec, nanosec = divmod(stamp_ns, 1_000_000_000)
+        return self._seconds(sec, nanosec)
+
+    def read_sample(self, data: bytes) -> ImuSample | None:
+        """Return the :class:`ImuSample` of a serialised Imu, or None for bytes that are no Imu."""
+        start = self._starts.get(len(data))
+        if start is not None and data.startswith(_CDR_LE):
+            sec, nanosec = _STAMP.unpack_from(data, _HEAD)
+            length = _COUNT.unpack_from(data, 12)[0]
+            return ImuSample(sec * 1_000_000_000 + nanosec,
+                             _VECTOR.unpack_from(data, start + _TO_RATE),
+                             _QUATERNION.unpack_from(data, start),
+                             _DOUBLE.unpack_from(data, start + _TO_COVARIANCE)[0] != -1.0,
+                             data[16:15 + length].decode('utf-8', 'replace'))
+        try:
+            msg = deserialize_message(data, Imu)
+        except Exception:  # noqa: BLE001 -- malformed bytes: the caller reports them
+            return None
+        stamp, w, q = msg.header.stamp, msg.angular_velocity, msg.orientation
+        sample = ImuSample(stamp.sec * 1_000_000_000 + stamp.nanosec, (w.x, w.y, w.z),
+                           (q.x, q.y, q.z, q.w), msg.orientation_covariance[0] != -1.0,
+                           msg.header.frame_id)
+        offset = self._offset(data)
+        if offset is not None:
+            start = offset - _TO_RATE_Z
+            found = (_VECTOR.unpack_from(data, start + _TO_RATE)
+                     + _QUATERNION.unpack_from(data, start)
+                     + _DOUBLE.unpack_from(data, start + _TO_COVARIANCE))
+            wanted = sample.omega + sample.quaternion + (msg.orientation_covariance[0],)
+            length = _COUNT.unpack_from(data, 12)[0]
+            if (all(a == b or (math.isnan(a) and math.isnan(b)) for a, b in zip(found, wanted))
+                    and data[16:15 + length].decode('utf-8', 'replace') == sample.frame_id):
+                self._starts[len(data)] = start
+        return sample
 
     def _seconds(self, sec: int, nanosec: int) -> float:
         if self.origin is None:

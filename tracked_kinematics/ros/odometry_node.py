@@ -21,7 +21,7 @@ from rclpy.exceptions import InvalidHandle
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import Imu
 from std_msgs.msg import Float64MultiArray, MultiArrayDimension
-from tracked_kinematics.core.covariance import TrackNoise
+from tracked_kinematics.core.covariance import message_twist_covariance, TrackNoise
 from tracked_kinematics.core.gyro import ENCODERS, ERROR as GYRO_ERROR, GYRO, GyroOdometry
 from tracked_kinematics.core.gyro import NOT_A_FAULT
 from tracked_kinematics.core.integration import quaternion_from_yaw
@@ -34,7 +34,8 @@ from tracked_kinematics.ros.encoder_input import (
     check_encoder_values, EncoderInput, WARN_PERIOD)
 from tracked_kinematics.ros.health import ERROR, Health, WARN
 from tracked_kinematics.ros.icr_push import IcrPusher
-from tracked_kinematics.ros.imu_reader import ImuReader, raw_stamp_key
+from tracked_kinematics.ros.imu_input import ImuInput
+from tracked_kinematics.ros.imu_reader import raw_stamp_key
 from tracked_kinematics.ros.input_topic import CHECK_PERIOD, InputTopic, steady_timer
 from tracked_kinematics.ros.main import run
 from tracked_kinematics.ros.odometry_message import OdometrySerializer
@@ -134,7 +135,9 @@ class OdometryNode(TableNode):
         self._transform = None
         self._tf_warned = False
         self._last_publish_ns = None
+        self._twist_span = 0.0  # s of encoder steps since the last published twist
         self.encoder = None
+        self._imu_input = ImuInput(self, values) if self._gyro else None
         self._apply(values)
         self.encoder = EncoderInput(self, values, self._on_step, check_timer=False)
         self.health = Health(self, timer=False)  # updated by _check, on the timer below
@@ -143,10 +146,12 @@ class OdometryNode(TableNode):
         if self._gyro:
             # The gyro is not needed (the encoders carry on without it): its absence is the
             # heading source's WARN, not an ERROR.
-            self._imu_reader = ImuReader()
+            self._imu_reader = self._imu_input.reader
             self.imu = InputTopic(self, Imu, values['imu_topic'], self._on_imu,
                                   order_key=raw_stamp_key, raw=True)
             self.health.watch(self.imu, needed=False)
+            self._imu_input.topic = self.imu
+            self.health.add(self._imu_input.report)
             self._icr_publisher = self.create_publisher(Float64MultiArray, '~/icr', 10)
             self._pusher = IcrPusher(self)
             self._pusher.pushed = self._model_icrs()
@@ -257,13 +262,10 @@ class OdometryNode(TableNode):
             self._on_imu(taken[0])
 
     def _on_imu(self, data: bytes) -> None:
-        sample = self._imu_reader.read(data)
+        sample = self._imu_input.take(data)  # (t, heading rate), or None: not to be used
         if sample is None:
-            self.get_logger().warning(f'{self.imu.topic_name}: a message that is no '
-                                      'sensor_msgs/Imu: skipped',
-                                      throttle_duration_sec=WARN_PERIOD)
             return
-        self.odometry.imu(*sample)
+        self._imu_input.taken(self.odometry.imu(*sample), self.odometry.reason)
         if self.odometry.source != self._source:
             self._switched()
 
@@ -305,6 +307,8 @@ class OdometryNode(TableNode):
         odometry = self.odometry
         terms = _terms(values)
         odometry.set_timing(terms)
+        if self._imu_input is not None:
+            self._imu_input.configure(values)
         if self._gyro:
             icr = self._icr(values)
             if icr != odometry.model:
@@ -348,6 +352,7 @@ class OdometryNode(TableNode):
 
     def _on_step(self, stamp_s: float, d_left: float, d_right: float, dt: float) -> None:
         if self._gyro:
+            self._imu_input.encoder_step(self.encoder.stamp_ns)
             self._take_imu()
             # On the gyro's time origin (whole seconds): epoch seconds lose precision.
             reader = self._imu_reader
@@ -366,6 +371,7 @@ class OdometryNode(TableNode):
                 f'{dt!r} s: beyond 1e9 m, or a speed or pose that is not finite): skipped, '
                 'nothing integrated or published', throttle_duration_sec=WARN_PERIOD)
             return
+        self._twist_span += dt
         # Rate cap by message time, in integer nanoseconds so that it is exact; a stamp
         # before the last published one (time went back) publishes at once.
         encoder = self.encoder
@@ -381,6 +387,10 @@ class OdometryNode(TableNode):
         # The core's publish: the pose covariance with the time error at both ends of the
         # interval since the last reset, as evaluate_model scores it.
         (x, y, theta), pose_covariance, twist, twist_covariance = self.odometry.publish()
+        # Per message: the covariance of the mean over the message's own interval, so that a
+        # filter fusing every message believes the odometry as much at any rate.
+        twist_covariance = message_twist_covariance(twist_covariance, self._twist_span)
+        self._twist_span = 0.0
         if not all(map(math.isfinite, twist + twist_covariance)):
             self.get_logger().warning(
                 f'non-finite twist {twist} not published', throttle_duration_sec=WARN_PERIOD)

@@ -1,0 +1,91 @@
+"""The gyro in the vehicle frame: core.imu_frame against scipy and finite differences."""
+
+import math
+
+from hypothesis import given, strategies as st
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+from tracked_kinematics.core.imu_frame import heading_rate, MAX_TILT, mount_rotation
+
+angles = st.floats(-math.pi, math.pi)
+
+
+@given(angles, angles, angles)
+def test_mount_rotation_is_urdf_rpy(roll, pitch, yaw):
+    expected = Rotation.from_euler('xyz', [roll, pitch, yaw]).as_matrix()   # extrinsic x, y, z
+    np.testing.assert_allclose(mount_rotation(roll, pitch, yaw), expected, atol=1e-12)
+
+
+def heading(rotation):
+    """Return the heading of base x projected on the horizontal plane (world z up)."""
+    x = rotation.apply([1.0, 0.0, 0.0])
+    return math.atan2(x[1], x[0])
+
+
+@given(st.floats(-1.2, 1.2), st.floats(-1.0, 1.0), angles, st.floats(-2.0, 2.0),
+       st.floats(-2.0, 2.0), st.floats(-2.0, 2.0), angles, angles, angles)
+def test_the_rate_is_the_heading_s_derivative(roll, pitch, yaw, wx, wy, wz, m_roll, m_pitch,
+                                              m_yaw):
+    """Any base attitude within the tilt limit, any mount: d heading / dt by finite differences."""
+    base = Rotation.from_euler('ZYX', [yaw, pitch, roll])   # world <- base
+    mount = Rotation.from_euler('xyz', [m_roll, m_pitch, m_yaw])   # base <- imu
+    tilt = math.acos(np.clip(base.apply([0.0, 0.0, 1.0])[2], -1.0, 1.0))
+    if tilt > MAX_TILT - 0.05:
+        return
+    omega_imu = np.array([wx, wy, wz])
+    imu = base * mount   # world <- imu
+    rate, used = heading_rate(tuple(omega_imu), mount.as_matrix(), tuple(imu.as_quat()), True)
+    assert used
+    h = 1e-6
+    step = Rotation.from_rotvec(imu.apply(omega_imu) * h)   # a world-frame rotation over h
+    expected = (np.unwrap([heading(step.inv() * base), heading(step * base)]) @ [-1, 1]) / (2 * h)
+    assert rate == pytest.approx(expected, abs=1e-5)
+    # Without the orientation: the body z rate (the mount's).
+    body, used = heading_rate(tuple(omega_imu), mount.as_matrix())
+    assert not used and body == pytest.approx(mount.apply(omega_imu)[2], abs=1e-12)
+
+
+def test_twenty_degrees_of_slope_along_the_contour_is_cos_20():
+    q = (Rotation.from_euler('x', math.radians(20.0))).as_quat()
+    rate, used = heading_rate((0.0, 0.0, 1.0), mount_rotation(0, 0, 0), tuple(q), True)
+    assert used and rate == pytest.approx(math.cos(math.radians(20.0)))
+
+
+@pytest.mark.parametrize('quaternion, has, why', [
+    ((0.0, 0.0, 0.0, 0.0), True, 'all zero: a driver that fills no orientation'),
+    ((0.0, 0.0, 0.0, 1.0), False, 'orientation_covariance[0] = -1'),
+    ((0.0, 0.0, 0.0, 1.1), True, 'not a unit quaternion'),
+    ((math.nan, 0.0, 0.0, 1.0), True, 'not finite'),
+    (tuple(Rotation.from_euler('x', math.radians(70)).as_quat()), True, 'tilted beyond 60 deg'),
+])
+def test_an_unusable_orientation_gives_the_body_rate(quaternion, has, why):
+    mount = mount_rotation(0.1, 0.0, 0.0)
+    rate, used = heading_rate((0.2, 0.3, 0.5), mount, quaternion, has)
+    assert not used, why
+    assert rate == pytest.approx(mount[2] @ [0.2, 0.3, 0.5])
+
+
+def test_up_is_the_mount_s():
+    """An NED orientation with its mount (roll pi) reads right; the wrong mount, mirrored."""
+    r = 0.4
+    ned_level = (0.0, 0.0, math.sin(0.3), math.cos(0.3))   # FRD in NED, heading 0.6 rad
+    right, used = heading_rate((0.0, 0.0, -r), mount_rotation(math.pi, 0, 0), ned_level, True)
+    assert used and right == pytest.approx(r)
+    wrong, _ = heading_rate((0.0, 0.0, -r), mount_rotation(0, 0, 0), ned_level, True)
+    assert wrong == pytest.approx(-r)
+
+
+def test_arrays_give_what_samples_give():
+    rng = np.random.default_rng(1)
+    n = 50
+    omega = rng.normal(size=(3, n))
+    quats = Rotation.from_euler('xyz', rng.uniform(-0.8, 0.8, size=(n, 3))).as_quat()
+    quats[::7] = 0.0
+    has = rng.uniform(size=n) > 0.2
+    mount = mount_rotation(0.2, -0.1, 1.0)
+    rates, used = heading_rate(tuple(omega), mount, tuple(quats.T), has)
+    for k in range(n):
+        rate, one = heading_rate(tuple(omega[:, k]), mount, tuple(quats[k]), bool(has[k]))
+        assert rates[k] == pytest.approx(rate, abs=1e-12) and used[k] == one
+    assert used.any() and not used.all()
