@@ -67,11 +67,14 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def _topic_table(playback: BagPlayback, skipped) -> str:
+def _topic_table(playback: BagPlayback, player: BagPlayer) -> str:
     width = max(len(topic.name) for topic in playback.topics)
-    lines = [f'{topic.name:<{width}}  {topic.msgtype:<40} {topic.count:>8,}'
-             + ('  (not played)' if topic.name in skipped else '')
-             for topic in playback.topics]
+    lines = []
+    for topic in playback.topics:
+        played = player.published_as(topic.name)
+        lines.append(f'{topic.name:<{width}}  {topic.msgtype:<40} {topic.count:>8,}'
+                     + ('  (not played)' if not played else
+                        f'  -> {played}' if played != topic.name else ''))
     return '\n'.join(lines)
 
 
@@ -112,7 +115,7 @@ def _play(playback: BagPlayback, args, ros_args, stop: StopRequest) -> int:
               + (f' to {(window - playback.bag_start_ns) * 1e-9:g} s' if window else '')
               + f' at rate {args.rate:g}' + (', /clock' if args.clock else '')
               + (', looped' if args.loop else ''))
-        print(_topic_table(playback, player.skipped), flush=True)
+        print(_topic_table(playback, player), flush=True)
         if args.wait_for:
             unknown = [topic for topic in args.wait_for if topic not in player.topics]
             if unknown:

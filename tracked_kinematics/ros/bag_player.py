@@ -91,6 +91,11 @@ class BagPlayer:
         """Return the topics that are played (the others are in :attr:`skipped`)."""
         return list(self._publishers)
 
+    def published_as(self, topic: str) -> str:
+        """Return the name ``topic`` is published on (after remapping), '' when not played."""
+        entry = self._publishers.get(topic)
+        return '' if entry is None else entry[0].topic_name
+
     def subscribers(self, topic: str) -> int:
         """Return how many subscriptions the publisher of ``topic`` has matched."""
         return self._publishers[topic][0].get_subscription_count()
