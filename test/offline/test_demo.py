@@ -188,6 +188,7 @@ def tree(directory):
     return found
 
 
+@pytest.mark.long  # two demos (~20 s); the manifest's rules are tested below without one
 def test_demo_console_script_twice_in_a_row(tmp_path):
     # `make demo` twice: the second run replaces the outputs its manifest lists, without
     # --force, and nothing else (the user's files, dotfiles and YAML files included).
