@@ -23,7 +23,7 @@ from scipy.spatial.transform import Rotation
 from sensor_msgs.msg import Imu
 from std_msgs.msg import Float64
 from tracked_kinematics.params import icr_from_values, read_params_file
-from tracked_kinematics.ros.imu_input import CLOCK_WINDOW
+from tracked_kinematics.ros.imu_input import CLOCK_WINDOW, HELD
 from tracked_kinematics.ros.odometry_node import OdometryNode
 from tracked_kinematics.share import config_file
 
@@ -360,7 +360,8 @@ def test_memory_is_flat_at_400_hz_with_silent_encoders(graph):
     assert grown < 50_000, grown
     counts = g.node._imu_input.counts
     assert counts['used'] <= (CLOCK_WINDOW + 0.2) * 400 + 25
-    assert counts['waiting'] + counts['clock'] > 0.9 * len(stamps)
+    # The rest dropped, but for the last HELD samples, held for an encoder step.
+    assert counts['waiting'] + counts['clock'] >= len(stamps) - counts['used'] - HELD
 
 
 def test_a_sample_stamped_in_2038_does_not_shut_the_gyro_out(graph):
