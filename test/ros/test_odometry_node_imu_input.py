@@ -282,7 +282,7 @@ def test_an_imu_topic_without_a_usable_sample_warns_with_the_reason(
     started = time.monotonic()
     assert pump(g, lambda: g.warned(reason), **kwargs), [s.message for s in g.statuses[-3:]]
     # Within seconds: the grace (3 s) and one update.
-    assert time.monotonic() - started < 6.0
+    assert time.monotonic() - started < 8.0
     assert g.stderr.warnings('odometry_node', 'no usable gyro sample')
     assert g.node.odometry.source == 'encoders'
 
