@@ -401,3 +401,25 @@ def test_read_sample_reads_what_rclpy_reads(frame):
                 np.testing.assert_array_equal(sample.quaternion, quaternion)
         assert len(reader._starts) == 1
     assert reader.read_sample(b'\x00\x01\x00\x00garbage') is None
+
+
+@pytest.mark.parametrize('name, value, message', [
+    ('imu_mount.roll', math.nan, 'imu_mount.roll must be finite'),
+    ('imu_mount.pitch', 7.0, r'imu_mount.pitch .*\[-6.28'),
+    ('imu_mount.yaw', 'pi', 'imu_mount.yaw'),
+])
+def test_hostile_mounts_are_refused(ros_context, name, value, message):
+    from tracked_kinematics.ros.parameters import ParameterError
+    with pytest.raises(ParameterError, match=message):
+        OdometryNode(context=ros_context, parameter_overrides=[
+            Parameter(k, value=v) for k, v in {**VALUES, **WITH_GYRO, name: value}.items()])
+
+
+def test_a_mount_changed_at_runtime_is_used(graph):
+    g = graph()
+    assert g.node.set_parameters([Parameter('imu_mount.roll', value=math.pi)])[0].successful
+    assert not g.node.set_parameters([Parameter('imu_mount.yaw', value=math.inf)])[0].successful
+    t, left, right, tg, reading, _ = drive()
+    truth = true_heading(AURIGA, t, left, right)
+    msgs = g.feed(t, left, right, tg, [imu(s, (0.0, 0.0, -r)) for s, r in zip(tg, reading)])
+    assert abs(yaws(msgs)[-1] - truth[-1]) < 0.03
