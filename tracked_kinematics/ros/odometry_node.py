@@ -468,7 +468,8 @@ class OdometryNode(TableNode):
         return True
 
     def _reset(self) -> None:
-        self.odometry.reset()
+        self.odometry.reset()   # restarts the twist window too
+        self._twist_span = 0.0
         self._last_publish_ns = None
         # The pose and its accumulated covariance are zero; a robot reset while it moves has
         # its time error at the start too (the rates then, in the new frame: heading 0).
