@@ -103,3 +103,20 @@ def test_the_docs_give_the_recipe_and_the_gyro_delay():
     for block in section.split('```')[1::2]:
         if 'publish_tf: false' in block:
             assert '/**' not in block and 'ekf_filter_node' not in block, block
+
+
+@pytest.mark.ros
+def test_the_console_script_takes_the_two_files(tmp_path):
+    """As the docs launch it: the terrain file, then the overlay; no transform, 30 Hz."""
+    import time
+    from helpers.ros_helpers import ConsoleScript
+    terrain = config_file('auriga_alpha_hard_floor.yaml')
+    with ConsoleScript('odometry_node', '--ros-args', '--params-file', terrain,
+                       '--params-file', OVERLAY, tmp_path=tmp_path) as script:
+        deadline = time.monotonic() + 30.0
+        while 'ICR model' not in script.output and script.process.poll() is None \
+                and time.monotonic() < deadline:
+            time.sleep(0.05)   # polls the condition (test_main's pattern)
+        assert script.stop() == 0, script.output
+    assert 'publishing /odom (odom -> base_link) at up to 30 Hz\n' in script.output
+    assert 'with TF' not in script.output and 'tf2_ros cannot be imported' not in script.output

@@ -23,7 +23,7 @@ from scipy.spatial.transform import Rotation
 from sensor_msgs.msg import Imu
 from std_msgs.msg import Float64
 from tracked_kinematics.params import icr_from_values, read_params_file
-from tracked_kinematics.ros.imu_input import CLOCK_WINDOW
+from tracked_kinematics.ros.imu_input import CLOCK_WINDOW, HELD
 from tracked_kinematics.ros.odometry_node import OdometryNode
 from tracked_kinematics.share import config_file
 
@@ -282,7 +282,7 @@ def test_an_imu_topic_without_a_usable_sample_warns_with_the_reason(
     started = time.monotonic()
     assert pump(g, lambda: g.warned(reason), **kwargs), [s.message for s in g.statuses[-3:]]
     # Within seconds: the grace (3 s) and one update.
-    assert time.monotonic() - started < 6.0
+    assert time.monotonic() - started < 8.0
     assert g.stderr.warnings('odometry_node', 'no usable gyro sample')
     assert g.node.odometry.source == 'encoders'
 
@@ -360,7 +360,8 @@ def test_memory_is_flat_at_400_hz_with_silent_encoders(graph):
     assert grown < 50_000, grown
     counts = g.node._imu_input.counts
     assert counts['used'] <= (CLOCK_WINDOW + 0.2) * 400 + 25
-    assert counts['waiting'] + counts['clock'] > 0.9 * len(stamps)
+    # The rest dropped, but for the last HELD samples, held for an encoder step.
+    assert counts['waiting'] + counts['clock'] >= len(stamps) - counts['used'] - HELD
 
 
 def test_a_sample_stamped_in_2038_does_not_shut_the_gyro_out(graph):
@@ -400,3 +401,25 @@ def test_read_sample_reads_what_rclpy_reads(frame):
                 np.testing.assert_array_equal(sample.quaternion, quaternion)
         assert len(reader._starts) == 1
     assert reader.read_sample(b'\x00\x01\x00\x00garbage') is None
+
+
+@pytest.mark.parametrize('name, value, message', [
+    ('imu_mount.roll', math.nan, 'imu_mount.roll must be finite'),
+    ('imu_mount.pitch', 7.0, r'imu_mount.pitch .*\[-6.28'),
+    ('imu_mount.yaw', 'pi', 'imu_mount.yaw'),
+])
+def test_hostile_mounts_are_refused(ros_context, name, value, message):
+    from tracked_kinematics.ros.parameters import ParameterError
+    with pytest.raises(ParameterError, match=message):
+        OdometryNode(context=ros_context, parameter_overrides=[
+            Parameter(k, value=v) for k, v in {**VALUES, **WITH_GYRO, name: value}.items()])
+
+
+def test_a_mount_changed_at_runtime_is_used(graph):
+    g = graph()
+    assert g.node.set_parameters([Parameter('imu_mount.roll', value=math.pi)])[0].successful
+    assert not g.node.set_parameters([Parameter('imu_mount.yaw', value=math.inf)])[0].successful
+    t, left, right, tg, reading, _ = drive()
+    truth = true_heading(AURIGA, t, left, right)
+    msgs = g.feed(t, left, right, tg, [imu(s, (0.0, 0.0, -r)) for s, r in zip(tg, reading)])
+    assert abs(yaws(msgs)[-1] - truth[-1]) < 0.03

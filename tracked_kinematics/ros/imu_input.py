@@ -14,7 +14,7 @@ sample refused. See docs/nodes/odometry_node.md, "IMU frames", and docs/diagnost
 
 from __future__ import annotations
 
-from collections import Counter
+from collections import Counter, deque
 from collections.abc import Mapping
 import math
 from time import monotonic_ns
@@ -35,6 +35,10 @@ CLOCK_WINDOW = 2.0
 
 #: s of steady time without an encoder step after which the encoders are silent.
 ENCODERS_SILENT = 1.0
+
+#: Samples held for the next encoder step (before the first, or while the encoders are
+#: silent): CLOCK_WINDOW s at 1 kHz.
+HELD = 2000
 
 _NS = 1_000_000_000
 _IMU_TYPE = 'sensor_msgs/msg/Imu'
@@ -74,7 +78,7 @@ class ImuInput:
         Stamp of the latest encoder step, ns (set by the node at each step).
     counts : collections.Counter
         Samples by fate: ``used``, ``refused`` (by the odometry), ``clock``, ``unreadable``,
-        ``waiting`` (no encoder step yet, no transform yet).
+        ``waiting`` (held for an encoder step and dropped, or no transform yet).
 
     """
 
@@ -86,6 +90,7 @@ class ImuInput:
         self.encoder_ns: int | None = None
         self._encoder_steady_ns: int | None = None
         self.counts: Counter = Counter()
+        self._held: deque = deque(maxlen=HELD)
         self._start_ns = monotonic_ns()
         self._usable_ns: int | None = None
         self._why = ''               # why the latest sample was not usable
@@ -105,25 +110,41 @@ class ImuInput:
         self._base_frame = values['base_frame']
         self._tf_mounts = {}
 
-    def encoder_step(self, stamp_ns: int) -> None:
-        """Note an encoder step's stamp (ns): the time samples are checked against."""
+    def encoder_step(self, stamp_ns: int) -> list:
+        """
+        Note an encoder step's stamp (ns): the time samples are checked against.
+
+        Returns the held samples (before the first step, or while the encoders were silent)
+        within :data:`CLOCK_WINDOW` of it, in order, for the odometry; the others are dropped.
+        """
         self.encoder_ns = stamp_ns
         self._encoder_steady_ns = monotonic_ns()
+        if not self._held:
+            return []
+        window = CLOCK_WINDOW * _NS
+        ready = [(t, rate) for stamp, t, rate in self._held
+                 if abs(stamp - self._delay_ns - stamp_ns) <= window]
+        self.counts['waiting'] += len(self._held) - len(ready)
+        self._held.clear()
+        return ready
 
     # The samples ------------------------------------------------------------------------
 
     def take(self, data: bytes):
         """
-        Return ``(t, heading rate)`` of a serialised Imu, or None when it is not to be used.
+        Return ``(t, heading rate)`` of a serialised Imu, or None when it is not to be used now.
 
         ``t`` in s from ``reader.origin``, rad/s. None for bytes that are not an Imu, a zero
-        stamp, a stamp beyond :data:`CLOCK_WINDOW` of the encoders' time, no encoder step yet
-        and no mount yet (TF): each counted, the clock's throttled in the log.
+        stamp, a stamp beyond :data:`CLOCK_WINDOW` of the encoders' time and no mount yet (TF):
+        each counted, the clock's throttled in the log. Before the first encoder step, and
+        ahead of silent encoders, a sample is held (the last :data:`HELD` of them) for
+        :meth:`encoder_step`.
         """
         sample = self.reader.read_sample(data)
         if sample is None:
             return self._skip('unreadable', 'a message that is no sensor_msgs/Imu', True)
-        if not self._stamp_plausible(sample.stamp_ns):
+        fate = self._stamp_fate(sample.stamp_ns)
+        if fate is None:
             return None
         mount = self._mount_of(sample)
         if mount is None:
@@ -131,7 +152,13 @@ class ImuInput:
         rate, used = heading_rate(sample.omega, mount, sample.quaternion,
                                   sample.has_orientation)
         self.orientation_used = used
-        return self.reader.seconds(sample.stamp_ns), rate
+        t = self.reader.seconds(sample.stamp_ns)
+        if fate == 'hold':
+            if len(self._held) == self._held.maxlen:
+                self.counts['waiting'] += 1
+            self._held.append((sample.stamp_ns, t, rate))
+            return None
+        return t, rate
 
     def taken(self, accepted: bool, reason: str) -> None:
         """Note whether the odometry took the sample ``take`` returned (its reason if not)."""
@@ -144,38 +171,38 @@ class ImuInput:
             self._why = f'every sample refused by the odometry ({reason})'
 
     def _skip(self, kind: str, why: str, warn: bool = False):
-        self.counts[kind] += 1
+        if kind:
+            self.counts[kind] += 1
         self._why = why
         if warn:
             self._logger.warning(f'{self._topic_name()}: {why}: sample skipped',
                                  throttle_duration_sec=WARN_PERIOD)
         return None
 
-    def _stamp_plausible(self, stamp_ns: int) -> bool:
+    def _stamp_fate(self, stamp_ns: int) -> str | None:
+        """Return 'use', 'hold' (for the next encoder step) or None (dropped, counted)."""
         if stamp_ns <= 0:
-            self._skip('clock', 'samples with a zero stamp (the driver must stamp them)', True)
-            return False
+            return self._skip('clock', 'samples with a zero stamp (the driver must stamp them)',
+                              True)
         if self.encoder_ns is None:
             now_ns = self._node.get_clock().now().nanoseconds
             if abs(stamp_ns - now_ns) > CLOCK_WINDOW * _NS:
-                self._skip('clock', f'samples stamped {(stamp_ns - now_ns) / _NS:+.6g} s from '
-                           "this node's clock and no encoder step yet: another clock? "
-                           '(use_sim_time)')
+                self._skip('', f'no encoder step yet, and samples stamped '
+                           f"{(stamp_ns - now_ns) / _NS:+.6g} s from this node's clock")
             else:
-                self._skip('waiting', 'no encoder step yet (samples are used against the '
+                self._skip('', 'no encoder step yet (samples are used against the '
                            "encoders' time)")
-            return False
+            return 'hold'
         offset = stamp_ns - self._delay_ns - self.encoder_ns
         if abs(offset) <= CLOCK_WINDOW * _NS:
-            return True
+            return 'use'
         if self._encoders_silent() and offset > 0:
-            self._skip('waiting', 'the encoders are silent (samples are used against the '
+            self._skip('', 'the encoders are silent (samples are used against the '
                        "encoders' time)")
-            return False
-        self._skip('clock', f"stamped {offset / _NS:+.6g} s from the encoders' time (beyond "
-                   f'{CLOCK_WINDOW:g} s after imu_delay): another clock (use_sim_time?), or a '
-                   'wild stamp', True)
-        return False
+            return 'hold'
+        return self._skip('clock', f"stamped {offset / _NS:+.6g} s from the encoders' time "
+                          f'(beyond {CLOCK_WINDOW:g} s after imu_delay): another clock '
+                          '(use_sim_time?), or a wild stamp', True)
 
     def _encoders_silent(self) -> bool:
         last = self._encoder_steady_ns

@@ -263,8 +263,10 @@ class OdometryNode(TableNode):
 
     def _on_imu(self, data: bytes) -> None:
         sample = self._imu_input.take(data)  # (t, heading rate), or None: not to be used
-        if sample is None:
-            return
+        if sample is not None:
+            self._gyro_sample(sample)
+
+    def _gyro_sample(self, sample) -> None:
         self._imu_input.taken(self.odometry.imu(*sample), self.odometry.reason)
         if self.odometry.source != self._source:
             self._switched()
@@ -352,7 +354,8 @@ class OdometryNode(TableNode):
 
     def _on_step(self, stamp_s: float, d_left: float, d_right: float, dt: float) -> None:
         if self._gyro:
-            self._imu_input.encoder_step(self.encoder.stamp_ns)
+            for sample in self._imu_input.encoder_step(self.encoder.stamp_ns):
+                self._gyro_sample(sample)   # held until an encoder step
             self._take_imu()
             # On the gyro's time origin (whole seconds): epoch seconds lose precision.
             reader = self._imu_reader
@@ -413,8 +416,9 @@ class OdometryNode(TableNode):
 
     def _reset(self) -> None:
         # The pose and its accumulated covariance are zero; the core keeps the time error at
-        # the start (the rates then, in the new frame).
+        # the start (the rates then, in the new frame). The twist window restarts too.
         self.odometry.reset()
+        self._twist_span = 0.0
         self._last_publish_ns = None
 
 
