@@ -20,9 +20,9 @@ from tracked_kinematics.offline.cli import identify_icr
 from tracked_kinematics.offline.identification.api import fit, FitOptions
 from tracked_kinematics.offline.identification.combined import (
     icr_from_pose_and_gyro, time_split)
+from tracked_kinematics.offline.identification.noise_constants import gyro_extras
 from tracked_kinematics.offline.identification.poses import icr_from_poses
 from tracked_kinematics.offline.identification.references import icr_from_references
-from tracked_kinematics.offline.identification.noise_constants import gyro_extras
 from tracked_kinematics.offline.model_evaluation import (
     evaluate_models, pose_references, TerrainModel)
 from tracked_kinematics.offline.terrain_file import terrain_text
