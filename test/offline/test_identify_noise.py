@@ -93,6 +93,8 @@ def test_gyro_alone_fits_what_the_heading_determines_and_holds_slip(bags, tmp_pa
     assert report['covariance']['held'] == ['slip']
     assert 'held at the prior: slip' in text
     assert 'the uncertainty of what was held added' in text
+    # The same DDC snippet as a pose fit prints.
+    assert 'diff_drive_controller:\n  ros__parameters:' in text
 
 
 def test_pose_alone_on_two_bags_holds_each_out_in_turn(bags, tmp_path, capsys):

@@ -90,7 +90,8 @@ def icr_from_references(recordings, options, track_width: float, sprocket_radius
                               'positions': 0 if r.positions is None else len(r.positions[0]),
                               'pose_samples': 0 if r.pose is None else len(r.pose[0])}
                              for r in recordings]}
-    lines = _table(fit, recordings, tool)
+    lines = _table(fit, recordings, tool) + ddc_lines(icr, sprocket_radius)
+    report['tuned_ddc'] = {'parameters': _ddc_values(icr, sprocket_radius)}
     add_extras(values, report, lines,
                reference_extras(fit, recordings, options, track_width,
                                 _held_base(base, options.model)))
@@ -151,3 +152,24 @@ def _table(fit, recordings, tool) -> list[str]:
                  f'{icr.x:.4f} m, scales {icr.scale_left:.4f} / {icr.scale_right:.4f}; chi '
                  f'{icr.chi:.3f}, e {icr.eccentricity:.3f}')
     return lines
+
+
+def _ddc_values(icr, radius) -> dict:
+    """diff_drive_controller's parameters of an ICR model: separation from the ICRs, scales."""
+    return ident.ddc_parameters(
+        [(icr.y_left - icr.y_right) / icr.track_width, icr.scale_left, icr.scale_right],
+        icr.track_width, radius)
+
+
+def ddc_lines(icr, radius) -> list[str]:
+    """
+    Return the diff_drive_controller snippet of a reference calibration, as the pose fit prints.
+
+    Its wheel separation is the ICRs' spread, its radius multipliers the scales; ``icr.x`` and
+    the ICR offset, which it cannot express, are dropped (the pose fit fits its own instead).
+    """
+    values = _ddc_values(icr, radius)
+    return (['', 'diff_drive_controller of the same calibration (the ICR spread as the wheel '
+             'separation, the scales as radius multipliers; controller name yours):',
+             'diff_drive_controller:', '  ros__parameters:']
+            + [f'    {name}: {value:.6g}' for name, value in values.items()])

@@ -48,6 +48,8 @@ class HeadingFusion:
         Smoothing window used, s.
     biases : list of float
         Gyro bias per recording, rad/s (its heading drift against the pose's).
+    bias_errors : list of float
+        Their standard errors, rad/s.
     rate : float
         Pose samples per second.
 
@@ -58,6 +60,7 @@ class HeadingFusion:
     window: float
     biases: list
     rate: float
+    bias_errors: list = ()
 
 
 def check_gyro_against_pose(scale: float, std: float) -> str:
@@ -160,6 +163,39 @@ def _noise(pieces, rate):
     return sigma_pose, math.sqrt(max(q2, 1e-10))
 
 
+def _drift(pieces, rate_at) -> tuple[float, float]:
+    """
+    Return the gyro bias from the offsets pose minus gyro of one recording and its error, rad/s.
+
+    ``r(t) = c_k - b (t - t_k) + delta w(t)``: an offset per piece, the bias ``b`` common, and a
+    residual misalignment of the two clocks ``delta`` times the rate ``w`` (a pose a few 0.01 s
+    off turns a fast turn's start into a slope); least squares, then once more without the
+    residuals beyond three robust standard deviations (pose glitches).
+    """
+    if not pieces:
+        return math.nan, math.inf
+    n = len(pieces)
+    rows, ys = [], []
+    for k, (t, r) in enumerate(pieces):
+        a = np.zeros((len(t), n + 2))
+        a[:, k] = 1.0
+        a[:, n] = -(t - t[0])
+        a[:, n + 1] = rate_at(t)
+        rows.append(a)
+        ys.append(r)
+    a, y = np.vstack(rows), np.concatenate(ys)
+    keep = np.ones(len(y), dtype=bool)
+    for _ in range(2):
+        p, *_ = np.linalg.lstsq(a[keep], y[keep], rcond=None)
+        res = y - a @ p
+        mad = 1.4826 * float(np.median(np.abs(res[keep] - np.median(res[keep]))))
+        keep = np.abs(res) <= 3.0 * max(mad, 1e-9)
+    # Standard error of b with the residuals' spread (their correlation over a few samples
+    # ignored: a lower bound, which bias_prior's floor covers).
+    cov = np.linalg.pinv(a[keep].T @ a[keep]) * float(np.mean(res[keep] ** 2))
+    return float(p[n]), float(math.sqrt(max(cov[n, n], 0.0)))
+
+
 def fuse_heading(recordings, imu_delay: float, gyro_scale: float = 1.0):
     """
     Return the recordings with the pose's heading replaced by the fused one, and the fusion.
@@ -200,19 +236,16 @@ def fuse_heading(recordings, imu_delay: float, gyro_scale: float = 1.0):
     fused, biases = [], []
     for rec, (gyro_t, heading), pieces in zip(recs, headings, all_pieces):
         yaw = np.unwrap(rec.gt_yaw).copy()
-        slopes, weights = [], []
         for t, r in pieces:
-            offset, slope = _local_line(t, r, window)
+            offset, _ = _local_line(t, r, window)
             idx = np.searchsorted(rec.gt_t, t)
             # Keep each piece's own unwrapping: fused = gyro heading + smoothed offset.
             yaw[idx] = np.interp(t, gyro_t, heading) + offset
-            slopes.append(float(np.median(slope)))
-            weights.append(float(t[-1] - t[0]))
         fused.append(replace(rec, gt_yaw=np.angle(np.exp(1j * yaw))))
-        # The offset pose - gyro grows at minus the bias.
-        biases.append(-float(np.average(slopes, weights=weights)) if sum(weights) > 0
-                      else math.nan)
-    return fused, HeadingFusion(sigma_pose, q, window, biases, rate)
+        w = rec.gyro_rate / gyro_scale
+        biases.append(_drift(pieces, lambda t, gt=gyro_t, w=w: np.interp(t, gt, w)))
+    return fused, HeadingFusion(sigma_pose, q, window, [b for b, _ in biases], rate,
+                                [e for _, e in biases])
 
 
 def bias_prior(biases, std_error: float = 0.0) -> tuple[float, float]:
