@@ -34,7 +34,7 @@ def run(v, w, t0=0.0):
 
 
 def turns(seconds, still=3.0, seed=0, t0=0.0, curvature_sign=None):
-    """Still, then piecewise-constant turns (3 s each) of both signs (or one)."""
+    """Return a drive: still, then piecewise-constant arcs, 3 s each, of both signs."""
     rng = np.random.default_rng(seed)
     n = int(seconds * RATE)
     k = np.maximum(np.floor((np.arange(n) / RATE - still) / 3.0).astype(int), 0)

@@ -30,8 +30,8 @@ import math
 
 from .agreement import AgreementCheck, AGREES, PENDING, REFUSED
 from .bias import TurnBias
-from .config import (ENCODERS, ERROR, finite_square, GYRO, GyroConfig, OK, SUM_TOLERANCE,
-                     time_limit, WARN)
+from .gyro_config import (ENCODERS, ERROR, finite_square, GYRO, GyroConfig, OK,
+                          SUM_TOLERANCE, time_limit, WARN)
 from .samples import BACK, GyroSamples, STALE
 from ..covariance import (arc_step, propagate, saturate, TrackNoise, travel_jacobian,
                           twist_covariance, TWIST_TIME, twist_variances)
@@ -293,7 +293,7 @@ class GyroOdometry(Published):
             self._far_since = t1
         if t1 - self._far_since >= CLOCK_TIME:
             self._clock = (f"the gyro's stamps are {last - t1:+.3g} s from the encoders' "
-                           '(another clock? use_sim_time, the IMU driver\'s time source, '
+                           "(another clock? use_sim_time, the IMU driver's time source, "
                            'imu_delay)')
         return bool(self._clock)
 
@@ -549,7 +549,7 @@ class GyroOdometry(Published):
 
     def _model_variance(self, dpsi_e, big):
         """
-        The model's heading variance over a step: its slip error, and what the gyro has shown.
+        Return the model's heading variance over a step: its slip, and what the gyro showed.
 
         ``model_yaw_rel_std`` of the increment, and, once the gyro agrees with the tracks,
         the turn gain it measured against the spread in force (``k W / gyro_scale - 1``: the

@@ -14,7 +14,7 @@ from __future__ import annotations
 from collections import deque
 import math
 
-from .config import GyroConfig, time_limit
+from .gyro_config import GyroConfig, time_limit
 
 #: Most samples kept (10 s at 400 Hz): the buffer is bounded whatever the clocks do.
 MAX_SAMPLES = 4096
