@@ -183,6 +183,25 @@ def test_a_gyro_on_another_clock_is_refused():
     assert set(sources) == {ENCODERS}
 
 
+def test_a_gyro_that_goes_silent_is_stale_not_on_another_clock():
+    t, left, right, w_true, _ = turns(60.0)
+    g_t, g_w = readings(t, w_true)
+    keep = (g_t < 20.0) | (g_t > 45.0)                # 25 s without a sample
+    odo = GyroOdometry(MODEL, CONFIG)
+    levels = []
+    events = sorted([(s, 0, k) for k, s in enumerate(g_t[keep])]
+                    + [(s, 1, k) for k, s in enumerate(t)])
+    for s, kind, k in events:
+        if kind == 0:
+            odo.imu(s, g_w[keep][k])
+        else:
+            odo.encoders(s, left[k], right[k])
+            levels.append((s, odo.level, odo.reason))
+    silent = [(lvl, why) for s, lvl, why in levels if 21.0 < s < 45.0]
+    assert {lvl for lvl, _ in silent} == {'warn'} and 'stale' in silent[-1][1]
+    assert odo.source == GYRO and odo.level == OK
+
+
 def test_a_robot_that_never_stops_uses_its_gyro_with_the_bias_it_finds():
     # Before: the bias was never called known in motion (issue 35, item 0).
     t, left, right, w_true, heading = turns(180.0, still=0.0, seed=3)

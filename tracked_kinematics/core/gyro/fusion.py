@@ -116,6 +116,7 @@ class GyroOdometry(Published):
         self._covered = (0.0, 0.0)
         self._far_since = math.nan
         self._clock = ''
+        self._arrived = 0            # samples received by the last step
         # turn (m), s, gyro (rad), distance (m), forward (m, signed)
         self._segment = [0.0] * 5
         self._short = [0.0] * 5                # the same for the agreement check
@@ -283,7 +284,16 @@ class GyroOdometry(Published):
     # The step --------------------------------------------------------------------------
 
     def _check_clock(self, t1: float) -> bool:
-        """Whether the gyro's stamps are on another clock (far from ``t1`` for a while)."""
+        """
+        Whether the gyro's stamps are on another clock (far from ``t1`` for a while).
+
+        Judged only on steps after which samples arrived: a gyro that went silent is stale,
+        not on another clock.
+        """
+        arrived = self.samples.arrived
+        fresh, self._arrived = arrived != self._arrived, arrived
+        if not fresh:
+            return bool(self._clock)
         last = self.samples.last_t
         far = math.isfinite(last) and abs(last - t1) > time_limit(self._config)
         if not far:

@@ -49,6 +49,7 @@ class GyroSamples:
         self.healthy_since = math.nan
         self.fault = ''
         self.refused = 0
+        self.arrived = 0      # samples received, any
 
     def clear(self) -> None:
         """Forget every sample: the integral across the gap is unknown."""
@@ -68,6 +69,7 @@ class GyroSamples:
 
         """
         cfg = self.config
+        self.arrived += 1
         ts = t - cfg.imu_delay
         previous, self._last_w = self._last_w, math.nan
         if not (math.isfinite(ts) and math.isfinite(w)):
