@@ -2,11 +2,12 @@
 Benchmark: the gyro-aided odometry on every set of ../shared/realdata that has a gyro (issue 35).
 
 Per set, a terrain file is fitted by identify_icr's library (its pose fit, which finds the
-bag's gyro: the ICRs, the noise model, ``imu_delay``, ``gyro_scale``) on training data and the held-out data scored by
-evaluate_model's library with ``--fuse-imu``: the Warthog grass runs leave one run out; the
-single-run sets (Warthog asphalt, sand, gravel, ice; Marmotte snow) are split in time, the
-first 55 % of the bag's time to fit, the rest to score (copied into two bags: the held-out
-part starts mid-drive, as a node restarted while the robot drives). The tuned
+bag's gyro: the ICRs, the noise model, ``imu_delay``, ``gyro_scale``) on training data and
+the held-out data scored by evaluate_model's library with ``--fuse-imu``: the Warthog grass
+runs leave one run out; the single-run sets (Warthog asphalt, sand, gravel, ice; Marmotte
+snow) are split in time, the first 55 % of the bag's time to fit, the rest to score (copied
+into two bags: the held-out part starts mid-drive, as a node restarted while the robot
+drives). The tuned
 diff_drive_controller is identify_icr's ``tuned_ddc`` fit of the same training data, scored
 as an ICR file. Printed per set: mean final position error after 5 s and 10 s of the tuned
 DDC, the encoders and the gyro-aided odometry, the targets of issue 35, and the coverage of

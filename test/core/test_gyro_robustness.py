@@ -34,7 +34,7 @@ def run(v, w, t0=0.0):
 
 
 def turns(seconds, still=3.0, seed=0, t0=0.0, curvature_sign=None):
-    """Still, then piecewise-constant turns (3 s each) of both signs (or one)."""
+    """Return a drive: still, then piecewise-constant arcs, 3 s each, of both signs."""
     rng = np.random.default_rng(seed)
     n = int(seconds * RATE)
     k = np.maximum(np.floor((np.arange(n) / RATE - still) / 3.0).astype(int), 0)
@@ -181,6 +181,25 @@ def test_a_gyro_on_another_clock_is_refused():
             sources.append(odo.source)
     assert odo.level == ERROR and 'clock' in odo.reason
     assert set(sources) == {ENCODERS}
+
+
+def test_a_gyro_that_goes_silent_is_stale_not_on_another_clock():
+    t, left, right, w_true, _ = turns(60.0)
+    g_t, g_w = readings(t, w_true)
+    keep = (g_t < 20.0) | (g_t > 45.0)                # 25 s without a sample
+    odo = GyroOdometry(MODEL, CONFIG)
+    levels = []
+    events = sorted([(s, 0, k) for k, s in enumerate(g_t[keep])]
+                    + [(s, 1, k) for k, s in enumerate(t)])
+    for s, kind, k in events:
+        if kind == 0:
+            odo.imu(s, g_w[keep][k])
+        else:
+            odo.encoders(s, left[k], right[k])
+            levels.append((s, odo.level, odo.reason))
+    silent = [(lvl, why) for s, lvl, why in levels if 21.0 < s < 45.0]
+    assert {lvl for lvl, _ in silent} == {'warn'} and 'stale' in silent[-1][1]
+    assert odo.source == GYRO and odo.level == OK
 
 
 def test_a_robot_that_never_stops_uses_its_gyro_with_the_bias_it_finds():

@@ -90,3 +90,40 @@ def test_a_log_without_gyro_messages_is_one_line(tmp_path, capsys):
     assert status == 2 and 'no Imu messages on /imu/data' in err
     assert len(err.splitlines()) == 1 and 'corrupt' not in err
     assert not out.exists()
+
+
+def test_the_marmotte_replayed_from_mid_drive_takes_its_heading_from_the_gyro():
+    """Issue 35, item 0: a tracked robot that never stands still, replayed from mid-drive."""
+    import numpy as np
+    from tracked_kinematics.core.gyro import GYRO, GyroConfig, replay
+    from tracked_kinematics.core.recording import Recording
+    from tracked_kinematics.offline.bags import CommandSource, read_evaluation_bag
+    from tracked_kinematics.offline.model_evaluation import with_gyro
+
+    path = realdata.bag('marmotte_snow_2024-01-25_12h15_part1')
+    encoders = EncoderSource(sprocket_radius=0.116702)
+    rec, _ = read_evaluation_bag(path, encoders, GroundTruthSource(realdata.TOPIC),
+                                 CommandSource('none'))
+    rec = with_gyro(path, rec, encoders, '/imu/data')
+    cut = rec.enc_t[0] + 0.55 * (rec.enc_t[-1] - rec.enc_t[0])
+
+    def part(first):
+        e = (rec.enc_t < cut) if first else (rec.enc_t >= cut)
+        g = (rec.gt_t < cut) if first else (rec.gt_t >= cut)
+        i = (rec.gyro_t < cut) if first else (rec.gyro_t >= cut)
+        return Recording(rec.enc_t[e], rec.left[e], rec.right[e], rec.gt_t[g], rec.gt_x[g],
+                         rec.gt_y[g], rec.gt_yaw[g], gyro_t=rec.gyro_t[i],
+                         gyro_rate=rec.gyro_rate[i])
+
+    train, test = part(True), part(False)
+    icr = ident.identify([train], 'icr_scales', 0.592723, ground_truth_delay='auto',
+                         accept_uncertain=True).icr
+    moving = np.abs(np.diff(test.left[:20])).sum() / (test.enc_t[19] - test.enc_t[0])
+    assert moving > 0.2                                   # it starts in motion
+    _, sources, odo = replay(test.enc_t, test.left, test.right, test.gyro_t, test.gyro_rate,
+                             icr, GyroConfig(imu_delay=0.017))
+    first = test.enc_t[np.argmax(sources == GYRO)] - test.enc_t[0]
+    # Measured: from 17.6 s on (the file of identify_icr's pose fit); before issue 35 never.
+    assert np.any(sources == GYRO) and first < 30.0
+    assert np.mean(sources[test.enc_t - test.enc_t[0] > 30.0] == GYRO) > 0.9
+    assert odo.check.verdict == 'agrees' and abs(odo.bias) < 0.01

@@ -16,11 +16,11 @@ from pathlib import Path
 import numpy as np
 from tracked_kinematics.core import evaluate as ev
 from tracked_kinematics.core import identify as ident
+from tracked_kinematics.core.covariance import TrackNoise
 from tracked_kinematics.core.errors import ExcitationError, InvalidParameters
 from tracked_kinematics.core.estimate.config import EstimatorConfig
 from tracked_kinematics.core.evaluate.consistency import (
     gyro_track, gyro_window_consistency, window_consistency)
-from tracked_kinematics.core.covariance import TrackNoise
 from tracked_kinematics.core.kinematics import IcrParams
 from tracked_kinematics.offline.errors import UsageError
 from tracked_kinematics.params import (

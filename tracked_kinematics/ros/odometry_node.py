@@ -4,7 +4,8 @@ odometry_node: track encoders to nav_msgs/Odometry through the tread-ICR kinemat
 A thin adapter: :class:`~tracked_kinematics.ros.encoder_input.EncoderInput` gives travel
 steps, :class:`~tracked_kinematics.core.odometry.Odometry` integrates them (or, with an
 ``imu_topic``, :class:`~tracked_kinematics.core.gyro.GyroOdometry`, fed the gyro's
-samples too; both called the same way), this node fills ``odom`` and the transform. See docs/nodes/odometry_node.md.
+samples too; both called the same way), this node fills ``odom`` and the transform. See
+docs/nodes/odometry_node.md.
 """
 
 from __future__ import annotations

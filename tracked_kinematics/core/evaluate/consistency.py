@@ -166,7 +166,7 @@ def reset_windows(enc_t, left, right, pieces, length: float, min_speed: float | 
 
 
 def _truth_at(piece, times):
-    """The piece's ground truth interpolated at ``times`` (inside it): (T, 3)."""
+    """Return the piece's ground truth interpolated at ``times`` (inside it): (T, 3)."""
     return np.column_stack([np.interp(times, piece.t, piece.truth[:, k]) for k in range(3)])
 
 

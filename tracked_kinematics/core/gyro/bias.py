@@ -31,7 +31,7 @@ import math
 
 import numpy as np
 
-from .config import GyroConfig, SUM_TOLERANCE
+from .gyro_config import GyroConfig, SUM_TOLERANCE
 
 #: s, blocks of standstill over which the gyro is observed and its noise measured.
 NOISE_BLOCK = 0.5
@@ -212,7 +212,7 @@ class TurnBias:
         self._previous = None            # the previous block's (mean rate, duration)
 
     def still(self, a: float, d: float, y: float) -> None:
-        """Take a step of standstill (after ``still_time``): creep ``a`` m, ``d`` s, ``y`` rad."""
+        """Observe a standstill step, after ``still_time``: creep ``a`` m, ``d`` s, ``y`` rad."""
         if self.still_refused:
             return
         if self._checkpoint is None:
@@ -253,7 +253,7 @@ class TurnBias:
             self._since = [0.0, 0.0, 0.0]
 
     def moving(self) -> None:
-        """The standstill ended: keep what it taught (if it agreed with zero motion)."""
+        """End the standstill: keep what it taught (if it agreed with zero motion)."""
         self._checkpoint = None
         self.still_refused = False
         self._still_reset()

@@ -30,8 +30,8 @@ import math
 
 from .agreement import AgreementCheck, AGREES, PENDING, REFUSED
 from .bias import TurnBias
-from .config import (ENCODERS, ERROR, finite_square, GYRO, GyroConfig, OK, SUM_TOLERANCE,
-                     time_limit, WARN)
+from .gyro_config import (ENCODERS, ERROR, finite_square, GYRO, GyroConfig, OK,
+                          SUM_TOLERANCE, time_limit, WARN)
 from .samples import BACK, GyroSamples, STALE
 from ..covariance import (arc_step, propagate, saturate, TrackNoise, travel_jacobian,
                           twist_covariance, TWIST_TIME, twist_variances)
@@ -113,8 +113,10 @@ class GyroOdometry(Published):
         self._ahead = 0.0            # extrapolated heading not yet covered by samples
         self._enc = None             # (t, left, right) of the last encoder sample
         self._still_for = 0.0
+        self._covered = (0.0, 0.0)
         self._far_since = math.nan
         self._clock = ''
+        self._arrived = 0            # samples received by the last step
         # turn (m), s, gyro (rad), distance (m), forward (m, signed)
         self._segment = [0.0] * 5
         self._short = [0.0] * 5                # the same for the agreement check
@@ -282,7 +284,16 @@ class GyroOdometry(Published):
     # The step --------------------------------------------------------------------------
 
     def _check_clock(self, t1: float) -> bool:
-        """Whether the gyro's stamps are on another clock (far from ``t1`` for a while)."""
+        """
+        Whether the gyro's stamps are on another clock (far from ``t1`` for a while).
+
+        Judged only on steps after which samples arrived: a gyro that went silent is stale,
+        not on another clock.
+        """
+        arrived = self.samples.arrived
+        fresh, self._arrived = arrived != self._arrived, arrived
+        if not fresh:
+            return bool(self._clock)
         last = self.samples.last_t
         far = math.isfinite(last) and abs(last - t1) > time_limit(self._config)
         if not far:
@@ -293,7 +304,7 @@ class GyroOdometry(Published):
             self._far_since = t1
         if t1 - self._far_since >= CLOCK_TIME:
             self._clock = (f"the gyro's stamps are {last - t1:+.3g} s from the encoders' "
-                           '(another clock? use_sim_time, the IMU driver\'s time source, '
+                           "(another clock? use_sim_time, the IMU driver's time source, "
                            'imu_delay)')
         return bool(self._clock)
 
@@ -325,7 +336,10 @@ class GyroOdometry(Published):
         tail = samples.last_rate * (t1 - covered)
         # The extrapolated tails telescope: the sum of the increments is the gyro's
         # integral up to the last sample plus the current tail, so each covers [t0, t1].
-        raw = samples.integral(self._cursor, covered) + tail - self._ahead
+        # The samples alone (no tail) are kept for the standstill's noise and bias.
+        inside = samples.integral(self._cursor, covered)
+        self._covered = (inside, covered - self._cursor)
+        raw = inside + tail - self._ahead
         self._ahead = tail
         self._cursor = covered
         samples.drop_before(covered)
@@ -343,7 +357,11 @@ class GyroOdometry(Published):
         if still:
             self._close_segment()
             if self._still_for >= cfg.still_time - SUM_TOLERANCE:
-                flt.still(turn, dt, raw)
+                # The samples alone: a late gyro's extrapolated tail would add one
+                # sample's noise to each block (twice the density on a 0.08-s delay).
+                inside, span = self._covered
+                if span > 0.0:
+                    flt.still(turn * span / dt, span, inside)
             return
         if self._still_for > 0.0:
             flt.moving()
@@ -549,7 +567,7 @@ class GyroOdometry(Published):
 
     def _model_variance(self, dpsi_e, big):
         """
-        The model's heading variance over a step: its slip error, and what the gyro has shown.
+        Return the model's heading variance over a step: its slip, and what the gyro showed.
 
         ``model_yaw_rel_std`` of the increment, and, once the gyro agrees with the tracks,
         the turn gain it measured against the spread in force (``k W / gyro_scale - 1``: the

@@ -11,8 +11,8 @@ import math
 
 import numpy as np
 
-from .config import ENCODERS, GyroConfig
 from .fusion import GyroOdometry
+from .gyro_config import ENCODERS, GyroConfig
 from ..kinematics import IcrParams
 
 

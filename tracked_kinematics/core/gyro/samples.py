@@ -14,7 +14,7 @@ from __future__ import annotations
 from collections import deque
 import math
 
-from .config import GyroConfig, time_limit
+from .gyro_config import GyroConfig, time_limit
 
 #: Most samples kept (10 s at 400 Hz): the buffer is bounded whatever the clocks do.
 MAX_SAMPLES = 4096
@@ -49,6 +49,7 @@ class GyroSamples:
         self.healthy_since = math.nan
         self.fault = ''
         self.refused = 0
+        self.arrived = 0      # samples received, any
 
     def clear(self) -> None:
         """Forget every sample: the integral across the gap is unknown."""
@@ -68,6 +69,7 @@ class GyroSamples:
 
         """
         cfg = self.config
+        self.arrived += 1
         ts = t - cfg.imu_delay
         previous, self._last_w = self._last_w, math.nan
         if not (math.isfinite(ts) and math.isfinite(w)):
