@@ -100,8 +100,8 @@ def build_parser() -> argparse.ArgumentParser:
     out.add_argument('--plot', default=None, metavar='OUT.png',
                      help='error against window length, and paths')
     out.add_argument('--consistency-plot', default=None, metavar='OUT.png',
-                     help='the normalised final position errors against the published 50 % '
-                     'and 95 % ellipses: NEES histogram and scatter per terrain file')
+                     help='the normalised final position errors against the published 50 %% '
+                     'and 95 %% ellipses: NEES histogram and scatter per terrain file')
     out.add_argument('--tum', default=None, metavar='DIR',
                      help='new directory: ground truth and odometry of each piece as TUM '
                      'trajectories, to check the RPE with evo_rpe')
