@@ -221,7 +221,7 @@ def _run(args, out) -> int:
                                None if args.all_windows else args.min_speed)
         report = evaluate_models(references, models, settings, sprocket_radius=radius,
                                  command_source=args.command_source, online=args.online,
-                                 fuse_imu=bool(args.fuse_imu))
+                                 fuse_imu=args.fuse_imu or False)
         print(report.table(), file=out)
         if args.report:
             outputs.write_text('--report', report.json())
