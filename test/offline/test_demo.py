@@ -62,8 +62,25 @@ def test_demo_says_where_outputs_are(demo_run):
                  'heldout.png'):
         assert str(out_dir / name) in stdout, name
     yaml_path = (out_dir / 'hard_floor.yaml').resolve()
-    assert (f'ros2 run tracked_kinematics odometry_node --ros-args --params-file {yaml_path}'
-            in stdout)
+    # What a venv user can run (the console scripts), the workspace form said once.
+    lines = stdout.splitlines()
+    assert lines[-1] == (f'   odometry_node --ros-args --params-file {yaml_path} '
+                         '-p imu_topic:=/imu/data')
+    assert 'ros2 run tracked_kinematics NAME' in stdout
+    assert 'ros2 run tracked_kinematics odometry_node' not in stdout
+    at = next(k for k, line in enumerate(lines) if line.startswith('   evaluate_model '))
+    end = at
+    while lines[end].endswith('\\'):
+        end += 1
+    command = ' '.join(line.strip().rstrip('\\').strip() for line in lines[at:end + 1])
+    bags = ' '.join(str(out_dir / 'heldout' / name) for name in ('path1_random', 'path2_sweep'))
+    assert command.startswith(f'evaluate_model {bags} --ground-truth-topic /ground_truth/pose '
+                              f'--params {out_dir / "hard_floor.yaml"} --fuse-imu /imu/data')
+    # The covariance's verdicts, one per row and window length.
+    for row in ('hard_floor ', 'hard_floor+imu '):
+        line = next(line for line in lines if line.startswith('   ' + row))
+        assert sum(line.count(v) for v in (': consistent', ': over-confident',
+                                           ': under-confident', ': too few windows')) == 2
     # The fitted YAML is shown, with its values.
     icr = icr_from_values(read_params_file(out_dir / 'hard_floor.yaml'))
     assert f'y_left: {icr.y_left!r}' in stdout
@@ -103,6 +120,23 @@ def test_identified_model_beats_ideal_on_every_held_out_path(demo_run):
     mean_ideal = np.mean([float(r['ideal_position_error_m']) for r in rows])
     mean_row = next(line for line in stdout.splitlines() if line.strip().startswith('mean'))
     assert f'{mean_ideal:.3f}' in mean_row
+
+
+def test_the_held_out_figure_draws_the_gyro_aided_paths_the_table_reports(demo_run,
+                                                                           monkeypatch):
+    from tracked_kinematics.offline import plots
+    _, out_dir, _ = demo_run
+    drawn = []
+    monkeypatch.setattr(plots, 'save', lambda fig, path, dpi: drawn.append(fig))
+    results = [demo.PathResult('p', 'random', 1, 10.0, 5.0, *(np.cumsum(np.ones((20, 3)) * k,
+                                                                         axis=0)
+                                                              for k in (1.0, 2.0, 3.0, 4.0)))]
+    plots.plot_heldout_paths(out_dir / 'unused.png', results, 'title')
+    ax = drawn[0].axes[0]
+    labels = [line.get_label() for line in ax.get_lines()]
+    assert labels[:4] == ['ground truth', 'ideal diff drive', 'identified ICRs', 'gyro-aided']
+    np.testing.assert_array_equal(ax.get_lines()[3].get_xydata(), results[0].gyro_aided[:, :2])
+    assert 'gyro-aided ' in ax.get_title()
 
 
 def _random_travel(n, seed):
