@@ -122,23 +122,6 @@ def test_identified_model_beats_ideal_on_every_held_out_path(demo_run):
     assert f'{mean_ideal:.3f}' in mean_row
 
 
-def test_the_held_out_figure_draws_the_gyro_aided_paths_the_table_reports(demo_run,
-                                                                           monkeypatch):
-    from tracked_kinematics.offline import plots
-    _, out_dir, _ = demo_run
-    drawn = []
-    monkeypatch.setattr(plots, 'save', lambda fig, path, dpi: drawn.append(fig))
-    results = [demo.PathResult('p', 'random', 1, 10.0, 5.0, *(np.cumsum(np.ones((20, 3)) * k,
-                                                                         axis=0)
-                                                              for k in (1.0, 2.0, 3.0, 4.0)))]
-    plots.plot_heldout_paths(out_dir / 'unused.png', results, 'title')
-    ax = drawn[0].axes[0]
-    labels = [line.get_label() for line in ax.get_lines()]
-    assert labels[:4] == ['ground truth', 'ideal diff drive', 'identified ICRs', 'gyro-aided']
-    np.testing.assert_array_equal(ax.get_lines()[3].get_xydata(), results[0].gyro_aided[:, :2])
-    assert 'gyro-aided ' in ax.get_title()
-
-
 def _random_travel(n, seed):
     rng = np.random.default_rng(seed)
     speeds = np.repeat(rng.uniform(-1.0, 1.0, size=(n // 50 + 1, 2)), 50, axis=0)[:n]
