@@ -5,6 +5,7 @@ import io
 import json
 import os
 from pathlib import Path
+import shlex
 import signal
 import subprocess
 import sys
@@ -120,6 +121,21 @@ def test_identified_model_beats_ideal_on_every_held_out_path(demo_run):
     mean_ideal = np.mean([float(r['ideal_position_error_m']) for r in rows])
     mean_row = next(line for line in stdout.splitlines() if line.strip().startswith('mean'))
     assert f'{mean_ideal:.3f}' in mean_row
+
+
+def test_the_printed_evaluate_model_command_runs_as_written(demo_run, capsys):
+    from tracked_kinematics.offline.cli import evaluate_model
+    _, _, stdout = demo_run
+    lines = stdout.splitlines()
+    at = next(k for k, line in enumerate(lines) if line.startswith('   evaluate_model '))
+    end = at
+    while lines[end].endswith('\\'):
+        end += 1
+    words = shlex.split(' '.join(line.rstrip('\\') for line in lines[at:end + 1]))
+    capsys.readouterr()
+    assert evaluate_model.main(words[1:]) == 0
+    printed = capsys.readouterr().out
+    assert 'published covariance: ' in printed and '\nbest on these bags ' in printed
 
 
 def _random_travel(n, seed):
