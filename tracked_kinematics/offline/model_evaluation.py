@@ -30,6 +30,8 @@ from tracked_kinematics.params import (
     read_params_file, values_from_drivetrain)
 
 TOOL = 'evaluate_model'
+CLOSE = 0.05
+"""Rows whose error is within 5 % of the best row's are named beside it."""
 
 
 # Inputs ----------------------------------------------------------------------------------
@@ -575,6 +577,10 @@ def _advice(report, windows) -> list:
     lines = [f'\nbest on these bags ({what} after {longest} s): {name} '
              f'{_fmt(value, scale, digits)} {unit}' + (f' (then {others})' if others else '')
              + '; held-out figures only if the files were fitted on other bags']
+    close = [n for v, n in scored[1:] if v <= (1.0 + CLOSE) * value]
+    if close:
+        lines.append(f'as good within {100 * CLOSE:.0f} % on these bags (one bag more could '
+                     f'swap them): {", ".join(close)}')
     verdict = (report['models'][name]['odometry']['windows'][longest].get('consistency')
                or {}).get('verdict')
     if verdict and verdict != 'consistent':
