@@ -5,6 +5,7 @@ import io
 import json
 import os
 from pathlib import Path
+import shlex
 import signal
 import subprocess
 import sys
@@ -62,8 +63,25 @@ def test_demo_says_where_outputs_are(demo_run):
                  'heldout.png'):
         assert str(out_dir / name) in stdout, name
     yaml_path = (out_dir / 'hard_floor.yaml').resolve()
-    assert (f'ros2 run tracked_kinematics odometry_node --ros-args --params-file {yaml_path}'
-            in stdout)
+    # What a venv user can run (the console scripts), the workspace form said once.
+    lines = stdout.splitlines()
+    assert lines[-1] == (f'   odometry_node --ros-args --params-file {yaml_path} '
+                         '-p imu_topic:=/imu/data')
+    assert 'ros2 run tracked_kinematics NAME' in stdout
+    assert 'ros2 run tracked_kinematics odometry_node' not in stdout
+    at = next(k for k, line in enumerate(lines) if line.startswith('   evaluate_model '))
+    end = at
+    while lines[end].endswith('\\'):
+        end += 1
+    command = ' '.join(line.strip().rstrip('\\').strip() for line in lines[at:end + 1])
+    bags = ' '.join(str(out_dir / 'heldout' / name) for name in ('path1_random', 'path2_sweep'))
+    assert command.startswith(f'evaluate_model {bags} --ground-truth-topic /ground_truth/pose '
+                              f'--params {out_dir / "hard_floor.yaml"} --fuse-imu /imu/data')
+    # The covariance's verdicts, one per row and window length.
+    for row in ('hard_floor ', 'hard_floor+imu '):
+        line = next(line for line in lines if line.startswith('   ' + row))
+        assert sum(line.count(v) for v in (': consistent', ': over-confident',
+                                           ': under-confident', ': too few windows')) == 2
     # The fitted YAML is shown, with its values.
     icr = icr_from_values(read_params_file(out_dir / 'hard_floor.yaml'))
     assert f'y_left: {icr.y_left!r}' in stdout
@@ -103,6 +121,21 @@ def test_identified_model_beats_ideal_on_every_held_out_path(demo_run):
     mean_ideal = np.mean([float(r['ideal_position_error_m']) for r in rows])
     mean_row = next(line for line in stdout.splitlines() if line.strip().startswith('mean'))
     assert f'{mean_ideal:.3f}' in mean_row
+
+
+def test_the_printed_evaluate_model_command_runs_as_written(demo_run, capsys):
+    from tracked_kinematics.offline.cli import evaluate_model
+    _, _, stdout = demo_run
+    lines = stdout.splitlines()
+    at = next(k for k, line in enumerate(lines) if line.startswith('   evaluate_model '))
+    end = at
+    while lines[end].endswith('\\'):
+        end += 1
+    words = shlex.split(' '.join(line.rstrip('\\') for line in lines[at:end + 1]))
+    capsys.readouterr()
+    assert evaluate_model.main(words[1:]) == 0
+    printed = capsys.readouterr().out
+    assert 'published covariance: ' in printed and '\nbest on these bags ' in printed
 
 
 def _random_travel(n, seed):

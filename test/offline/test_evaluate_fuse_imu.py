@@ -13,7 +13,8 @@ from tracked_kinematics.offline.cli import evaluate_model as cli
 
 GT = '/ground_truth/pose'
 IMU = '/imu/data'
-CONSISTENCY = {'inside_50', 'inside_95', 'mean_nees', 'windows'}
+CONSISTENCY = {'inside_50', 'inside_95', 'mean_nees', 'windows', 'verdict',
+               'independent_windows', 'range_inside_50', 'range_inside_95', 'range_mean_nees'}
 
 
 @pytest.fixture(scope='module')
@@ -87,6 +88,56 @@ def test_consistency_keys_for_every_file_and_gyro_row(fused):
             assert 0.0 <= c['inside_50'] <= c['inside_95'] <= 1.0
             assert c['mean_nees'] > 0.0
     assert 'consistency' not in models['ideal']['odometry']['windows']['5']
+
+
+def test_the_table_gives_each_row_a_verdict_and_says_which_row_to_run(fused):
+    from tracked_kinematics.offline.model_evaluation import table_text
+    report, _ = fused
+    lines = table_text(report).split('\n')
+    c = lines.index(next(line for line in lines if line.startswith('published covariance')))
+    rows = {line.split()[0]: line.split()[1:] for line in lines[c + 2:c + 6]}
+    assert list(rows) == ['told', 'told+imu', 'naive', 'naive+imu']
+    for name, cells in rows.items():
+        for k, window in enumerate(('5', '10')):
+            found = report['models'][name]['odometry']['windows'][window]['consistency']
+            assert cells[4 * k + 3] == (found['verdict'] or '-'), (name, window)
+        # 90 s of driving: 5-s windows enough for a verdict, 10-s ones not.
+        five = report['models'][name]['odometry']['windows']['5']['consistency']
+        ten = report['models'][name]['odometry']['windows']['10']['consistency']
+        assert five['independent_windows'] >= 10 and five['verdict'] is not None
+        assert ten['independent_windows'] < 10 and ten['verdict'] is None
+    # The naive file's default noise model (track 1e-3 m^2/m, slip 0.02 m^2/rad) is far
+    # larger than the exact simulation's errors.
+    assert rows['naive'][3] == 'under-confident'
+    best = next(line for line in lines if line.startswith('best on these bags'))
+    assert best.startswith('best on these bags (mean final position error after 10 s): ')
+    errors = {name: m['odometry']['windows']['10']['mean_position_error_m']
+              for name, m in report['models'].items()}
+    name = best.split(': ')[1].split()[0]
+    assert errors[name] == min(errors.values())
+    command = f'  odometry_node --ros-args --params-file {report["models"][name]["file"]}'
+    if name.endswith('+imu'):
+        command += f' -p imu_topic:={IMU}'
+    assert lines[-2] == command
+    # Rows within 5 % of the best are named: the figures do not tell them apart.
+    close = json.loads(json.dumps(report))
+    windows = {n: m['odometry']['windows']['10'] for n, m in close['models'].items()}
+    for n, w in windows.items():
+        w['mean_position_error_m'] = {'told': 0.100, 'naive': 0.104, 'told+imu': 0.106}.get(
+            n, 1.0)
+    text = table_text(close)
+    assert ('\nas good within 5 % on these bags (one bag more could swap them): naive\n'
+            in text)
+    # Were the gyro-aided row or the ideal drive best, the command would run them.
+    for row, expected in (('told+imu', f'--params-file {report["models"]["told"]["file"]} '
+                                       f'-p imu_topic:={IMU}'),
+                          ('ideal', '-p track_width:=0.42 -p sprocket_radius:=0.1')):
+        changed = json.loads(json.dumps(report))
+        changed['models'][row]['odometry']['windows']['10']['mean_position_error_m'] = 0.0
+        text = table_text(changed)
+        assert f'after 10 s): {row} 0.000 m' in text
+        assert 'as good within 5 %' not in text
+        assert f'  odometry_node --ros-args {expected}\n' in text
 
 
 def test_tum_trajectories_of_the_gyro_rows_beside_the_others(fused):

@@ -228,8 +228,36 @@ def test_bad_files_are_one_line(sim, tmp_path, capsys):
     status, _, err = run([sim['bag'], '--ground-truth-topic', GT, '--params', sim['truth'],
                           other], capsys)
     assert status == 2
-    assert_one_line(err, 'the terrain files disagree on sprocket_radius (0.1, 0.2 m): give '
-                         '--sprocket-radius')
+    assert_one_line(err, f'sprocket_radius 0.1 m from {sim["truth"]} and 0.2 m from {other} '
+                         'differ by 50 %, more than rounding (1 %)')
+    # --sprocket-radius does not settle it: a file of another vehicle is refused all the same.
+    status, _, err = run([sim['bag'], '--ground-truth-topic', GT, '--params', sim['truth'],
+                          other, '--sprocket-radius', '0.1'], capsys)
+    assert status == 2
+    assert_one_line(err, f'sprocket_radius 0.1 m from --sprocket-radius and 0.2 m from {other}')
+
+
+@pytest.mark.parametrize('options, dimension', [
+    (['--track-width', '1.08'], 'track_width 1.08 m from --track-width and 0.42 m from '),
+    (['--sprocket-radius', '0.3'], 'sprocket_radius 0.3 m from --sprocket-radius and 0.1 m '
+                                   'from '),
+])
+def test_a_terrain_file_of_another_vehicle_is_refused(sim, tmp_path, capsys, options, dimension):
+    # The Auriga's file scored with the Warthog's track width or radius: nothing is scored.
+    status, out, err = run([sim['bag'], '--ground-truth-topic', GT, '--params', sim['truth'],
+                            '--report', tmp_path / 'r.json', *options], capsys)
+    assert status == 2 and out == ''
+    assert_one_line(err, dimension + str(sim['truth']))
+    assert not (tmp_path / 'r.json').exists()
+
+
+def test_values_that_agree_to_rounding_are_one_vehicle(sim, tmp_path, capsys):
+    rounded = tmp_path / 'rounded.yaml'
+    rounded.write_text('track_width: 0.4213\nsprocket_radius: 0.1004\n')
+    status, _, err = run([sim['bag'], '--ground-truth-topic', GT, '--params', sim['truth'],
+                          rounded, '--track-width', '0.42', '--sprocket-radius', '0.1',
+                          '--window', '5'], capsys)
+    assert status == 0, err
 
 
 def test_existing_outputs_need_force_and_are_checked_first(sim, tmp_path, capsys):

@@ -172,3 +172,24 @@ def test_per_side_speed_topics_with_a_grid_step(tmp_path, capsys):
                        '--dt', '0.02'], capsys)
     assert status == 0, err
     assert (tmp_path / 'o.yaml').exists()
+
+
+@pytest.mark.parametrize('option, value, pattern', [
+    ('--sprocket-radius', '0.3', r'sprocket_radius 0.3 m from --sprocket-radius and 0.1 m from '
+                                 r'\S*base.yaml differ by 67 %'),
+    ('--track-width', '1.08', r'track_width 1.08 m from --track-width and 0.42 m from '
+                              r'\S*base.yaml differ by 61 %'),
+])
+def test_a_base_file_of_another_vehicle_is_refused(sim_bag, tmp_path, capsys, option, value,
+                                                   pattern):
+    base = tmp_path / 'base.yaml'
+    base.write_text('track_width: 0.42\nsprocket_radius: 0.1\n')
+    status, err = run([sim_bag, '-o', tmp_path / 'o.yaml', '--params', base, option, value],
+                      capsys)
+    assert status == 2
+    assert_one_line(err, pattern)
+    assert not (tmp_path / 'o.yaml').exists()
+    # Rounding is one vehicle.
+    status, err = run([sim_bag, '-o', tmp_path / 'o.yaml', '--params', base,
+                       '--sprocket-radius', '0.1004', '--track-width', '0.42'], capsys)
+    assert status == 0, err

@@ -110,7 +110,8 @@ def test_the_report_holds_every_section_and_its_json(scored):
     assert content['settings'] == {
         'windows_s': [2.0, 5.0], 'horizon_s': 2.0, 'prediction_dt_s': 0.05,
         'rpe_distances_m': [1.0, 10.0], 'max_command_age_s': 0.5, 'keep_jumps': False,
-        'track_width': B, 'sprocket_radius': 0.1, 'command_source': 'setpoints'}
+        'track_width': B, 'sprocket_radius': 0.1, 'command_source': 'setpoints',
+        'fuse_imu_topic': None}
     assert content['windows_selection'] == {'moving_only': True, 'min_speed_mps': 0.1}
     assert content['data'] == {'pieces': 1, 'gaps': 0, 'jumps': 0,
                                'seconds': pytest.approx(60.0, abs=0.2)}
@@ -138,7 +139,8 @@ def test_the_true_file_is_scored_better_than_ideal_drive(scored):
     assert models['ideal']['prediction']['drivetrain'].startswith('none')
 
 
-def test_the_table_is_what_evaluate_model_prints(scored):
+def test_the_table_is_what_evaluate_model_prints(scored, tmp_path):
+    tmp_models = tmp_path
     lines = scored.table().split('\n')
     assert scored.table() == table_text(scored.content)
     assert lines[0] == ('evaluate_model: 1 bag(s), 60 s; scored 60 s in 1 gap-free pieces '
@@ -155,7 +157,29 @@ def test_the_table_is_what_evaluate_model_prints(scored):
         'windows in which the tracks move (mean track speed >= 0.1 m/s; --all-windows for '
         f'all): {windows["2"]["n"]} of {windows["2"]["n_total"]} of 2 s, ')
     assert lines[head + 4].endswith(' from the commands')
-    assert len(lines) == head + 5
+    # The files' published covariance: shares, NEES and a verdict per window length.
+    c = lines.index(next(line for line in lines if line.startswith('published covariance')))
+    assert lines[c - 1] == '' and lines[c + 1].split()[:5] == ['model', '2', 's:', '50', '%']
+    rows = {line.split()[0]: line.split()[1:] for line in lines[c + 2:c + 4]}
+    assert set(rows) == {'auriga', 'nominal'}
+    for name, cells in rows.items():
+        found = scored.content['models'][name]['odometry']['windows']['2']['consistency']
+        assert cells[:4] == [f'{100 * found["inside_50"]:.0f}',
+                             f'{100 * found["inside_95"]:.0f}', f'{found["mean_nees"]:.1f}',
+                             found['verdict']]
+        assert found['verdict'] in ('consistent', 'over-confident', 'under-confident')
+    assert lines[c + 4].startswith('independent (non-overlapping) windows behind each verdict')
+    # The closing advice: the best row on these bags and the command that runs it.
+    best = lines.index(next(line for line in lines if line.startswith('best on these bags')))
+    assert lines[best].startswith('best on these bags (mean final position error after 5 s): '
+                                  'auriga ')
+    # The exact drive's errors are far inside the default noise model's ellipses.
+    assert lines[best + 1] == ('its published covariance is under-confident after 5 s: see '
+                               'the consistency lines above before fusing it')
+    assert lines[best + 2:best + 4] == [
+        'run it:', f'  odometry_node --ros-args --params-file {tmp_models}/auriga.yaml']
+    assert lines[-1] == ('(in a ROS 2 workspace: ros2 run tracked_kinematics odometry_node '
+                         '--ros-args ...)')
 
 
 def test_every_window_and_kept_jumps_are_said(drive, models, tmp_path):
@@ -185,7 +209,18 @@ def test_online_entries_follow_the_files(drive, models, tmp_path):
     assert entry['online']['outcomes']['updated'] > 100
     assert 0.0 <= entry['online']['trusted_fraction'] <= 1.0
     assert len(entry['online']['final_icr']) == 1
-    assert report.table().split('\n')[-1].startswith('online_nominal: ')
+    lines = report.table().split('\n')
+    assert any(line.startswith('online_nominal: ') for line in lines)
+    # The estimator learns the drive from ideal: the best row, and how to run it.
+    best = next(line for line in lines if line.startswith('best on these bags'))
+    assert best.split(': ')[1].startswith('online_nominal ')
+    at = lines.index('run it (the online estimator needs a pose source on the robot):')
+    nominal = report.content['models']['nominal']['file']
+    assert lines[at + 1:at + 3] == [
+        f'  odometry_node --ros-args --params-file {nominal}',
+        f'  icr_estimator --ros-args --params-file {nominal} -p pose_topic:=YOUR_POSE_TOPIC '
+        '-p push_to:=[odometry_node]']
+    assert lines[at + 3].startswith('without a pose source, the file alone (nominal: ')
 
 
 def test_nothing_to_score_is_an_excitation_error(drive, models, tmp_path):
@@ -245,3 +280,24 @@ def test_references_can_be_built_by_hand(drive, models):
     report = evaluate_models(references, models, SETTINGS, sprocket_radius=0.1)
     assert report.content['bags'] == ['/data/run1']
     assert 'pieces' not in record
+
+
+def test_the_error_plot_fits_the_calibrated_models_not_the_ideal_drive(scored):
+    from tracked_kinematics.offline.model_evaluation_plot import error_curves, evaluation_figure
+    # 'nominal' is the ideal drive again; the true file alone beside it.
+    fig = evaluation_figure(scored.evaluation, ['ideal', 'auriga'], (2.0, 5.0), min_speed=0.1)
+    position = fig.axes[0]
+    curves = {line.get_label(): line.get_ydata() for line in position.get_lines()
+              if not line.get_label().startswith('_')}
+    ideal = next(label for label in curves if label.startswith('ideal'))
+    # The ideal drive runs off the top, its values in its legend; the files fill the axis.
+    assert ideal.startswith('ideal (off scale: ') and ' m at 5 s)' in ideal
+    top = position.get_ylim()[1]
+    assert np.nanmax(curves[ideal]) > 3.0 * top
+    assert np.nanmax(curves['auriga']) <= top
+    # With a file as poor as the ideal drive, nothing is cut.
+    alone = evaluation_figure(scored.evaluation, ['ideal', 'nominal'], (2.0, 5.0),
+                              min_speed=0.1)
+    lengths = alone.axes[0].get_lines()[0].get_xdata()
+    curve = error_curves(scored.evaluation, ['ideal'], lengths, 0.1)['ideal'][0]
+    assert alone.axes[0].get_ylim()[1] >= np.nanmax(curve)

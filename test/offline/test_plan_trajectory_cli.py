@@ -209,3 +209,22 @@ def test_a_bug_in_the_planner_is_a_traceback(capsys, monkeypatch):
     with pytest.raises(ValueError, match='^bug$'):
         plan_trajectory.main(GOAL)
     assert capsys.readouterr().err == ''
+
+
+def test_a_terrain_file_of_another_vehicle_is_refused(tmp_path, capsys):
+    # The Auriga's terrain file (0.42 m, 0.1 m) planned on the Packbot's drive train
+    # (0.40 m, 0.085 m): before, a note with --plot only; now refused, nothing written.
+    status, out, err = call(GOAL + ['--vehicle', 'packbot', '--csv', tmp_path / 'p.csv'],
+                            capsys)
+    assert status == 2 and out == ''
+    assert err.count('\n') == 1 and err.startswith('plan_trajectory: error: track_width 0.42 m '
+                                                   f'from {TERRAIN} and 0.4 m from --vehicle ')
+    assert 'packbot.yaml differ by 5 %, more than rounding (1 %)' in err
+    assert list(tmp_path.iterdir()) == []
+    # The default vehicle is named as such: the user did not give it.
+    warthog = tmp_path / 'warthog.yaml'
+    warthog.write_text('track_width: 1.08\nsprocket_radius: 0.3\n')
+    status, _, err = call(['--params', warthog, '--goal', '1', '0', '0'], capsys)
+    assert status == 2
+    assert err.startswith(f'plan_trajectory: error: track_width 1.08 m from {warthog} and '
+                          '0.42 m from --vehicle auriga_alpha (the default: give --vehicle) ')

@@ -34,10 +34,30 @@ def test_plan_trajectory_plot(tmp_path, capsys, no_pyplot):
 def test_heldout_paths_plot(tmp_path, no_pyplot):
     poses = np.column_stack([np.linspace(0, 2, 50), np.zeros(50), np.zeros(50)])
     result = SimpleNamespace(name='path1_random', distance=2.0, truth=poses, ideal=poses + 0.1,
-                             identified=poses + 0.01, errors=lambda which: (0.1, 1.0, 5.0))
+                             identified=poses + 0.01, gyro_aided=poses + 0.02,
+                             errors=lambda which: (0.1, 1.0, 5.0))
     path = tmp_path / 'heldout.png'
     plots.plot_heldout_paths(path, [result, result], 'held-out paths')
     assert path.read_bytes()[:8] == PNG
+
+
+def test_the_held_out_figure_draws_the_gyro_aided_paths_the_demo_reports(tmp_path,
+                                                                         monkeypatch):
+    # The demo's table reports the gyro-aided errors; its figure once lacked their paths.
+    drawn = []
+    monkeypatch.setattr(plots, 'save', lambda fig, path, dpi: drawn.append(fig))
+    poses = [np.cumsum(np.full((20, 3), k), axis=0) for k in (1.0, 2.0, 3.0, 4.0)]
+    result = SimpleNamespace(name='p', distance=5.0, truth=poses[0], ideal=poses[1],
+                             identified=poses[2], gyro_aided=poses[3],
+                             errors=lambda which: {'gyro_aided': (0.042, 0.0, 0.0)}.get(
+                                 which, (1.0, 0.0, 0.0)))
+    plots.plot_heldout_paths(tmp_path / 'unused.png', [result], 'title')
+    ax = drawn[0].axes[0]
+    lines = ax.get_lines()
+    assert [line.get_label() for line in lines[:4]] == [
+        'ground truth', 'ideal diff drive', 'identified ICRs', 'gyro-aided']
+    np.testing.assert_array_equal(lines[3].get_xydata(), poses[3][:, :2])
+    assert 'gyro-aided 0.042 m' in ax.get_title()
 
 
 def test_a_format_matplotlib_cannot_write_is_a_usage_error(tmp_path):

@@ -109,3 +109,21 @@ def test_pip_install_puts_scripts_on_path_and_data_in_share(source_copy, tmp_pat
     assert (share / 'package.xml').is_file()
     assert (share / 'config' / 'auriga_alpha_hard_floor.yaml').is_file()
     assert (share / 'config' / 'vehicles' / 'auriga_alpha.yaml').is_file()
+
+
+@pytest.mark.parametrize('name', sorted(console_scripts()))
+def test_every_console_script_answers_help(name):
+    # The first thing a new user types; evaluate_model's once crashed in argparse (a bare
+    # `%` in a help text). Run as the installed script runs: the entry point in a process of
+    # its own, program name first, no ROS graph needed.
+    module, func = console_scripts()[name].split(':')
+    code = (f'import sys; sys.argv = [{name!r}, "--help"]; '
+            f'from {module} import {func} as main; sys.exit(main())')
+    result = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True,
+                            timeout=60, cwd=ROOT)
+    assert result.returncode == 0, result.stdout + result.stderr
+    assert 'Traceback' not in result.stderr, result.stderr
+    first = result.stdout.lstrip().splitlines()[0]
+    assert first.startswith('usage:') and name in first, result.stdout
+    # More than the usage line: what the program does, or its options and parameters.
+    assert len(result.stdout.splitlines()) > 5, result.stdout

@@ -289,62 +289,22 @@ def simulate_bag(output: str | os.PathLike, vehicle: str | os.PathLike = 'auriga
             out.add('--truth', truth)
             out.refuse_inputs('--vehicle', [vehicle_path(vehicle)])
             spec = load_vehicle(vehicle, overrides)
-            robot, veh = spec.robot, spec.robot.vehicle
-            rng = np.random.default_rng(seed)
-            dt = 1.0 / rate
-            # Commands at the setpoint rate, held between setpoints, sampled at the encoder
-            # rate.
-            cmd = manoeuvre(manoeuvres, duration, 1.0 / setpoint_rate, veh.track_width,
-                            veh.max_track_speed, rng)
-            n = max(2, int(round(duration * rate)) + 1)
-            held = np.minimum(np.floor(np.arange(n) * (dt * setpoint_rate) + 1e-9).astype(int),
-                              len(cmd) - 1)
-            if table is None:
-                try:
-                    table = TwistTable(veh)
-                except RuntimeError as err:   # the stationary solver fails for this vehicle
-                    raise InvalidParameters(f'{spec.path}: {err}') from None
-            run = simulate(robot, cmd[held], dt, table,
-                           GroundTruth(gt_rate, gt_position_noise, gt_yaw_noise), rng)
-            gyro = fixes = None
+            run = _simulated_run(spec, manoeuvres, duration, seed, rate, setpoint_rate,
+                                 GroundTruth(gt_rate, gt_position_noise, gt_yaw_noise), table)
             simulation = {
                 'bag': output.name, 'manoeuvres': manoeuvres, 'duration': float(duration),
                 'seed': int(seed), 'rate': float(rate), 'setpoint_rate': float(setpoint_rate),
                 'gt_rate': float(gt_rate), 'gt_position_noise': float(gt_position_noise),
                 'gt_yaw_noise': float(gt_yaw_noise)}
-            if imu is not None:
-                # Sensors draw from their own streams: adding one leaves the run unchanged.
-                gyro = gyro_samples(run.t, run.twist[:, 2], imu, np.random.default_rng([seed, 1]))
-                simulation.update({f'imu.{k}': float(getattr(imu, k)) for k in (
-                    'rate', 'bias', 'noise_std', 'bias_walk', 'latency', 'scale', 'saturation')
-                    if math.isfinite(getattr(imu, k))})
-                simulation.update({'imu.topic': IMU_TOPIC, 'imu.expected_imu_delay':
-                                   float(imu.latency)})
-            if gnss is not None:
-                stamps, east, north, status = gnss_samples(
-                    run.t, *run.pose.T, gnss, np.random.default_rng([seed, 2]))
-                lat, lon, alt = enu_to_geodetic(east, north, np.zeros(east.size), gnss_origin)
-                fixes = (stamps, lat, lon, alt, status)
-                simulation.update({f'gnss.{k}': float(getattr(gnss, k)) for k in (
-                    'rate', 'noise_std', 'correlation_time', 'latency', 'dropout', 'antenna_x',
-                    'antenna_y')})
-                simulation.update({'gnss.status': int(gnss.status), 'gnss.topic': GNSS_TOPIC,
-                                   'gnss.origin_latitude': gnss_origin.latitude,
-                                   'gnss.origin_longitude': gnss_origin.longitude,
-                                   'gnss.origin_altitude': gnss_origin.altitude})
+            gyro, fixes = _sensor_samples(run, seed, imu, gnss, gnss_origin, simulation)
             with out.path('OUT') as tmp:
                 counts = write_run(tmp, run, storage, setpoint_rate, ground_truth,
                                    ground_truth_topic, gyro=gyro, gnss=fixes,
                                    imu_noise=imu.noise_std if imu else 0.0,
                                    gnss_noise=gnss.noise_std if gnss else 0.0)
-            icr = robot.true_icr()
+            icr = spec.robot.true_icr()
             out.write_text('--truth', params_text(truth_values(spec, icr, run, simulation),
-                                                  comment=(
-                f'True kinematic model of the simulated {spec.name} on {spec.terrain}: tread '
-                'ICRs\naveraged over the 21 x 21 stationary ICR map (Martinez et al. 2005, '
-                'sec. 5.2) and\nthe simulated encoder scales. run_fit: the constant ICRs that '
-                "best explain this\nrun's true motion. Written by "
-                f'{TOOL}; valid as --params-file.')))
+                                                  comment=_truth_comment(spec)))
     except BaseException:
         with signals.held():
             for parent in reversed(created):
@@ -352,6 +312,64 @@ def simulate_bag(output: str | os.PathLike, vehicle: str | os.PathLike = 'auriga
                     parent.rmdir()
         raise
     return SimulatedBag(output, truth, icr, run, counts, spec)
+
+
+def _simulated_run(spec: VehicleFile, manoeuvres, duration, seed, rate, setpoint_rate,
+                   ground_truth: GroundTruth, table) -> Run:
+    """Drive the vehicle through its manoeuvres and record it (:func:`simulate`)."""
+    robot, veh = spec.robot, spec.robot.vehicle
+    rng = np.random.default_rng(seed)
+    dt = 1.0 / rate
+    # Commands at the setpoint rate, held between setpoints, sampled at the encoder rate.
+    cmd = manoeuvre(manoeuvres, duration, 1.0 / setpoint_rate, veh.track_width,
+                    veh.max_track_speed, rng)
+    n = max(2, int(round(duration * rate)) + 1)
+    held = np.minimum(np.floor(np.arange(n) * (dt * setpoint_rate) + 1e-9).astype(int),
+                      len(cmd) - 1)
+    if table is None:
+        try:
+            table = TwistTable(veh)
+        except RuntimeError as err:   # the stationary solver fails for this vehicle
+            raise InvalidParameters(f'{spec.path}: {err}') from None
+    return simulate(robot, cmd[held], dt, table, ground_truth, rng)
+
+
+def _sensor_samples(run: Run, seed, imu, gnss, gnss_origin, simulation: dict):
+    """
+    Return the gyro's and the GNSS receiver's samples of a run (None when not asked for).
+
+    Their settings are added to ``simulation`` (the truth file's ``simulation.*``).
+    """
+    gyro = fixes = None
+    if imu is not None:
+        # Sensors draw from their own streams: adding one leaves the run unchanged.
+        gyro = gyro_samples(run.t, run.twist[:, 2], imu, np.random.default_rng([seed, 1]))
+        simulation.update({f'imu.{k}': float(getattr(imu, k)) for k in (
+            'rate', 'bias', 'noise_std', 'bias_walk', 'latency', 'scale', 'saturation')
+            if math.isfinite(getattr(imu, k))})
+        simulation.update({'imu.topic': IMU_TOPIC, 'imu.expected_imu_delay':
+                           float(imu.latency)})
+    if gnss is not None:
+        stamps, east, north, status = gnss_samples(
+            run.t, *run.pose.T, gnss, np.random.default_rng([seed, 2]))
+        lat, lon, alt = enu_to_geodetic(east, north, np.zeros(east.size), gnss_origin)
+        fixes = (stamps, lat, lon, alt, status)
+        simulation.update({f'gnss.{k}': float(getattr(gnss, k)) for k in (
+            'rate', 'noise_std', 'correlation_time', 'latency', 'dropout', 'antenna_x',
+            'antenna_y')})
+        simulation.update({'gnss.status': int(gnss.status), 'gnss.topic': GNSS_TOPIC,
+                           'gnss.origin_latitude': gnss_origin.latitude,
+                           'gnss.origin_longitude': gnss_origin.longitude,
+                           'gnss.origin_altitude': gnss_origin.altitude})
+    return gyro, fixes
+
+
+def _truth_comment(spec: VehicleFile) -> str:
+    return (f'True kinematic model of the simulated {spec.name} on {spec.terrain}: tread '
+            'ICRs\naveraged over the 21 x 21 stationary ICR map (Martinez et al. 2005, '
+            'sec. 5.2) and\nthe simulated encoder scales. run_fit: the constant ICRs that '
+            "best explain this\nrun's true motion. Written by "
+            f'{TOOL}; valid as --params-file.')
 
 
 def check_settings(duration: float, rate: float, setpoint_rate: float = 1.0,

@@ -21,6 +21,7 @@ from tracked_kinematics.core.errors import ExcitationError, InvalidParameters
 from tracked_kinematics.core.estimate.config import EstimatorConfig
 from tracked_kinematics.core.evaluate.consistency import (
     gyro_track, gyro_window_consistency, window_consistency)
+from tracked_kinematics.core.evaluate.verdict import MIN_WINDOWS
 from tracked_kinematics.core.kinematics import IcrParams
 from tracked_kinematics.offline.errors import UsageError
 from tracked_kinematics.params import (
@@ -28,6 +29,8 @@ from tracked_kinematics.params import (
     NOISE_PARAMS, read_params_file, values_from_drivetrain)
 
 TOOL = 'evaluate_model'
+CLOSE = 0.05
+"""Rows whose error is within 5 % of the best row's are named beside it."""
 
 
 # Inputs ----------------------------------------------------------------------------------
@@ -258,9 +261,10 @@ def evaluate_models(references: References, models, settings: ev.Settings, *,
         How the commands were read (recorded in the report).
     online : bool
         Also replay the icr_estimator's EKF from each file (``online_`` entries; pose only).
-    fuse_imu : bool
+    fuse_imu : bool or str
         Also score each file gyro-aided (``<name>+imu`` entries, after the file's): the
-        recordings carry a gyro (``gyro_t``, ``gyro_rate``); pose only.
+        recordings carry a gyro (``gyro_t``, ``gyro_rate``); pose only. A string is the
+        gyro's topic, for the report's ``settings.fuse_imu_topic`` and the closing advice.
 
     Raises
     ------
@@ -300,6 +304,7 @@ def evaluate_models(references: References, models, settings: ev.Settings, *,
                                   [d.recording for d in references.data])
     content = _finite(_content(references, models, evaluation, candidates, runs, settings,
                                sprocket_radius, command_source))
+    content['settings']['fuse_imu_topic'] = fuse_imu if isinstance(fuse_imu, str) else None
     if references.reference == 'imu':
         content = _heading_only(content)
     return EvaluationReport(content, evaluation, normalised)
@@ -503,6 +508,105 @@ def _table_rows(report, windows, deltas, sources) -> list:
     return rows
 
 
+def _consistency_rows(report, windows) -> list:
+    """
+    Return the consistency block: per file row and window, shares inside, NEES, verdict.
+
+    Empty when no row has a covariance to check (the ideal drive and the online rows have
+    none; a gyro reference measures no position).
+    """
+    checked = [(name, m['odometry']['windows']) for name, m in report['models'].items()
+               if any('consistency' in m['odometry']['windows'][w] for w in windows)]
+    if not checked:
+        return []
+    head = f'{"model":<26}'
+    for w in windows:
+        head += f'{w + " s: 50 %":>13}{"95 %":>6}{"NEES":>6}  {"verdict":<16}'
+    rows = ['\npublished covariance: % of the windows inside its 50 % / 95 % ellipses, mean '
+            'NEES (2 if consistent), verdict (rule: docs/tools/evaluate_model.md, "The '
+            'verdict")', head.rstrip()]
+    for name, wins in checked:
+        row = f'{name:<26}'
+        for w in windows:
+            c = wins[w].get('consistency') or {}
+            row += f'{_fmt(c.get("inside_50"), 100, 0):>13}{_fmt(c.get("inside_95"), 100, 0):>6}'
+            row += f'{_fmt(c.get("mean_nees"), digits=1):>6}  {c.get("verdict") or "-":<16}'
+        rows.append(row.rstrip())
+    first = checked[0][1]
+    counts = ', '.join(f'{(first[w].get("consistency") or {}).get("independent_windows", 0)} '
+                       f'of {w} s' for w in windows)
+    rows.append(f'independent (non-overlapping) windows behind each verdict: {counts}; '
+                f'"-": fewer than {MIN_WINDOWS}')
+    return rows
+
+
+def _best(report, windows):
+    """Return the row with the least mean final error after the longest window, its figures."""
+    longest = max(windows, key=float)
+    heading_only = report.get('reference') == 'imu'
+    key = 'mean_heading_error_rad' if heading_only else 'mean_position_error_m'
+    scored = []
+    for name, m in report['models'].items():
+        value = m['odometry']['windows'][longest][key]
+        if value is not None:
+            scored.append((value, name))
+    scored.sort()
+    return longest, key, scored
+
+
+def _run_command(report, name) -> list:
+    """Return the lines that run a row of the report on the robot (venv; workspace)."""
+    entry = report['models'][name]
+    kind = entry['kind']
+    if kind == 'ideal':
+        settings = report['settings']
+        args = (f'-p track_width:={settings["track_width"]:g} '
+                f'-p sprocket_radius:={settings["sprocket_radius"]:g}')
+        return ['run it (the ideal drive: none of the files improves on it on these bags):',
+                f'  odometry_node --ros-args {args}']
+    args = f'--params-file {entry["file"]}'
+    if kind == 'gyro':
+        topic = report['settings'].get('fuse_imu_topic') or 'YOUR_IMU_TOPIC'
+        args += f' -p imu_topic:={topic}'
+    if kind != 'online':
+        return ['run it:', f'  odometry_node --ros-args {args}']
+    file_row = name[len('online_'):]
+    alone = report['models'][file_row]['odometry']['windows']
+    longest = max(alone, key=float)
+    return ['run it (the online estimator needs a pose source on the robot):',
+            f'  odometry_node --ros-args {args}',
+            f'  icr_estimator --ros-args {args} -p pose_topic:=YOUR_POSE_TOPIC '
+            '-p push_to:=[odometry_node]',
+            f'without a pose source, the file alone ({file_row}: '
+            f'{_fmt(alone[longest]["mean_position_error_m"])} m): the first line']
+
+
+def _advice(report, windows) -> list:
+    """Return the closing lines: the row to run, and the command that runs it."""
+    longest, key, scored = _best(report, windows)
+    if not scored:
+        return []
+    value, name = scored[0]
+    figure = ('mean final heading error', 180 / math.pi, 2, 'deg') \
+        if key == 'mean_heading_error_rad' else ('mean final position error', 1.0, 3, 'm')
+    what, scale, digits, unit = figure
+    others = ', '.join(f'{n} {_fmt(v, scale, digits)}' for v, n in scored[1:4])
+    lines = [f'\nbest on these bags ({what} after {longest} s): {name} '
+             f'{_fmt(value, scale, digits)} {unit}' + (f' (then {others})' if others else '')
+             + '; held-out figures only if the files were fitted on other bags']
+    close = [n for v, n in scored[1:] if v <= (1.0 + CLOSE) * value]
+    if close:
+        lines.append(f'as good within {100 * CLOSE:.0f} % on these bags (one bag more could '
+                     f'swap them): {", ".join(close)}')
+    verdict = (report['models'][name]['odometry']['windows'][longest].get('consistency')
+               or {}).get('verdict')
+    if verdict and verdict != 'consistent':
+        lines.append(f'its published covariance is {verdict} after {longest} s: see the '
+                     'consistency lines above before fusing it')
+    return lines + _run_command(report, name) + [
+        '(in a ROS 2 workspace: ros2 run tracked_kinematics odometry_node --ros-args ...)']
+
+
 def table_text(report: dict) -> str:
     """Return the summary of a report that evaluate_model prints (no final newline)."""
     recs = report['recordings']
@@ -551,4 +655,6 @@ def table_text(report: dict) -> str:
                 f'error {math.sqrt(online["noise_scale"]):.1f} x travel_std; its own '
                 f'estimate in use {100 * online["trusted_fraction"]:.0f} % of the time '
                 "(else the file's values)")
+    lines += _consistency_rows(report, windows)
+    lines += _advice(report, windows)
     return '\n'.join(lines)

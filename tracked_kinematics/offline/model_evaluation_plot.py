@@ -46,6 +46,83 @@ def error_curves(evaluation, names, lengths, min_speed=None):
     return curves
 
 
+def _scale_to_calibrated(ax, lengths, curves, names, windows, unit, digits):
+    """
+    Fit the y axis to the calibrated models; the ideal drive, far above, is drawn off-scale.
+
+    The ideal drive's errors are often ten times the calibrated models': on one axis every
+    calibrated curve would lie flat on zero. Its legend entry states its values at the
+    report's windows instead.
+    """
+    others = [c for name, c in curves.items() if name != 'ideal' and np.isfinite(c).any()]
+    if 'ideal' not in names or not others:
+        return
+    top = 1.25 * max(float(np.nanmax(c)) for c in others)
+    ideal = curves['ideal']
+    if not np.isfinite(ideal).any() or np.nanmax(ideal) <= top or top <= 0.0:
+        return
+    ax.set_ylim(0.0, top)
+    at = [f'{ideal[np.argmin(abs(lengths - w))]:.{digits}f} {unit} at {w:g} s'
+          for w in windows if w <= lengths[-1]]
+    for line in ax.get_lines():
+        if line.get_label() == 'ideal':
+            line.set(ls='--', label='ideal (off scale: ' + ', '.join(at) + ')')
+
+
+def evaluation_figure(evaluation, names, windows=(5.0, 10.0), paths: int = 3,
+                      min_speed=None) -> Figure:
+    """
+    Return the figure of :func:`plot_evaluation` (the error curves' axes first).
+
+    The error axes fit the calibrated models; the ideal drive, when far above them, runs off
+    the top (dashed), its values at the report's windows in its legend entry.
+    """
+    longest = max((p.duration for p in evaluation.pieces), default=0.0)
+    top = max(min(longest, 3.0 * max(windows)), 1.0)
+    lengths = np.unique(np.concatenate([np.linspace(top / 15, top, 15),
+                                        [w for w in windows if w <= longest]]))
+    curves = error_curves(evaluation, names, lengths, min_speed)
+    order = sorted(range(len(evaluation.pieces)), key=lambda k: -evaluation.pieces[k].duration)
+    shown = order[:paths]
+    columns = max(2, len(shown))
+    fig = Figure(figsize=(5.0 * columns, 9.0))
+    FigureCanvasAgg(fig)
+    grid = fig.add_gridspec(2, columns)
+    top_axes = [fig.add_subplot(grid[0, :columns // 2]), fig.add_subplot(grid[0, columns // 2:])]
+    colours = {name: f'C{k}' for k, name in enumerate(names)}
+    for name in names:
+        position, heading = curves[name]
+        top_axes[0].plot(lengths, position, '.-', color=colours[name], label=name)
+        top_axes[1].plot(lengths, np.degrees(heading), '.-', color=colours[name], label=name)
+    _scale_to_calibrated(top_axes[0], lengths, {n: c[0] for n, c in curves.items()}, names,
+                         windows, 'm', 2)
+    _scale_to_calibrated(top_axes[1], lengths, {n: np.degrees(c[1]) for n, c in curves.items()},
+                         names, windows, 'deg', 1)
+    top_axes[0].set(xlabel='window (s)', ylabel='mean final position error (m)',
+                    title='odometry: final position error against window length')
+    top_axes[1].set(xlabel='window (s)', ylabel='mean final heading error (deg)',
+                    title='odometry: final heading error against window length')
+    for ax in top_axes:
+        for w in windows:
+            ax.axvline(w, color='grey', lw=0.8, ls=':')
+        ax.grid(True, alpha=0.3)
+        ax.legend(fontsize=8)
+    for column, k in enumerate(shown):
+        ax = fig.add_subplot(grid[1, column])
+        piece = evaluation.pieces[k]
+        ax.plot(piece.truth[:, 0], piece.truth[:, 1], color='black', lw=2.0,
+                label='ground truth')
+        for name in names:
+            odometry = evaluation.paths[name][k]
+            ax.plot(odometry[:, 0], odometry[:, 1], color=colours[name], lw=1.0, label=name)
+        ax.set(xlabel='x (m)', ylabel='y (m)', aspect='equal', adjustable='datalim',
+               title=f'bag {piece.recording + 1}, {piece.t[0]:.0f}-{piece.t[-1]:.0f} s')
+        ax.grid(True, alpha=0.3)
+        ax.legend(fontsize=7)
+    fig.tight_layout()
+    return fig
+
+
 def plot_evaluation(path, evaluation, names, windows=(5.0, 10.0), fmt: str = 'png',
                     paths: int = 3, dpi: int = 110, min_speed=None) -> None:
     """
@@ -71,45 +148,7 @@ def plot_evaluation(path, evaluation, names, windows=(5.0, 10.0), fmt: str = 'pn
         The curves' windows: those with at least this mean track speed, m/s; None: all.
 
     """
-    longest = max((p.duration for p in evaluation.pieces), default=0.0)
-    top = max(min(longest, 3.0 * max(windows)), 1.0)
-    lengths = np.unique(np.concatenate([np.linspace(top / 15, top, 15),
-                                        [w for w in windows if w <= longest]]))
-    curves = error_curves(evaluation, names, lengths, min_speed)
-    order = sorted(range(len(evaluation.pieces)), key=lambda k: -evaluation.pieces[k].duration)
-    shown = order[:paths]
-    columns = max(2, len(shown))
-    fig = Figure(figsize=(5.0 * columns, 9.0))
-    FigureCanvasAgg(fig)
-    grid = fig.add_gridspec(2, columns)
-    top_axes = [fig.add_subplot(grid[0, :columns // 2]), fig.add_subplot(grid[0, columns // 2:])]
-    colours = {name: f'C{k}' for k, name in enumerate(names)}
-    for name in names:
-        position, heading = curves[name]
-        top_axes[0].plot(lengths, position, '.-', color=colours[name], label=name)
-        top_axes[1].plot(lengths, np.degrees(heading), '.-', color=colours[name], label=name)
-    top_axes[0].set(xlabel='window (s)', ylabel='mean final position error (m)',
-                    title='odometry: final position error against window length')
-    top_axes[1].set(xlabel='window (s)', ylabel='mean final heading error (deg)',
-                    title='odometry: final heading error against window length')
-    for ax in top_axes:
-        for w in windows:
-            ax.axvline(w, color='grey', lw=0.8, ls=':')
-        ax.grid(True, alpha=0.3)
-        ax.legend(fontsize=8)
-    for column, k in enumerate(shown):
-        ax = fig.add_subplot(grid[1, column])
-        piece = evaluation.pieces[k]
-        ax.plot(piece.truth[:, 0], piece.truth[:, 1], color='black', lw=2.0,
-                label='ground truth')
-        for name in names:
-            odometry = evaluation.paths[name][k]
-            ax.plot(odometry[:, 0], odometry[:, 1], color=colours[name], lw=1.0, label=name)
-        ax.set(xlabel='x (m)', ylabel='y (m)', aspect='equal', adjustable='datalim',
-               title=f'bag {piece.recording + 1}, {piece.t[0]:.0f}-{piece.t[-1]:.0f} s')
-        ax.grid(True, alpha=0.3)
-        ax.legend(fontsize=7)
-    fig.tight_layout()
+    fig = evaluation_figure(evaluation, names, windows, paths, min_speed)
     fig.savefig(path, format=fmt, dpi=dpi)
 
 

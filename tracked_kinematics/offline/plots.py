@@ -301,7 +301,7 @@ def plot_plan(path, plan, driven, ref, title: str) -> None:
 
 
 def plot_heldout_paths(path, results, title: str) -> None:
-    """Draw each held-out path of the demo: truth, ideal and identified dead reckoning."""
+    """Draw each held-out path of the demo: truth, ideal, identified and gyro-aided odometry."""
     cols = 2 if len(results) in (2, 4) else min(3, len(results))
     rows = -(-len(results) // cols)
     fig = _figure(figsize=(5.0 * cols, 4.8 * rows), layout='constrained')
@@ -311,13 +311,15 @@ def plot_heldout_paths(path, results, title: str) -> None:
         for label, poses, style in (
                 ('ground truth', r.truth, {'color': 'black', 'lw': 2.0}),
                 ('ideal diff drive', r.ideal, {'color': 'tab:red'}),
-                ('identified ICRs', r.identified, {'color': 'tab:blue', 'ls': '--'})):
+                ('identified ICRs', r.identified, {'color': 'tab:blue', 'ls': '--'}),
+                ('gyro-aided', r.gyro_aided, {'color': 'tab:green', 'ls': ':', 'lw': 1.8})):
             ax.plot(poses[:, 0], poses[:, 1], label=label, **style)
         ax.plot([0.0], [0.0], 'ko', ms=4)
         pos_i, _, _ = r.errors('ideal')
         pos_c, _, _ = r.errors('identified')
+        pos_g, _, _ = r.errors('gyro_aided')
         ax.set_title(f'{r.name}: {r.distance:.1f} m\nfinal error ideal {pos_i:.2f} m, '
-                     f'identified {pos_c:.3f} m', fontsize=9)
+                     f'identified {pos_c:.3f} m, gyro-aided {pos_g:.3f} m', fontsize=9)
         ax.set_aspect('equal', adjustable='datalim')
         ax.set_xlabel('x (m)')
         ax.set_ylabel('y (m)')

@@ -17,6 +17,7 @@ from tracked_kinematics.core.errors import (
 from tracked_kinematics.offline.bags import EncoderSource
 from tracked_kinematics.offline.errors import UsageError
 from tracked_kinematics.params import read_params_file, unknown_terrain_parameters
+from tracked_kinematics.params.dimensions import check_same_vehicle, dimensions_of
 
 EXIT_INPUT, EXIT_EXCITATION, EXIT_FIT = 2, 3, 4
 """Exit statuses of the identification tools: bad input, too little excitation, failed fit."""
@@ -63,6 +64,26 @@ def read_base_file(prog: str, path) -> dict:
     values = read_params_file(path)
     warn_unknown_terrain_keys(prog, path, values)
     return values
+
+
+def refuse_another_vehicle(path, values, track_width=None, sprocket_radius=None) -> None:
+    """
+    Refuse ``--track-width`` / ``--sprocket-radius`` that disagree with the file beside them.
+
+    ``values`` are the file's at ``path`` (read; None reads them, and leaves an unreadable
+    file to the tool's own reading and message). Raises VehicleMismatch (exit status 2)
+    naming both sources (:func:`tracked_kinematics.params.dimensions.check_same_vehicle`).
+    """
+    if not path:
+        return
+    if values is None:
+        try:
+            values = read_params_file(path)
+        except (OSError, TrackedKinematicsError):
+            return
+    in_file = (str(path), dimensions_of(values))
+    check_same_vehicle(('--track-width', {'track_width': track_width}), in_file)
+    check_same_vehicle(('--sprocket-radius', {'sprocket_radius': sprocket_radius}), in_file)
 
 
 def require_vehicle(given, where: str = '--params') -> None:

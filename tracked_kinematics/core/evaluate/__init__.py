@@ -2,7 +2,8 @@
 Evaluation: score terrain models on recordings, the way the field measures them.
 
 :mod:`.pieces`, :mod:`.metrics`, :mod:`.horizons`, :mod:`.online`, :mod:`.scoring`
-(:func:`evaluate`) and :mod:`.noise` (the noise model fitted to windows); see
+(:func:`evaluate`), :mod:`.noise` (the noise model fitted to windows), :mod:`.consistency`
+and :mod:`.verdict` (the published covariance against the errors); see
 docs/tools/evaluate_model.md.
 """
 

@@ -17,6 +17,7 @@ from __future__ import annotations
 import numpy as np
 
 from .pieces import moving_windows
+from .verdict import covariance_verdict, disjoint_windows
 from ..covariance import TrackNoise
 from ..gyro import GyroConfig, replay
 from ..identify import Recording
@@ -100,17 +101,19 @@ def window_consistency(pieces, paths, icr: IcrParams, model: NoiseModel, lengths
     Returns
     -------
     dict
-        Per length (float): ``consistency`` (:func:`..noise_model.consistency`), ``nees``
+        Per length (float): ``consistency`` (:func:`..noise_model.consistency` with
+        :func:`.verdict.covariance_verdict`), ``nees``
         (W,) and ``normalised`` (W, 2) (:func:`normalised_errors`).
 
     """
     out = {}
     for length in lengths:
-        errors, covs = [], []
-        for piece, path in zip(pieces, paths):
+        errors, covs, independent = [], [], 0
+        for k, (piece, path) in enumerate(zip(pieces, paths)):
             i, j, _ = moving_windows(piece, float(length), min_speed)
             if len(i) == 0:
                 continue
+            independent += disjoint_windows(piece.t[i], piece.t[j])
             d_left, d_right, dt = piece.steps
             start, end = piece.at[i], piece.at[j]
             bases, _ = window_bases(icr, d_left, d_right, dt, start, end)
@@ -120,6 +123,8 @@ def window_consistency(pieces, paths, icr: IcrParams, model: NoiseModel, lengths
         e = np.concatenate(errors) if errors else np.zeros((0, 2))
         p = np.concatenate(covs) if covs else np.zeros((0, 2, 2))
         c = consistency(e, p)
+        c.update(covariance_verdict(c['inside_50'], c['inside_95'], c['mean_nees'],
+                                    independent))
         z = normalised_errors(e, p) if len(e) else np.zeros((0, 2))
         out[float(length)] = {'consistency': c, 'nees': np.sum(z * z, 1), 'normalised': z}
     return out
@@ -232,6 +237,8 @@ def gyro_window_consistency(recordings, pieces, icr: IcrParams, config: GyroConf
         e = np.concatenate(errors) if errors else np.zeros((0, 2))
         p = np.concatenate(covs) if covs else np.zeros((0, 2, 2))
         c = consistency(e, p)
+        # Back-to-back windows: each one independent of the others.
+        c.update(covariance_verdict(c['inside_50'], c['inside_95'], c['mean_nees'], len(e)))
         z = normalised_errors(e, p) if len(e) else np.zeros((0, 2))
         out[float(length)] = {'consistency': c, 'nees': np.sum(z * z, 1), 'normalised': z}
     return out

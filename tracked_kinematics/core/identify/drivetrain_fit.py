@@ -250,13 +250,69 @@ def fit_drivetrain(data: Recording | Sequence[Recording], loop: str = 'first_ord
     if not recordings:
         raise ValueError('no recordings given')
     if dt is None:
-        times = [np.unique(np.asarray(r.track_speeds()[0], float)) for r in recordings]
-        periods = [np.median(np.diff(t)) for t in times if len(t) > 1]
-        # Rounded to the microsecond: stamps jitter, and the delay is a multiple of dt.
-        dt = round(float(np.clip(min(periods), 0.002, 0.02)), 6) if periods else 0.01
+        dt = _grid_period(recordings)
     if not (math.isfinite(dt) and dt > 0):
         raise ValueError(f'dt must be a finite number > 0 s, got {dt!r}')
     max_lag = int(math.ceil(max_delay / dt - 1e-9))
+    segments, cmd, meas = _excited_segments(recordings, dt, max_lag, max_delay, max_gap)
+    fixed_motor = {}
+    if loop == 'pid_dc_motor':
+        motor = _defaults_motor(base)
+        fixed_motor = {'inertia': motor.inertia, 'damping': motor.damping,
+                       'resistance': motor.resistance, 'inductance': motor.inductance,
+                       'motor_constant': motor.motor_constant}
+    problem = _Problem(segments, dt, max_lag, loop, fixed_motor)
+    candidates, lower, upper = _starting_points(loop, base, segments, dt)
+    search = _DelaySearch(problem, lower, upper)
+    lag, rounds = search.run(candidates, max_rounds)
+    solution = search.fits[lag]
+    p = solution.x
+    if not (solution.success and np.all(np.isfinite(p))):
+        raise FitError(f'the least-squares fit did not converge: {solution.message}')
+    responses = problem.responses(p)
+    if responses is None:
+        raise FitError('the fit ended on an unstable speed loop')
+    sse = problem.lag_sse(responses)
+    if lag == max_lag and max_lag > 0:
+        raise FitError(f'the best delay is at the search bound ({max_lag * dt:.3f} s): raise '
+                       '--max-delay, or check that commands and speeds share a clock')
+
+    residual = problem.residuals(p, lag)
+    n = residual.size
+    sse_total = float(residual @ residual)
+    centred = meas - meas.mean(axis=0)
+    drive, binding = _acceleration_limit(problem.drivetrain(p, delay=lag * dt), segments, dt)
+    parameters, errors, how = _estimates(problem, search, p, lag, drive, sse_total)
+    return DriveTrainFit(
+        drivetrain=drive, loop=loop, parameters=parameters, standard_errors=errors,
+        fixed=fixed_motor, rms=math.sqrt(sse_total / n),
+        rms_commands=float(np.sqrt(np.mean((cmd - meas) ** 2))),
+        fit_percent=100.0 * (1.0 - math.sqrt(sse_total / float(np.sum(centred ** 2)))),
+        accel_limit_binding=binding,
+        max_command_accel=max(float(np.max(np.abs(np.diff(s.commands, axis=0))))
+                              for s in segments) / dt,
+        dt=dt, samples=n // 2, seconds_of_data=n // 2 * dt, segments=segments,
+        delay_profile=(np.arange(max_lag + 1) * dt, np.sqrt(sse / n)),
+        rounds=rounds, delays_fitted=len(search.fits), delay_uncertainty=how,
+        delay_at_zero=lag == 0 and max_lag > 0, nfev=problem.nfev,
+        seconds=time.perf_counter() - started)
+
+
+def _grid_period(recordings) -> float:
+    """Return the default grid: the median measured period, in [2, 20] ms, s."""
+    times = [np.unique(np.asarray(r.track_speeds()[0], float)) for r in recordings]
+    periods = [np.median(np.diff(t)) for t in times if len(t) > 1]
+    # Rounded to the microsecond: stamps jitter, and the delay is a multiple of dt.
+    return round(float(np.clip(min(periods), 0.002, 0.02)), 6) if periods else 0.01
+
+
+def _excited_segments(recordings, dt, max_lag, max_delay, max_gap):
+    """
+    Return the resampled segments and their commands and speeds after the delay window.
+
+    Raises ExcitationError for too little data, commands that hardly change, or speeds that
+    do not follow them.
+    """
     segments = [s for r in recordings for s in resample(r, dt, max(max_gap, dt))
                 if len(s.t) > max_lag + 1]
     usable = sum(len(s.t) - max_lag for s in segments)
@@ -276,121 +332,115 @@ def fit_drivetrain(data: Recording | Sequence[Recording], loop: str = 'first_ord
         raise ExcitationError(
             f'the measured speeds do not follow the commands (std {meas_std:.4f} m/s against '
             f'{cmd_std:.4f} m/s commanded): wrong encoder topic, joints or sprocket radius?')
+    return segments, cmd, meas
 
-    fixed_motor = {}
-    if loop == 'pid_dc_motor':
-        motor = _defaults_motor(base)
-        fixed_motor = {'inertia': motor.inertia, 'damping': motor.damping,
-                       'resistance': motor.resistance, 'inductance': motor.inductance,
-                       'motor_constant': motor.motor_constant}
-    problem = _Problem(segments, dt, max_lag, loop, fixed_motor)
 
+def _starting_points(loop, base, segments, dt):
+    """Return the candidate parameter vectors of ``loop`` and the bounds of the fit."""
     u_guess = 1.0 / max(_peak_accel(segments, dt), 1e-3)
     if loop == 'first_order':
         start_t = base.loop.time_constant if (
             base is not None and isinstance(base.loop, FirstOrderLag)) else None
         candidates = [np.array([tc, u]) for tc in ([start_t] if start_t else [])
                       + [0.02, 0.05, 0.1, 0.2, 0.5, 1.0] for u in (0.0, u_guess)]
-        lower, upper = [1e-3, 0.0], [30.0, 100.0]
-    elif loop == 'pid_dc_motor':
+        return candidates, [1e-3, 0.0], [30.0, 100.0]
+    if loop == 'pid_dc_motor':
         gains = _defaults_motor(base)
         candidates = [np.array([gains.kp, gains.ki, gains.kd, u]) for u in (0.0, u_guess)]
-        lower, upper = [0.0, 0.0, 0.0, 0.0], [np.inf, np.inf, np.inf, 100.0]
-    else:
-        candidates = [np.array([u]) for u in (0.0, u_guess, 0.3 * u_guess, 3.0 * u_guess)]
-        lower, upper = [0.0], [100.0]
+        return candidates, [0.0, 0.0, 0.0, 0.0], [np.inf, np.inf, np.inf, 100.0]
+    candidates = [np.array([u]) for u in (0.0, u_guess, 0.3 * u_guess, 3.0 * u_guess)]
+    return candidates, [0.0], [100.0]
 
-    # Starting point: the best candidate with its best delay.
-    best = None
-    for p in candidates:
-        responses = problem.responses(p)
-        if responses is None:
-            continue
-        sse = problem.lag_sse(responses)
-        lag = int(np.argmin(sse))
-        if best is None or sse[lag] < best[0]:
-            best = (sse[lag], p, lag)
-    if best is None:
-        raise FitError('every starting point gives an unstable speed loop; check the motor '
-                       'constants of the base file')
-    _, p, lag = best
-    fits = {}   # delay in samples -> least-squares solution at that delay
 
-    def fit_at(lag, x0):
-        if lag not in fits:
+class _DelaySearch:
+    """The least-squares fits at whole-sample delays, each done once (``fits``: lag -> fit)."""
+
+    def __init__(self, problem, lower, upper):
+        self.problem = problem
+        self.lower, self.upper = lower, upper
+        self.fits = {}
+
+    def fit_at(self, lag, x0):
+        """Return the least-squares fit of the smooth parameters at a delay of ``lag``."""
+        if lag not in self.fits:
             try:
-                fits[lag] = least_squares(problem.residuals, np.clip(x0, lower, upper),
-                                          bounds=(lower, upper), args=(lag,), x_scale='jac',
-                                          diff_step=1e-4)
+                self.fits[lag] = least_squares(
+                    self.problem.residuals, np.clip(x0, self.lower, self.upper),
+                    bounds=(self.lower, self.upper), args=(lag,), x_scale='jac',
+                    diff_step=1e-4)
             except ValueError as err:
                 raise FitError(f'the least-squares fit failed: {err}') from None
-        return fits[lag]
+        return self.fits[lag]
 
-    # Alternate: fit the smooth parameters at a delay, then take the delay that scores best
-    # with them, until a delay comes back.
-    rounds = 0
-    while rounds < max_rounds:
-        rounds += 1
-        p = fit_at(lag, p).x
-        responses = problem.responses(p)
-        if responses is None:
-            raise FitError('the fit ended on an unstable speed loop')
-        lag_next = int(np.argmin(problem.lag_sse(responses)))
-        if lag_next in fits:
-            break
-        lag = lag_next
-    # Delay and loop lag trade off, so alternation can stall one or two samples off: walk the
-    # profile cost (the best fit at each delay) downhill from the best delay so far.
-    lag = min(fits, key=lambda k: fits[k].cost)
-    for step in (-1, 1):
-        while 0 <= lag + step <= max_lag and \
-                fit_at(lag + step, fits[lag].x).cost < fits[lag].cost:
-            lag += step
-    solution = fits[lag]
-    p = solution.x
-    if not (solution.success and np.all(np.isfinite(p))):
-        raise FitError(f'the least-squares fit did not converge: {solution.message}')
-    responses = problem.responses(p)
-    if responses is None:
-        raise FitError('the fit ended on an unstable speed loop')
-    sse = problem.lag_sse(responses)
-    if lag == max_lag and max_lag > 0:
-        raise FitError(f'the best delay is at the search bound ({max_lag * dt:.3f} s): raise '
-                       '--max-delay, or check that commands and speeds share a clock')
+    def run(self, candidates, max_rounds):
+        """Return the best delay (samples) and the rounds of alternation it took."""
+        problem = self.problem
+        # Starting point: the best candidate with its best delay.
+        best = None
+        for p in candidates:
+            responses = problem.responses(p)
+            if responses is None:
+                continue
+            sse = problem.lag_sse(responses)
+            lag = int(np.argmin(sse))
+            if best is None or sse[lag] < best[0]:
+                best = (sse[lag], p, lag)
+        if best is None:
+            raise FitError('every starting point gives an unstable speed loop; check the motor '
+                           'constants of the base file')
+        _, p, lag = best
+        # Alternate: fit the smooth parameters at a delay, then take the delay that scores
+        # best with them, until a delay comes back.
+        rounds = 0
+        while rounds < max_rounds:
+            rounds += 1
+            p = self.fit_at(lag, p).x
+            responses = problem.responses(p)
+            if responses is None:
+                raise FitError('the fit ended on an unstable speed loop')
+            lag_next = int(np.argmin(problem.lag_sse(responses)))
+            if lag_next in self.fits:
+                break
+            lag = lag_next
+        # Delay and loop lag trade off, so alternation can stall one or two samples off: walk
+        # the profile cost (the best fit at each delay) downhill from the best delay so far.
+        fits = self.fits
+        lag = min(fits, key=lambda k: fits[k].cost)
+        for step in (-1, 1):
+            while 0 <= lag + step <= problem.max_lag and \
+                    self.fit_at(lag + step, fits[lag].x).cost < fits[lag].cost:
+                lag += step
+        return lag, rounds
 
-    residual = problem.residuals(p, lag)
-    n = residual.size
-    sse_total = float(residual @ residual)
-    rms = math.sqrt(sse_total / n)
-    centred = meas - meas.mean(axis=0)
-    fit_percent = 100.0 * (1.0 - math.sqrt(sse_total / float(np.sum(centred ** 2))))
-    rms_commands = float(np.sqrt(np.mean((cmd - meas) ** 2)))
 
+def _acceleration_limit(drive: DriveTrain, segments, dt: float):
+    """Return the model without a limit that never binds, and the share of steps it shapes."""
+    if not math.isfinite(drive.max_accel):
+        return drive, 0.0
+    shaped = [replace(drive, delay=0.0, loop=None).simulate(s.commands, dt,
+                                                            initial=s.speeds[0])
+              for s in segments]
+    step = drive.max_accel * dt
+    hits = sum(int(np.count_nonzero(_rate_steps(y, step))) for y in shaped)
+    binding = hits / sum(2 * (len(y) - 1) for y in shaped)
+    return (replace(drive, max_accel=math.inf) if hits == 0 else drive), binding
+
+
+def _estimates(problem, search, p, lag, drive, sse_total):
+    """Return the fitted parameters, their standard errors, and how the delay's was found."""
+    solution = search.fits[lag]
+    dt, max_lag = problem.dt, problem.max_lag
     # Standard errors from the Jacobian of the final least-squares round.
     names = {'first_order': ['time_constant'], 'pid_dc_motor': ['kp', 'ki', 'kd'],
-             'ideal': []}[loop]
+             'ideal': []}[problem.loop]
     jac = solution.jac
-    sigma2 = sse_total / max(n - len(p), 1)
+    sigma2 = sse_total / max(jac.shape[0] - len(p), 1)
     try:
         cov = sigma2 * np.linalg.pinv(jac.T @ jac)
         std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
     except np.linalg.LinAlgError:
         std = np.full(len(p), np.nan)
-
-    drive = problem.drivetrain(p, delay=lag * dt)
     u = float(p[-1])
-    shaped = [replace(drive, delay=0.0, loop=None).simulate(s.commands, dt,
-                                                            initial=s.speeds[0])
-              for s in segments]
-    binding = 0.0
-    if math.isfinite(drive.max_accel):
-        step = drive.max_accel * dt
-        hits = sum(int(np.count_nonzero(_rate_steps(y, step))) for y in shaped)
-        binding = hits / sum(2 * (len(y) - 1) for y in shaped)
-        if hits == 0:
-            drive = replace(drive, max_accel=math.inf)
-    max_command_accel = max(float(np.max(np.abs(np.diff(s.commands, axis=0)))) for s in
-                            segments) / dt
     parameters = {'delay': lag * dt, 'max_accel': drive.max_accel}
     # The profile around the best delay, each neighbour with its own smooth parameters (the
     # walk fitted them), block by block: the jackknife then sees the trade-off with the lag.
@@ -399,7 +449,7 @@ def fit_drivetrain(data: Recording | Sequence[Recording], loop: str = 'first_ord
     if 0 < lag < max_lag:
         columns = []
         for near in (lag - 1, lag, lag + 1):
-            near_responses = problem.responses(fit_at(near, p).x)
+            near_responses = problem.responses(search.fit_at(near, p).x)
             if near_responses is None:
                 break
             columns.append(problem.lag_sse_blocks(near_responses, block, near))
@@ -412,12 +462,4 @@ def fit_drivetrain(data: Recording | Sequence[Recording], loop: str = 'first_ord
     for i, name in enumerate(names):
         parameters[name] = float(p[i])
         errors[name] = float(std[i])
-    profile = (np.arange(max_lag + 1) * dt, np.sqrt(sse / n))
-    return DriveTrainFit(
-        drivetrain=drive, loop=loop, parameters=parameters, standard_errors=errors,
-        fixed=fixed_motor, rms=rms, rms_commands=rms_commands, fit_percent=fit_percent,
-        accel_limit_binding=binding, max_command_accel=max_command_accel, dt=dt,
-        samples=n // 2, seconds_of_data=n // 2 * dt, segments=segments, delay_profile=profile,
-        rounds=rounds, delays_fitted=len(fits), delay_uncertainty=how,
-        delay_at_zero=lag == 0 and max_lag > 0, nfev=problem.nfev,
-        seconds=time.perf_counter() - started)
+    return parameters, errors, how

@@ -24,7 +24,8 @@ from tracked_kinematics.offline.outputs import abort_unfinished, begun, Outputs
 from tracked_kinematics.offline.signals import Signalled
 from tracked_kinematics.offline.tooling import (  # noqa: F401 (the tools import them here)
     checked_encoders, error_line, EXIT_EXCITATION, EXIT_FIT, EXIT_INPUT, exit_status,
-    read_base_file, report_json, require_vehicle, warn, warn_unknown_terrain_keys)
+    read_base_file, refuse_another_vehicle, report_json, require_vehicle, warn,
+    warn_unknown_terrain_keys)
 from tracked_kinematics.params import ENCODER_INPUT_DEFAULTS, INPUT_MODES, SIDE_TOPICS
 
 EXIT_INTERRUPTED = 130

@@ -45,6 +45,7 @@ from tracked_kinematics.offline.model_evaluation import (
     read_terrain_models, References)
 from tracked_kinematics.offline.outputs import Outputs
 from tracked_kinematics.params import positive as check_positive
+from tracked_kinematics.params.dimensions import check_same_vehicle, dimensions_of
 
 PROG = 'evaluate_model'
 
@@ -99,8 +100,8 @@ def build_parser() -> argparse.ArgumentParser:
     out.add_argument('--plot', default=None, metavar='OUT.png',
                      help='error against window length, and paths')
     out.add_argument('--consistency-plot', default=None, metavar='OUT.png',
-                     help='the normalised final position errors against the published 50 % '
-                     'and 95 % ellipses: NEES histogram and scatter per terrain file')
+                     help='the normalised final position errors against the published 50 %% '
+                     'and 95 %% ellipses: NEES histogram and scatter per terrain file')
     out.add_argument('--tum', default=None, metavar='DIR',
                      help='new directory: ground truth and odometry of each piece as TUM '
                      'trajectories, to check the RPE with evo_rpe')
@@ -112,23 +113,32 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _vehicle(args, models):
-    """Return the track width of the ideal drive and the sprocket radius."""
-    first = models[0].values
+    """
+    Return the track width of the ideal drive and the sprocket radius.
+
+    Each dimension comes from its option or the files; where both, or several files, give
+    it, they must agree (:func:`check_same_vehicle`): a terrain file of another vehicle is
+    refused.
+    """
+    files = [(m.path, dimensions_of(m.values)) for m in models]
+    for flag, key in (('--track-width', 'track_width'), ('--sprocket-radius', 'sprocket_radius')):
+        option = getattr(args, key)
+        first = (flag, {key: option}) if option is not None else next(
+            (source for source in files if source[1][key] is not None), None)
+        for source in files:
+            if first is not None and source is not first:
+                check_same_vehicle(first, source, keys=(key,))
     radius = args.sprocket_radius
     if radius is None:
         given = [m.values.get('sprocket_radius') for m in models]
         require_vehicle({'--sprocket-radius': None if None in given else 0.0},
                         'every terrain file')
-        radii = {float(r) for r in given}
-        if len(radii) > 1:
-            raise UsageError('the terrain files disagree on sprocket_radius ('
-                             f'{", ".join(f"{r:g}" for r in sorted(radii))} m): give '
-                             '--sprocket-radius')
-        radius = radii.pop()
+        radius = given[0]
     track_width = args.track_width
     if track_width is None:
+        first = models[0].values
         require_vehicle({'--track-width': first.get('track_width')}, 'the first terrain file')
-        track_width = float(first['track_width'])
+        track_width = first['track_width']
     for name, value in (('sprocket_radius', radius), ('track_width', track_width)):
         if check_positive(value):
             raise UsageError(f'{name} must be a finite number > 0, got {value!r}')
@@ -222,7 +232,7 @@ def _run(args, out) -> int:
                                None if args.all_windows else args.min_speed)
         report = evaluate_models(references, models, settings, sprocket_radius=radius,
                                  command_source=args.command_source, online=args.online,
-                                 fuse_imu=bool(args.fuse_imu))
+                                 fuse_imu=args.fuse_imu or False)
         print(report.table(), file=out)
         if args.report:
             outputs.write_text('--report', report.json())

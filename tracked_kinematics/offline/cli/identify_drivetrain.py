@@ -34,8 +34,8 @@ from tracked_kinematics.offline.bags import read_recording
 from tracked_kinematics.offline.cli.common import (
     add_base_file_argument, add_command_arguments, add_encoder_arguments, add_output_argument,
     add_plot_output, add_report_arguments, add_sprocket_radius_argument, bag_tool_parser,
-    bounded, command_source, encoder_source, positive, read_base_file, report_json,
-    require_vehicle, run_main, write_together)
+    bounded, command_source, encoder_source, positive, read_base_file, refuse_another_vehicle,
+    report_json, require_vehicle, run_main, write_together)
 from tracked_kinematics.offline.errors import BagError, UsageError
 from tracked_kinematics.offline.outputs import Outputs
 from tracked_kinematics.offline.terrain_file import terrain_text, terrain_values
@@ -90,6 +90,7 @@ def build_parser() -> argparse.ArgumentParser:
 def _base(args):
     """Read the base terrain values, the sprocket radius and the base drive train (or None)."""
     base_values = read_base_file(PROG, args.params)
+    refuse_another_vehicle(args.params, base_values, args.track_width, args.sprocket_radius)
     radius = args.sprocket_radius
     if radius is None:
         radius = base_values.get('sprocket_radius')

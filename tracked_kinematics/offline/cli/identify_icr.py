@@ -29,8 +29,8 @@ from tracked_kinematics.core.identify.procedure import IdentifyOptions
 from tracked_kinematics.offline.cli.common import (
     add_base_file_argument, add_ground_truth_arguments, add_output_argument, add_plot_output,
     add_report_arguments, add_vehicle_groups, add_window_selection_arguments, bounded,
-    encoder_settings, ground_truth_source, identification_parser, min_speed, names, run_main,
-    warn, write_together)
+    encoder_settings, ground_truth_source, identification_parser, min_speed, names,
+    refuse_another_vehicle, run_main, warn, write_together)
 from tracked_kinematics.offline.identification import (
     fit, FitOptions, MODELS as MODEL_CHOICES, TOOL as PROG, write_fit)
 from tracked_kinematics.offline.outputs import Outputs
@@ -175,6 +175,7 @@ def _outputs(args, options: FitOptions) -> Outputs:
 
 
 def _run(args, out) -> int:
+    refuse_another_vehicle(args.params, None, args.track_width, args.sprocket_radius)
     options = options_from_args(args)
 
     def work(outputs):

@@ -31,7 +31,7 @@ from tracked_kinematics.core.kinematics import IcrParams
 from tracked_kinematics.core.plan import CANONICAL, canonical, Plan, Planner
 from tracked_kinematics.core.sim.simulation import TwistTable
 from tracked_kinematics.offline.cli.common import (
-    add_force_argument, add_plot_output, ArgumentParser, bounded, run_main, warn,
+    add_force_argument, add_plot_output, ArgumentParser, bounded, run_main,
     warn_unknown_terrain_keys)
 from tracked_kinematics.offline.errors import UsageError
 from tracked_kinematics.offline.outputs import Outputs
@@ -40,8 +40,10 @@ from tracked_kinematics.offline.planning import (
     MODELS, write_bag)
 from tracked_kinematics.offline.vehicle_file import load_vehicle, vehicle_path
 from tracked_kinematics.params import icr_from_values, read_params_file
+from tracked_kinematics.params.dimensions import check_same_vehicle, dimensions_of
 
 PROG = 'plan_trajectory'
+DEFAULT_VEHICLE = 'auriga_alpha'
 MAX_HORIZON = 30.0
 """Longest horizon, s: 75 knots per track, a plan in well under a minute."""
 MIN_HORIZON = 0.8
@@ -99,7 +101,7 @@ def build_parser() -> argparse.ArgumentParser:
                                          'translator limits when present)')
     parser.add_argument('--model', choices=MODELS, default='icr',
                         help='planning model (default icr)')
-    parser.add_argument('--vehicle', default='auriga_alpha',
+    parser.add_argument('--vehicle', default=None,
                         help='vehicle YAML or shipped name (auriga_alpha, packbot): drive '
                              'train, and the dynamic simulator of --plot (default '
                              'auriga_alpha)')
@@ -139,7 +141,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _load(args):
-    vehicle = load_vehicle(args.vehicle)
+    vehicle = load_vehicle(args.vehicle or DEFAULT_VEHICLE)
     if args.compare:
         return vehicle, None, {}
     if not args.params:
@@ -151,6 +153,11 @@ def _load(args):
         message = err.strerror if isinstance(err, OSError) and err.strerror else err
         raise UsageError(f'{args.params}: {message}') from None
     warn_unknown_terrain_keys(PROG, args.params, values)
+    # The drive train and the simulator are the vehicle file's: of the terrain's vehicle.
+    given = (f'--vehicle {vehicle.path}' if args.vehicle
+             else f'--vehicle {DEFAULT_VEHICLE} (the default: give --vehicle)')
+    check_same_vehicle((args.params, dimensions_of(values)),
+                       (given, dimensions_of(vehicle.values)))
     return vehicle, icr, values
 
 
@@ -166,7 +173,7 @@ def _outputs(args) -> Outputs:
     outputs.add('--bag', args.bag, directory=True)
     add_plot_output(outputs, args.plot)
     outputs.refuse_inputs('--params', [args.params])
-    outputs.refuse_inputs('--vehicle', [vehicle_path(args.vehicle)])
+    outputs.refuse_inputs('--vehicle', [vehicle_path(args.vehicle or DEFAULT_VEHICLE)])
     return outputs
 
 
@@ -202,9 +209,6 @@ def _run(args, out) -> int:
         if args.compare:
             return _compare(robot, vehicle.name, limits, speed, args.dt, out)
         model, p = model_from_terrain(args.model, icr, values)
-        if abs(model.track_width - robot.vehicle.track_width) > 1e-6 and args.plot:
-            warn(PROG, f'note: the terrain track width {model.track_width} m differs from '
-                       f"the vehicle's {robot.vehicle.track_width} m")
         planner = Planner(model, p, robot.drivetrain, limits, command_icr=icr, dt=args.dt)
         ref, plan = _plan(args, planner, speed)
         if not plan.success:

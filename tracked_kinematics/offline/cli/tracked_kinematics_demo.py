@@ -13,7 +13,9 @@ Four steps, each the code path a user would run:
    does (ideal differential drive, ICRs on the track centrelines, no scale corrections)
    and through the identified ICRs loaded back from the written YAML (Martinez eqs. 7-9,
    20-21); compare the final poses with the simulator's true poses;
-4. say where every output is and how to use the YAML with ``odometry_node``.
+4. say where every output is, how to score the fit with ``evaluate_model`` and how to use
+   the YAML with ``odometry_node`` (the console scripts of a venv; ``ros2 run`` in a
+   workspace).
 
 Its output directory holds a manifest (``.tracked_kinematics_demo``, JSON) of exactly the
 files, bags and directories the demo created there (:mod:`..demo_directory`). A rerun
@@ -364,20 +366,28 @@ def run(args, out) -> int:
 
 
 def _steps(args, out, spec, terrain, overrides, outputs: DemoDirectory, start) -> int:
-    directory = outputs.directory
-    force = outputs.force
-    veh, enc = spec.robot.vehicle, spec.robot.encoders
     print(f'{PROG}: {spec.name} on {terrain} ({spec.path}), seed {args.seed}; '
-          f'outputs in {directory}/', file=out)
+          f'outputs in {outputs.directory}/', file=out)
+    table = TwistTable(spec.robot.vehicle)
+    sim = _simulate_step(args, out, spec, terrain, overrides, outputs, table)
+    status = _identify_step(out, spec, terrain, outputs, sim)
+    if status != 0:
+        return status
+    yaml_path = outputs.directory / f'{terrain}.yaml'
+    results = _heldout_step(args, out, spec, terrain, overrides, outputs, table, yaml_path)
+    _outputs_step(out, outputs, yaml_path, sim, results, start)
+    return 0
 
+
+def _simulate_step(args, out, spec, terrain, overrides, outputs, table):
+    """Step 1: simulate and record the calibration drive; return the simulated bag."""
     t = time.perf_counter()
-    table = TwistTable(veh)
     calibration = f'calibration/{spec.name}_{terrain}'
     outputs.record(Entry('bag', calibration, bag_files(calibration, args.storage)))
     outputs.record(Entry('file', f'{calibration}.truth.yaml'))
-    sim = simulate_bag(directory / calibration, args.vehicle, overrides=overrides,
+    sim = simulate_bag(outputs.directory / calibration, args.vehicle, overrides=overrides,
                        duration=args.duration, seed=args.seed, storage=args.storage,
-                       table=table, force=force, parents=False, imu=GYRO)
+                       table=table, force=outputs.force, parents=False, imu=GYRO)
     outputs.written()
     truth = sim.truth_icr
     _step(1, f'simulated a calibration drive: mixed manoeuvres, {sim.run.duration:.0f} s, '
@@ -387,18 +397,21 @@ def _steps(args, out, spec, terrain, overrides, outputs: DemoDirectory, start) -
     print(f'   true model  {sim.truth}', file=out)
     print(f"               the simulator's averaged ICR map: chi {fixed(truth.chi)}, "
           f'e {fixed(truth.eccentricity)}', file=out)
+    return sim
 
+
+def _identify_step(out, spec, terrain, outputs, sim) -> int:
+    """Step 2: fit the calibration bag as identify_icr does; return its exit status."""
     t = time.perf_counter()
+    directory = outputs.directory
     for name in (f'{terrain}.yaml', 'identify_report.json', 'identify.png'):
         outputs.record(Entry('file', name))
-    status, command, printed = identify(sim.bag, directory, terrain, veh.track_width,
-                                        enc.sprocket_radius, force)
-    seconds = time.perf_counter() - t
-    _step(2, 'identified the ICRs with identify_icr (what the console script runs)', seconds,
-          out)
-    lines = textwrap.wrap(shlex.join(command), 88, break_long_words=False,
-                          break_on_hyphens=False)
-    print('   $ ' + ' \\\n       '.join(lines), file=out)
+    status, command, printed = identify(sim.bag, directory, terrain,
+                                        spec.robot.vehicle.track_width,
+                                        spec.robot.encoders.sprocket_radius, outputs.force)
+    _step(2, 'identified the ICRs with identify_icr (what the console script runs)',
+          time.perf_counter() - t, out)
+    _print_command(command, out)
     print('   its output; its hold-out table compares the models on 30 s blocks of the '
           'calibration bag:', file=out)
     _indent(printed, out)
@@ -408,36 +421,48 @@ def _steps(args, out, spec, terrain, overrides, outputs: DemoDirectory, start) -
         return status
     outputs.written()
     yaml_path = directory / f'{terrain}.yaml'
-    values = read_params_file(yaml_path)
-    identified = icr_from_values(values)
-    gyro = gyro_config_from_values(values)
+    identified = icr_from_values(read_params_file(yaml_path))
     print(f'   fitted YAML {yaml_path} (terrain parameters; fit statistics follow in the file):',
           file=out)
     text = yaml_path.read_text(encoding='utf-8')
     _indent(text.split('    identification:')[0], out)
+    truth = sim.truth_icr
     print(f'   identified chi {fixed(identified.chi)}, e {fixed(identified.eccentricity)}; '
           f"simulator's averaged map chi {fixed(truth.chi)}, e {fixed(truth.eccentricity)}",
           file=out)
+    return 0
 
+
+def _print_command(command, out, prefix='   $ ') -> None:
+    lines = textwrap.wrap(shlex.join(command), 88, break_long_words=False,
+                          break_on_hyphens=False)
+    print(prefix + (' \\\n' + ' ' * (len(prefix) + 2)).join(lines), file=out)
+
+
+def _heldout_step(args, out, spec, terrain, overrides, outputs, table, yaml_path):
+    """Step 3: dead-reckon the held-out paths, and score the published covariance on them."""
     t = time.perf_counter()
-    heldout = directory / 'heldout'
+    directory = outputs.directory
+    values = read_params_file(yaml_path)
+    identified, gyro = icr_from_values(values), gyro_config_from_values(values)
     results = []
     for k in range(args.paths):
         name = f'heldout/{heldout_name(k)}'
         outputs.record(Entry('bag', name, bag_files(name, args.storage)))
         outputs.record(Entry('file', f'{name}.truth.yaml'))
-        results.append(heldout_path(k, args, overrides, table, identified, heldout, gyro))
+        results.append(heldout_path(k, args, overrides, table, identified,
+                                    directory / 'heldout', gyro))
         outputs.written()
     outputs.record(Entry('file', 'heldout.csv'))
     outputs.record(Entry('file', 'heldout.png'))
-    with Outputs(force=force) as files:
+    with Outputs(force=outputs.force) as files:
         files.add('heldout.csv', directory / 'heldout.csv')
         files.add('heldout.png', directory / 'heldout.png')
         files.write_text('heldout.csv', csv_text(results))
         from tracked_kinematics.offline.plots import plot_heldout_paths
         with files.path('heldout.png') as tmp:
             plot_heldout_paths(tmp, results, f'{spec.name} on {terrain}: held-out paths, dead '
-                               'reckoning from the encoders')
+                               'reckoning from the encoders and gyro-aided')
     outputs.written()
     _step(3, f'dead-reckoned {len(results)} held-out paths (new seeds, not used by the fit)',
           time.perf_counter() - t, out)
@@ -445,28 +470,40 @@ def _steps(args, out, spec, terrain, overrides, outputs: DemoDirectory, start) -
           f'identified = {yaml_path.name}', file=out)
     print_table(results, out)
     outputs.record(Entry('file', 'consistency.png'))
-    _consistency(directory, yaml_path, results, spec, force, out)
+    _consistency(directory, yaml_path, results, spec, outputs.force, out)
     outputs.written()
+    return results
 
+
+def _outputs_step(out, outputs, yaml_path, sim, results, start) -> None:
+    """Step 4: say where every output is, and what to run next (in a venv, in a workspace)."""
+    directory = outputs.directory
     print(f'4. outputs (total {time.perf_counter() - start:.1f} s):', file=out)
     listing = (
             (yaml_path, 'identified terrain parameters (--params-file)'),
             (directory / 'identify_report.json', 'identify_icr report: fit, hold-out stats'),
             (directory / 'identify.png', 'identify_icr plot: paths and residuals'),
             (directory / 'heldout.csv', 'held-out errors, one row per path'),
-            (directory / 'heldout.png', 'held-out paths: truth, ideal, identified'),
+            (directory / 'heldout.png', 'held-out paths: truth, ideal, identified, '
+                                        'gyro-aided'),
             (directory / 'consistency.png', 'held-out errors against the published '
                                             'covariance (NEES)'),
             (sim.bag, 'calibration bag (+ .truth.yaml: the true model)'),
-            (heldout, 'held-out bags'),
+            (directory / 'heldout', 'held-out bags'),
             (outputs.manifest, 'what the demo wrote here (a rerun replaces exactly these)'))
     width = max(len(str(path)) for path, _ in listing)
     for path, what in listing:
         print(f'   {str(path):<{width}}  {what}', file=out)
-    print('   use it on the robot:\n'
-          '   ros2 run tracked_kinematics odometry_node --ros-args --params-file '
-          f'{yaml_path.resolve()}', file=out)
-    return 0
+    print('   next (the console scripts are in .venv/bin/ after make demo; in a ROS 2 '
+          'workspace: ros2 run tracked_kinematics NAME):', file=out)
+    print('   score the fit on the held-out bags (errors, verdicts on the covariance, the row '
+          'to run):', file=out)
+    bags = [str(directory / 'heldout' / r.name) for r in results]
+    _print_command(['evaluate_model', *bags, '--ground-truth-topic', GT_TOPIC, '--params',
+                    str(yaml_path), '--fuse-imu', IMU_TOPIC], out, prefix='   ')
+    print('   run it on the robot, its gyro on /imu/data:', file=out)
+    print('   odometry_node --ros-args --params-file '
+          f'{yaml_path.resolve()} -p imu_topic:={IMU_TOPIC}', file=out)
 
 
 def _consistency(directory, yaml_path, results, spec, force, out) -> None:
@@ -502,7 +539,7 @@ def _consistency(directory, yaml_path, results, spec, force, out) -> None:
 
 
 def _print_consistency(report, model, yaml_path, out) -> dict:
-    """Print the coverage of the published covariance; return the normalised errors."""
+    """Print the coverage of the published covariance and its verdict; return the errors."""
     print(f"   the published covariance ({yaml_path.name}'s noise model, fitted by identify_icr) "
           'on the held-out windows, as evaluate_model --fuse-imu reports it:', file=out)
     for name in (model.name, f'{model.name}+imu'):
@@ -513,10 +550,11 @@ def _print_consistency(report, model, yaml_path, out) -> dict:
             if not c['windows']:
                 cells.append(f'{key} s: no windows (paths too short)')
                 continue
-            cells.append(f'{key} s: {100 * c["inside_50"]:.0f} % / {100 * c["inside_95"]:.0f} % '
-                         f'inside the 50 % / 95 % ellipses, mean NEES {c["mean_nees"]:.1f}')
+            cells.append(f'{key} s: {100 * c["inside_50"]:.0f} % / {100 * c["inside_95"]:.0f} %, '
+                         f'NEES {c["mean_nees"]:.1f}: {c["verdict"] or "too few windows"}')
         print(f'   {name:<18}' + '; '.join(cells), file=out)
-    print('   (consistent: 50 % / 95 %, mean NEES 2)', file=out)
+    print('   (inside the 50 % / 95 % ellipses and mean NEES: 50 % / 95 % and 2 if consistent; '
+          'the verdict\'s rule: docs/tools/evaluate_model.md, "The verdict")', file=out)
     return report.normalised
 
 
