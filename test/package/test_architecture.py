@@ -592,12 +592,8 @@ MAX_MODULE_LINES = 700
 PARSER_FUNCTIONS = {'build_parser'}
 # Offenders in files other branches are splitting (issue 37 item 9); each entry goes when its
 # split is merged (test_known_offenders_are_still_offenders says when).
-KNOWN_LONG_FUNCTIONS = {
-    'core/identify/procedure.py:identify',
-    'ros/calibration_drive_node.py:_start',
-    'ros/tracked_simulator.py:_start',
-}
-KNOWN_LONG_MODULES = {'core/gyro_odometry.py'}
+KNOWN_LONG_FUNCTIONS: set = set()
+KNOWN_LONG_MODULES: set = set()
 _NOT_CODE = (tokenize.COMMENT, tokenize.NL, tokenize.NEWLINE, tokenize.INDENT, tokenize.DEDENT,
              tokenize.ENDMARKER, tokenize.ENCODING)
 

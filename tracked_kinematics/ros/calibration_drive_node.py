@@ -162,6 +162,23 @@ class CalibrationDriveNode(TableNode):
                                     max_jump=0.5 * gyro_range)
         self._steady_clock = Clock(clock_type=ClockType.STEADY_TIME)
         self._period = 1.0 / values['rate']
+        self._reset_state(values)
+        self._connect(values)
+        deadman = (f'{self._deadman_topics[0]}' if values['deadman_topic'] else '') + (
+            f' {self._deadman_topics[-1]} button {values["deadman_button"]}'
+            if values['joy_topic'] else '')
+        source = self._inputs[0].topic_name
+        self.get_logger().info(
+            f'calibration drive: {len(self.steps)} steps, {total_duration(self.steps):.0f} s '
+            f'of motion, geofence {values["geofence_radius"]:g} m, caps '
+            f'{values["max_speed"]:g} m/s and {values["max_yaw_rate"]:g} rad/s; reference '
+            f'{self._reference} on {source}; {self.encoder.describe()}; deadman '
+            f'{deadman.strip()}; '
+            + ('starts when the deadman is held' if values['auto_start']
+               else 'call ~/start to begin'))
+
+    def _reset_state(self, values: Mapping[str, Any]) -> None:
+        """Set the drive's bookkeeping to its start: no tick, input, fault or row yet."""
         self._ticks = deque()          # (steady, lateness) of the recent ticks
         self._last_tick = None         # (steady, ros) of the last timer tick
         self._clock_watch = ClockWatch(CLOCK_STALL)
@@ -192,6 +209,8 @@ class CalibrationDriveNode(TableNode):
         self._zero_sent = False
         self._lock = threading.Lock()
 
+    def _connect(self, values: Mapping[str, Any]) -> None:
+        """Create the publishers, the inputs, the deadman subscriptions, services and timers."""
         reliable = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
         self._cmd_pub = self.create_publisher(Twist, 'cmd_vel', reliable)
         self._status_pub = self.create_publisher(String, '~/status', reliable)
@@ -225,18 +244,6 @@ class CalibrationDriveNode(TableNode):
         self.create_service(Trigger, '~/stop', self._service(self.supervisor.stop))
         # On the steady clock: a /clock that stops must not stop the zero commands.
         self._timer = steady_timer(self, self._period, self._on_timer)
-        deadman = (f'{self._deadman_topics[0]}' if values['deadman_topic'] else '') + (
-            f' {self._deadman_topics[-1]} button {values["deadman_button"]}'
-            if values['joy_topic'] else '')
-        source = self._inputs[0].topic_name
-        self.get_logger().info(
-            f'calibration drive: {len(self.steps)} steps, {total_duration(self.steps):.0f} s '
-            f'of motion, geofence {values["geofence_radius"]:g} m, caps '
-            f'{values["max_speed"]:g} m/s and {values["max_yaw_rate"]:g} rad/s; reference '
-            f'{self._reference} on {source}; {self.encoder.describe()}; deadman '
-            f'{deadman.strip()}; '
-            + ('starts when the deadman is held' if values['auto_start']
-               else 'call ~/start to begin'))
 
     def _apply(self, values: Mapping[str, Any]) -> None:
         """Take runtime changes of the terrain and encoder values into use (the rest is fixed)."""

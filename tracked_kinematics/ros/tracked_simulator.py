@@ -140,22 +140,7 @@ class TrackedSimulator(LoopNode):
         self._encoder_due = Schedule(values['encoder_rate'], self._dt)
         self._truth_due = Schedule(values['ground_truth_rate'], self._dt)
 
-        # Messages, reused.
-        self._clock_msg = Clock()
-        self._joint_msg = JointState(name=[values['left_joint'], values['right_joint']])
-        self._odom_msg = Odometry()
-        self._odom_msg.header.frame_id = values['odom_frame']
-        self._odom_msg.child_frame_id = values['base_frame']
-        self._imu_msg = Imu()
-        self._imu_msg.header.frame_id = values['imu_frame']
-        self._imu_msg.orientation_covariance[0] = -1.0
-        self._imu_msg.linear_acceleration_covariance[0] = -1.0
-        noise2 = values['gyro_noise'] ** 2
-        for k in (0, 4, 8):
-            self._imu_msg.angular_velocity_covariance[k] = noise2
-        self._pose_msg = PoseStamped()
-        self._pose_msg.header.frame_id = values['lidar_pose_frame']
-
+        self._make_messages(values)
         self._clock_pub = self.create_publisher(Clock, '/clock', 10)
         self._joint_pub = self.create_publisher(JointState, 'joint_states', 10)
         self._imu_pub = self.create_publisher(Imu, 'imu/data', 10)
@@ -193,6 +178,23 @@ class TrackedSimulator(LoopNode):
                 'use_sim_time is true, but this node makes the simulated time: it paces its '
                 'steps on the wall clock and publishes /clock itself (give use_sim_time to '
                 'the other nodes only)')
+
+    def _make_messages(self, values: Mapping[str, Any]) -> None:
+        """Build the messages the simulation fills and publishes at every step (reused)."""
+        self._clock_msg = Clock()
+        self._joint_msg = JointState(name=[values['left_joint'], values['right_joint']])
+        self._odom_msg = Odometry()
+        self._odom_msg.header.frame_id = values['odom_frame']
+        self._odom_msg.child_frame_id = values['base_frame']
+        self._imu_msg = Imu()
+        self._imu_msg.header.frame_id = values['imu_frame']
+        self._imu_msg.orientation_covariance[0] = -1.0
+        self._imu_msg.linear_acceleration_covariance[0] = -1.0
+        noise2 = values['gyro_noise'] ** 2
+        for k in (0, 4, 8):
+            self._imu_msg.angular_velocity_covariance[k] = noise2
+        self._pose_msg = PoseStamped()
+        self._pose_msg.header.frame_id = values['lidar_pose_frame']
 
     # Setpoints ------------------------------------------------------------------------------
 
