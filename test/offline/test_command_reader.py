@@ -116,3 +116,12 @@ def test_identify_drivetrain_cmd_vel_without_a_track_width_is_bad_input(bags, tm
     base.write_text(f'track_width: {B}\nsprocket_radius: 0.1\n')
     status, _, err = _fit([bags['twist'], '-o', tmp_path / 'd.yaml', '--params', base], capsys)
     assert status == 0, err
+
+
+def test_identify_drivetrain_on_a_bag_without_commands_names_both_topics(bags, tmp_path,
+                                                                         capsys):
+    status, _, err = _fit([bags['none'], '-o', tmp_path / 'e.yaml', '--track-width', B], capsys)
+    assert status == 2 and err.count('\n') == 1
+    assert ('no topic /left_track/setpoint for the setpoints (nor /cmd_vel for cmd_vel); '
+            'topics present: ') in err
+    assert not (tmp_path / 'e.yaml').exists()

@@ -151,3 +151,24 @@ def test_delay_is_explained_with_its_uncertainty(sim_bag, tmp_path, capsys):
     doc = json.loads(report.read_text())
     assert doc['delay_uncertainty'] and doc['delay_at_zero'] is False
     assert doc['standard_errors']['delay'] >= 0.5 * doc['dt']
+
+
+def test_per_side_speed_topics_with_a_grid_step(tmp_path, capsys):
+    # track_speeds encoders carry no joint velocities: the --dt check took len(None) and
+    # crashed with a TypeError before the one bag reader.
+    path = tmp_path / 'sides'
+    rng = np.random.default_rng(0)
+    command = speed = 0.0
+    with BagWriter(path) as bag:
+        for k in range(1500):
+            if k % 100 == 0:
+                command = float(rng.uniform(-1.0, 1.0))
+            speed += (command - speed) * 0.1    # a first-order loop, T = 0.2 s
+            stamp = 10**18 + k * 20_000_000
+            for side in ('left', 'right'):
+                bag.write(f'/{side}_track/setpoint', stamp, bag.float64(command))
+                bag.write(f'/{side}_track/speed', stamp, bag.float64(speed))
+    status, err = run([path, '--output', tmp_path / 'o.yaml', '--encoder-input', 'track_speeds',
+                       '--dt', '0.02'], capsys)
+    assert status == 0, err
+    assert (tmp_path / 'o.yaml').exists()

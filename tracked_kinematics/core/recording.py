@@ -54,7 +54,8 @@ class Recording:
     cmd_vel_t, cmd_vel : ndarray, shape (D,) and (D, 2)
         Body twists ``(v, w)`` commanded on cmd_vel: m/s, rad/s.
     t0_ns : int
-        Stamp of time 0, ns, when the recording is to be written to a bag (else 0).
+        Stamp of time 0, ns (a bag read: its first encoder sample; a node's recording: its
+        earliest stamp), else 0.
     name : str
         Where it came from (a bag path), for reports.
     gyro_topic : str
