@@ -145,8 +145,8 @@ def test_cli_pose_and_gyro_plots_and_a_diameter_as_radius_is_refused(tmp_path, c
 
 
 def test_marmotte_on_snow_fits_with_pose_and_gyro():
-    # The tracked robot: exit 4 before ("chi = 2.304 is outside (0, 1]"). Fitted on the
-    # first 60 % of the run, scored on the rest.
+    # The tracked robot: exit 4 before on the whole run ("chi = 1.289 is outside (0, 1]").
+    # Fitted on the first 60 % of the run, scored on the rest.
     name = 'marmotte_snow_2024-01-25_12h15_part1'
     radius, width = 0.116702, 0.592723
     path = realdata.bag(name)
