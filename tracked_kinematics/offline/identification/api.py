@@ -134,8 +134,8 @@ def fit(options: FitOptions, *, date: str | None = None) -> FitResult:
     check_options(options)
     base_values, base, track_width, radius = _vehicle(options)
     encoders = replace(checked_encoders(options.encoders), sprocket_radius=radius)
-    # Each bag read once; without a gyro or GNSS reference, the pose fit's bags with their
-    # one gyro, if they carry one (_with_gyro).
+    # Each bag read once, with every stream the fit uses: a pose fit also takes the bag's one
+    # gyro topic, if it has one (_with_gyro); a pose and a gyro, the gyro given.
     given_gyro = options.uses_references or options.pose_and_gyro
     recordings = read_recordings(
         options.bags, encoders, ground_truth=options.ground_truth,

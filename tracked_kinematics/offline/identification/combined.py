@@ -67,13 +67,18 @@ def _folds(recordings):
     return []
 
 
-def _score(icr, tests, track_width, min_speed) -> float:
-    """Mean position error after 5 s and 10 s on held-out recordings (their delay removed)."""
+WINDOWS = ((5.0, 10.0), (1.0,))
+"""Window lengths the internal hold-out scores, s: evaluate_model's; 1 s where the data are
+in pieces too short for those (the windowed Warthog bags: 2-s pieces)."""
+
+
+def _score(icr, tests, track_width, min_speed, lengths) -> float:
+    """Mean position error after ``lengths`` s on held-out recordings (their delay removed)."""
     report = ev.evaluate([ev.Data(r) for r in tests], [ev.Candidate('m', icr)],
-                         ev.Settings(windows=(5.0, 10.0), track_width=track_width,
+                         ev.Settings(windows=lengths, track_width=track_width,
                                      min_speed=min_speed))
     windows = report.models['m']['odometry']['windows']
-    values = [windows[k]['mean_position_error_m'] for k in ('5', '10') if k in windows]
+    values = [w.get('mean_position_error_m') for w in windows.values()]
     values = [v for v in values if v is not None and math.isfinite(v)]
     return float(np.mean(values)) if values else math.nan
 
@@ -83,7 +88,8 @@ def compare_on_holdout(raw, fused, corrected, options, track_width, base):
     Fit the pose alone and the fused headings on training parts; score both on the rest.
 
     Returns ``(pose_score, fused_score, how)``: mean held-out position error (m) after 5 and
-    10 s of each, NaN when there is nothing to hold out.
+    10 s of each (after 1 s on data in shorter pieces, :data:`WINDOWS`), NaN when there is
+    nothing to hold out.
     """
     pairs = list(zip(raw, fused, corrected))
     if len(pairs) == 1 and raw[0].enc_t[-1] - raw[0].enc_t[0] >= MIN_SPLIT:
@@ -96,18 +102,24 @@ def compare_on_holdout(raw, fused, corrected, options, track_width, base):
     if not folds:
         return math.nan, math.nan, 'nothing to hold out (one short bag)'
     settings = replace(options.identify, holdout=0.0, accept_uncertain=True)
-    scores = {0: [], 1: []}
-    for train, test in folds:
-        tests = [pairs[k][2] for k in test]
+    icrs = {0: [], 1: []}
+    for train, _ in folds:
         for which in (0, 1):
             try:
-                icr = ident.identify([pairs[k][which] for k in train], options.model,
-                                     track_width, base=base, options=settings).icr
+                icrs[which].append(ident.identify([pairs[k][which] for k in train],
+                                                  options.model, track_width, base=base,
+                                                  options=settings).icr)
             except (IdentificationError, ValueError):
-                scores[which].append(math.inf)
-                continue
-            scores[which].append(_score(icr, tests, track_width, settings.min_speed))
-    return float(np.mean(scores[0])), float(np.mean(scores[1])), how
+                icrs[which].append(None)
+    for lengths in WINDOWS:
+        scores = {which: [_score(icr, [pairs[k][2] for k in test], track_width,
+                                 settings.min_speed, lengths) if icr is not None else math.inf
+                          for icr, (_, test) in zip(icrs[which], folds)] for which in (0, 1)}
+        pose, fused = float(np.mean(scores[0])), float(np.mean(scores[1]))
+        if not (math.isnan(pose) or math.isnan(fused)):
+            break
+    after = ' and '.join(f'{w:g} s' for w in lengths)
+    return pose, fused, f'{how}, mean position error after {after}'
 
 
 def icr_from_pose_and_gyro(recordings, options, topic: str, track_width: float,
@@ -135,12 +147,13 @@ def icr_from_pose_and_gyro(recordings, options, topic: str, track_width: float,
                  f'{fusion.window:.1f} s')
         if math.isnan(pose_score) or fused_score < (1.0 - MARGIN) * pose_score:
             chosen = fused
-            why = ('kept: pose + gyro' if math.isnan(pose_score) else
+            why = ('kept: pose + gyro (nothing to compare it with the pose alone on)'
+                   if math.isnan(pose_score) else
                    f"kept: pose + gyro ({fused_score:.3f} m against the pose alone's "
-                   f'{pose_score:.3f} m on {how}, mean position error after 5 s and 10 s)')
+                   f'{pose_score:.3f} m on {how})')
         else:
             why = (f"kept: the pose alone ({pose_score:.3f} m against pose + gyro's "
-                   f'{fused_score:.3f} m on {how}, mean position error after 5 s and 10 s; '
+                   f'{fused_score:.3f} m on {how}; '
                    f'pose + gyro is kept when {MARGIN:.0%} better); '
                    "the gyro's constants are written all the same")
         choice = [f'pose + gyro {topic}: {noise}; {why}']

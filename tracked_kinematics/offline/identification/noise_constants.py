@@ -275,7 +275,7 @@ ICR_X_PRIOR = 0.1
 PRIOR_WINDOW = max(LENGTHS)
 """s: the window length at which the priors' error enters the noise model exactly (shorter
 windows get more than theirs: on the held-out Warthog grass runs 96-99 % of the 5-s windows
-lie inside the 95 % ellipse, 89-97 % of the 10-s ones; 85-95 % with the geometric mean of
+lie inside the 95 % ellipse, 88-97 % of the 10-s ones; 85-95 % with the geometric mean of
 the lengths, 7.1 s)."""
 
 
