@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from tracked_kinematics.core import identify as ident
 from tracked_kinematics.core.identify.fitting import check_bounds, UncertainError
-from tracked_kinematics.core.identify.reference.fusion import (
+from tracked_kinematics.core.identify.reference.heading_fusion import (
     bias_prior, BIAS_SIGMA_FLOOR, check_gyro_against_pose, fuse_heading, signed_gyro_scale)
 from tracked_kinematics.core.models import ConstantIcr
 

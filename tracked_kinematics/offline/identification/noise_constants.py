@@ -22,7 +22,7 @@ from tracked_kinematics.core import identify as ident
 from tracked_kinematics.core.errors import IdentificationError
 from tracked_kinematics.core.evaluate import fit_noise, held_out_windows, recording_windows
 from tracked_kinematics.core.identify.reference.delays import sensor_delays
-from tracked_kinematics.core.identify.reference.fusion import (
+from tracked_kinematics.core.identify.reference.heading_fusion import (
     bias_prior, BIAS_SIGMA_FLOOR, check_gyro_against_pose, fuse_heading, signed_gyro_scale)
 from tracked_kinematics.core.identify.segments import over_jumps
 
@@ -332,7 +332,7 @@ def gyro_extras(recordings, topic: str, imu_delay='auto'):
     (its drift against the pose's heading, :func:`~tracked_kinematics.core.identify.reference.
     fusion.bias_prior`), so that odometry_node's ``imu_topic`` and evaluate_model's
     ``--fuse-imu`` use the gyro at the right time. A gyro that does not turn as the pose does
-    (:func:`~tracked_kinematics.core.identify.reference.fusion.check_gyro_against_pose`: sign,
+    (:func:`~tracked_kinematics.core.identify.reference.heading_fusion.check_gyro_against_pose`: sign,
     axis, clock) is refused: none of its constants are written, and the line says why.
 
     Returns
