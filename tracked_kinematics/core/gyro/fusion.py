@@ -430,7 +430,9 @@ class GyroOdometry(Published):
                            'drive on and turn)')
             self.level = OK
             return False
-        self.reason, self.level = '', OK
+        # Before the check has spoken, its steps are fused only where they agree with the
+        # model's (_plausible): said in the reason, no fault.
+        self.reason, self.level = (CHECKING if verdict == PENDING else ''), OK
         return True
 
     def _step(self, t0, t1, d_left, d_right) -> bool:
