@@ -46,7 +46,7 @@ BIAS_UNKNOWN = 0.5
 NOISE_BLOCKS = 4
 
 #: rad/m: the prior standard deviation of the model's veer (heading per metre on straights).
-VEER_PRIOR = 0.005
+VEER_PRIOR = 0.02
 
 #: m driven over which the veer may change by its prior.
 VEER_MEMORY = 500.0

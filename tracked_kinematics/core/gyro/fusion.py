@@ -381,9 +381,7 @@ class GyroOdometry(Published):
     def _segment_noise(self, a, d, distance):
         """Return the model's heading variance over a segment and the gyro's raw one."""
         cfg = self._config
-        # The slip's error over a segment as a random walk per radian turned (the noise
-        # model's turn term): large turns, which the heading error is made of, weigh.
-        model_var = (cfg.model_yaw_rel_std ** 2 * abs(a / self._spread0)
+        model_var = ((cfg.model_yaw_rel_std * a / self._spread0) ** 2
                      + cfg.model_yaw_var_per_m * distance)
         return model_var, cfg.gyro_scale ** 2 * model_var + self.filter.noise ** 2 * d
 
