@@ -75,3 +75,7 @@ def test_an_upside_down_imu_is_refused_with_an_error(graph):
     assert g.node.odometry.source == 'encoders'
     assert status.level == ERROR and 'other way' in status.message
     assert 'upside down' in report['heading source reason']
+    # Never adapted (adapt_slip is on), so nothing to push: the terrain file's ICRs in force.
+    icr = g.node.odometry.icr
+    assert (icr.y_left, icr.y_right) == pytest.approx((AURIGA.y_left, AURIGA.y_right), abs=1e-12)
+    assert float(report['icr.y_left in force (m)']) == pytest.approx(AURIGA.y_left)

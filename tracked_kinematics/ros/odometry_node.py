@@ -367,7 +367,7 @@ class OdometryNode(TableNode):
         else:
             t = stamp_s
         accepted = self.odometry.step(t, d_left, d_right, dt)
-        if self._gyro and self.odometry.source != self._source:
+        if self.odometry.source != self._source:
             self._switched()
         if not accepted:
             self.get_logger().warning(

@@ -1,7 +1,7 @@
 """
 The gyro-aided odometry replayed over a recording, and the consistency of published covariances.
 
-:func:`gyro_track` runs :class:`..gyro_odometry.GyroOdometry` (odometry_node's gyro-aided
+:func:`gyro_track` runs :class:`..gyro.GyroOdometry` (odometry_node's gyro-aided
 odometry) over a recording as the node receives it; :func:`window_consistency` measures, on
 evaluate_model's windows, how often the final position errors fall inside the 50 % and 95 %
 ellipses of the covariance the odometry publishes (the terrain file's noise model,

@@ -5,7 +5,8 @@ Gyro-aided odometry, in parts a reader can hold.
 :mod:`.samples` the samples on the encoders' clock (gates, stamp order, a bounded buffer);
 :mod:`.bias` the bias and turn gain against the tracks, and the noise density;
 :mod:`.agreement` whether the gyro sees the tracks' turns (sign, scale);
-:mod:`.fusion` the odometry (:class:`GyroOdometry`); :mod:`.replay` a recording through it.
+:mod:`.pose_bias` the bias's share of the pose covariance; :mod:`.fusion` the odometry
+(:class:`GyroOdometry`); :mod:`.replay` a recording through it.
 """
 
 from .agreement import AgreementCheck

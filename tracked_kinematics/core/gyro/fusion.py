@@ -32,6 +32,7 @@ from .agreement import AgreementCheck, AGREES, PENDING, REFUSED
 from .bias import TurnBias
 from .gyro_config import (ENCODERS, ERROR, finite_square, GYRO, GyroConfig, OK,
                           SUM_TOLERANCE, time_limit, WARN)
+from .pose_bias import PoseBiasCross
 from .samples import BACK, GyroSamples, STALE
 from ..covariance import (arc_step, propagate, saturate, TrackNoise, travel_jacobian,
                           twist_covariance, TWIST_TIME, twist_variances)
@@ -100,6 +101,7 @@ class GyroOdometry(Published):
                  noise: TrackNoise | None = None, terms: NoiseModel | None = None):
         self._config = config or GyroConfig()
         self.samples = GyroSamples(self._config)
+        self._bias_share = PoseBiasCross()
         self.set_noise(noise, terms)
         self.filter = None
         self.set_model(icr)
@@ -430,7 +432,9 @@ class GyroOdometry(Published):
                            'drive on and turn)')
             self.level = OK
             return False
-        self.reason, self.level = '', OK
+        # Before the check has spoken, its steps are fused only where they agree with the
+        # model's (_plausible): said in the reason, no fault.
+        self.reason, self.level = (CHECKING if verdict == PENDING else ''), OK
         return True
 
     def _step(self, t0, t1, d_left, d_right) -> bool:
@@ -523,36 +527,8 @@ class GyroOdometry(Published):
                                    travel_jacobian(jacobian, self._body), var_left, var_right)
             if position > 0.0 or heading > 0.0:
                 covariance = turn_slip_step(covariance, position, heading, jacobian)
-        return saturate(self._bias_terms(covariance, delta_x, delta_y, jacobian, bias_gain,
-                                         (c, -x, 1.0)))
-
-    def _bias_terms(self, p, delta_x, delta_y, jacobian, bias_gain, lever):
-        """Add the bias error's share to a propagated covariance; carry the cross term."""
-        sb2 = self.filter.bias_var
-        c0, c1, c2 = self._cross
-        if self._cross_bb > 0.0 and sb2 < self._cross_bb:
-            # The bias became better known: its correlation with the pose shrinks with it.
-            f = math.sqrt(sb2 / self._cross_bb)
-            c0, c1, c2 = c0 * f, c1 * f, c2 * f
-        a0, a1, a2 = c0 - delta_y * c2, c1 + delta_x * c2, c2
-        if bias_gain == 0.0:
-            self._cross = (a0, a1, a2)
-            self._cross_bb = sb2
-            return p
-        (g0, g1, g2), (h0, h1, h2) = jacobian
-        u0, u1, u2 = lever
-        h = (bias_gain * (g0 * u0 + g1 * u1 + g2 * u2),
-             bias_gain * (h0 * u0 + h1 * u1 + h2 * u2), bias_gain)
-        xx, xy, xt, yy, yt, tt = p
-        out = (xx + 2.0 * a0 * h[0] + sb2 * h[0] * h[0],
-               xy + a0 * h[1] + h[0] * a1 + sb2 * h[0] * h[1],
-               xt + a0 * h[2] + h[0] * a2 + sb2 * h[0] * h[2],
-               yy + 2.0 * a1 * h[1] + sb2 * h[1] * h[1],
-               yt + a1 * h[2] + h[1] * a2 + sb2 * h[1] * h[2],
-               tt + 2.0 * a2 * h[2] + sb2 * h[2] * h[2])
-        self._cross = (a0 + sb2 * h[0], a1 + sb2 * h[1], a2 + sb2 * h[2])
-        self._cross_bb = sb2
-        return out
+        return saturate(self._bias_share.step(covariance, delta_x, delta_y, jacobian,
+                                              bias_gain, (c, -x, 1.0), self.filter.bias_var))
 
     @staticmethod
     def _plausible(dpsi_g, dpsi_e) -> bool:
@@ -624,7 +600,6 @@ class GyroOdometry(Published):
         """Return the pose to zero, its covariance too; keep what was learnt of the gyro."""
         self.twist = (0.0, 0.0, 0.0)
         self.twist_covariance = (0.0,) * 6
-        self._cross = (0.0, 0.0, 0.0)
-        self._cross_bb = 0.0
+        self._bias_share.reset()
         self._window = [0.0] * 6
         super().reset()
