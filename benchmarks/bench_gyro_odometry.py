@@ -34,7 +34,7 @@ ROOT = Path(__file__).resolve().parent.parent
 
 from tracked_kinematics.core import evaluate as ev  # noqa: E402,I100
 from tracked_kinematics.core import identify as ident  # noqa: E402
-from tracked_kinematics.core.gyro_odometry import (  # noqa: E402
+from tracked_kinematics.core.gyro import (  # noqa: E402
     fit_gyro_scale, GyroConfig, replay)
 from tracked_kinematics.offline.bags import (  # noqa: E402
     EncoderSource, GroundTruthSource, read_recording)

@@ -29,10 +29,10 @@ from tracked_kinematics.core import evaluate as ev  # noqa: E402
 from tracked_kinematics.core import identify as ident  # noqa: E402
 from tracked_kinematics.core.identify.procedure import IdentifyOptions  # noqa: E402
 from tracked_kinematics.offline.bags import (  # noqa: E402
-    CommandSource, EncoderSource, GroundTruthSource, read_evaluation_bag)
+    EncoderSource, GroundTruthSource, read_recording)
 from tracked_kinematics.offline.identification import fit as fit_icr, FitOptions  # noqa: E402
 from tracked_kinematics.offline.model_evaluation import (  # noqa: E402
-    evaluate_models, pose_references, TerrainModel, with_gyro)
+    evaluate_models, pose_references, TerrainModel)
 from tracked_kinematics.offline.terrain_file import terrain_text  # noqa: E402
 from tracked_kinematics.params import values_from_icr  # noqa: E402
 
@@ -88,10 +88,9 @@ def folds(base: Path, names, tmp: Path):
 def score(bag, files, radius, width, windows):
     """Evaluate the files on a bag with --fuse-imu; return the report's models."""
     encoders = EncoderSource(sprocket_radius=radius)
-    recording, cmds = read_evaluation_bag(bag, encoders, GroundTruthSource('/icp/pose'),
-                                          CommandSource('none'))
-    references = pose_references([bag], [(with_gyro(bag, recording, encoders, '/imu/data'),
-                                          cmds)], 'auto')
+    recording = read_recording(bag, encoders, ground_truth=GroundTruthSource('/icp/pose'),
+                               imu_topic='/imu/data')
+    references = pose_references([bag], [(recording, None)], 'auto')
     report = evaluate_models(references, [TerrainModel(f) for f in files],
                              ev.Settings(windows, track_width=width, min_speed=MIN_SPEED),
                              sprocket_radius=radius, fuse_imu=True)
@@ -109,8 +108,8 @@ def run_set(label, base: Path, tmp: Path):
                                    identify=IdentifyOptions(accept_uncertain=True)))
         terrain = tmp / f'{label}{k}.yaml'
         terrain.write_text(terrain_text(found.values, tool='bench', date=found.date))
-        recs = [read_evaluation_bag(p, encoders, GroundTruthSource('/icp/pose'),
-                                    CommandSource('none'))[0] for p in train]
+        recs = [read_recording(p, encoders, ground_truth=GroundTruthSource('/icp/pose'))
+                for p in train]
         fit = ident.identify(recs, 'icr_scales', width, ground_truth_delay='auto',
                              accept_uncertain=True)
         ddc = ident.build_model('tuned_ddc', width).as_icr(fit.ddc.p)

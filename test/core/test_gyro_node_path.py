@@ -3,7 +3,7 @@
 from helpers.gyro_drive import gyro_drive
 import numpy as np
 from tracked_kinematics.core.covariance import arc_step, body_jacobian, TrackNoise
-from tracked_kinematics.core.gyro_odometry import GYRO, GyroConfig, GyroOdometry, replay
+from tracked_kinematics.core.gyro import GYRO, GyroConfig, GyroOdometry, replay
 from tracked_kinematics.core.kinematics import IcrParams
 from tracked_kinematics.core.noise_model import (
     NoiseModel, PRIOR, propagate_body, propagate_step, step_covariance, turn_slip,

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from tracked_kinematics.core import evaluate as ev
 from tracked_kinematics.core import identify as ident
-from tracked_kinematics.core.gyro_odometry import (
+from tracked_kinematics.core.gyro import (
     ENCODERS, fit_gyro_scale, GYRO, GyroConfig, GyroOdometry, replay)
 from tracked_kinematics.core.integration import integrate_twist
 from tracked_kinematics.core.kinematics import forward, IcrParams

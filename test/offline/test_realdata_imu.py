@@ -97,14 +97,12 @@ def test_the_marmotte_replayed_from_mid_drive_takes_its_heading_from_the_gyro():
     import numpy as np
     from tracked_kinematics.core.gyro import GYRO, GyroConfig, replay
     from tracked_kinematics.core.recording import Recording
-    from tracked_kinematics.offline.bags import CommandSource, read_evaluation_bag
-    from tracked_kinematics.offline.model_evaluation import with_gyro
+    from tracked_kinematics.offline.bags import read_recording
 
     path = realdata.bag('marmotte_snow_2024-01-25_12h15_part1')
     encoders = EncoderSource(sprocket_radius=0.116702)
-    rec, _ = read_evaluation_bag(path, encoders, GroundTruthSource(realdata.TOPIC),
-                                 CommandSource('none'))
-    rec = with_gyro(path, rec, encoders, '/imu/data')
+    rec = read_recording(path, encoders, ground_truth=GroundTruthSource(realdata.TOPIC),
+                         imu_topic='/imu/data')
     cut = rec.enc_t[0] + 0.55 * (rec.enc_t[-1] - rec.enc_t[0])
 
     def part(first):

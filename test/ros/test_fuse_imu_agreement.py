@@ -131,7 +131,7 @@ def test_the_node_publishes_evaluate_models_gyro_aided_trajectory(
     travel = float(np.abs(np.diff(tum[:, 1])).sum() + np.abs(np.diff(tum[:, 2])).sum())
     print(f'agreement over {t[-1] - t[0]:.1f} s, {travel:.1f} m: position {position:.2e} m, '
           f'heading {heading:.2e} rad')
-    # evaluate_model's gyro-aided path is core.gyro_odometry.replay() of the encoder stamps;
+    # evaluate_model's gyro-aided path is core.gyro.replay() of the encoder stamps;
     # the node makes the same calls on the same time origin (whole seconds of the first stamp:
     # epoch seconds as floats would move the gyro spans by 1e-6 relative and the measured
     # gyro noise by 16 %). Measured: 3.4e-9 m and 2.0e-9 rad over the piece.

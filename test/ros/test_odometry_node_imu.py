@@ -13,7 +13,7 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import Imu
 from std_msgs.msg import Float64MultiArray
 from tracked_kinematics.core.covariance import message_twist_covariance, TrackNoise
-from tracked_kinematics.core.gyro_odometry import replay
+from tracked_kinematics.core.gyro import replay
 from tracked_kinematics.core.odometry import Odometry
 from tracked_kinematics.params import (gyro_config_from_values, icr_from_values,
                                        read_params_file)

@@ -45,7 +45,7 @@ import textwrap
 import time
 
 import numpy as np
-from tracked_kinematics.core.gyro_odometry import GyroConfig, replay
+from tracked_kinematics.core.gyro import GyroConfig, replay
 from tracked_kinematics.core.integration import wrap_angle
 from tracked_kinematics.core.kinematics import IcrParams
 from tracked_kinematics.core.models import ConstantIcr

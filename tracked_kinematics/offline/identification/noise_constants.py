@@ -9,7 +9,7 @@ against the gyro alone, on the heading errors (``track``, ``turn``, ``timing``; 
 They are written as odometry_node reads them (``covariance.k_left``, ``covariance.k_right``: the
 track random walk; ``covariance.turn``, ``covariance.slip``, ``covariance.timing``), with their
 provenance under ``identification.covariance.*``. The gyro's ``imu_delay`` and, with a pose,
-its ``gyro_scale`` (:func:`tracked_kinematics.core.gyro_odometry.fit_gyro_scale`) are written at
+its ``gyro_scale`` (:func:`tracked_kinematics.core.gyro.fit_gyro_scale`) are written at
 the top level. docs/tools/identify_icr.md, "The noise model and the gyro".
 """
 

@@ -22,7 +22,7 @@ import math
 import numpy as np
 
 from ..segments import stretches
-from ...gyro_odometry import fit_gyro_scale
+from ...gyro import fit_gyro_scale
 from ...recording import Recording
 
 MIN_WINDOW, MAX_WINDOW = 1.0, 30.0
@@ -68,7 +68,7 @@ def check_gyro_against_pose(scale: float, std: float) -> str:
     Return why a gyro cannot be trusted against the pose ('' when it can).
 
     ``scale`` is the gyro's fitted scale against the pose's heading increments
-    (:func:`tracked_kinematics.core.gyro_odometry.fit_gyro_scale`, measured over true).
+    (:func:`tracked_kinematics.core.gyro.fit_gyro_scale`, measured over true).
     """
     if not math.isfinite(std):
         return 'too few segments to compare the gyro with the pose'
@@ -88,7 +88,7 @@ def signed_gyro_scale(recordings, imu_delay: float) -> tuple[float, float]:
     """
     Return the gyro's scale against the pose's heading, negative for a gyro turning the other way.
 
-    :func:`tracked_kinematics.core.gyro_odometry.fit_gyro_scale` on the recordings with a gyro
+    :func:`tracked_kinematics.core.gyro.fit_gyro_scale` on the recordings with a gyro
     rate and a pose (their delay removed), which knows no negative scale: when it finds none,
     the same fit of the negated rate gives it. ``(1.0, inf)``: too few segments.
     """
