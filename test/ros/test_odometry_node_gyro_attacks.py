@@ -10,7 +10,7 @@ from tracked_kinematics.ros.health import ERROR
 
 pytestmark = pytest.mark.ros
 
-T0 = 10.0
+T0 = 100.0  # s: the drive played again 30 s earlier keeps positive stamps
 
 
 @pytest.fixture

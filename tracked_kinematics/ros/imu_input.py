@@ -29,15 +29,18 @@ from tracked_kinematics.ros.input_topic import WARN_PERIOD
 GRACE = 3.0
 
 #: s a sample may be stamped ahead of (or behind) the encoders' latest stamp, after
-#: ``imu_delay``: further, it is on another clock (or wild) and dropped. It bounds what the
-#: odometry buffers while the encoders are silent: this many seconds of samples.
-CLOCK_WINDOW = 2.0
+#: ``imu_delay``: further, it is on another clock (or wild) and dropped. Another clock is off
+#: by far more (a simulation's time against the wall's: years); a burst of samples taken
+#: ahead of the encoders' queue (an executor busy, a bag played fast) is off by seconds and
+#: must not be lost. It bounds what the odometry buffers while the encoders are silent
+#: (the core keeps at most 4096 samples whatever the window).
+CLOCK_WINDOW = 10.0
 
 #: s of steady time without an encoder step after which the encoders are silent.
 ENCODERS_SILENT = 1.0
 
 #: Samples held for the next encoder step (before the first, or while the encoders are
-#: silent): CLOCK_WINDOW s at 1 kHz.
+#: silent): 2 s at 1 kHz.
 HELD = 2000
 
 _NS = 1_000_000_000
