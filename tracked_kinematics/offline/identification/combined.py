@@ -2,10 +2,11 @@
 identify_icr with a pose and a gyro: one fit of the segments on the headings fused by noise.
 
 :func:`icr_from_pose_and_gyro` checks that the gyro turns as the pose does
-(:func:`tracked_kinematics.core.identify.reference.heading_fusion.check_gyro_against_pose`; a gyro
-that does not is left out, named), fuses the two headings, each weighted by its measured
-noise (:func:`~tracked_kinematics.core.identify.reference.heading_fusion.fuse_heading`), and fits the
-segments (:func:`.poses.icr_from_poses`: the same hold-out table, plot, standard errors and
+(:func:`~tracked_kinematics.core.identify.reference.heading_fusion.check_gyro_against_pose`;
+a gyro that does not is left out, named), fuses the two headings, each weighted by its
+measured noise
+(:func:`~tracked_kinematics.core.identify.reference.heading_fusion.fuse_heading`), and fits
+the segments (:func:`.poses.icr_from_poses`: the same hold-out table, plot, standard errors and
 DDC snippet as the pose alone) on the pose's positions and the fused heading. As a safety
 net it compares, on an internal hold-out (leave one bag out, or the two halves of one bag),
 the combined fit with the pose-alone fit and keeps the better, saying which and why. The

@@ -332,8 +332,8 @@ def gyro_extras(recordings, topic: str, imu_delay='auto'):
     (its drift against the pose's heading, :func:`~tracked_kinematics.core.identify.reference.
     fusion.bias_prior`), so that odometry_node's ``imu_topic`` and evaluate_model's
     ``--fuse-imu`` use the gyro at the right time. A gyro that does not turn as the pose does
-    (:func:`~tracked_kinematics.core.identify.reference.heading_fusion.check_gyro_against_pose`: sign,
-    axis, clock) is refused: none of its constants are written, and the line says why.
+    (:func:`~tracked_kinematics.core.identify.reference.heading_fusion.check_gyro_against_pose`:
+    sign, axis, clock) is refused: none of its constants are written, and the line says why.
 
     Returns
     -------
