@@ -24,8 +24,15 @@ def feeder(ros_domain):
     feeder.close()
 
 
+#: The nodes whose stops make test checks (the drive, and the odometry with its gyro); make
+#: stress stops every node (docs/testing.md).
+SUITE_NODES = ('calibration_drive', 'odometry_node')
+
+
 @pytest.mark.ros
-@pytest.mark.parametrize('name', sorted(stops.NODES))
+@pytest.mark.parametrize('name', [
+    name if name in SUITE_NODES else pytest.param(name, marks=pytest.mark.long)
+    for name in sorted(stops.NODES)])
 def test_stops_at_random_instants_are_clean(tmp_path, feeder, name):
     rng = random.Random(f'{name}-20')
     for k, (when, signals) in enumerate(CASES):
