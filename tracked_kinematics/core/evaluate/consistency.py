@@ -74,6 +74,16 @@ def normalised_errors(errors_xy, covariances_xy) -> np.ndarray:
     return np.linalg.solve(chol, np.asarray(errors_xy, float)[..., None])[..., 0]
 
 
+def _scored(errors, covs, independent: int) -> dict:
+    """Return a window length's entry: consistency with its verdict, NEES, normalised errors."""
+    e = np.concatenate(errors) if errors else np.zeros((0, 2))
+    p = np.concatenate(covs) if covs else np.zeros((0, 2, 2))
+    c = consistency(e, p)
+    c.update(covariance_verdict(c['inside_50'], c['inside_95'], c['mean_nees'], independent))
+    z = normalised_errors(e, p) if len(e) else np.zeros((0, 2))
+    return {'consistency': c, 'nees': np.sum(z * z, 1), 'normalised': z}
+
+
 def window_consistency(pieces, paths, icr: IcrParams, model: NoiseModel, lengths,
                        min_speed: float | None) -> dict:
     """
@@ -120,13 +130,7 @@ def window_consistency(pieces, paths, icr: IcrParams, model: NoiseModel, lengths
             cov = covariances(bases, model)
             errors.append(_motion(path, i, j)[:, :2] - _motion(piece.truth, i, j)[:, :2])
             covs.append(cov)
-        e = np.concatenate(errors) if errors else np.zeros((0, 2))
-        p = np.concatenate(covs) if covs else np.zeros((0, 2, 2))
-        c = consistency(e, p)
-        c.update(covariance_verdict(c['inside_50'], c['inside_95'], c['mean_nees'],
-                                    independent))
-        z = normalised_errors(e, p) if len(e) else np.zeros((0, 2))
-        out[float(length)] = {'consistency': c, 'nees': np.sum(z * z, 1), 'normalised': z}
+        out[float(length)] = _scored(errors, covs, independent)
     return out
 
 
@@ -234,11 +238,6 @@ def gyro_window_consistency(recordings, pieces, icr: IcrParams, config: GyroConf
                 p = odo.published[b]
                 covs.append(np.stack([np.stack([p[:, 0], p[:, 1]], -1),
                                       np.stack([p[:, 1], p[:, 3]], -1)], -2))
-        e = np.concatenate(errors) if errors else np.zeros((0, 2))
-        p = np.concatenate(covs) if covs else np.zeros((0, 2, 2))
-        c = consistency(e, p)
         # Back-to-back windows: each one independent of the others.
-        c.update(covariance_verdict(c['inside_50'], c['inside_95'], c['mean_nees'], len(e)))
-        z = normalised_errors(e, p) if len(e) else np.zeros((0, 2))
-        out[float(length)] = {'consistency': c, 'nees': np.sum(z * z, 1), 'normalised': z}
+        out[float(length)] = _scored(errors, covs, sum(len(e) for e in errors))
     return out
