@@ -71,13 +71,19 @@ class Graph:
         assert spin_until(executor, lambda: self.node.count_subscribers('odom') >= 1)
 
     def feed(self, t, left, right, tg=(), wg=(), after=None):
-        """Send encoder and gyro samples in stamp order (gyro first); return the new odom."""
+        """
+        Send encoder and gyro samples in stamp order (gyro first); return the new odom.
+
+        ``wg`` holds z rates (rad/s) or whole Imu messages (stamped ``tg``).
+        """
         events = sorted([(s, 0, k) for k, s in enumerate(tg)]
                         + [(s, 1, k) for k, s in enumerate(t)])
         start = len(self.odom)
         for s, kind, k in events:
             if kind == 0:
-                assert self.imu.send(imu_msg(s, wg[k]), 'imu')
+                sample = wg[k]
+                assert self.imu.send(sample if isinstance(sample, Imu) else imu_msg(s, sample),
+                                     'imu')
             else:
                 assert self.encoders.send(joint_state(s, [left[k] / RADIUS, right[k] / RADIUS]))
                 if after is not None:

@@ -11,10 +11,9 @@ import time
 import tracemalloc
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
-from helpers.encoder_stream import Driver, joint_state, stamp, Stderr
+from helpers.encoder_stream import joint_state, stamp
 from helpers.gyro_drive import gyro_drive, true_heading
 from helpers.ros_helpers import spin_until
-from nav_msgs.msg import Odometry as OdometryMsg
 import numpy as np
 import pytest
 from rclpy.parameter import Parameter
@@ -22,19 +21,14 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy
 from scipy.spatial.transform import Rotation
 from sensor_msgs.msg import Imu
 from std_msgs.msg import Float64
+from test_odometry_node_imu import AURIGA, Graph as OdometryGraph, VALUES, WITH_GYRO, yaws
 from tracked_kinematics.core.gyro import replay
-from tracked_kinematics.params import gyro_config_from_values, icr_from_values, read_params_file
+from tracked_kinematics.params import gyro_config_from_values
 from tracked_kinematics.ros.imu_input import CLOCK_WINDOW, HELD
 from tracked_kinematics.ros.odometry_node import OdometryNode
-from tracked_kinematics.share import config_file
 
 pytestmark = pytest.mark.ros
 
-TERRAIN = config_file('auriga_alpha_hard_floor.yaml')
-VALUES = {k: v for k, v in read_params_file(TERRAIN).items() if k not in ('terrain', 'source')}
-AURIGA = icr_from_values(VALUES)
-RADIUS = VALUES['sprocket_radius']
-WITH_GYRO = {'imu_topic': 'imu', 'imu_delay': 0.05, 'gyro_scale': 1.02}
 T0 = 10.0
 SLIP = 0.8    # gyro_drive's: the ground turns the robot 0.8 times what the model says
 
@@ -54,48 +48,16 @@ def imu(t, omega=(0.0, 0.0, 0.0), quaternion=None, frame=''):
     return msg
 
 
-def yaws(msgs):
-    return np.unwrap([2.0 * math.atan2(m.pose.pose.orientation.z, m.pose.pose.orientation.w)
-                      for m in msgs])
-
-
-class Graph:
-    """An in-process odometry_node with an IMU; records odom and /diagnostics."""
+class Graph(OdometryGraph):
+    """test_odometry_node_imu's graph, also recording the node's /diagnostics status."""
 
     def __init__(self, ros_context, executor, capfd, overrides=None):
-        values = {**VALUES, **WITH_GYRO, **(overrides or {})}
-        self.node = OdometryNode(context=ros_context, parameter_overrides=[
-            Parameter(k, value=v) for k, v in values.items()])
-        executor.add_node(self.node)
-        self.executor = executor
-        self.stderr = Stderr(capfd)
-        self.encoders = Driver(ros_context, executor, lambda: self.node.encoder.received)
-        self.imu = Driver(ros_context, executor, lambda: self.node.imu.count.count,
-                          node=self.encoders.node)   # (None without imu_topic: not used)
-        self.odom, self.statuses = [], []
-        self.encoders.node.create_subscription(
-            OdometryMsg, 'odom', self.odom.append,
-            QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE))
+        super().__init__(ros_context, executor, capfd, overrides)
+        self.statuses = []
         self.encoders.node.create_subscription(
             DiagnosticArray, '/diagnostics',
             lambda msg: self.statuses.extend(s for s in msg.status
                                              if s.name == 'odometry_node: health'), 10)
-        assert spin_until(executor, lambda: self.node.count_subscribers('odom') >= 1)
-
-    def feed(self, t, left, right, tg=(), msgs=(), after=None):
-        """Send encoder messages and Imu ``msgs`` (stamped ``tg``) in stamp order."""
-        events = sorted([(s, 0, k) for k, s in enumerate(tg)]
-                        + [(s, 1, k) for k, s in enumerate(t)])
-        start = len(self.odom)
-        for s, kind, k in events:
-            if kind == 0:
-                assert self.imu.send(msgs[k], 'imu')
-            else:
-                assert self.encoders.send(joint_state(s, [left[k] / RADIUS, right[k] / RADIUS]))
-                if after is not None:
-                    after(s)
-        assert spin_until(self.executor, lambda: len(self.odom) >= start + len(t) - 1)
-        return self.odom[start:]
 
     def warned(self, text):
         """Return whether /diagnostics said WARN (or worse) with ``text``."""
@@ -191,7 +153,7 @@ def test_the_heading_rate_on_a_slope_comes_from_the_orientation(graph):
     assert report['imu heading rate'] == 'from the orientation (tilt corrected)'
     # The node fed the body rate is core.gyro.replay() of it (test_odometry_node_imu).
     ns = (lambda times: np.round(np.asarray(times) * 1e9) * 1e-9)
-    poses, _, _ = replay(ns(t), left, right, ns(tg), reading, icr_from_values(VALUES),
+    poses, _, _ = replay(ns(t), left, right, ns(tg), reading, AURIGA,
                          gyro_config_from_values(g.node.params.values))
     err_plain = np.abs(poses[1:, 2] - truth)
     # Measured: 0.57 deg with the orientation, 2.0 deg with the body rate.
