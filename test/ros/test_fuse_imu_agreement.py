@@ -81,8 +81,8 @@ def relative(t, x, y, theta, t0):
                             theta - th0])
 
 
-def test_the_node_publishes_evaluate_models_gyro_aided_trajectory(
-        offline, ros_context, executor):
+def node_on_the_terrain(offline, ros_context, executor):
+    """Start odometry_node with the simulated terrain file and imu_topic; drivers, odom."""
     values = {k: v for k, v in read_params_file(offline['terrain']).items()
               if not k.startswith(NOT_PARAMETERS)}
     node = OdometryNode(context=ros_context, parameter_overrides=[
@@ -93,6 +93,12 @@ def test_the_node_publishes_evaluate_models_gyro_aided_trajectory(
     odom = []
     encoders.node.create_subscription(OdometryMsg, 'odom', odom.append, QoSProfile(
         depth=5000, reliability=ReliabilityPolicy.RELIABLE))
+    return node, encoders, imu, odom
+
+
+def test_the_node_publishes_evaluate_models_gyro_aided_trajectory(
+        offline, ros_context, executor):
+    node, encoders, imu, odom = node_on_the_terrain(offline, ros_context, executor)
     assert spin_until(executor, lambda: node.count_subscribers('odom') >= 1)
 
     # In stamp order, each taken in before the next (the order replay() takes them in).
@@ -148,16 +154,7 @@ def test_the_covariance_published_is_the_one_evaluate_model_scores(
     from tracked_kinematics.core.noise_model import NoiseModel
     from tracked_kinematics.offline.model_evaluation import TerrainModel, track_noise_of
 
-    values = {k: v for k, v in read_params_file(offline['terrain']).items()
-              if not k.startswith(NOT_PARAMETERS)}
-    node = OdometryNode(context=ros_context, parameter_overrides=[
-        Parameter(k, value=v) for k, v in {**values, 'imu_topic': 'imu'}.items()])
-    executor.add_node(node)
-    encoders = Driver(ros_context, executor, lambda: node.encoder.received)
-    imu = Driver(ros_context, executor, lambda: node.imu.count.count, node=encoders.node)
-    odom = []
-    encoders.node.create_subscription(OdometryMsg, 'odom', odom.append, QoSProfile(
-        depth=5000, reliability=ReliabilityPolicy.RELIABLE))
+    node, encoders, imu, odom = node_on_the_terrain(offline, ros_context, executor)
     client = encoders.node.create_client(Trigger, 'odometry_node/reset')
     assert spin_until(executor, lambda: node.count_subscribers('odom') >= 1)
     assert client.wait_for_service(timeout_sec=2.0)
@@ -167,7 +164,7 @@ def test_the_covariance_published_is_the_one_evaluate_model_scores(
     gyro = [(ns, msg) for ns, kind, msg in events if kind == 0]
     origin = enc[0][0] // 1_000_000_000 * 1_000_000_000     # the node's time origin
     enc_t = np.array([(ns - origin) * 1e-9 for ns, _ in enc])
-    radius = values['sprocket_radius']
+    radius = node.params.values['sprocket_radius']
     left = np.array([m.position[0] for _, m in enc]) * radius
     right = np.array([m.position[1] for _, m in enc]) * radius
     resets = np.zeros(len(enc), dtype=bool)
