@@ -20,6 +20,8 @@ from tracked_kinematics.params import read_params_file
 
 PAGE = ROOT / 'docs' / 'calibrate-in-five-minutes.md'
 BIN = Path(sys.executable).parent
+WALK_LIMIT = 150
+"""s: longest the page's walk may take before it is called stuck."""
 FENCED = re.compile(r'^```bash\n(.*?)^```', re.S | re.M)
 
 
@@ -53,10 +55,17 @@ def test_the_simulator_walk_ends_with_a_terrain_file(tmp_path):
             running.append((subprocess.Popen(command, shell=True, cwd=tmp_path, env=env,
                                              stdout=log, stderr=subprocess.STDOUT,
                                              start_new_session=True), log))
-        done = subprocess.run(deadman, shell=True, cwd=tmp_path, env=env, timeout=400,
-                              capture_output=True, text=True)
-        logs = '\n'.join((tmp_path / f'node{k}.log').read_text()[-3000:]
-                         for k in range(len(nodes)))
+        def logs():
+            return '\n'.join((tmp_path / f'node{k}.log').read_text()[-3000:]
+                             for k in range(len(nodes)))
+        try:
+            # 20 s of wall time on a quiet machine: a walk still going after WALK_LIMIT is stuck.
+            done = subprocess.run(deadman, shell=True, cwd=tmp_path, env=env,
+                                  timeout=WALK_LIMIT, capture_output=True, text=True)
+        except subprocess.TimeoutExpired as err:
+            out = err.stdout.decode() if isinstance(err.stdout, bytes) else err.stdout
+            pytest.fail(f'the walk did not end in {WALK_LIMIT} s:\n{out}\n{logs()}')
+        logs = logs()
         assert done.returncode == 0, done.stdout + done.stderr + logs
         assert 'calibration drive done (exit status 0)' in done.stdout, done.stdout + logs
         assert running[2][0].wait(60) == 0, logs   # the drive has exited by itself
