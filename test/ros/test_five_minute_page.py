@@ -55,6 +55,7 @@ def test_the_simulator_walk_ends_with_a_terrain_file(tmp_path):
             running.append((subprocess.Popen(command, shell=True, cwd=tmp_path, env=env,
                                              stdout=log, stderr=subprocess.STDOUT,
                                              start_new_session=True), log))
+
         def logs():
             return '\n'.join((tmp_path / f'node{k}.log').read_text()[-3000:]
                              for k in range(len(nodes)))

@@ -13,7 +13,6 @@ import functools
 import math
 
 import numpy as np
-from scipy import signal
 
 
 LOOP_KINDS = ('first_order', 'pid_dc_motor', 'ideal')
@@ -167,6 +166,7 @@ class DriveTrain:
         shaped = np.asarray(shaped, dtype=float)
         if self.loop is None or not len(shaped):
             return shaped.copy()
+        from scipy import signal   # 0.7 s to import: only where a loop is simulated
         b, a = self.discretise(_check_dt(dt))
         zi_unit = signal.lfilter_zi(b, a)
         initial = np.broadcast_to(np.asarray(initial, float), shaped.shape[1:])
@@ -184,6 +184,7 @@ class DriveTrain:
 @functools.lru_cache(maxsize=64)
 def _foh(num: tuple, den: tuple, dt: float):
     """Discretise by first-order hold, cached (the matrix exponential costs more than a run)."""
+    from scipy import signal
     numd, dend, _ = signal.cont2discrete((np.array(num), np.array(den)), dt, method='foh')
     numd, dend = np.atleast_1d(np.squeeze(numd)), np.atleast_1d(dend)
     numd.flags.writeable = False

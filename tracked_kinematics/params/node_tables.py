@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import math
 
-from tracked_kinematics.core.estimate.ekf import EstimatorConfig
+from tracked_kinematics.core.estimate.config import EstimatorConfig
 from tracked_kinematics.core.plan.calibration_protocol import MAX_DURATION, MIN_DURATION
 from tracked_kinematics.core.sim.terrains import TERRAINS
 

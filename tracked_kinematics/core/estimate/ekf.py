@@ -14,7 +14,6 @@ import functools
 import math
 
 import numpy as np
-from scipy.stats import chi2
 
 from .config import EstimatorConfig, Outcome
 from ..identify import SegmentProblem, Segments
@@ -28,6 +27,7 @@ __all__ = ['EstimatorConfig', 'model_icr', 'Outcome', 'SlipEstimator']
 @functools.lru_cache(maxsize=16)
 def _gate(probability: float, dof: int) -> float:
     """Chi-square quantile of the innovation gate (cached: scipy's is slow per call)."""
+    from scipy.stats import chi2   # 0.6 s to import: not at every node's start
     return float(chi2.ppf(probability, dof))
 
 

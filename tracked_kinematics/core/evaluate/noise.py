@@ -15,7 +15,6 @@ from dataclasses import dataclass
 import math
 
 import numpy as np
-from scipy.optimize import minimize
 
 from .pieces import cut, moving_windows, odometry
 from ..identify.holdout import crop_recording
@@ -383,6 +382,7 @@ def fit_noise(windows: ErrorWindows, prior: NoiseModel | None = None, free=TERMS
         groups.append((n_eff, mine.errors[:, part], mine.bases[:, :, part, part]))
     c = prior_c.copy()
     if len(index):
+        from scipy.optimize import minimize   # lazily, as every scipy of core
         best = minimize(_negative_log_posterior, np.log(prior_c[index]),
                         args=(prior_c, index, groups, width, dof), method='Nelder-Mead',
                         options={'xatol': 1e-4, 'fatol': 1e-9, 'maxiter': 4000})

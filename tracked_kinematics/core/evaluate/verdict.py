@@ -13,7 +13,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy import stats
 
 CONFIDENCE = 0.95
 """Confidence of each of the three tests."""
@@ -50,6 +49,7 @@ def share_range(nominal: float, n: int, confidence: float = CONFIDENCE):
     (the score test: the range holds the observed share exactly when the share's Wilson
     interval holds ``nominal``).
     """
+    from scipy import stats   # lazily: 0.6 s to import
     z = stats.norm.ppf(0.5 + 0.5 * confidence)
     half = z * math.sqrt(nominal * (1.0 - nominal) / n)
     return max(0.0, nominal - half), min(1.0, nominal + half)
@@ -62,6 +62,7 @@ def nees_range(n: int, dof: int = 2, confidence: float = CONFIDENCE):
     The sum of ``n`` NEES of ``dof`` degrees of freedom is chi-square of ``n dof`` degrees
     (Bar-Shalom et al. 2001, sec. 5.4.2, the NEES test): its two-sided quantiles over ``n``.
     """
+    from scipy import stats
     tail = 0.5 * (1.0 - confidence)
     return (float(stats.chi2.ppf(tail, n * dof)) / n,
             float(stats.chi2.ppf(1.0 - tail, n * dof)) / n)

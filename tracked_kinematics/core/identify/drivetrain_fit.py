@@ -15,7 +15,6 @@ import math
 import time
 
 import numpy as np
-from scipy.optimize import least_squares
 
 from .drive_data import resample, Segment
 from ..drivetrain import DriveTrain, FirstOrderLag, LOOP_KINDS, PidMotor
@@ -363,6 +362,7 @@ class _DelaySearch:
     def fit_at(self, lag, x0):
         """Return the least-squares fit of the smooth parameters at a delay of ``lag``."""
         if lag not in self.fits:
+            from scipy.optimize import least_squares   # lazily, as every scipy of core
             try:
                 self.fits[lag] = least_squares(
                     self.problem.residuals, np.clip(x0, self.lower, self.upper),

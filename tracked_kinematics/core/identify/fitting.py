@@ -13,7 +13,6 @@ import math
 import time
 
 import numpy as np
-from scipy import optimize
 
 from .excitation import ros_names
 from .problem import DEFAULT_HEADING_WEIGHT, LOSSES, robust_cost, SegmentProblem
@@ -345,6 +344,7 @@ def fit(model: MotionModel, segments: Segments, *, p0=None, method: str = 'lsq',
     message = 'nothing to fit'
     scale = f_scale or 1.0
     n_rounds = rounds if model.n_params else 1
+    from scipy import optimize   # lazily: the nodes import this module, never fit
     for _ in range(n_rounds):
         if heading_weight is None:
             problem.heading_weight = 1.0

@@ -13,8 +13,6 @@ import math
 import time
 
 import numpy as np
-from scipy import optimize
-from scipy.spatial import cKDTree
 
 from .trajectories import Reference
 from ..command import CommandLimits
@@ -223,6 +221,7 @@ class Planner:
                 best.update(cost=value, z=np.array(z, dtype=float))
             return value
 
+        from scipy import optimize   # lazily: the nodes import this package, never optimise
         try:
             res = optimize.minimize(timed, z0, method='COBYLA', constraints=[cons, *extra],
                                     options={'rhobeg': 0.1, 'tol': tol, 'maxiter': maxiter,
@@ -331,6 +330,7 @@ class Planner:
         z0 = np.concatenate([np.interp(knot_t, t_ref, ideal[:, k]) for k in (0, 1)])
         z0 /= self.max_speed
         matrix, bound = self._constraints(m, h)
+        from scipy.spatial import cKDTree
         tree = cKDTree(ref_path[:, :2])
         count = [0]
         memo = {}

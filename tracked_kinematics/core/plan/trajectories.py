@@ -12,7 +12,6 @@ from dataclasses import dataclass
 import math
 
 import numpy as np
-from scipy.interpolate import PchipInterpolator
 
 from ..integration import integrate_twist
 
@@ -41,6 +40,7 @@ def curvature_profile(t, t_f: float, knots) -> np.ndarray:
     knots = np.asarray(knots, dtype=float)
     if knots.ndim != 1 or len(knots) < 2:
         raise ValueError('curvature knots must be a sequence of at least 2 values')
+    from scipy.interpolate import PchipInterpolator   # lazily, as the planner's scipy
     return PchipInterpolator(np.linspace(0.0, t_f, len(knots)), knots)(t)
 
 

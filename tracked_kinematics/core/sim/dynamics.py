@@ -11,7 +11,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import optimize
 
 
 GRAVITY = 9.81
@@ -309,6 +308,7 @@ class StationarySolver:
         return twist, np.max(np.abs(r), axis=-1)
 
     def _root(self, v_left, v_right, guess, eps):
+        from scipy import optimize   # lazily: 0.3 s, and the nodes import this module
         result = optimize.root(lambda t: self.residual(t, v_left, v_right, eps), guess,
                                jac=True, method='hybr', options={'xtol': 1e-13})
         r, _ = self.residual(result.x, v_left, v_right, eps)

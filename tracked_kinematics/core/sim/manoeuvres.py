@@ -10,7 +10,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy import signal
 
 MANOEUVRES = ('random', 'sweep', 'spin', 'mixed')
 
@@ -58,6 +57,7 @@ def random_drive(duration: float, dt: float, max_speed: float, rng: np.random.Ge
     # End with a stop long enough for the filter to settle (5 time constants), then at rest.
     targets[-max(1, int(round(5.0 * smoothing / dt))):] = 0.0
     a = math.exp(-dt / smoothing)
+    from scipy import signal   # lazily: 0.4 s to import
     smooth = signal.lfilter([1.0 - a], [1.0, -a], targets, axis=0)
     smooth[-1] = 0.0
     return np.clip(smooth, -max_speed, max_speed)

@@ -12,7 +12,6 @@ from dataclasses import dataclass
 import math
 
 import numpy as np
-from scipy.signal import lfilter
 
 from .._checks import require_numbers
 from ..geodesy import enu_to_geodetic, geodetic_to_enu, GeoOrigin
@@ -146,6 +145,7 @@ def _gnss_noise(n, model, rng, state=None):
     else:
         head = []
     # e_k = phi e_(k-1) + gain w_k, from e_(-1) = state.
+    from scipy.signal import lfilter   # lazily: 0.4 s to import
     rest = lfilter([gain], [1.0, -phi], white, axis=0, zi=(phi * state)[None, :])[0]
     errors = np.vstack(head + [rest])
     return errors, errors[-1].copy()

@@ -12,7 +12,6 @@ from dataclasses import dataclass, field
 import math
 
 import numpy as np
-from scipy.interpolate import CubicSpline, RectBivariateSpline
 
 from .dynamics import StationarySolver, Vehicle
 from .icr_maps import averaged_icr, icr_map
@@ -61,6 +60,7 @@ class TwistTable:
             unit[j] = guess = twist / level
         # Cubic splines along phi (periodic: padded by a quarter turn on both sides) and, with
         # load transfer, along S^2.
+        from scipy.interpolate import CubicSpline, RectBivariateSpline   # lazily, 0.2 s
         pad = n_angles // 4
         angles = np.concatenate([self.angles[-pad:] - 2 * np.pi, self.angles,
                                  self.angles[:pad] + 2 * np.pi])

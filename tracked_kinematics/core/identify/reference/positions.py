@@ -17,7 +17,6 @@ from dataclasses import dataclass, field
 import math
 
 import numpy as np
-from scipy.optimize import least_squares
 
 from .heading_fit import HeadingFit, HUBER_K, robust_std
 from .headings import HeadingData, MAX_STRAIGHT_TURN
@@ -129,6 +128,7 @@ def _position_fit(blocks, free, fixed, sigma):
                            float(np.sum(m[:, 0] * g[:, 0] + m[:, 1] * g[:, 1])))
         p0 += [theta, 0.0]
     p0 = np.array(p0, dtype=float)
+    from scipy.optimize import least_squares   # lazily, as every scipy of core
     sol = least_squares(residuals, p0, loss='soft_l1', f_scale=HUBER_K, x_scale='jac')
     if not sol.success:
         raise FitError(f'the position fit did not converge: {sol.message}')
