@@ -101,16 +101,20 @@ class Bench:
         self.turn_gain = turn_gain
         self.max_distance = 0.0
         self.outputs = []
+        self.rtf = None           # simulated time this many times faster than the steady clock
 
     def inputs(self):
         if 'pose' not in self.frozen:
             self.reported[:2] = self.pose[:2]
         if 'pose' not in self.frozen and 'yaw' not in self.frozen:
             self.reported[2] = self.pose[2]
+        steady = {} if self.rtf is None else dict(
+            steady=self.t / self.rtf, deadman_steady=self.deadman_t / self.rtf,
+            encoder_steady=self.encoder_t / self.rtf, reference_steady=self.reference_t / self.rtf)
         return Inputs(self.t, self.deadman, self.deadman_t, self.encoder_t, self.reference_t,
                       tuple(self.reported),
                       travel=None if self.travel is None else tuple(self.travel),
-                      travel_t=self.travel_t, lateness=self.lateness, fault=self.fault)
+                      travel_t=self.travel_t, lateness=self.lateness, fault=self.fault, **steady)
 
     def tick(self, hold=True, sensors=True):
         if hold:
@@ -447,6 +451,29 @@ def test_a_command_path_that_comes_up_late_has_a_grace(comes_up_after):
             break
     if math.isinf(comes_up_after):
         assert out.state == 'stopped' and 3.5 < bench.t < 5.0, (bench.t, out.reason)
+        assert 'the tracks have not moved since the start' in out.reason
+    else:
+        assert out.state == 'running', out.reason
+
+
+@pytest.mark.parametrize('comes_up_after', [2.0 * 3.0, math.inf])
+def test_the_grace_is_wall_time_in_a_simulation_faster_than_real(comes_up_after):
+    # At three times real time, 3 s of simulated time are 1 s of wall time: too short for
+    # processes to discover each other on a loaded machine (the page's walk stopped so at
+    # its start). The grace runs on both clocks: 2 s of wall time (6 s simulated) is within it.
+    bench = Bench(steps=[Step(0.0, 1.0, 60.0, 'turn')])
+    bench.rtf = 3.0
+    bench.frozen.add('encoders')
+    bench.start()
+    while bench.t < 30.0:
+        if bench.t >= comes_up_after:
+            bench.frozen.discard('encoders')
+        out = bench.tick()
+        if out.state != 'running':
+            break
+    if math.isinf(comes_up_after):
+        # After the grace of wall time (4 s: the window and the grace), 12 s simulated.
+        assert out.state == 'stopped' and 12.0 <= bench.t < 14.0, (bench.t, out.reason)
         assert 'the tracks have not moved since the start' in out.reason
     else:
         assert out.state == 'running', out.reason

@@ -156,6 +156,7 @@ class _Drive:
     best: tuple | None = None         # (t, distance, |heading error|) of a return's best
     start_travel: tuple | None = None  # the encoders' travel at start (None: not known)
     moved: bool = False               # the tracks have moved since the start
+    start_steady: float | None = None  # the steady clock at start (None: not given)
 
 
 class Supervisor:
@@ -201,6 +202,7 @@ class Supervisor:
             d.index, d.step, d.step_t0 = 0, None, None
             d.history.clear()
             d.start_travel, d.moved = inputs.travel, False
+            d.start_steady = inputs.steady
             self._set(inputs.t, 'running', '')
             return True, (f'started: {len(self.steps)} steps, geofence of '
                           f'{self.config.geofence_radius:g} m around ({d.centre[0]:.2f}, '
@@ -385,6 +387,11 @@ class Supervisor:
         # discovered late, a clock not yet received): it has start_grace to show life.
         settle = cfg.settle_time if d.moved else max(cfg.settle_time, cfg.start_grace)
         if end - h[0][0] < cfg.check_window + settle:
+            return ''
+        # A path coming up is processes discovering each other: wall time. In simulated time
+        # faster than real, start_grace of it alone is too short (1 s of wall time at 3x).
+        if not d.moved and inputs.steady is not None and d.start_steady is not None \
+                and inputs.steady - d.start_steady < cfg.check_window + settle:
             return ''
         row = self._history_row
         rows = h[row(t - cfg.check_window):] + [(t, tuple(travel), tuple(inputs.pose), 0.0,
