@@ -674,7 +674,7 @@ def test_the_line_count_skips_docstrings_comments_and_blank_lines():
 # imports them inside the functions that use them.
 HEAVY = ('scipy.optimize', 'scipy.signal', 'scipy.stats', 'scipy.interpolate',
          'scipy.spatial', 'matplotlib')
-ENTRY_MODULES = [
+STARTED_MODULES = [
     'tracked_kinematics.ros.odometry_node', 'tracked_kinematics.ros.cmd_vel_translator',
     'tracked_kinematics.ros.icr_estimator', 'tracked_kinematics.ros.tracked_simulator',
     'tracked_kinematics.ros.calibration_drive_node', 'tracked_kinematics.offline.cli.identify_icr',
@@ -692,7 +692,7 @@ def heavy_imports(module: str, path: str = '') -> list[str]:
     return done.stdout.split()
 
 
-@pytest.mark.parametrize('module', ENTRY_MODULES)
+@pytest.mark.parametrize('module', STARTED_MODULES)
 def test_a_node_or_tool_starts_without_the_heavy_scipy_packages(module):
     assert heavy_imports(module) == []
 

@@ -108,9 +108,10 @@ class Bench:
             self.reported[:2] = self.pose[:2]
         if 'pose' not in self.frozen and 'yaw' not in self.frozen:
             self.reported[2] = self.pose[2]
-        steady = {} if self.rtf is None else dict(
-            steady=self.t / self.rtf, deadman_steady=self.deadman_t / self.rtf,
-            encoder_steady=self.encoder_t / self.rtf, reference_steady=self.reference_t / self.rtf)
+        steady = {} if self.rtf is None else {
+            'steady': self.t / self.rtf, 'deadman_steady': self.deadman_t / self.rtf,
+            'encoder_steady': self.encoder_t / self.rtf,
+            'reference_steady': self.reference_t / self.rtf}
         return Inputs(self.t, self.deadman, self.deadman_t, self.encoder_t, self.reference_t,
                       tuple(self.reported),
                       travel=None if self.travel is None else tuple(self.travel),
