@@ -43,10 +43,11 @@ def turntable_then_straight(seed=0):
     """
     Return ``t, left, right, tg, reading``: a turntable, a pivot, a straight minute.
 
-    A standstill with a turntable in it, a pivot, then a straight minute at 0.5 m/s. The ground turns the robot as the terrain file says (the encoders' heading is the truth);
-    the gyro reads ``gyro_scale`` times the true rate plus :data:`BIAS` and noise, stamped
-    ``imu_delay`` late (WITH_GYRO). The pivot lets the gyro agree with the tracks (it is
-    fused once they have turned together).
+    A standstill with a turntable in it, a pivot, then a straight minute at 0.5 m/s. The
+    ground turns the robot as the terrain file says (the encoders' heading is the truth); the
+    gyro reads ``gyro_scale`` times the true rate plus :data:`BIAS` and noise, stamped
+    ``imu_delay`` late (WITH_GYRO). The pivot lets the gyro agree with the tracks (it is fused
+    once they have turned together).
     """
     rng = np.random.default_rng(seed)
     t = np.arange(int(STOP * RATE) + 1) / RATE
