@@ -229,3 +229,19 @@ def test_mounts_that_disagree_are_bad_input(sim, upside_down, capsys):
                           mounted, '--imu-mount', '0', '0', '0'], capsys)
     assert status == 2 and 'give one mounting' in err, err
     assert err.count('\n') == 1
+
+
+def test_a_file_s_mount_is_checked_and_one_axis_may_be_given():
+    from tracked_kinematics.offline.errors import UsageError
+    from tracked_kinematics.offline.tooling import imu_mount_of
+    # A missing axis is 0, as odometry_node takes it; files without the keys say nothing.
+    assert imu_mount_of(None, [('a.yaml', {'imu_mount.roll': 3.0}), ('b.yaml', {})]) == (
+        3.0, 0.0, 0.0)
+    assert imu_mount_of([0.0, 0.1, 0.0], [('b.yaml', {})]) == (0.0, 0.1, 0.0)
+    assert imu_mount_of(None, []) == (0.0, 0.0, 0.0)
+    for bad in ('pi', 7.0, float('nan'), True):
+        with pytest.raises(UsageError, match='a.yaml: imu_mount'):
+            imu_mount_of(None, [('a.yaml', {'imu_mount.yaw': bad})])
+    with pytest.raises(UsageError, match='a.yaml gives .* b.yaml'):
+        imu_mount_of(None, [('a.yaml', {'imu_mount.roll': 3.0}),
+                            ('b.yaml', {'imu_mount.pitch': 0.1})])
