@@ -6,7 +6,8 @@ from hypothesis import given, strategies as st
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
-from tracked_kinematics.core.imu_frame import heading_rate, MAX_TILT, mount_rotation
+from tracked_kinematics.core.imu_frame import (
+    heading_rate, MAX_TILT, mount_rotation, orientation_heading)
 
 angles = st.floats(-math.pi, math.pi)
 
@@ -89,3 +90,29 @@ def test_arrays_give_what_samples_give():
         rate, one = heading_rate(tuple(omega[:, k]), mount, tuple(quats[k]), bool(has[k]))
         assert rates[k] == pytest.approx(rate, abs=1e-12) and used[k] == one
     assert used.any() and not used.all()
+
+
+@given(st.floats(-1.0, 1.0), st.floats(-1.0, 1.0), angles, angles, angles, angles)
+def test_the_orientation_s_heading_is_base_x_on_the_horizontal(
+        roll, pitch, yaw, m_roll, m_pitch, m_yaw):
+    """Any base attitude within the tilt limit, any mount: the base's heading; arrays too."""
+    base = Rotation.from_euler('ZYX', [yaw, pitch, roll])   # world <- base
+    mount = Rotation.from_euler('xyz', [m_roll, m_pitch, m_yaw])   # base <- imu
+    if base.apply([0.0, 0.0, 1.0])[2] < math.cos(MAX_TILT - 0.05):
+        return
+    q = tuple((base * mount).as_quat())
+    got = orientation_heading(q, mount.as_matrix())
+    assert math.cos(got - heading(base)) == pytest.approx(1.0, abs=1e-9)
+    arrays = orientation_heading(tuple(np.array([v, v]) for v in q), mount.as_matrix(),
+                                 np.array([True, False]))
+    assert arrays[0] == pytest.approx(got, abs=1e-12) and math.isnan(arrays[1])
+
+
+def test_an_ned_heading_grows_as_the_enu_one_with_its_mount():
+    """NED (FRD in NED, heading pi/2 - psi): through roll pi, psi up to a constant; else -psi."""
+    psi = np.linspace(-1.0, 1.0, 9)
+    ned = tuple(Rotation.from_euler('z', (0.5 * math.pi - psi)[:, None]).as_quat().T)
+    right = orientation_heading(ned, mount_rotation(math.pi, 0.0, 0.0))
+    wrong = orientation_heading(ned, mount_rotation(0.0, 0.0, 0.0))
+    np.testing.assert_allclose(np.unwrap(right - psi) - (right[0] - psi[0]), 0.0, atol=1e-12)
+    np.testing.assert_allclose(np.unwrap(wrong + psi) - (wrong[0] + psi[0]), 0.0, atol=1e-12)

@@ -1,6 +1,7 @@
 """simulate_bag --imu/--gnss and identify_icr without ground truth, end to end, bad input."""
 
 import json
+import math
 
 import numpy as np
 import pytest
@@ -263,9 +264,146 @@ def test_the_reader_takes_the_orientation_only_when_it_turns(field, tmp_path, or
             w = float(run_.twist[min(k, len(run_.twist) - 1), 2])
             bag.write('/imu/data', stamp, bag.imu(stamp, w, yaw=yaw))
     rec = read_recording(path, EncoderSource(sprocket_radius=0.1), imu_topic='/imu/data')
+    # The rate as odometry_node reads it (about the vertical: the Imu's z rate on the level),
+    # with an orientation or not.
+    rates = run_.twist[np.minimum(np.arange(3000), len(run_.twist) - 1), 2]
+    np.testing.assert_allclose(rec.gyro_rate, rates, atol=1e-9)
     if orientation == 'turning':
-        assert rec.gyro_rate is None
         assert np.allclose(np.unwrap(rec.gyro_yaw) - rec.gyro_yaw[0],
                            run_.pose[:3000, 2] - run_.pose[0, 2], atol=1e-6)
     else:
-        assert rec.gyro_yaw is None and np.any(rec.gyro_rate != 0)
+        assert rec.gyro_yaw is None
+
+
+# The IMU's mounting (issue 35 item 3): the tools read the gyro as odometry_node does. ----
+
+
+UPSIDE_DOWN = (3.14159, 0.0, 0.0)    # as a user types it: --imu-mount 3.14159 0 0
+
+
+def mounted_bag(field, path, imu_of, samples=6000, pose=False):
+    """
+    Write the field run's first ``samples`` encoder samples, an Imu at each of them.
+
+    ``imu_of(w, psi)`` gives ``(omega, quaternion or None)`` of the IMU for the true yaw rate
+    ``w`` (rad/s, about the vertical: the run is on the level) and heading ``psi``. With
+    ``pose``, the true pose on ``/gt`` (nav_msgs/Odometry) at every 10th sample.
+    """
+    from tracked_kinematics.offline.bags.writer import BagWriter
+    run_ = field.run
+    with BagWriter(path) as bag:
+        for k, tk in enumerate(run_.t[:samples]):
+            stamp = sim.START_NS + int(round(tk * 1e9))
+            bag.write('/joint_states', stamp, bag.joint_state(
+                stamp, sim.JOINTS, run_.joint_position[k].tolist()))
+            omega, quaternion = imu_of(float(run_.twist[min(k, len(run_.twist) - 1), 2]),
+                                       float(run_.pose[k, 2]))
+            bag.write('/imu/data', stamp, bag.imu(stamp, 0.0, omega=omega,
+                                                  quaternion=quaternion))
+            if pose and k % 10 == 0:
+                bag.write('/gt', stamp, bag.odometry(stamp, *run_.pose[k, :3].tolist()))
+    return path
+
+
+def rotation(*turns):
+    """Return the scipy Rotation of (axis, angle) turns, the first outermost."""
+    from scipy.spatial.transform import Rotation
+    out = Rotation.identity()
+    for axis, angle in turns:
+        out = out * Rotation.from_euler(axis, angle)
+    return out
+
+
+# An IMU's reading of a level run turning at w with heading psi, mounted by the rotation M
+# of its frame in base_link: omega = M^T (0, 0, w); its orientation (ENU) Rz(psi) M.
+def mounted(mount, orientation):
+    def imu_of(w, psi):
+        omega = mount.inv().apply([0.0, 0.0, w])
+        quaternion = (rotation(('z', psi)) * mount).as_quat() if orientation else None
+        return tuple(omega), None if quaternion is None else tuple(quaternion)
+    return imu_of
+
+
+@pytest.mark.parametrize('orientation', [False, True])
+def test_an_upside_down_imu_read_with_its_mount_is_the_upright_one(field, tmp_path,
+                                                                   orientation):
+    encoders = EncoderSource(sprocket_radius=0.1)
+    upright = mounted_bag(field, tmp_path / 'upright', mounted(rotation(), orientation),
+                          samples=3000)
+    down = mounted_bag(field, tmp_path / 'down', mounted(rotation(('x', math.pi)),
+                                                         orientation), samples=3000)
+    right = read_recording(upright, encoders, imu_topic='/imu/data')
+    as_is = read_recording(down, encoders, imu_topic='/imu/data')
+    mount = read_recording(down, encoders, imu_topic='/imu/data', imu_mount=UPSIDE_DOWN)
+    assert np.ptp(right.gyro_rate) > 0.5
+    # Before: angular_velocity.z alone, the mount unknown: the rate mirrored.
+    np.testing.assert_allclose(as_is.gyro_rate, -right.gyro_rate, atol=1e-9)
+    np.testing.assert_allclose(mount.gyro_rate, right.gyro_rate, atol=1e-5)
+    if orientation:
+        # The orientation's heading through the mount: the upright one's.
+        np.testing.assert_allclose(np.unwrap(mount.gyro_yaw - right.gyro_yaw), 0.0,
+                                   atol=1e-5)
+
+
+def test_identify_icr_fits_an_upside_down_gyro_given_its_mount(field, tmp_path, capsys):
+    down = mounted_bag(field, tmp_path / 'down', mounted(rotation(('x', math.pi)), False))
+    upright = mounted_bag(field, tmp_path / 'upright', mounted(rotation(), False))
+    # Without its mount the gyro turns the other way: the fit refuses the sign (exit 4), as
+    # before, when no mount could be given.
+    status, _, err = run([down, '--imu-topic', '/imu/data', *VEHICLE, '--output',
+                          tmp_path / 'refused.yaml'], capsys)
+    assert status == 4 and 'sign swapped' in err, err
+    assert not (tmp_path / 'refused.yaml').exists()
+    values, _ = identified([down, '--imu-topic', '/imu/data', '--imu-mount',
+                            *map(str, UPSIDE_DOWN), *VEHICLE], tmp_path / 'down.yaml', capsys)
+    right, _ = identified([upright, '--imu-topic', '/imu/data', *VEHICLE],
+                          tmp_path / 'upright.yaml', capsys)
+    for key in ('icr.y_left', 'icr.y_right', 'scale.left', 'scale.right', 'imu_delay'):
+        assert values[key] == pytest.approx(right[key], abs=1e-6), key
+    # Written for odometry_node, which is to read the gyro as it was fitted.
+    assert (values['imu_mount.roll'], values['imu_mount.pitch'],
+            values['imu_mount.yaw']) == UPSIDE_DOWN
+    assert 'imu_mount.roll' not in right
+
+
+def test_a_pitched_imu_gives_the_world_vertical_rate(field, tmp_path):
+    """An IMU pitched 20 deg in base_link: the rate about the vertical, as the node reads it."""
+    encoders = EncoderSource(sprocket_radius=0.1)
+    pitch = math.radians(20.0)
+    mount = rotation(('y', pitch))
+    truth = read_recording(mounted_bag(field, tmp_path / 'upright', mounted(rotation(), False),
+                                       samples=3000), encoders, imu_topic='/imu/data').gyro_rate
+    assert np.ptp(truth) > 0.5
+    with_q = mounted_bag(field, tmp_path / 'orientation', mounted(mount, True), samples=3000)
+    without = mounted_bag(field, tmp_path / 'rates', mounted(mount, False), samples=3000)
+    given = (0.0, pitch, 0.0)
+    # With the orientation, the heading's rate about the vertical, whatever the mount says ...
+    for imu_mount in (given, (0.0, 0.0, 0.0)):
+        rec = read_recording(with_q, encoders, imu_topic='/imu/data', imu_mount=imu_mount)
+        np.testing.assert_allclose(rec.gyro_rate, truth, atol=1e-9)
+    # ... without it, the body z rate: right through the mount, cos(20 deg) of it without
+    # (before: angular_velocity.z alone, 6 % short with or without an orientation).
+    rec = read_recording(without, encoders, imu_topic='/imu/data', imu_mount=given)
+    np.testing.assert_allclose(rec.gyro_rate, truth, atol=1e-9)
+    rec = read_recording(without, encoders, imu_topic='/imu/data')
+    np.testing.assert_allclose(rec.gyro_rate, math.cos(pitch) * truth, atol=1e-9)
+
+
+def test_evaluate_model_fuses_an_imu_that_has_an_orientation(field, tmp_path, capsys):
+    """Before: an Imu with an orientation was read as its yaw alone, and --fuse-imu refused it."""
+    from tracked_kinematics.offline.cli import evaluate_model
+    figures = {}
+    for orientation in (False, True):
+        bag = mounted_bag(field, tmp_path / f'o{orientation}', mounted(rotation(), orientation),
+                          pose=True)
+        report = tmp_path / f'o{orientation}.json'
+        status = evaluate_model.main([str(bag), '--ground-truth-topic', '/gt', '--fuse-imu',
+                                      '/imu/data', '--params', str(field.truth),
+                                      '--sprocket-radius', '0.1', '--report', str(report)])
+        assert status == 0, capsys.readouterr().err
+        entry = json.loads(report.read_text())['models'][f'{field.truth.stem}+imu']
+        assert entry['gyro']['source_at_end'] == ['gyro']
+        figures[orientation] = entry['odometry']['windows']['5']
+    # On the level the heading's rate from the orientation is the z rate: the same figures.
+    for key in ('mean_position_error_m', 'mean_heading_error_rad'):
+        assert figures[True][key] == pytest.approx(figures[False][key], rel=1e-9)

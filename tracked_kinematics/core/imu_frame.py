@@ -99,14 +99,8 @@ def heading_rate(omega, mount, quaternion=None, has_orientation=False):
     body = m20 * wx + m21 * wy + m22 * wz
     if quaternion is None:
         return body, _false_like(body)
-    qx, qy, qz, qw = quaternion
-    n2 = qx * qx + qy * qy + qz * qz + qw * qw
-    unit = _finite(n2) & (abs(n2 - 1.0) <= 2.0 * UNIT_TOLERANCE) & has_orientation
-    s = 2.0 / (n2 + (n2 == 0.0))
-    # The rotation of the IMU's frame in the world (normalised by s).
-    r00, r01, r02 = 1.0 - s * (qy * qy + qz * qz), s * (qx * qy - qz * qw), s * (qx * qz + qy * qw)
-    r10, r11, r12 = s * (qx * qy + qz * qw), 1.0 - s * (qx * qx + qz * qz), s * (qy * qz - qx * qw)
-    r20, r21, r22 = s * (qx * qz - qy * qw), s * (qy * qz + qx * qw), 1.0 - s * (qx * qx + qy * qy)
+    unit, rows_r = _orientation(quaternion, has_orientation)
+    (r00, r01, r02), (r10, r11, r12), (r20, r21, r22) = rows_r
     # The angular velocity in the world (the mount cancels), the base's x axis in the world
     # (R m_row0), the world z component of the base's z axis (R m_row2).
     w0 = r00 * wx + r01 * wy + r02 * wz
@@ -124,6 +118,55 @@ def heading_rate(omega, mount, quaternion=None, has_orientation=False):
     if isinstance(used, np.ndarray) or isinstance(rate, np.ndarray):
         return np.where(used, rate, body), np.asarray(used) & np.ones_like(rate, dtype=bool)
     return (rate, True) if used else (body, False)
+
+
+def orientation_heading(quaternion, mount, has_orientation=True):
+    """
+    Heading of ``base_link`` from an IMU's orientation (or arrays of them), rad.
+
+    The direction of the base's x axis projected onto the horizontal plane, ``atan2(h_y,
+    h_x)``, ``h`` that axis in the world; negated where the world's z points down from the
+    base (an NED IMU: its heading then grows as the ENU heading does, to a constant). Where
+    the orientation is not used (as :func:`heading_rate` decides), NaN.
+
+    Parameters
+    ----------
+    quaternion : tuple of float or array_like, 4
+        ``orientation`` (x, y, z, w) of the IMU's frame in the world.
+    mount : ndarray or nested tuple, (3, 3)
+        :func:`mount_rotation`.
+    has_orientation : bool or array_like of bool
+        As :func:`heading_rate`.
+
+    Returns
+    -------
+    heading : float or ndarray
+        rad, in (-pi, pi].
+
+    """
+    rows = mount.tolist() if isinstance(mount, np.ndarray) else mount
+    (m00, m01, m02), _, (m20, m21, m22) = rows
+    unit, ((r00, r01, r02), (r10, r11, r12), (r20, r21, r22)) = _orientation(
+        quaternion, has_orientation)
+    h0 = r00 * m00 + r01 * m01 + r02 * m02
+    h1 = r10 * m00 + r11 * m01 + r12 * m02
+    up = r20 * m20 + r21 * m21 + r22 * m22
+    used = unit & (abs(up) >= _COS_MAX_TILT)
+    heading = np.arctan2(h1, h0) * (1.0 - 2.0 * (up < 0.0))
+    return np.where(used, heading, np.nan) if np.ndim(heading) else (
+        float(heading) if used else math.nan)
+
+
+def _orientation(quaternion, has_orientation):
+    """Return whether a quaternion is a usable rotation, and its (normalised) rotation rows."""
+    qx, qy, qz, qw = quaternion
+    n2 = qx * qx + qy * qy + qz * qz + qw * qw
+    unit = _finite(n2) & (abs(n2 - 1.0) <= 2.0 * UNIT_TOLERANCE) & has_orientation
+    s = 2.0 / (n2 + (n2 == 0.0))
+    return unit, (
+        (1.0 - s * (qy * qy + qz * qz), s * (qx * qy - qz * qw), s * (qx * qz + qy * qw)),
+        (s * (qx * qy + qz * qw), 1.0 - s * (qx * qx + qz * qz), s * (qy * qz - qx * qw)),
+        (s * (qx * qz - qy * qw), s * (qy * qz + qx * qw), 1.0 - s * (qx * qx + qy * qy)))
 
 
 def _false_like(value):

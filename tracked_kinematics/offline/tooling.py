@@ -127,6 +127,39 @@ def checked_encoders(encoders: EncoderSource) -> EncoderSource:
     return encoders
 
 
+IMU_MOUNT_KEYS = ('imu_mount.roll', 'imu_mount.pitch', 'imu_mount.yaw')
+"""odometry_node's mount of the IMU in ``base_frame`` (URDF rpy, rad), as files carry it."""
+
+
+def imu_mount_of(option, files) -> tuple[float, float, float]:
+    """
+    Return the IMU's mount ``(roll, pitch, yaw)``, rad: ``--imu-mount``, else the files'.
+
+    ``files`` are ``(path, values)`` of the parameter files the tool reads; those carrying
+    ``imu_mount.*`` keys (a missing axis is 0, as odometry_node takes it) must agree with each
+    other and with ``option`` (None: not given), so that the gyro is read as the node given
+    the same file reads it. Raises UsageError naming the two sources that disagree or a value
+    that is no angle.
+    """
+    found = []
+    for path, values in files:
+        if not any(key in values for key in IMU_MOUNT_KEYS):
+            continue
+        mount = tuple(values.get(key, 0.0) for key in IMU_MOUNT_KEYS)
+        if not all(isinstance(v, (int, float)) and not isinstance(v, bool)
+                   and abs(v) <= 2.0 * np.pi for v in mount):
+            raise UsageError(f'{path}: imu_mount.roll/pitch/yaw must be numbers in '
+                             f'[-2 pi, 2 pi] rad, got {mount}')
+        found.append((str(path), tuple(float(v) for v in mount)))
+    if option is not None:
+        found.insert(0, ('--imu-mount', tuple(float(v) for v in option)))
+    for source, mount in found[1:]:
+        if mount != found[0][1]:
+            raise UsageError(f'{found[0][0]} gives the IMU mount (roll, pitch, yaw) '
+                             f'{found[0][1]} rad, {source} {mount}: give one mounting')
+    return found[0][1] if found else (0.0, 0.0, 0.0)
+
+
 def report_json(report) -> str:
     """Return a JSON report as text (numpy arrays as lists, numpy scalars as floats)."""
     return json.dumps(report, indent=2, default=lambda o: o.tolist()

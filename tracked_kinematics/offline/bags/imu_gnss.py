@@ -1,11 +1,15 @@
 """
 Decode an IMU's gyro and GNSS positions: the references of a robot without ground truth.
 
-:class:`Imu`: sensor_msgs/Imu, the yaw rate ``angular_velocity.z``, or the yaw of
-``orientation`` when every message gives one (``orientation_covariance[0] != -1``) and it
-turns at all. :class:`Gnss`: sensor_msgs/NavSatFix with ``status.status >= 0``, converted to
-the east-north plane at the first fix by :mod:`tracked_kinematics.core.geodesy`; or
-nav_msgs/Odometry, navsat_transform's, positions only.
+:class:`Imu`: sensor_msgs/Imu read as odometry_node reads it: the heading's rate of
+:func:`tracked_kinematics.core.imu_frame.heading_rate` (the angular velocity turned into
+``base_link`` by the mount ``imu_mount.*``, about the world's vertical where the message
+has an orientation), and the heading of the orientation
+(:func:`~tracked_kinematics.core.imu_frame.orientation_heading`) when every message gives
+one (``orientation_covariance[0] != -1``) and it turns at all. :class:`Gnss`:
+sensor_msgs/NavSatFix with ``status.status >= 0``, converted to the east-north plane at the
+first fix by :mod:`tracked_kinematics.core.geodesy`; or nav_msgs/Odometry,
+navsat_transform's, positions only.
 """
 
 from __future__ import annotations
@@ -15,6 +19,7 @@ from pathlib import Path
 import numpy as np
 from tracked_kinematics.core.errors import SensorDataError
 from tracked_kinematics.core.geodesy import geodetic_to_enu, GeoOrigin
+from tracked_kinematics.core.imu_frame import heading_rate, orientation_heading
 
 from .columns import Columns, header_stamp, sort_unique
 from .opening import topic_connections
@@ -24,40 +29,40 @@ GNSS_TYPES = ('sensor_msgs/msg/NavSatFix', 'nav_msgs/msg/Odometry')
 
 
 class Imu:
-    """Imu messages -> time, yaw rate, yaw of the orientation (when given)."""
+    """Imu messages -> time, the heading's rate, the heading of the orientation (when given)."""
 
-    def __init__(self, topic: str, path: Path, ref_ns: int):
+    def __init__(self, topic: str, path: Path, ref_ns: int, mount=np.eye(3)):
         self.topic = topic
         self.path = path
         self.ref_ns = ref_ns
-        self.columns = Columns(4)          # t, wz, yaw, orientation given
+        self.mount = np.asarray(mount, dtype=float)
+        # t, angular velocity (x, y, z), orientation (x, y, z, w), orientation given
+        self.columns = Columns(9)
 
     def connections(self, reader):
         """Return the bag connections of the IMU topic (checked)."""
         return topic_connections(reader, self.path, self.topic, IMU_TYPES, 'IMU')
 
     def add(self, conn, msg, receive_ns) -> None:
-        q = msg.orientation
-        given = float(msg.orientation_covariance[0]) != -1.0 \
-            and (q.x, q.y, q.z, q.w) != (0.0, 0.0, 0.0, 0.0)
-        yaw = float(np.arctan2(2.0 * (q.w * q.z + q.x * q.y),
-                               1.0 - 2.0 * (q.y * q.y + q.z * q.z))) if given else np.nan
+        q, w = msg.orientation, msg.angular_velocity
         self.columns.append((header_stamp(msg.header, receive_ns, self.ref_ns),
-                             float(msg.angular_velocity.z), yaw, float(given)))
+                             float(w.x), float(w.y), float(w.z), float(q.x), float(q.y),
+                             float(q.z), float(q.w),
+                             float(float(msg.orientation_covariance[0]) != -1.0)))
 
     def gyro(self):
-        """Return times (ns), and rates or yaw (one is None)."""
+        """Return times (ns), the heading's rates (rad/s) and headings (rad; None: none)."""
         data = self.columns.array
         if len(data) == 0:
             raise SensorDataError(f'{self.path}: no Imu messages on {self.topic}')
         data = sort_unique(data)
-        t, wz, yaw, given = data.T
+        t, omega, quaternion, given = data[:, 0], data[:, 1:4].T, data[:, 4:8].T, data[:, 8] > 0
+        rate, _ = heading_rate(tuple(omega), self.mount, tuple(quaternion), given)
+        yaw = orientation_heading(tuple(quaternion), self.mount, given)
         # An orientation that never turns (a driver filling identity with covariance 0 instead
-        # of -1) is no heading: the rates are used then.
+        # of -1) is no heading.
         turns = np.all(np.isfinite(yaw)) and np.ptp(np.unwrap(yaw)) > 1e-3
-        if np.all(given > 0) and turns:
-            return t, None, yaw
-        return t, wz, None
+        return t, rate, yaw if turns else None
 
 
 class Gnss:

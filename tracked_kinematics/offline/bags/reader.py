@@ -22,6 +22,7 @@ from pathlib import Path
 
 import numpy as np
 from tracked_kinematics.core.errors import SensorDataError
+from tracked_kinematics.core.imu_frame import mount_rotation
 from tracked_kinematics.core.recording import Recording
 from tracked_kinematics.offline.errors import BagError
 
@@ -40,7 +41,7 @@ def read_recording(path, encoders: EncoderSource, *,
                    ground_truth: GroundTruthSource | None = None,
                    imu_topic: str | None = None, gnss_topic: str | None = None,
                    commands: CommandSource | None = None,
-                   progress: bool = False) -> Recording:
+                   progress: bool = False, imu_mount=(0.0, 0.0, 0.0)) -> Recording:
     """
     Read the encoders and the streams asked for of one bag, in one pass.
 
@@ -57,10 +58,11 @@ def read_recording(path, encoders: EncoderSource, *,
     ground_truth : GroundTruthSource, optional
         A pose: ground truth or a pose reference (``gt_*``).
     imu_topic : str, optional
-        sensor_msgs/Imu: the yaw rate, or the yaw of the orientation when every message gives
-        one that turns (``gyro_*``, :mod:`.imu_gnss`). :data:`IMU_AUTO`: the bag's one Imu
-        topic, none when it has none or several, and no gyro (not an error) when that topic
-        has no messages; ``gyro_topic`` says which.
+        sensor_msgs/Imu, read as odometry_node reads it: the heading's rate (``gyro_rate``),
+        and the heading of the orientation (``gyro_yaw``) when every message gives one that
+        turns (:mod:`.imu_gnss`). :data:`IMU_AUTO`: the bag's one Imu topic, none when it has
+        none or several, and no gyro (not an error) when that topic has no messages;
+        ``gyro_topic`` says which.
     gnss_topic : str, optional
         sensor_msgs/NavSatFix or nav_msgs/Odometry positions (``gnss_*``).
     commands : CommandSource, optional
@@ -70,6 +72,10 @@ def read_recording(path, encoders: EncoderSource, *,
         ``required``).
     progress : bool
         Show a progress bar on stderr.
+    imu_mount : tuple of float
+        ``(roll, pitch, yaw)``, rad: the IMU's frame in ``base_link`` as a URDF joint's rpy,
+        odometry_node's ``imu_mount.*``
+        (:func:`~tracked_kinematics.core.imu_frame.mount_rotation`).
 
     Raises
     ------
@@ -80,7 +86,7 @@ def read_recording(path, encoders: EncoderSource, *,
         For an Imu topic without messages (named, not :data:`IMU_AUTO`), a GNSS without a fix.
 
     """
-    streams = (ground_truth, imu_topic, gnss_topic, commands)
+    streams = (ground_truth, (imu_topic, mount_rotation(*imu_mount)), gnss_topic, commands)
     return guarded(Path(path), _read, encoders, streams, progress)
 
 
@@ -90,7 +96,7 @@ def read_recordings(paths, encoders: EncoderSource, **streams) -> list[Recording
 
 
 def _read(reader, path, encoders, streams, progress) -> Recording:
-    ground_truth, imu_topic, gnss_topic, commands = streams
+    ground_truth, (imu_topic, mount), gnss_topic, commands = streams
     ref_ns = reader.start_time
     enc, enc_conns = encoder_stream(reader, path, encoders, ref_ns)
     auto = imu_topic == IMU_AUTO
@@ -99,7 +105,7 @@ def _read(reader, path, encoders, streams, progress) -> Recording:
         imu_topic = found[0] if len(found) == 1 else None
     decoders = {}
     if imu_topic:
-        decoders['imu'] = Imu(imu_topic, path, ref_ns)
+        decoders['imu'] = Imu(imu_topic, path, ref_ns, mount)
     if gnss_topic:
         decoders['gnss'] = Gnss(gnss_topic, path, ref_ns)
     if ground_truth is not None:
@@ -133,9 +139,7 @@ def _assemble(path, enc, decoders, ref_ns: int, auto: bool) -> Recording:
             if not auto:
                 raise
         else:
-            fields['gyro_t'] = seconds(t)
-            fields['gyro_rate' if rate is not None else 'gyro_yaw'] = \
-                rate if rate is not None else yaw
+            fields.update(gyro_t=seconds(t), gyro_rate=rate, gyro_yaw=yaw)
     if 'gnss' in decoders:
         t, x, y = decoders['gnss'].positions()
         fields.update(gnss_t=seconds(t), gnss_x=x, gnss_y=y)

@@ -168,13 +168,15 @@ class BagWriter:
 
     def imu(self, stamp_ns: int, w_z: float, frame_id: str = 'imu_link',
             rate_variance: float = 0.0, yaw: float | None = None,
-            yaw_variance: float = 1e-4):
+            yaw_variance: float = 1e-4, omega=None, quaternion=None):
         """
         sensor_msgs/Imu with the gyro's z rate (and, with ``yaw``, an orientation).
 
         Without ``yaw`` the orientation is not provided; linear acceleration never is: their
         covariances' first element is -1 (the message's convention).
         ``angular_velocity_covariance`` is diagonal with ``rate_variance`` (rad^2/s^2).
+        ``omega`` ``(x, y, z)`` (rad/s) replaces ``(0, 0, w_z)`` and ``quaternion`` ``(x, y,
+        z, w)`` the orientation of ``yaw``: an IMU mounted otherwise, or tilted.
         """
         types = self._types
         vec = types['geometry_msgs/msg/Vector3']
@@ -182,17 +184,21 @@ class BagWriter:
         unknown[0] = -1.0
         cov = np.zeros(9)
         cov[[0, 4, 8]] = rate_variance
-        if yaw is None:
-            orientation = types['geometry_msgs/msg/Quaternion'](x=0.0, y=0.0, z=0.0, w=0.0)
+        quat = types['geometry_msgs/msg/Quaternion']
+        if yaw is None and quaternion is None:
+            orientation = quat(x=0.0, y=0.0, z=0.0, w=0.0)
             orientation_cov = unknown.copy()
         else:
-            orientation = self.pose(0.0, 0.0, yaw).orientation
+            orientation = self.pose(0.0, 0.0, yaw).orientation if quaternion is None else \
+                quat(**dict(zip('xyzw', map(float, quaternion))))
             orientation_cov = np.zeros(9)
             orientation_cov[[0, 4, 8]] = yaw_variance
+        wx, wy, wz = (0.0, 0.0, w_z) if omega is None else omega
         return types['sensor_msgs/msg/Imu'](
             header=self.header(stamp_ns, frame_id), orientation=orientation,
             orientation_covariance=orientation_cov,
-            angular_velocity=vec(x=0.0, y=0.0, z=float(w_z)), angular_velocity_covariance=cov,
+            angular_velocity=vec(x=float(wx), y=float(wy), z=float(wz)),
+            angular_velocity_covariance=cov,
             linear_acceleration=vec(x=0.0, y=0.0, z=0.0),
             linear_acceleration_covariance=unknown.copy())
 

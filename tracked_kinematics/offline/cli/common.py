@@ -24,7 +24,7 @@ from tracked_kinematics.offline.outputs import abort_unfinished, begun, Outputs
 from tracked_kinematics.offline.signals import Signalled
 from tracked_kinematics.offline.tooling import (  # noqa: F401 (the tools import them here)
     checked_encoders, error_line, EXIT_EXCITATION, EXIT_FIT, EXIT_INPUT, exit_status,
-    read_base_file, refuse_another_vehicle, report_json, require_vehicle, warn,
+    imu_mount_of, read_base_file, refuse_another_vehicle, report_json, require_vehicle, warn,
     warn_unknown_terrain_keys)
 from tracked_kinematics.params import ENCODER_INPUT_DEFAULTS, INPUT_MODES, SIDE_TOPICS
 
@@ -253,6 +253,15 @@ SPROCKET_RADIUS = bounded(0.005, 5.0, 'm')
 TRACK_WIDTH = bounded(0.05, 20.0, 'm')
 MIN_SPEED_RANGE = bounded(0.0, 20.0, 'm/s')
 TICKS_PER_REVOLUTION = bounded(1.0, 1e9)
+
+
+def add_imu_mount_argument(group, files: str) -> None:
+    """Add ``--imu-mount ROLL PITCH YAW``: the IMU in base_link, as odometry_node's imu_mount.*."""
+    group.add_argument('--imu-mount', type=bounded(-2.0 * math.pi, 2.0 * math.pi, 'rad'),
+                       nargs=3, default=None, metavar=('ROLL', 'PITCH', 'YAW'),
+                       help="the IMU's frame in base_link as a URDF joint's rpy, rad "
+                       "(odometry_node's imu_mount.*; 3.14159 0 0: z down, or NED); the gyro "
+                       f'is read as the node reads it. Default {files}, else 0 0 0')
 
 
 def add_sprocket_radius_argument(group) -> None:

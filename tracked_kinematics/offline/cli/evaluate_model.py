@@ -36,9 +36,10 @@ import numpy as np
 from tracked_kinematics.core import evaluate as ev
 from tracked_kinematics.offline.bags import read_recording
 from tracked_kinematics.offline.cli.common import (
-    add_command_arguments, add_ground_truth_arguments, add_vehicle_groups,
-    add_window_selection_arguments, command_source, encoder_source, ground_truth_source,
-    identification_parser, positive, require_vehicle, run_main)
+    add_command_arguments, add_ground_truth_arguments, add_imu_mount_argument,
+    add_vehicle_groups, add_window_selection_arguments, command_source, encoder_source,
+    ground_truth_source, identification_parser, imu_mount_of, positive, require_vehicle,
+    run_main)
 from tracked_kinematics.offline.errors import UsageError
 from tracked_kinematics.offline.model_evaluation import (
     check_gyro_rate, commands_of, evaluate_models, gyro_references, pose_references,
@@ -69,6 +70,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument('--fuse-imu', default=None, metavar='TOPIC',
                         help='also score each terrain file gyro-aided (row <name>+imu): the '
                         "gyro's heading, as odometry_node with imu_topic (sensor_msgs/Imu)")
+    add_imu_mount_argument(parser, "the terrain files' imu_mount.* (which must agree)")
     parser.add_argument('--params', nargs='+', required=True, metavar='A.yaml',
                         help='terrain files to score (each named by its file stem)')
     add_vehicle_groups(parser, 'm, of the ideal drive and of the cmd_vel inverse; '
@@ -164,19 +166,19 @@ def _check_options(args) -> None:
             raise UsageError(f'{flag} lists a value twice: {" ".join(f"{v:g}" for v in values)}')
 
 
-def _read(args, track_width, radius) -> References:
+def _read(args, track_width, radius, imu_mount) -> References:
     """Read every bag; return the recordings to score on (their reference's delay taken off)."""
     encoders = encoder_source(args, radius)
     progress = sys.stderr.isatty()
     if args.imu_topic:
-        found = [read_recording(bag, encoders, imu_topic=args.imu_topic, progress=progress)
-                 for bag in args.bags]
+        found = [read_recording(bag, encoders, imu_topic=args.imu_topic, progress=progress,
+                                imu_mount=imu_mount) for bag in args.bags]
         return gyro_references(args.bags, found, track_width)
     # One pass over each bag: the pose, the commands and, with --fuse-imu, the gyro.
     streams = {'ground_truth': ground_truth_source(args), 'imu_topic': args.fuse_imu,
                'commands': command_source(args, track_width)}
-    recordings = [read_recording(bag, encoders, progress=progress, **streams)
-                  for bag in args.bags]
+    recordings = [read_recording(bag, encoders, progress=progress, imu_mount=imu_mount,
+                                 **streams) for bag in args.bags]
     if args.fuse_imu:
         for bag, recording in zip(args.bags, recordings):
             check_gyro_rate(bag, recording, args.fuse_imu)
@@ -225,7 +227,9 @@ def _run(args, out) -> int:
         except OSError as err:
             raise UsageError(f'--params {err.filename}: {err.strerror}') from None
         track_width, radius = _vehicle(args, models)
-        references = _read(args, track_width, radius)
+        # The gyro read as odometry_node reads it, given the terrain files' parameters.
+        imu_mount = imu_mount_of(args.imu_mount, [(m.path, m.values) for m in models])
+        references = _read(args, track_width, radius, imu_mount)
         settings = ev.Settings(tuple(args.window), args.horizon, args.prediction_dt,
                                tuple(args.rpe_distance), args.max_command_age,
                                not args.keep_jumps, track_width,

@@ -27,10 +27,11 @@ import sys
 from tracked_kinematics.core import identify as ident
 from tracked_kinematics.core.identify.procedure import IdentifyOptions
 from tracked_kinematics.offline.cli.common import (
-    add_base_file_argument, add_ground_truth_arguments, add_output_argument, add_plot_output,
-    add_report_arguments, add_vehicle_groups, add_window_selection_arguments, bounded,
-    encoder_settings, ground_truth_source, identification_parser, min_speed, names,
-    refuse_another_vehicle, run_main, warn, write_together)
+    add_base_file_argument, add_ground_truth_arguments, add_imu_mount_argument,
+    add_output_argument, add_plot_output, add_report_arguments, add_vehicle_groups,
+    add_window_selection_arguments, bounded, encoder_settings, ground_truth_source,
+    identification_parser, min_speed, names, refuse_another_vehicle, run_main, warn,
+    write_together)
 from tracked_kinematics.offline.identification import (
     fit, FitOptions, MODELS as MODEL_CHOICES, TOOL as PROG, write_fit)
 from tracked_kinematics.offline.outputs import Outputs
@@ -78,6 +79,7 @@ def build_parser() -> argparse.ArgumentParser:
     ref.add_argument('--imu-topic', default=None, metavar='TOPIC',
                      help='sensor_msgs/Imu: the gyro as the heading reference (alone or with '
                      '--ground-truth-topic); fits chi and the scale ratio, holds the rest')
+    add_imu_mount_argument(ref, "--params' imu_mount.*")
     ref.add_argument('--imu-delay', type=_delay, default='auto', metavar='auto|SECONDS',
                      help='delay of the IMU stamps behind the encoders: auto estimates it')
     ref.add_argument('--gnss-topic', default=None, metavar='TOPIC',
@@ -148,6 +150,7 @@ def options_from_args(args) -> FitOptions:
         sprocket_radius=args.sprocket_radius, encoders=encoder_settings(args),
         ground_truth=ground_truth_source(args) if args.ground_truth_topic else None,
         imu_topic=args.imu_topic, imu_delay=args.imu_delay, gnss_topic=args.gnss_topic,
+        imu_mount=None if args.imu_mount is None else tuple(args.imu_mount),
         gnss_antenna=tuple(args.gnss_antenna), straight_distance=args.straight_distance,
         model=args.model, spin_in_place=args.spin_in_place, terrain=args.terrain,
         identify=IdentifyOptions(

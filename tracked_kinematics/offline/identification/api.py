@@ -23,7 +23,8 @@ from tracked_kinematics.offline.errors import UsageError
 from tracked_kinematics.offline.outputs import Outputs
 from tracked_kinematics.offline.terrain_file import terrain_text
 from tracked_kinematics.offline.tooling import (
-    checked_encoders, read_base_file, report_json, require_vehicle)
+    checked_encoders, IMU_MOUNT_KEYS, imu_mount_of, read_base_file, report_json,
+    require_vehicle)
 from tracked_kinematics.params import (
     check_values, icr_from_values, TERRAIN_DEFAULTS, TERRAIN_PARAMS)
 
@@ -60,6 +61,9 @@ class FitOptions:
         with it) by :mod:`.references`.
     imu_delay : float or 'auto'
         s of the gyro stamps behind the encoders; 'auto' estimates it.
+    imu_mount : tuple of float or None
+        ``(roll, pitch, yaw)``, rad: the IMU in base_link, odometry_node's ``imu_mount.*``;
+        None: the base file's (else 0 0 0). Written to the terrain file when given.
     gnss_antenna : tuple of float
         Position of the GNSS antenna in base_link, m.
     straight_distance : float or None
@@ -85,6 +89,7 @@ class FitOptions:
     ground_truth: GroundTruthSource | None = None
     imu_topic: str | None = None
     imu_delay: float | str = 'auto'
+    imu_mount: tuple | None = None
     gnss_topic: str | None = None
     gnss_antenna: tuple = (0.0, 0.0)
     straight_distance: float | None = None
@@ -137,19 +142,25 @@ def fit(options: FitOptions, *, date: str | None = None) -> FitResult:
     # Each bag read once, with every stream the fit uses: a pose fit also takes the bag's one
     # gyro topic, if it has one (_with_gyro); a pose and a gyro, the gyro given.
     given_gyro = options.uses_references or options.pose_and_gyro
+    # The gyro read as odometry_node reads it (its imu_mount.*).
+    mount = imu_mount_of(options.imu_mount, [(options.params, base_values)])
     recordings = read_recordings(
         options.bags, encoders, ground_truth=options.ground_truth,
         imu_topic=options.imu_topic if given_gyro else IMU_AUTO,
-        gnss_topic=options.gnss_topic, progress=sys.stderr.isatty())
+        gnss_topic=options.gnss_topic, progress=sys.stderr.isatty(), imu_mount=mount)
     if options.pose_and_gyro:
-        return icr_from_pose_and_gyro(recordings, options, options.imu_topic, track_width,
-                                      radius, base=base, base_values=base_values, date=date)
-    if options.uses_references:
-        return icr_from_references(recordings, options, track_width, radius, base=base,
-                                   base_values=base_values, date=date)
-    found = icr_from_poses(recordings, options, track_width, radius, base=base,
-                           base_values=base_values, date=date)
-    return _with_gyro(found, recordings)
+        found = icr_from_pose_and_gyro(recordings, options, options.imu_topic, track_width,
+                                       radius, base=base, base_values=base_values, date=date)
+    elif options.uses_references:
+        found = icr_from_references(recordings, options, track_width, radius, base=base,
+                                    base_values=base_values, date=date)
+    else:
+        found = _with_gyro(icr_from_poses(recordings, options, track_width, radius, base=base,
+                                          base_values=base_values, date=date), recordings)
+    if options.imu_mount is None:
+        return found
+    # The gyro constants are the mounted gyro's: the node is to read it the same way.
+    return replace(found, values={**found.values, **dict(zip(IMU_MOUNT_KEYS, mount))})
 
 
 def _with_gyro(found: FitResult, recordings) -> FitResult:

@@ -26,14 +26,17 @@ _MIN_TRAVEL = 0.01
 
 
 def gyro_heading(rec: Recording, delay: float):
-    """Return the gyro's stamps (``delay`` removed) and its continuous heading, rad."""
+    """
+    Return the gyro's stamps (``delay`` removed) and its continuous heading, rad.
+
+    The orientation's heading where the recording has one (no bias to integrate), else the
+    rate integrated.
+    """
     t = rec.gyro_t - delay
-    if rec.gyro_rate is not None:
-        w = rec.gyro_rate
-        heading = np.r_[0.0, np.cumsum(0.5 * (w[1:] + w[:-1]) * np.diff(t))]
-    else:
-        heading = np.unwrap(rec.gyro_yaw)
-    return t, heading
+    if rec.gyro_yaw is not None:
+        return t, np.unwrap(rec.gyro_yaw)
+    w = rec.gyro_rate
+    return t, np.r_[0.0, np.cumsum(0.5 * (w[1:] + w[:-1]) * np.diff(t))]
 
 
 def _bad_spans(t, lo, hi):
