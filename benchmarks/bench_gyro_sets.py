@@ -105,7 +105,9 @@ def run_set(label, base: Path, tmp: Path):
                                    sprocket_radius=radius, encoders=encoders,
                                    ground_truth=GroundTruthSource('/icp/pose'),
                                    terrain=label,
-                                   identify=IdentifyOptions(accept_uncertain=True)))
+                                   # identify_icr's own default: the pose's delay removed
+                                   identify=IdentifyOptions(ground_truth_delay='auto',
+                                                            accept_uncertain=True)))
         terrain = tmp / f'{label}{k}.yaml'
         terrain.write_text(terrain_text(found.values, tool='bench', date=found.date))
         recs = [read_recording(p, encoders, ground_truth=GroundTruthSource('/icp/pose'))
