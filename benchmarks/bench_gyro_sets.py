@@ -105,8 +105,7 @@ def run_set(label, base: Path, tmp: Path):
                                    sprocket_radius=radius, encoders=encoders,
                                    ground_truth=GroundTruthSource('/icp/pose'),
                                    terrain=label,
-                                   identify=IdentifyOptions(accept_uncertain=True,
-                                                            ground_truth_delay='auto')))
+                                   identify=IdentifyOptions(accept_uncertain=True)))
         terrain = tmp / f'{label}{k}.yaml'
         terrain.write_text(terrain_text(found.values, tool='bench', date=found.date))
         recs = [read_recording(p, encoders, ground_truth=GroundTruthSource('/icp/pose'))

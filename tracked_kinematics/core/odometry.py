@@ -50,10 +50,6 @@ class Published:
         """Publish with the ``timing`` term of ``model`` (none when None or 0)."""
         self.timing = model if model is not None and model.timing > 0.0 else None
 
-    def timing_in_force(self) -> NoiseModel | None:
-        """Return the model whose ``timing`` is published now (:meth:`set_timing`'s)."""
-        return self.timing
-
     def reset(self) -> None:
         """Return the pose to zero with zero covariance; the time error at the start stays."""
         self.pose = (0.0, 0.0, 0.0)
@@ -75,7 +71,7 @@ class Published:
         if all(map(math.isfinite, twist)):
             self._last_twist = twist
         covariance = published_covariance(self.covariance_upper, self.pose, twist,
-                                          self._start_twist, self.timing_in_force())
+                                          self._start_twist, self.timing)
         return self.pose, covariance, twist, twist_covariance
 
     @staticmethod

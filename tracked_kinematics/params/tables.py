@@ -233,14 +233,6 @@ def _prior(term: str) -> float:
     return float(f'{getattr(PRIOR, term):.12g}')
 
 
-@described_as("-1 (the encoders' value) or >= 0")
-def _encoders_or_non_negative(value) -> str | None:
-    problem = finite(value)
-    if problem or value == -1.0 or value >= 0.0:
-        return problem
-    return f"must be -1 (the encoders' value) or >= 0, got {value!r}"
-
-
 NOISE_PARAMS: tuple[ParamSpec, ...] = (
     ParamSpec('covariance.k_left', _DEFAULT_NOISE.k_left,
               'Variance of the left track travel per metre travelled', 'm^2/m', non_negative,
@@ -296,17 +288,6 @@ GYRO_PARAMS: tuple[ParamSpec, ...] = (
               high=1.0),
     ParamSpec('adapt_slip', True,
               'Adapt the ICR spread online from the gyro (published on ~/icr)'),
-    ParamSpec('covariance_gyro.track', -1.0,
-              'Variance of each track travel per metre travelled while the heading is the '
-              "gyro's (identify_icr's fit on gyro-aided windows); -1: covariance.k_left/k_right",
-              'm^2/m', _encoders_or_non_negative, low=-1.0, high=1.0),
-    ParamSpec('covariance_gyro.slip', -1.0,
-              'Variance of each position coordinate per radian turned on the spot while the '
-              "heading is the gyro's; -1: covariance.slip", 'm^2/rad',
-              _encoders_or_non_negative, low=-1.0, high=10.0),
-    ParamSpec('covariance_gyro.timing', -1.0,
-              "Variance of the time of the odometry while the heading is the gyro's; -1: "
-              'covariance.timing', 's^2', _encoders_or_non_negative, low=-1.0, high=1.0),
 )
 """How the gyro is read (odometry_node's ``imu_topic``; evaluate_model ``--fuse-imu``:
 :func:`.values.gyro_config_from_values`)."""

@@ -155,8 +155,7 @@ def gyro_config_from_values(values: Mapping[str, Any]) -> GyroConfig:
     Return how odometry_node reads its gyro, from its parameters or a terrain file's values.
 
     The keys of :data:`.tables.GYRO_PARAMS` (their defaults for the missing ones; 0 for
-    ``imu_saturation`` and ``imu_max_jump`` turns those gates off; -1 for a
-    ``covariance_gyro.*`` is None, the encoders' constant), checked by that table.
+    ``imu_saturation`` and ``imu_max_jump`` turns those gates off), checked by that table.
     What :func:`~tracked_kinematics.core.gyro.replay` must be given to reproduce the
     node (evaluate_model ``--fuse-imu``). Raises :class:`InvalidParameters` naming a value the
     table refuses.
@@ -170,10 +169,7 @@ def gyro_config_from_values(values: Mapping[str, Any]) -> GyroConfig:
         gyro_noise=value['covariance.gyro_noise'], timeout=value['imu_timeout'],
         gyro_bias=value['gyro_bias'], gyro_bias_sigma=value['gyro_bias_sigma'],
         saturation=value['imu_saturation'] or math.inf,
-        max_jump=value['imu_max_jump'] or math.inf, adapt=value['adapt_slip'],
-        **{f'covariance_{term}': (None if value[f'covariance_gyro.{term}'] == -1.0
-                                  else value[f'covariance_gyro.{term}'])
-           for term in ('track', 'slip', 'timing')})
+        max_jump=value['imu_max_jump'] or math.inf, adapt=value['adapt_slip'])
 
 
 def noise_model_from_values(values: Mapping[str, Any]) -> NoiseModel:

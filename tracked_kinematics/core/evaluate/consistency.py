@@ -134,16 +134,13 @@ def window_consistency(pieces, paths, icr: IcrParams, model: NoiseModel, lengths
     return out
 
 
-def reset_windows(enc_t, left, right, pieces, length: float, min_speed: float | None,
-                  offset: float = 0.0):
+def reset_windows(enc_t, left, right, pieces, length: float, min_speed: float | None):
     """
     Back-to-back windows of ``length`` s inside the pieces, on the encoder samples.
 
     As odometry_node reset every ``length`` s by ``~/reset`` scores itself: a window runs
     from an encoder sample to the first one ``length`` s later, within one piece (never
-    across a gap), kept when its tracks' mean speed is at least ``min_speed`` m/s. The first
-    window of a piece starts ``offset`` s into it (0: at its first sample; the node's reset
-    schedule shifted, for more windows to fit on).
+    across a gap), kept when its tracks' mean speed is at least ``min_speed`` m/s.
 
     Returns
     -------
@@ -157,7 +154,7 @@ def reset_windows(enc_t, left, right, pieces, length: float, min_speed: float | 
     resets = np.zeros(len(enc_t), dtype=bool)
     starts, ends = [], []
     for piece in pieces:
-        first = int(np.searchsorted(enc_t, piece.t[0] + offset))
+        first = int(np.searchsorted(enc_t, piece.t[0]))
         last = int(np.searchsorted(enc_t, piece.t[-1], side='right')) - 1
         if last <= first:
             continue

@@ -43,9 +43,6 @@ class ErrorWindows:
     group : ndarray of int, shape (W,)
         The stretch of data (piece) each window lies in: windows of different groups do not
         overlap.
-    fixed : ndarray, shape (W, 3, 3), optional
-        A covariance that does not depend on the constants, added to ``sum_m c_m bases_m``
-        (the gyro-aided odometry's heading and bias share, :mod:`.gyro_noise`); None: 0.
 
     """
 
@@ -54,7 +51,6 @@ class ErrorWindows:
     length: np.ndarray
     t0: np.ndarray
     group: np.ndarray
-    fixed: np.ndarray | None = None
 
     @classmethod
     def concatenate(cls, parts) -> ErrorWindows:
@@ -67,13 +63,8 @@ class ErrorWindows:
         for p in parts:
             groups.append(p.group + offset)
             offset += int(p.group.max()) + 1
-        fixed = None
-        if any(p.fixed is not None for p in parts):
-            fixed = np.concatenate([p.fixed if p.fixed is not None
-                                    else np.zeros((len(p), 3, 3)) for p in parts])
         return cls(*(np.concatenate([getattr(p, name) for p in parts])
-                     for name in ('errors', 'bases', 'length', 't0')), np.concatenate(groups),
-                   fixed)
+                     for name in ('errors', 'bases', 'length', 't0')), np.concatenate(groups))
 
     def __len__(self):
         return len(self.length)
@@ -81,13 +72,7 @@ class ErrorWindows:
     def select(self, mask) -> ErrorWindows:
         """Return the windows of a mask or index array."""
         return ErrorWindows(self.errors[mask], self.bases[mask], self.length[mask],
-                            self.t0[mask], self.group[mask],
-                            None if self.fixed is None else self.fixed[mask])
-
-    def covariance(self, model: NoiseModel) -> np.ndarray:
-        """Return the windows' pose covariances under ``model``, ``fixed`` included: (W, 3, 3)."""
-        cov = np.einsum('wmij,m->wij', self.bases, model.constants)
-        return cov if self.fixed is None else cov + self.fixed
+                            self.t0[mask], self.group[mask])
 
     def of_length(self, length: float) -> ErrorWindows:
         """Return the windows of one length, s."""
@@ -117,14 +102,12 @@ class ErrorWindows:
 
     def consistency(self, model: NoiseModel) -> dict:
         """Return :func:`consistency` of the position errors under ``model``."""
-        cov = covariances(self.bases, model)
-        if self.fixed is not None:
-            cov = cov + self.fixed[:, :2, :2]
-        return consistency(self.errors[:, :2], cov)
+        return consistency(self.errors[:, :2], covariances(self.bases, model))
 
     def heading_consistency(self, model: NoiseModel) -> dict:
         """Return :func:`heading_consistency` of the heading errors under ``model``."""
-        return heading_consistency(self.errors[:, 2], self.covariance(model)[:, 2, 2] + 1e-12)
+        return heading_consistency(self.errors[:, 2],
+                                   self.bases[:, :, 2, 2] @ model.constants + 1e-12)
 
 
 def piece_windows(piece, icr: IcrParams, lengths,
@@ -320,8 +303,8 @@ def _negative_log_posterior(log_c, prior_c, free, groups, width, dof):
     c = prior_c.copy()
     c[free] = np.exp(log_c)
     total = 0.0
-    for weight, errors, bases, fixed in groups:
-        cov = np.einsum('wmij,m->wij', bases, c) + fixed + 1e-12 * np.eye(errors.shape[1])
+    for weight, errors, bases in groups:
+        cov = np.einsum('wmij,m->wij', bases, c) + 1e-12 * np.eye(errors.shape[1])
         try:
             total += 0.5 * weight * np.mean(_negative_log_likelihoods(errors, cov, dof))
         except np.linalg.LinAlgError:
@@ -397,8 +380,7 @@ def fit_noise(windows: ErrorWindows, prior: NoiseModel | None = None, free=TERMS
     groups = []
     for length, n_eff in windows.independent_by_length().items():
         mine = windows.of_length(length)
-        fixed = 0.0 if mine.fixed is None else mine.fixed[:, part, part]
-        groups.append((n_eff, mine.errors[:, part], mine.bases[:, :, part, part], fixed))
+        groups.append((n_eff, mine.errors[:, part], mine.bases[:, :, part, part]))
     c = prior_c.copy()
     if len(index):
         best = minimize(_negative_log_posterior, np.log(prior_c[index]),

@@ -133,37 +133,12 @@ class GyroOdometry(Published):
     @config.setter
     def config(self, config: GyroConfig) -> None:
         self._config = self.samples.config = self.filter.config = config
-        self._set_gyro_noise()
 
     def set_noise(self, noise: TrackNoise | None = None,
                   terms: NoiseModel | None = None) -> None:
         """Use this track noise (default ``TrackNoise()``) and turn/slip terms (none)."""
         self.noise = noise if noise is not None else TrackNoise()
         self.terms = terms if terms is not None else NoiseModel(track=0.0, floor=0.0)
-        self._set_gyro_noise()
-
-    def _set_gyro_noise(self) -> None:
-        """
-        The noise model of the steps whose heading is the gyro's: the config's, else the tracks'.
-
-        ``covariance_track``, ``covariance_slip`` and ``covariance_timing`` of the config (the
-        terrain file's ``covariance_gyro.*``) where given; the encoders' own otherwise.
-        """
-        cfg, noise, terms = self._config, self.noise, self.terms
-        track = cfg.covariance_track
-        self._gyro_track = noise if track is None else TrackNoise(track, track, noise.floor)
-        slip = terms.slip if cfg.covariance_slip is None else cfg.covariance_slip
-        self._gyro_slip = NoiseModel(track=0.0, slip=slip, floor=0.0)
-        timing = cfg.covariance_timing
-        self._gyro_timing = (None if timing is None else
-                             NoiseModel(track=0.0, timing=timing, floor=0.0) if timing > 0.0
-                             else False)
-
-    def timing_in_force(self) -> NoiseModel | None:
-        """Return the model whose ``timing`` is published: the gyro's while it gives the heading."""
-        if self.source == GYRO and self._gyro_timing is not None:
-            return self._gyro_timing or None
-        return self.timing
 
     def set_model(self, icr: IcrParams) -> None:
         """Use another terrain model from the next step on; keep the bias and the noise."""
@@ -538,18 +513,16 @@ class GyroOdometry(Published):
         all steps, through its cross-covariance with the pose (``bias_gain``: the heading
         increment's error per rad/s of bias error).
         """
+        var_left, var_right = self.noise.travel_variances(d_left, d_right)
+        position, heading = turn_slip(self.terms, self.model.track_width, dx, dpsi)
         c, x = self._offset, self.model.x
         if source == GYRO:
-            var_left, var_right = self._gyro_track.travel_variances(d_left, d_right)
-            position = turn_slip(self._gyro_slip, self.model.track_width, dx, dpsi)[0]
             m = self.model
             var_t = 0.25 * (m.scale_left ** 2 * var_left + m.scale_right ** 2 * var_right)
             s = (var_t + c * c * var + position, -c * x * var, c * var,
                  x * x * var + position, -x * var, var)
             covariance = propagate_step(self.covariance_upper, delta_x, delta_y, jacobian, s)
         else:
-            var_left, var_right = self.noise.travel_variances(d_left, d_right)
-            position, heading = turn_slip(self.terms, self.model.track_width, dx, dpsi)
             covariance = propagate(self.covariance_upper, delta_x, delta_y,
                                    travel_jacobian(jacobian, self._body), var_left, var_right)
             if position > 0.0 or heading > 0.0:
@@ -599,15 +572,12 @@ class GyroOdometry(Published):
         twist = (0.0, 0.0, 0.0) if duration <= 0.0 else (
             dx / duration, dy / duration, dpsi / duration)
         rate = 1.0 / duration if duration > 0.0 else 1.0
-        gyro = self.source == GYRO
-        var_left, var_right = twist_variances(self._gyro_track if gyro else self.noise,
-                                              abs_left * rate, abs_right * rate)
-        position, heading = turn_slip(self._gyro_slip if gyro else self.terms,
-                                      self.model.track_width, twist[0] * TWIST_TIME,
-                                      twist[2] * TWIST_TIME)
+        var_left, var_right = twist_variances(self.noise, abs_left * rate, abs_right * rate)
+        position, heading = turn_slip(self.terms, self.model.track_width,
+                                      twist[0] * TWIST_TIME, twist[2] * TWIST_TIME)
         scale = 1.0 / (TWIST_TIME * TWIST_TIME)
         position *= scale
-        if gyro:
+        if self.source == GYRO:
             m = self.model
             c, x = self._offset, m.x
             g = self._config.gyro_scale

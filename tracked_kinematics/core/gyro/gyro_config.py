@@ -88,12 +88,6 @@ class GyroConfig:
         rad/s: the gyro is used once the bias is known to this (1 sigma).
     bias_horizon : float
         s over which a bias error counts in the fusion's weight (the odometry's horizon).
-    covariance_track, covariance_slip, covariance_timing : float or None
-        The noise model of the gyro-aided odometry (m^2/m, m^2/rad, s^2; the terrain file's
-        ``covariance_gyro.*``, identify_icr's fit on held-out gyro-aided windows): the
-        track random walk, the position's random walk in turns and the time error, used
-        for the covariance whenever the heading is the gyro's. None: the encoders' own
-        (``covariance.k_left``/``k_right``, ``covariance.slip``, ``covariance.timing``).
 
     """
 
@@ -119,9 +113,6 @@ class GyroConfig:
     adapt_prior: float = 0.3
     bias_std: float = 0.03
     bias_horizon: float = 10.0
-    covariance_track: float | None = None
-    covariance_slip: float | None = None
-    covariance_timing: float | None = None
 
     def __post_init__(self):
         require_numbers(self, finite=('imu_delay', 'gyro_bias'),
@@ -137,18 +128,6 @@ class GyroConfig:
                 raise ValueError(f'{name} must be a bool, got {getattr(self, name)!r}')
         if abs(self.imu_delay) > 60.0:
             raise ValueError(f'imu_delay must be within 60 s, got {self.imu_delay!r}')
-        for name in GYRO_NOISE_FIELDS:
-            value = getattr(self, name)
-            if value is None:
-                continue
-            if isinstance(value, bool) or not isinstance(value, (int, float)) \
-                    or not (math.isfinite(value) and value >= 0.0):
-                raise ValueError(f'{name} must be None or a finite number >= 0, got {value!r}')
-            object.__setattr__(self, name, float(value))
-
-
-GYRO_NOISE_FIELDS = ('covariance_track', 'covariance_slip', 'covariance_timing')
-"""The fields of :class:`GyroConfig` that hold the gyro-aided odometry's noise model."""
 
 
 def time_limit(config: GyroConfig) -> float:

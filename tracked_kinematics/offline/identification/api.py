@@ -28,7 +28,7 @@ from tracked_kinematics.params import (
     check_values, icr_from_values, TERRAIN_DEFAULTS, TERRAIN_PARAMS)
 
 from .combined import icr_from_pose_and_gyro
-from .noise_constants import add_extras, gyro_extras, gyro_noise_extras
+from .noise_constants import add_extras, gyro_extras
 from .poses import icr_from_poses
 from .references import icr_from_references
 from .report import FitResult, TOOL
@@ -149,18 +149,16 @@ def fit(options: FitOptions, *, date: str | None = None) -> FitResult:
                                    base_values=base_values, date=date)
     found = icr_from_poses(recordings, options, track_width, radius, base=base,
                            base_values=base_values, date=date)
-    return _with_gyro(found, recordings, options, track_width)
+    return _with_gyro(found, recordings)
 
 
-def _with_gyro(found: FitResult, recordings, options, track_width: float) -> FitResult:
+def _with_gyro(found: FitResult, recordings) -> FitResult:
     """
     Add the gyro's constants to a pose fit whose bags carry one gyro topic, the same in each.
 
     The ICRs stay the pose fit's; ``imu_delay`` and ``gyro_scale`` (:func:`.noise_constants.
     gyro_extras`) let odometry_node's ``imu_topic`` and evaluate_model's ``--fuse-imu`` use
-    the gyro at the right time, and ``covariance_gyro.*`` (:func:`.noise_constants.
-    gyro_noise_extras`, fitted on the gyro-aided odometry's held-out windows) give it its
-    covariance. A gyro that cannot be read or timed adds a note, not an error.
+    the gyro at the right time. A gyro that cannot be read or timed adds a note, not an error.
     """
     if found.identification is None:    # spin in place: the ICRs alone
         return found
@@ -172,15 +170,12 @@ def _with_gyro(found: FitResult, recordings, options, track_width: float) -> Fit
         empty = next((r.name for r in recordings if r.gyro_t is None), None)
         if empty is not None:
             raise SensorDataError(f'{empty}: no Imu messages on {topic}')
-        extras, gyro = gyro_extras(recordings, topic)
+        extras = gyro_extras(recordings, topic)[0]
     except (SensorDataError, IdentificationError, ValueError) as err:
         return replace(found, lines=found.lines + (
             f'gyro {topic}: not used ({err}); imu_delay and gyro_scale not written',))
     values, report, lines = dict(found.values), dict(found.report), list(found.lines)
     add_extras(values, report, lines, extras)
-    if gyro is not None:
-        add_extras(values, report, lines, gyro_noise_extras(found.identification, options,
-                                                            track_width, values))
     return replace(found, values=values, report=report, lines=tuple(lines))
 
 

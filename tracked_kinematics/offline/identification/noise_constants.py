@@ -20,16 +20,11 @@ import math
 
 from tracked_kinematics.core import identify as ident
 from tracked_kinematics.core.errors import IdentificationError
-from tracked_kinematics.core.covariance import TrackNoise
-from tracked_kinematics.core.errors import InvalidParameters
-from tracked_kinematics.core.evaluate import (fit_noise, GYRO_TERMS, gyro_held_out_windows,
-                                              held_out_windows, recording_windows)
+from tracked_kinematics.core.evaluate import fit_noise, held_out_windows, recording_windows
 from tracked_kinematics.core.identify.reference.delays import sensor_delays
 from tracked_kinematics.core.identify.reference.heading_fusion import (
     bias_prior, BIAS_SIGMA_FLOOR, check_gyro_against_pose, fuse_heading, signed_gyro_scale)
 from tracked_kinematics.core.identify.segments import over_jumps
-from tracked_kinematics.core.noise_model import NoiseModel
-from tracked_kinematics.params import gyro_config_from_values
 
 LENGTHS = (5.0, 10.0)
 """Window lengths the noise model is fitted on, s (evaluate_model's defaults)."""
@@ -137,34 +132,6 @@ def _held_out_kind(recordings) -> str:
             else 'held-out time blocks')
 
 
-def fold_fit(result, options, track_width: float):
-    """
-    Return ``fit_icr(recordings) -> IcrParams``: a segment identification's ICRs on a fold.
-
-    Each fold's ICRs are fitted as the main fit (its model, heading weight, loss, segments),
-    from its parameters, one round; the full fit's ICRs where the fold has too little.
-    """
-    fitted = result.fit
-    model = fitted.model if fitted.model.constant_icr else ident.build_model(
-        'icr_scales', track_width)
-    settings = options.identify
-    start = fitted.p if fitted.model.constant_icr else None
-
-    def fit_icr(recs):
-        segments = ident.build_segments(recs, result.segment_length)
-        if len(segments):
-            segments = segments.select(~over_jumps(segments, recs, track_width))
-            segments = segments.select(segments.travel >= settings.min_travel)
-        try:
-            # From the full fit's parameters, one round: a fold differs little from it.
-            return ident.fit(model, segments, p0=start, heading_weight=fitted.heading_weight,
-                             loss=settings.loss, max_nfev=settings.max_nfev, rounds=1,
-                             check=False).icr
-        except (IdentificationError, ValueError):
-            return result.icr   # too little in this fold: the full fit's ICRs
-    return fit_icr
-
-
 def pose_extras(result, options, track_width: float) -> Extras:
     """
     Fit the noise model on the held-out windows of a segment identification (a pose reference).
@@ -183,9 +150,26 @@ def pose_extras(result, options, track_width: float) -> Extras:
 
     """
     recordings = list(result.recordings)
+    fitted = result.fit
+    model = fitted.model if fitted.model.constant_icr else ident.build_model(
+        'icr_scales', track_width)
     settings = options.identify
-    windows = held_out_windows(recordings, fold_fit(result, options, track_width), LENGTHS,
-                               settings.min_speed, track_width)
+    start = fitted.p if fitted.model.constant_icr else None
+
+    def fit_icr(recs):
+        segments = ident.build_segments(recs, result.segment_length)
+        if len(segments):
+            segments = segments.select(~over_jumps(segments, recs, track_width))
+            segments = segments.select(segments.travel >= settings.min_travel)
+        try:
+            # From the full fit's parameters, one round: a fold differs little from it.
+            return ident.fit(model, segments, p0=start, heading_weight=fitted.heading_weight,
+                             loss=settings.loss, max_nfev=settings.max_nfev, rounds=1,
+                             check=False).icr
+        except (IdentificationError, ValueError):
+            return result.icr   # too little in this fold: the full fit's ICRs
+    windows = held_out_windows(recordings, fit_icr, LENGTHS, settings.min_speed,
+                               track_width)
     done, reason = _noise(windows, 'pose', ('track', 'turn', 'slip', 'timing'),
                           _held_out_kind(recordings))
     if done is None:
@@ -280,77 +264,6 @@ def reference_extras(fit, recordings, options, track_width: float, base=None) ->
     n_lines = n_lines + held_priors(fit, track_width, n_values, n_record, n_report)
     return Extras({**values, **n_values}, {**record, **n_record},
                   {**report, 'covariance': n_report}, tuple(n_lines + lines))
-
-
-GYRO_COVARIANCE_KEYS = {t: f'covariance_gyro.{t}' for t in GYRO_TERMS}
-"""The terrain file's names of the gyro-aided odometry's noise model (GyroConfig's
-``covariance_*``; odometry_node and evaluate_model ``--fuse-imu`` read them)."""
-
-
-def gyro_noise_extras(result, options, track_width: float, values: dict) -> Extras:
-    """
-    Fit the gyro-aided odometry's noise model on its held-out windows (a pose fit's gyro).
-
-    The encoders' constants (:func:`pose_extras`) take up the encoders' heading errors, which
-    the gyro does not make: ``covariance_gyro.track``, ``.slip`` and ``.timing`` are fitted on
-    windows of the gyro-aided odometry replayed as odometry_node runs it, reset every window,
-    each held-out part with the ICRs fitted without it (:func:`tracked_kinematics.core.
-    evaluate.gyro_held_out_windows`), on the final position errors.
-
-    Parameters
-    ----------
-    result : Identification
-        The pose fit's (its recordings, delay removed, carry the gyro).
-    options : FitOptions
-        identify_icr's options.
-    track_width : float
-        m.
-    values : dict
-        The terrain values so far: the gyro's (``imu_delay``, ``gyro_scale``, ``gyro_bias``)
-        and the encoders' noise model, as the node will read them.
-
-    """
-    recordings = [r for r in result.recordings if r.gyro_t is not None and len(r.gyro_t)]
-    if len(recordings) != len(result.recordings) or not recordings:
-        return _gyro_not_fitted('a bag without gyro samples')
-    try:
-        config = gyro_config_from_values(values)
-        # The encoders' noise, for the steps whose heading is theirs (no window kept has one).
-        terms = NoiseModel(track=0.0, turn=float(values.get('covariance.turn', 0.0)),
-                           slip=float(values.get('covariance.slip', 0.0)), floor=0.0)
-        tracks = TrackNoise(float(values.get('covariance.k_left', 1e-3)),
-                            float(values.get('covariance.k_right', 1e-3)))
-    except (InvalidParameters, ValueError) as err:
-        return _gyro_not_fitted(str(err))
-    windows = gyro_held_out_windows(recordings, fold_fit(result, options, track_width),
-                                    config, LENGTHS, options.identify.min_speed, track_width,
-                                    noise=tracks, terms=terms)
-    try:
-        found = fit_noise(_thinned(windows), free=GYRO_TERMS, errors='position')
-    except ValueError as err:
-        return _gyro_not_fitted(str(err))
-    m = found.model
-    written = {key: float(getattr(m, t)) for t, key in GYRO_COVARIANCE_KEYS.items()}
-    kind = _held_out_kind(recordings)
-    record = {'covariance_gyro.windows': int(found.windows),
-              'covariance_gyro.independent_windows': round(float(found.independent), 1),
-              'covariance_gyro.window_lengths': [float(w) for w in LENGTHS],
-              'covariance_gyro.held_out': kind}
-    report = {'model': {t: getattr(m, t) for t in GYRO_TERMS}, 'windows': int(found.windows),
-              'independent_windows': float(found.independent),
-              'window_lengths_s': list(LENGTHS), 'held_out': kind}
-    line = (f'gyro-aided noise model (position errors of {found.windows} windows of '
-            f'{"/".join(f"{w:g}" for w in LENGTHS)} s, the heading the gyro\'s, '
-            f'~{found.independent:.0f} independent, {kind}): track {m.track:.2e} m^2/m, slip '
-            f'{m.slip:.2e} m^2/rad, timing {m.timing:.2e} s^2')
-    return Extras(written, record, {'covariance_gyro': report}, (line,))
-
-
-def _gyro_not_fitted(reason: str) -> Extras:
-    return Extras(record={'covariance_gyro.not_fitted': reason},
-                  report={'covariance_gyro': {'not_fitted': reason}},
-                  lines=(f'gyro-aided noise model: not fitted ({reason}); covariance_gyro.* not '
-                         "written (the gyro-aided odometry publishes with the encoders')",))
 
 
 DISTANCE_SCALE_PRIOR = 0.05
