@@ -49,7 +49,7 @@ def pooled(held_out, name, window):
             for key in ('inside_50', 'inside_95', 'mean_nees')}
 
 
-@pytest.mark.parametrize('name', ['pose', 'gyro', 'gyro+imu'])
+@pytest.mark.parametrize('name', ['pose', 'pose+imu', 'gyro', 'gyro+imu'])
 @pytest.mark.parametrize('window', ['5', '10'])
 def test_the_fitted_covariance_holds_its_share_of_held_out_windows(held_out, name, window):
     c = pooled(held_out, name, window)
