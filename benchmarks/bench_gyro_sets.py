@@ -12,7 +12,8 @@ drives). The tuned
 diff_drive_controller is identify_icr's ``tuned_ddc`` fit of the same training data, scored
 as an ICR file. Printed per set: mean final position error after 5 s and 10 s of the tuned
 DDC, the encoders and the gyro-aided odometry, the targets of issue 35, and the coverage of
-the published covariance (inside the 50 % / 95 % ellipses, mean NEES) of both rows.
+the published covariance (inside the 50 % / 95 % ellipses, mean NEES) of both rows, and per
+set pooled over its held-out data.
 
 Run: ``python benchmarks/bench_gyro_sets.py [REALDATA_FOLDER] [SET ...]`` (sets: grass,
 asphalt, sand, gravel, ice, snow).
@@ -119,6 +120,7 @@ def fit_options(train, radius, width, label) -> FitOptions:
 def run_set(label, base: Path, tmp: Path):
     names, radius, width = SETS[label]
     encoders = EncoderSource(sprocket_radius=radius)
+    pooled = {}
     for k, (train, test, name) in enumerate(folds(base, names, tmp)):
         found = fit_icr(fit_options(train, radius, width, label))
         terrain = tmp / f'{label}{k}.yaml'
@@ -144,6 +146,11 @@ def run_set(label, base: Path, tmp: Path):
                 win = m['odometry']['windows'][w]
                 err[row, w] = win['mean_position_error_m']
                 c = win.get('consistency')
+                if c and c['inside_50'] is not None:
+                    acc = pooled.setdefault((row, w), [0.0, 0.0, 0])
+                    acc[0] += c['inside_50'] * c['windows']
+                    acc[1] += c['inside_95'] * c['windows']
+                    acc[2] += c['windows']
                 cover = ('' if not c or c['inside_50'] is None else
                          f' {100 * c["inside_50"]:3.0f} / {100 * c["inside_95"]:3.0f} % '
                          f'NEES {c["mean_nees"]:5.2f} (n {c["windows"]})')
@@ -161,6 +168,11 @@ def run_set(label, base: Path, tmp: Path):
               + (f', or {long} s / encoders {r10e:.3f} [<= 1.05: the encoders under half the '
                  'DDC]' if half else f', {long} s / encoders {r10e:.3f}')
               + f'; {short} s / encoders {r5e:.3f} [<= 1.05]', flush=True)
+    print(f'{label}: the held-out data pooled, inside the 50 % / 95 % ellipses [35-65 / 85-98 %]:')
+    for row in ('encoders', 'gyro-aided'):
+        print(f'    {row:<12}' + ' | '.join(
+            f'{w:>2} s: {100 * a / n:3.0f} / {100 * b / n:3.0f} % (n {n})'
+            for (r, w), (a, b, n) in pooled.items() if r == row and n), flush=True)
 
 
 def main():
