@@ -140,7 +140,7 @@ UPSIDE_DOWN = 3.14159   # imu_mount.roll of an IMU with z down, as a user types 
 
 
 def gyro_recording(z_sign, duration=120.0):
-    """A drive with a gyro whose raw angular_velocity.z is ``z_sign`` times the yaw rate."""
+    """Return a drive with a gyro whose raw angular_velocity.z is ``z_sign`` times the yaw rate."""
     rec = simulate(ConstantIcr(B), np.array(AURIGA), duration=duration, enc_rate=50.0,
                    gt_rate=100.0, seed=1)
     ns = (1_700_000_000e9 + np.round(rec.enc_t * 1e9)).astype(np.int64).tolist()
