@@ -173,6 +173,9 @@ class CalibrationDriveNode(TableNode):
             f' {self._deadman_topics[-1]} button {values["deadman_button"]}'
             if values['joy_topic'] else '')
         source = self._inputs[0].topic_name
+        mount = tuple(values[f'imu_mount.{axis}'] for axis in ('roll', 'pitch', 'yaw'))
+        if self._reference == 'imu':
+            source += ' (imu_mount ' + ' '.join(f'{v:g}' for v in mount) + ' rad)'
         self.get_logger().info(
             f'calibration drive: {len(self.steps)} steps, {total_duration(self.steps):.0f} s '
             f'of motion, geofence {values["geofence_radius"]:g} m, caps '
