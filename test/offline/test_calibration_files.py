@@ -139,18 +139,27 @@ IMU_TOPICS = {**TOPICS, 'reference': '/robot/imu/data', 'reference_kind': 'imu',
 UPSIDE_DOWN = 3.14159   # imu_mount.roll of an IMU with z down, as a user types it
 
 
-def gyro_recording(z_sign, duration=120.0):
-    """Return a drive with a gyro whose raw angular_velocity.z is ``z_sign`` times the yaw rate."""
+def gyro_recording(z_sign, orientation=False, duration=120.0):
+    """
+    Return a drive with a gyro whose raw angular_velocity.z is ``z_sign`` times the yaw rate.
+
+    With ``orientation`` the messages carry the IMU's orientation in ENU (z down for
+    ``z_sign`` -1: the heading's turn followed by a half turn about x).
+    """
     rec = simulate(ConstantIcr(B), np.array(AURIGA), duration=duration, enc_rate=50.0,
                    gt_rate=100.0, seed=1)
     ns = (1_700_000_000e9 + np.round(rec.enc_t * 1e9)).astype(np.int64).tolist()
     rate = np.diff(np.unwrap(rec.gt_yaw)) / np.diff(rec.gt_t)
     gyro_ns = (1_700_000_000e9 + np.round(rec.gt_t[1:] * 1e9)).astype(np.int64).tolist()
+    c, s = np.cos(0.5 * rec.gt_yaw[1:]), np.sin(0.5 * rec.gt_yaw[1:])
+    zeros = np.zeros_like(c)
+    q = np.column_stack([c, s, zeros, zeros] if z_sign < 0 else [zeros, zeros, s, c])
+    cov0 = 0.01 if orientation else -1.0
     # Rows as the node records them: the heading rate it used, the message as it came.
     return from_stamped_rows(
         encoder=list(zip(ns, rec.left.tolist(), rec.right.tolist())),
-        imu=[(t, w, 0.0, 0.0, 0.0, 1.0, -1.0, 0.0, 0.0, z_sign * w)
-             for t, w in zip(gyro_ns, rate.tolist())],
+        imu=[(t, w, *qq, cov0, 0.0, 0.0, z_sign * w)
+             for t, w, qq in zip(gyro_ns, rate.tolist(), q.tolist())],
         cmd=[(t, 0.3, 0.1) for t in ns[::5]])
 
 
@@ -159,12 +168,13 @@ def imu_values(tmp_path, roll):
             'imu_mount.pitch': 0.0, 'imu_mount.yaw': 0.0}
 
 
-def test_an_upside_down_imu_fits_as_the_upright_one_through_its_mount(tmp_path):
+@pytest.mark.parametrize('orientation', [False, True])
+def test_an_upside_down_imu_fits_as_the_upright_one_through_its_mount(tmp_path, orientation):
     fits = {}
     for name, z_sign, roll in (('upright', 1.0, 0.0), ('upside_down', -1.0, UPSIDE_DOWN)):
         (tmp_path / name).mkdir()
         files = CalibrationFiles(imu_values(tmp_path / name, roll))
-        status, fits[name] = files(gyro_recording(z_sign), IMU_TOPICS, Log())
+        status, fits[name] = files(gyro_recording(z_sign, orientation), IMU_TOPICS, Log())
         assert status == 0, name
     for key in FITTED_KEYS:
         assert fits['upside_down'][key] == pytest.approx(fits['upright'][key], abs=1e-9)
@@ -187,7 +197,7 @@ def test_an_upside_down_imu_fits_as_the_upright_one_through_its_mount(tmp_path):
         conns = [c for c in reader.connections if c.topic == IMU_TOPICS['reference']]
         msgs = [reader.deserialize(raw, c.msgtype)
                 for c, _, raw in reader.messages(connections=conns)]
-    recorded = gyro_recording(-1.0)
+    recorded = gyro_recording(-1.0, orientation)
     assert {m.header.frame_id for m in msgs} == {'imu_link'}
     np.testing.assert_array_equal([m.angular_velocity.z for m in msgs],
                                   recorded.gyro_omega[:, 2])
