@@ -52,3 +52,21 @@ def test_track_speeds_are_the_encoders_own_else_the_travel_differentiated():
     assert own.track_speeds()[0] is own.speed_t
     with pytest.raises(ValueError, match='fewer than two encoder samples'):
         Recording(T[:1], TRAVEL[:1], TRAVEL[:1]).track_speeds()
+
+
+def test_a_gyro_row_may_carry_the_raw_angular_velocity():
+    from tracked_kinematics.core.recording import from_stamped_rows
+    # The heading rate used (here: of an IMU with z down) and the message's own (wx, wy, wz),
+    # sorted together, the first of a stamp kept.
+    rec = from_stamped_rows(encoder=[(0, 0.0, 0.0), (30, 0.1, 0.1)],
+                            imu=[(20, 0.2, 0, 0, 0, 1, -1.0, 0.01, 0.02, -0.2),
+                                 (10, 0.1, 0, 0, 0, 1, -1.0, 0.03, 0.04, -0.1),
+                                 (20, 0.5, 0, 0, 0, 1, -1.0, 0.0, 0.0, -0.5)])
+    assert rec.gyro_rate.tolist() == [0.1, 0.2]
+    assert rec.gyro_omega.tolist() == [[0.03, 0.04, -0.1], [0.01, 0.02, -0.2]]
+    assert from_stamped_rows(encoder=[(0, 0.0, 0.0)],
+                             imu=[(1, 0.1, 0, 0, 0, 1, -1.0)]).gyro_omega is None
+    with pytest.raises(ValueError, match='imu rows have 7 or 10 values, got 8'):
+        from_stamped_rows(imu=[(1, 0.1, 0, 0, 0, 1, -1.0, 0.0)])
+    with pytest.raises(ValueError, match=r'gyro_omega must have the shapes .*\(N, 3\)'):
+        Recording(T, TRAVEL, TRAVEL, gyro_t=T, gyro_rate=T, gyro_omega=np.zeros((5, 2)))

@@ -314,6 +314,8 @@ def test_the_console_script_refuses_an_output_in_proc_at_start(tmp_path):
     ({'deadman_topic': ''}, 'needs a deadman'),
     ({'max_speed': 0.0}, 'max_speed'),
     ({'reference': 'gps'}, 'reference'),
+    ({'imu_mount.roll': 7.0}, r'imu_mount.roll must be in \[-6.28319, 6.28319\]'),
+    ({'imu_mount.pitch': math.nan}, 'imu_mount.pitch must be finite'),
 ])
 def test_refuses_bad_parameters(ros_context, overrides, text):
     values = {**VEHICLE, 'output': 'x.yaml', **overrides}
@@ -462,11 +464,11 @@ def test_a_second_pose_publisher_stops_the_drive(drive):
 
 
 class Gyro:
-    """The fake robot's yaw rate on imu/data, with a way to inject samples."""
+    """The fake robot's yaw rate on imu/data (z_sign -1: an IMU with z down), samples to inject."""
 
-    def __init__(self, d):
+    def __init__(self, d, z_sign=1.0):
         from sensor_msgs.msg import Imu
-        self.d, self.msg_type = d, Imu
+        self.d, self.msg_type, self.z_sign = d, Imu, z_sign
         self.pub = d.robot.node.create_publisher(Imu, 'imu/data', 10)
         self.yaw, self.t = None, None
         self.inject = []
@@ -482,7 +484,7 @@ class Gyro:
             msg.header.stamp = stamp(t)
             msg.orientation_covariance[0] = -1.0
             msg.angular_velocity.z = self.inject.pop(0) if self.inject else \
-                (yaw - self.yaw) / (t - self.t)
+                self.z_sign * (yaw - self.yaw) / (t - self.t)
             self.pub.publish(msg)
         self.yaw, self.t = yaw, t
         return False
@@ -499,6 +501,21 @@ def test_an_implausible_gyro_stops_the_drive(drive, burst):
     assert 'implausible gyro' in d.node.supervisor.last.reason
     assert abs(d.node._fence.yaw - d.robot.pose[2]) < 0.2   # the burst was not integrated
     assert spin_until(d.executor, lambda: not d.moving(), 2.0)
+
+
+def test_an_upside_down_gyro_is_read_through_imu_mount(drive):
+    # z down, imu_mount.roll pi (as odometry_node takes it): the drive's dead reckoning turns
+    # with the vehicle (read as it came, it would turn the other way), the rows it records
+    # hold the rate in base_frame beside the raw z.
+    d = drive(auto_start=True, reference='imu', **{'imu_mount.roll': 3.14159})
+    gyro = Gyro(d, z_sign=-1.0)
+    assert d.run(10.0, until=lambda: gyro() or d.moving())
+    assert d.run(10.0, until=lambda: gyro() or abs(d.robot.pose[2]) > 0.4)
+    assert d.node.supervisor.state == 'running', d.node.supervisor.last.reason
+    assert abs(d.node._fence.yaw - d.robot.pose[2]) < 0.2, (d.node._fence.yaw, d.robot.pose)
+    rows = d.node._rows['imu']
+    assert max(row[1] for row in rows) > 0.5
+    assert all(row[1] == pytest.approx(-row[9], abs=1e-9) for row in rows)
 
 
 def test_a_deadman_delivered_late_after_a_stall_does_not_move(drive):

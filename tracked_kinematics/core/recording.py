@@ -20,7 +20,8 @@ _STREAMS = (
     (('command_t', 'commands'), False, 2),
     (('cmd_vel_t', 'cmd_vel'), False, 2),
 )
-_GYRO = ('gyro_rate', 'gyro_yaw', 'gyro_quaternion', 'gyro_quaternion_cov0')
+_GYRO = ('gyro_rate', 'gyro_yaw', 'gyro_quaternion', 'gyro_quaternion_cov0', 'gyro_omega')
+_WIDTHS = {'gyro_quaternion': 4, 'gyro_omega': 3}
 
 
 @dataclass(frozen=True)
@@ -47,6 +48,9 @@ class Recording:
         Yaw angles of the IMU's orientation estimate, rad.
     gyro_quaternion, gyro_quaternion_cov0 : ndarray, shape (K, 4) and (K,)
         The IMU's orientation ``(x, y, z, w)`` and ``orientation_covariance[0]`` (-1: none).
+    gyro_omega : ndarray, shape (K, 3)
+        The IMU's ``angular_velocity`` (x, y, z) as it came, in its own frame, rad/s, where
+        ``gyro_rate`` is the heading rate read from it (a node's recording: for its bag).
     gnss_t, gnss_x, gnss_y : ndarray, shape (P,)
         Positions in a local plane (GNSS): times (s, strictly increasing), m, m; finite.
     command_t, commands : ndarray, shape (C,) and (C, 2)
@@ -79,6 +83,7 @@ class Recording:
     gyro_yaw: np.ndarray | None = None
     gyro_quaternion: np.ndarray | None = None
     gyro_quaternion_cov0: np.ndarray | None = None
+    gyro_omega: np.ndarray | None = None
     gnss_t: np.ndarray | None = None
     gnss_x: np.ndarray | None = None
     gnss_y: np.ndarray | None = None
@@ -110,7 +115,7 @@ class Recording:
             raise ValueError(f'give {", ".join(names)} together')
         arrays = [np.asarray(v, dtype=float) for v in values]
         n = len(arrays[0]) if arrays[0].ndim == 1 else -1
-        widths = [4 if name == 'gyro_quaternion' else columns if k else 1
+        widths = [_WIDTHS.get(name, columns) if k else 1
                   for k, name in enumerate(names)]
         if any(a.shape != ((n,) if w == 1 else (n, w)) for a, w in zip(arrays, widths)):
             expected = ', '.join('(N,)' if w == 1 else f'(N, {w})' for w in widths)
@@ -178,8 +183,9 @@ def from_stamped_rows(encoder=(), pose=(), imu=(), cmd=(), name: str = '') -> Re
     Build a recording from rows ``(stamp_ns, values...)`` as a node records them.
 
     ``encoder`` rows ``(t, left, right)``, ``pose`` rows ``(t, x, y, yaw)``, ``imu`` rows
-    ``(t, yaw_rate, qx, qy, qz, qw, orientation_covariance0)``, ``cmd`` rows ``(t, v, w)``
-    (cmd_vel).
+    ``(t, yaw_rate, qx, qy, qz, qw, orientation_covariance0)``, optionally followed by the
+    message's ``angular_velocity`` ``(wx, wy, wz)`` (``gyro_omega``; every row alike),
+    ``cmd`` rows ``(t, v, w)`` (cmd_vel).
     Time 0 is the earliest stamp; a stream without rows is None (the encoders: empty). The
     sensor rows are sorted by stamp, the first of equal stamps kept (as a bag is read).
     """
@@ -194,7 +200,11 @@ def from_stamped_rows(encoder=(), pose=(), imu=(), cmd=(), name: str = '') -> Re
             t, values = t[keep], values[keep]
         return t, values
 
-    streams = [split(encoder, 2), split(pose, 3), split(imu, 6), split(cmd, 2, sort=False)]
+    imu_width = len(imu[0]) - 1 if len(imu) else 6
+    if imu_width not in (6, 9):
+        raise ValueError(f'imu rows have 7 or 10 values, got {imu_width + 1}')
+    streams = [split(encoder, 2), split(pose, 3), split(imu, imu_width),
+               split(cmd, 2, sort=False)]
     firsts = [int(t[0]) for t, _ in streams if len(t)]
     t0 = min(firsts) if firsts else 0
     (enc_t, enc), (pose_t, poses), (imu_t, imu_values), (cmd_t, cmds) = [
@@ -204,7 +214,8 @@ def from_stamped_rows(encoder=(), pose=(), imu=(), cmd=(), name: str = '') -> Re
         parts.update(gt_t=pose_t, gt_x=poses[:, 0], gt_y=poses[:, 1], gt_yaw=poses[:, 2])
     if len(imu_t):
         parts.update(gyro_t=imu_t, gyro_rate=imu_values[:, 0],
-                     gyro_quaternion=imu_values[:, 1:5], gyro_quaternion_cov0=imu_values[:, 5])
+                     gyro_quaternion=imu_values[:, 1:5], gyro_quaternion_cov0=imu_values[:, 5],
+                     gyro_omega=imu_values[:, 6:9] if imu_width == 9 else None)
     if len(cmd_t):
         parts.update(cmd_vel_t=cmd_t, cmd_vel=cmds)
     return Recording(enc_t, enc[:, 0], enc[:, 1], t0_ns=t0, name=name, **parts)

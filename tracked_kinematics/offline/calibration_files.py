@@ -10,14 +10,16 @@ output paths (docs/output-files.md): ``output``, the report beside it (``OUT.jso
    BagWriter`): ``/joint_states`` with one joint per side whose position is the cumulative
    encoder travel the node integrated divided by the sprocket radius (so any encoder input
    mode reads back the same), the reference (``nav_msgs/Odometry`` on the pose topic, or
-   ``sensor_msgs/Imu`` on the IMU topic) with its own stamps, and ``cmd_vel``. With ``bag``
+   ``sensor_msgs/Imu`` on the IMU topic, as it came: its angular velocity in its own frame)
+   with its own stamps, and ``cmd_vel``. With ``bag``
    it is renamed onto that path (kept even when the fit fails: the drive can be fitted again
    with ``identify_icr``); without, it lives in a temporary directory removed at the end;
 2. fits that bag with identify_icr's fit (:func:`tracked_kinematics.offline.identification.
    fit`, the node's terrain values as the base file) in a worker process of its own,
    spawned (never forked from the node's threads), which :meth:`CalibrationFiles.cancel`
-   ends on a signal; the equivalent ``identify_icr`` command is written into the report, so
-   ``identify_icr`` on the bag gives the same result;
+   ends on a signal; the gyro is read through the node's ``imu_mount.*`` (``--imu-mount``:
+   written to the terrain file); the equivalent ``identify_icr`` command is written into
+   the report, so ``identify_icr`` on the bag gives the same result;
 3. writes ``output`` and the report together (:class:`~tracked_kinematics.offline.outputs.
    Outputs`: atomic, all or none, an existing file replaced only with ``force``), the
    terrain file with an ``identification.drive.*`` record of the drive, the report with a
@@ -43,7 +45,8 @@ from tracked_kinematics.offline.bags.writer import BagWriter
 from tracked_kinematics.offline.identification import fit, FitOptions, TOOL as FIT_TOOL
 from tracked_kinematics.offline.outputs import check_output, Outputs
 from tracked_kinematics.offline.terrain_file import terrain_text
-from tracked_kinematics.offline.tooling import error_line, exit_status, report_json
+from tracked_kinematics.offline.tooling import (
+    error_line, exit_status, IMU_MOUNT_KEYS, report_json)
 from tracked_kinematics.params import icr_from_values, TERRAIN_PARAMS, write_params_file
 
 TOOL = 'calibration_drive'
@@ -122,7 +125,13 @@ class CalibrationFiles:
                                    right_joints=(topics['joint_names'][1],)),
             ground_truth=GroundTruthSource(topics['reference']) if pose else None,
             imu_topic=None if pose else topics['reference'],
+            imu_mount=None if pose else self.imu_mount(),
             terrain=self.values['terrain'] or None)
+
+    def imu_mount(self) -> tuple | None:
+        """Return the node's ``imu_mount.*`` (roll, pitch, yaw), rad; None when all 0."""
+        mount = tuple(float(self.values.get(key, 0.0)) for key in IMU_MOUNT_KEYS)
+        return mount if any(mount) else None
 
     def _fit(self, bag, topics, log):
         work = Path(tempfile.mkdtemp(prefix='.calibration_drive-fit-', dir=self.output.parent))
@@ -219,6 +228,8 @@ def command(options: FitOptions, bag, output, report) -> list[str]:
         argv += ['--ground-truth-topic', options.ground_truth.topic]
     else:
         argv += ['--imu-topic', options.imu_topic]
+    if options.imu_mount is not None:
+        argv += ['--imu-mount', *map(repr, map(float, options.imu_mount))]
     if options.terrain:
         argv += ['--terrain', options.terrain]
     return argv
@@ -262,7 +273,9 @@ def write_bag(path, recording, topics, sprocket_radius: float) -> None:
         What the drive recorded (:func:`~tracked_kinematics.core.recording.from_stamped_rows`).
     topics : mapping
         ``joint_states``, ``joint_names`` (left, right), ``reference``, ``reference_kind``
-        (``pose`` or ``imu``), ``cmd_vel``.
+        (``pose`` or ``imu``), ``cmd_vel``; optionally ``imu_frame_id`` (the Imu's
+        ``header.frame_id``, default ``base_link``). The Imu messages carry the recording's
+        ``gyro_omega`` (the raw angular velocity) where it has one, else ``gyro_rate`` as z.
     sprocket_radius : float
         m; joint position = travel / radius.
 
@@ -284,15 +297,18 @@ def write_bag(path, recording, topics, sprocket_radius: float) -> None:
             types = bag.typestore.types
             vec = types['geometry_msgs/msg/Vector3']
             quat = types['geometry_msgs/msg/Quaternion']
-            for t, rate, q, cov0 in zip(rec.stamps_ns(rec.gyro_t).tolist(),
-                                        rec.gyro_rate.tolist(), rec.gyro_quaternion.tolist(),
-                                        rec.gyro_quaternion_cov0.tolist()):
+            frame = topics.get('imu_frame_id') or 'base_link'
+            omega = rec.gyro_omega if rec.gyro_omega is not None else np.column_stack(
+                [np.zeros_like(rec.gyro_rate), np.zeros_like(rec.gyro_rate), rec.gyro_rate])
+            for t, w, q, cov0 in zip(rec.stamps_ns(rec.gyro_t).tolist(), omega.tolist(),
+                                     rec.gyro_quaternion.tolist(),
+                                     rec.gyro_quaternion_cov0.tolist()):
                 covariance = np.zeros(9)
                 covariance[0] = cov0
-                msg = imu_type(header=bag.header(t, 'base_link'),
+                msg = imu_type(header=bag.header(t, frame),
                                orientation=quat(x=q[0], y=q[1], z=q[2], w=q[3]),
                                orientation_covariance=covariance,
-                               angular_velocity=vec(x=0.0, y=0.0, z=rate),
+                               angular_velocity=vec(x=w[0], y=w[1], z=w[2]),
                                angular_velocity_covariance=np.zeros(9),
                                linear_acceleration=vec(x=0.0, y=0.0, z=0.0),
                                linear_acceleration_covariance=np.zeros(9))

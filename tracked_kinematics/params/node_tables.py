@@ -9,6 +9,7 @@ generate_parameter_library's YAML is read by diff_drive_controller and its docs 
 
 from __future__ import annotations
 
+from dataclasses import replace
 import math
 
 from tracked_kinematics.core.estimate.config import EstimatorConfig
@@ -31,6 +32,14 @@ def _topic_or_empty(value) -> str | None:
 
 _topic_or_empty.words = "'' (off) or a valid ROS name"
 
+#: The IMU's mount: odometry_node's, and calibration_drive's (read-only there), one table.
+IMU_MOUNT_PARAMS: tuple[ParamSpec, ...] = tuple(
+    ParamSpec(f'imu_mount.{axis}', 0.0,
+              f"{axis.capitalize()} of the IMU's frame in base_frame (URDF rpy; roll pi: an "
+              'IMU with z down, or NED); all 0 and tf2_ros importable: the frame_id through '
+              'TF (odometry_node)', 'rad', finite, low=-2.0 * math.pi, high=2.0 * math.pi)
+    for axis in ('roll', 'pitch', 'yaw'))
+
 ODOMETRY_PARAMS: tuple[ParamSpec, ...] = (
     ParamSpec('odom_frame', 'odom', 'Frame of the published pose (header.frame_id)',
               check=frame_id),
@@ -44,11 +53,7 @@ ODOMETRY_PARAMS: tuple[ParamSpec, ...] = (
     ParamSpec('imu_topic', '',
               'sensor_msgs/Imu topic whose angular velocity, turned into base_frame, gives the '
               "heading ('' = off: the encoders alone)", check=_topic_or_empty, read_only=True),
-    *(ParamSpec(f'imu_mount.{axis}', 0.0,
-                f"{axis.capitalize()} of the IMU's frame in base_frame (URDF rpy; roll pi: an "
-                'IMU with z down, or NED); all 0 and tf2_ros importable: the frame_id through '
-                'TF', 'rad', finite, low=-2.0 * math.pi, high=2.0 * math.pi)
-      for axis in ('roll', 'pitch', 'yaw')),
+    *IMU_MOUNT_PARAMS,
     *GYRO_PARAMS,
     ParamSpec('push_to', [],
               'Nodes (cmd_vel_translator) whose icr.* parameters are set to the adapted ICRs: '
@@ -402,6 +407,8 @@ CALIBRATION_PARAMS: tuple[ParamSpec, ...] = (
               read_only=True),
     ParamSpec('imu_topic', 'imu/data', 'Gyro (sensor_msgs/Imu) of reference imu',
               check=ros_name, read_only=True),
+    # Read as odometry_node reads it; fixed for the drive (the fit reads the bag with one).
+    *(replace(spec, read_only=True) for spec in IMU_MOUNT_PARAMS),
     ParamSpec('pose_topic', 'ground_truth/odom', 'Pose of base_link of reference pose',
               check=ros_name, read_only=True),
     ParamSpec('pose_type', 'odometry',

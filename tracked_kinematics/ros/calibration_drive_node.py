@@ -28,6 +28,7 @@ from sensor_msgs.msg import Imu, Joy
 from std_msgs.msg import Bool, String
 from std_srvs.srv import Trigger
 from tracked_kinematics.core.clock_watch import ClockWatch
+from tracked_kinematics.core.imu_frame import heading_rate, mount_rotation
 from tracked_kinematics.core.integration import stamp_ns, yaw_from_quaternion
 from tracked_kinematics.core.plan.calibration_protocol import (
     FenceOdometry, protocol, total_duration)
@@ -156,6 +157,10 @@ class CalibrationDriveNode(TableNode):
             track_width=values['track_width'], reference=values['reference'],
             **(IMU_FENCE if values['reference'] == 'imu' else {})))
         self._reference = values['reference']
+        # The gyro read as odometry_node reads it: the heading rate in base_frame.
+        self._mount = tuple(map(tuple, mount_rotation(
+            *(values[f'imu_mount.{axis}'] for axis in ('roll', 'pitch', 'yaw'))).tolist()))
+        self._imu_frame = None         # frame_id of the first Imu, for the bag
         gyro_range = values['max_gyro_rate'] or max(
             2.0, GYRO_RANGE_FACTOR * values['max_yaw_rate'])
         self._fence = FenceOdometry(icr.scale_left, icr.scale_right, max_rate=gyro_range,
@@ -168,6 +173,9 @@ class CalibrationDriveNode(TableNode):
             f' {self._deadman_topics[-1]} button {values["deadman_button"]}'
             if values['joy_topic'] else '')
         source = self._inputs[0].topic_name
+        mount = tuple(values[f'imu_mount.{axis}'] for axis in ('roll', 'pitch', 'yaw'))
+        if self._reference == 'imu':
+            source += ' (imu_mount ' + ' '.join(f'{v:g}' for v in mount) + ' rad)'
         self.get_logger().info(
             f'calibration drive: {len(self.steps)} steps, {total_duration(self.steps):.0f} s '
             f'of motion, geofence {values["geofence_radius"]:g} m, caps '
@@ -333,7 +341,10 @@ class CalibrationDriveNode(TableNode):
 
     def _on_imu(self, msg) -> None:
         t = _seconds(msg.header.stamp)
-        rate = msg.angular_velocity.z
+        w, q = msg.angular_velocity, msg.orientation
+        omega, quaternion = (w.x, w.y, w.z), (q.x, q.y, q.z, q.w)
+        cov0 = float(msg.orientation_covariance[0])
+        rate, _ = heading_rate(omega, self._mount, quaternion, cov0 != -1.0)
         if t == 0:
             self.get_logger().warning('imu sample without a stamp: skipped',
                                       throttle_duration_sec=WARN_PERIOD)
@@ -344,12 +355,13 @@ class CalibrationDriveNode(TableNode):
             self._fault('gyro', f'implausible gyro on {self._inputs[0].topic_name}: {problem}')
             self._tick_now()
             return
-        q = msg.orientation
+        if self._imu_frame is None:
+            self._imu_frame = msg.header.frame_id
         self._reference_t = self._now()
         self._reference_steady = self._steady()
         self._pose = self._fence.pose
-        self._rows['imu'].append((t, rate, q.x, q.y, q.z, q.w,
-                                  float(msg.orientation_covariance[0])))
+        # The rate used, and the message as it came (the bag is the raw record).
+        self._rows['imu'].append((t, float(rate), *quaternion, cov0, *omega))
 
     # Two parameters without defaults: rclpy then passes the message info (a callback that
     # can be called with the message alone gets the message alone).
@@ -518,6 +530,7 @@ class CalibrationDriveNode(TableNode):
                 'joint_states': f'{self.get_namespace().rstrip("/")}/joint_states',
                 'reference': self._inputs[0].topic_name,
                 'cmd_vel': self._cmd_pub.topic_name, 'reference_kind': self._reference,
+                'imu_frame_id': self._imu_frame or '',
                 'steps': [{'kind': s.kind, 'v': s.v, 'w': s.w, 'duration': s.duration}
                           for s in self.steps],
                 'events': [{'t': t, 'state': state, 'reason': reason}

@@ -127,7 +127,8 @@ def clean_gyro(rec: Recording) -> Recording:
     ok = np.isfinite(values)
     if np.all(ok):
         return rec
-    gyro = ('gyro_t', 'gyro_rate', 'gyro_yaw', 'gyro_quaternion', 'gyro_quaternion_cov0')
+    gyro = ('gyro_t', 'gyro_rate', 'gyro_yaw', 'gyro_quaternion', 'gyro_quaternion_cov0',
+            'gyro_omega')
     return replace(rec, **{n: getattr(rec, n)[ok] for n in gyro if getattr(rec, n) is not None})
 
 
