@@ -105,7 +105,10 @@ def _heldout_errors(tmp_path, fitted: IcrParams, paths=3, duration=60.0):
     return np.mean(errors, axis=0)
 
 
-@pytest.mark.parametrize('reference', ['pose', pytest.param('imu', marks=pytest.mark.long)])
+# Both long (make stress): the suite runs the same loop as the five-minute page's walk
+# (test_five_minute_page), and the release and fence rules in process (test_calibration_drive).
+@pytest.mark.long
+@pytest.mark.parametrize('reference', ['pose', 'imu'])
 def test_calibration_drive_in_closed_loop(ros_context, executor, tmp_path, reference):
     terrain = tmp_path / 'ideal.yaml'
     terrain.write_text(TERRAIN)
