@@ -72,17 +72,20 @@ class Listener:
         executor.add_node(self.node)
         self.executor = executor
         reliable = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
-        self.odom, self.heading, self.got, self.arrived = [], [], {}, {}
+        self.odom, self.heading, self.got, self.sent = [], [], {}, {}
         self.node.create_subscription(Odometry, '/odom', self.odom.append, reliable)
         self.node.create_subscription(DiagnosticArray, '/diagnostics', self._on_status, 10)
         for topic, kind in topics:
-            self.got[topic], self.arrived[topic] = [], []
+            self.got[topic], self.sent[topic] = [], []
             self.node.create_subscription(kind, topic, self._keeper(topic), reliable)
 
     def _keeper(self, topic):
-        def keep(msg):
+        def keep(msg, info):
             self.got[topic].append(msg)
-            self.arrived[topic].append(time.monotonic())
+            # When the player published it (the DDS source stamp, ns): its pace, not that of
+            # this process's executor, which a loaded machine holds up and then serves in a
+            # burst (1.2 s of arrivals for 1.5 s of publishing was seen).
+            self.sent[topic].append(info['source_timestamp'] * 1e-9)
         return keep
 
     def _on_status(self, msg):
@@ -153,9 +156,9 @@ def test_every_message_type_arrives_intact_and_paced(ros_context, executor, tmp_
     assert clock[-1] <= T0_NS * 1e-9 + SECONDS + 0.1
     first = got['/joint_states'][0].header.stamp
     assert first.sec + first.nanosec * 1e-9 == pytest.approx(T0_NS * 1e-9 + 2.0, abs=0.021)
-    # Paced at 4 x: the 6 s of encoders are not played faster than 1.5 s.
-    arrived = listener.arrived['/joint_states']
-    assert arrived[-1] - arrived[0] > 0.9 * 6.0 / 4
+    # Paced at 4 x: the 6 s of encoders are not published faster than 1.5 s.
+    sent = listener.sent['/joint_states']
+    assert sent[-1] - sent[0] > 0.9 * 6.0 / 4
 
 
 @pytest.mark.parametrize('args, text', [
