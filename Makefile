@@ -16,9 +16,7 @@ setup: $(STAMP)
 $(STAMP): requirements.txt requirements-test.txt setup.py setup.cfg package.xml
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
-	# --no-compile: the byte code of what is imported is written at its first import; the
-	# rest of scipy, matplotlib and colcon is never compiled (29 s -> 15 s from pip's cache).
-	$(PY) -m pip install --quiet --no-compile -r requirements.txt -r requirements-test.txt
+	$(PY) -m pip install --quiet -r requirements.txt -r requirements-test.txt
 	$(PY) -m pip install --quiet --no-deps --no-build-isolation -e .
 	touch $(STAMP)
 
