@@ -700,3 +700,10 @@ def test_a_node_or_tool_starts_without_the_heavy_scipy_packages(module):
 def test_the_heavy_import_check_can_fail(tmp_path):
     (tmp_path / 'eager_node.py').write_text('from scipy import signal\n')
     assert 'scipy.signal' in heavy_imports('eager_node', str(tmp_path))
+
+
+def test_the_longest_first_files_exist():
+    # A renamed file would silently lose its place at the front of the schedule.
+    from conftest import LONGEST_FIRST
+    root = PACKAGE.parent
+    assert [name for name in LONGEST_FIRST if not (root / name).is_file()] == []
