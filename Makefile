@@ -27,11 +27,8 @@ demo: setup
 # a fifth of the suite's time is ROS tests waiting on other processes, which a third worker
 # fills (a fresh clone: 6.8 min with the set-up, 8.5 min with two). Every test holds a ROS
 # domain of its own across processes.
-# The byte code of the package's modules is kept under .venv/pycache even where
-# PYTHONDONTWRITEBYTECODE is set: the suite starts ~100 processes, each compiling it again.
 test: setup
-	env -u PYTHONDONTWRITEBYTECODE PYTHONPYCACHEPREFIX=$(CURDIR)/$(VENV)/pycache \
-		$(PY) -m pytest -n 3 --dist loadfile
+	$(PY) -m pytest -n 3 --dist loadfile
 
 stress: setup
 	$(PY) tools/stress.py --runs $(or $(RUNS),2) --stops $(or $(STOPS),40)
