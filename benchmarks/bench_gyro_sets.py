@@ -25,8 +25,9 @@ import sys
 import tempfile
 
 ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT / 'test'))
 
-from rosbags.rosbag2 import Reader, Writer  # noqa: E402,I100
+from helpers.realdata import split_bag  # noqa: E402 -- the test helpers, from the tree
 from tracked_kinematics.core import evaluate as ev  # noqa: E402
 from tracked_kinematics.core import identify as ident  # noqa: E402
 from tracked_kinematics.offline.bags import (  # noqa: E402
@@ -54,27 +55,6 @@ SHORT = (0.5, 1.0)
 WINDOWED = ('asphalt', 'sand', 'gravel', 'ice')
 MIN_SPEED = 0.1
 TRAIN_SHARE = 0.55
-
-
-def split_bag(path: Path, out: Path, share: float) -> tuple[Path, Path]:
-    """Copy a bag into its first ``share`` of time and the rest (two bags under ``out``)."""
-    parts = (out / f'{path.name}_train', out / f'{path.name}_test')
-    with Reader(path) as reader:
-        start, end = reader.start_time, reader.end_time
-        cut = start + int(share * (end - start))
-        writers = [Writer(p, version=8) for p in parts]
-        for w in writers:
-            w.open()
-        conns = [{c.id: w.add_connection(c.topic, c.msgtype, msgdef=c.msgdef.data,
-                                         rihs01=c.digest,
-                                         offered_qos_profiles=c.ext.offered_qos_profiles)
-                  for c in reader.connections} for w in writers]
-        for conn, stamp, data in reader.messages():
-            k = 0 if stamp < cut else 1
-            writers[k].write(conns[k][conn.id], stamp, data)
-        for w in writers:
-            w.close()
-    return parts
 
 
 def folds(base: Path, names, tmp: Path):

@@ -35,3 +35,29 @@ def bag(name):
     if base is None or not (base / name).is_dir():
         pytest.skip(f'real data not found ({name}): set TRACKED_KINEMATICS_REALDATA')
     return base / name
+
+
+def split_bag(path: Path, out: Path, share: float) -> tuple[Path, Path]:
+    """
+    Copy a bag into its first ``share`` of time and the rest, two bags under ``out``.
+
+    ``<name>_train`` and ``<name>_test``: a single-run set fitted on its start and scored on
+    the rest, which starts mid-drive (a node restarted while the robot drives).
+    """
+    from rosbags.rosbag2 import Reader, Writer
+    parts = (out / f'{path.name}_train', out / f'{path.name}_test')
+    with Reader(path) as reader:
+        cut = reader.start_time + int(share * (reader.end_time - reader.start_time))
+        writers = [Writer(p, version=8) for p in parts]
+        for w in writers:
+            w.open()
+        conns = [{c.id: w.add_connection(c.topic, c.msgtype, msgdef=c.msgdef.data,
+                                         rihs01=c.digest,
+                                         offered_qos_profiles=c.ext.offered_qos_profiles)
+                  for c in reader.connections} for w in writers]
+        for conn, stamp, data in reader.messages():
+            k = 0 if stamp < cut else 1
+            writers[k].write(conns[k][conn.id], stamp, data)
+        for w in writers:
+            w.close()
+    return parts

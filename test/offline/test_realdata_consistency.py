@@ -82,27 +82,6 @@ def test_the_gyro_aided_10_s_error_beats_the_encoders_on_every_held_out_bag(held
 MARMOTTE = 'marmotte_snow_2024-01-25_12h15_part1'
 
 
-def split_bag(path, out, share):
-    """Copy a bag into its first ``share`` of time and the rest: two bags under ``out``."""
-    from rosbags.rosbag2 import Reader, Writer
-    parts = (out / 'train', out / 'test')
-    with Reader(path) as reader:
-        cut = reader.start_time + int(share * (reader.end_time - reader.start_time))
-        writers = [Writer(p, version=8) for p in parts]
-        for w in writers:
-            w.open()
-        conns = [{c.id: w.add_connection(c.topic, c.msgtype, msgdef=c.msgdef.data,
-                                         rihs01=c.digest,
-                                         offered_qos_profiles=c.ext.offered_qos_profiles)
-                  for c in reader.connections} for w in writers]
-        for conn, stamp, data in reader.messages():
-            k = 0 if stamp < cut else 1
-            writers[k].write(conns[k][conn.id], stamp, data)
-        for w in writers:
-            w.close()
-    return parts
-
-
 def test_the_marmottes_gyro_aided_covariance_from_a_pose_fit_holds_on_its_held_out_drive(
         tmp_path):
     # The tracked Marmotte on snow, one bag: identify_icr's pose fit (it finds the gyro) on
@@ -110,7 +89,7 @@ def test_the_marmottes_gyro_aided_covariance_from_a_pose_fit_holds_on_its_held_o
     # (issue 35): 67 / 98.4 % of 61 windows of 5 s inside the 50 / 95 % ellipses (2 points
     # and one window above the target bands, 35-65 / 85-98 %), 61 / 97 % of 31 of 10 s; with
     # four reset schedules 64 / 96 % and 56 / 94 %. Asserted: what is reached, a little wider.
-    train, test = split_bag(realdata.bag(MARMOTTE), tmp_path, 0.55)
+    train, test = realdata.split_bag(realdata.bag(MARMOTTE), tmp_path, 0.55)
     vehicle = ['--sprocket-radius', '0.116702', '--track-width', '0.592723']
     pose = tmp_path / 'pose.yaml'
     assert identify_icr.main([str(train), *GT, *vehicle, '--output', str(pose)]) == 0

@@ -436,22 +436,29 @@ def test_encoders_delivered_late_are_judged_by_their_stamps(frozen):
         assert out.state == 'running', out.reason
 
 
-@pytest.mark.parametrize('comes_up_after', [2.0, math.inf])
-def test_a_command_path_that_comes_up_late_has_a_grace(comes_up_after):
-    # At start the tracks may not move for a while (cmd_vel_translator discovered late, its
-    # /clock not yet received): start_grace (3 s) before the encoders are judged; a path
-    # that never comes up stops the drive, and the reason says where to look.
-    bench = Bench(steps=[Step(0.0, 1.0, 30.0, 'turn')])
+def frozen_at_start(comes_up_after, rtf=None, until=8.0):
+    """Drive with encoders frozen until ``comes_up_after`` (s simulated); the last output, t."""
+    bench = Bench(steps=[Step(0.0, 1.0, 60.0, 'turn')])
+    bench.rtf = rtf
     bench.frozen.add('encoders')
     bench.start()
-    while bench.t < 8.0:
+    while bench.t < until:
         if bench.t >= comes_up_after:
             bench.frozen.discard('encoders')
         out = bench.tick()
         if out.state != 'running':
             break
+    return out, bench.t
+
+
+@pytest.mark.parametrize('comes_up_after', [2.0, math.inf])
+def test_a_command_path_that_comes_up_late_has_a_grace(comes_up_after):
+    # At start the tracks may not move for a while (cmd_vel_translator discovered late, its
+    # /clock not yet received): start_grace (3 s) before the encoders are judged; a path
+    # that never comes up stops the drive, and the reason says where to look.
+    out, t = frozen_at_start(comes_up_after)
     if math.isinf(comes_up_after):
-        assert out.state == 'stopped' and 3.5 < bench.t < 5.0, (bench.t, out.reason)
+        assert out.state == 'stopped' and 3.5 < t < 5.0, (t, out.reason)
         assert 'the tracks have not moved since the start' in out.reason
     else:
         assert out.state == 'running', out.reason
@@ -462,19 +469,10 @@ def test_the_grace_is_wall_time_in_a_simulation_faster_than_real(comes_up_after)
     # At three times real time, 3 s of simulated time are 1 s of wall time: too short for
     # processes to discover each other on a loaded machine (the page's walk stopped so at
     # its start). The grace runs on both clocks: 2 s of wall time (6 s simulated) is within it.
-    bench = Bench(steps=[Step(0.0, 1.0, 60.0, 'turn')])
-    bench.rtf = 3.0
-    bench.frozen.add('encoders')
-    bench.start()
-    while bench.t < 30.0:
-        if bench.t >= comes_up_after:
-            bench.frozen.discard('encoders')
-        out = bench.tick()
-        if out.state != 'running':
-            break
+    out, t = frozen_at_start(comes_up_after, rtf=3.0, until=30.0)
     if math.isinf(comes_up_after):
         # After the grace of wall time (4 s: the window and the grace), 12 s simulated.
-        assert out.state == 'stopped' and 12.0 <= bench.t < 14.0, (bench.t, out.reason)
+        assert out.state == 'stopped' and 12.0 <= t < 14.0, (t, out.reason)
         assert 'the tracks have not moved since the start' in out.reason
     else:
         assert out.state == 'running', out.reason
