@@ -2,7 +2,7 @@
 The demo's page shows what ``make demo`` prints: the sample output, regenerated or checked.
 
 ``page_block(stdout)`` turns the default demo's output into the page's block (timings and
-machine paths normalised, identify_icr's long output shortened); test/package/test_docs.py
+machine paths normalised, identify_icr's long output shortened); test/offline/test_demo.py
 compares the page and the README with a fresh run, numbers to a tolerance. After a change
 that moves the figures, regenerate the page's block with
 

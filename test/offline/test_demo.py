@@ -1,10 +1,16 @@
-"""The README's main job: simulate, identify_icr, and odometry on held-out paths."""
+"""
+The README's main job: simulate, identify_icr, and odometry on held-out paths.
+
+``make demo``'s run (its defaults, in a directory of its own) is made once: its outputs are
+checked here, and so are its page's sample output and the README's figures against what it
+printed (test/helpers/demo_page.py regenerates the page's block).
+"""
 
 import csv
-import io
 import json
 import os
 from pathlib import Path
+import re
 import shlex
 import signal
 import subprocess
@@ -25,13 +31,15 @@ BIN = Path(sys.executable).parent
 SHORT = ['--duration', '90', '--paths', '2', '--path-duration', '30']
 
 
+PATHS = ('path1_random', 'path2_sweep', 'path3_random', 'path4_mixed')
+
+
 @pytest.fixture(scope='module')
 def demo_run(tmp_path_factory):
-    out_dir = tmp_path_factory.mktemp('demo') / 'out'
-    stdout = io.StringIO()
-    args = demo.build_parser().parse_args(['--output', str(out_dir), '--seed', '3'] + SHORT)
-    status = demo.run(args, stdout)
-    return status, out_dir, stdout.getvalue()
+    """``make demo``'s demo: its directory, ``demo_output`` (relative to it), its stdout."""
+    from helpers.demo_page import run_default_demo
+    directory = tmp_path_factory.mktemp('demo')
+    return directory, Path('demo_output'), run_default_demo(directory)
 
 
 def _rows(out_dir):
@@ -40,8 +48,8 @@ def _rows(out_dir):
 
 
 def test_demo_succeeds_and_writes_every_output(demo_run):
-    status, out_dir, stdout = demo_run
-    assert status == 0, stdout
+    directory, out_dir, _ = demo_run
+    out_dir = directory / out_dir
     for name in ('hard_floor.yaml', 'identify_report.json', 'heldout.csv'):
         assert (out_dir / name).is_file(), name
     for name in ('identify.png', 'heldout.png'):
@@ -49,20 +57,20 @@ def test_demo_succeeds_and_writes_every_output(demo_run):
     assert (out_dir / 'calibration' / 'auriga_alpha_hard_floor' / 'metadata.yaml').is_file()
     assert (out_dir / 'calibration' / 'auriga_alpha_hard_floor.truth.yaml').is_file()
     bags = sorted(p.name for p in (out_dir / 'heldout').iterdir() if p.is_dir())
-    assert bags == ['path1_random', 'path2_sweep']
+    assert bags == list(PATHS)
     report = json.loads((out_dir / 'identify_report.json').read_text())
     assert report['bags'] == [str((out_dir / 'calibration' / 'auriga_alpha_hard_floor')
                                   .resolve())]
 
 
 def test_demo_says_where_outputs_are(demo_run):
-    _, out_dir, stdout = demo_run
+    directory, out_dir, stdout = demo_run
     for step in ('1. ', '2. ', '3. ', '4. '):
         assert f'\n{step}' in stdout or stdout.startswith(step), step
     for name in ('hard_floor.yaml', 'identify_report.json', 'identify.png', 'heldout.csv',
                  'heldout.png'):
         assert str(out_dir / name) in stdout, name
-    yaml_path = (out_dir / 'hard_floor.yaml').resolve()
+    yaml_path = (directory / out_dir / 'hard_floor.yaml').resolve()
     # What a venv user can run (the console scripts), the workspace form said once.
     lines = stdout.splitlines()
     assert lines[-1] == (f'   odometry_node --ros-args --params-file {yaml_path} '
@@ -74,7 +82,7 @@ def test_demo_says_where_outputs_are(demo_run):
     while lines[end].endswith('\\'):
         end += 1
     command = ' '.join(line.strip().rstrip('\\').strip() for line in lines[at:end + 1])
-    bags = ' '.join(str(out_dir / 'heldout' / name) for name in ('path1_random', 'path2_sweep'))
+    bags = ' '.join(str(out_dir / 'heldout' / name) for name in PATHS)
     assert command.startswith(f'evaluate_model {bags} --ground-truth-topic /ground_truth/pose '
                               f'--params {out_dir / "hard_floor.yaml"} --fuse-imu /imu/data')
     # The covariance's verdicts, one per row and window length.
@@ -83,12 +91,13 @@ def test_demo_says_where_outputs_are(demo_run):
         assert sum(line.count(v) for v in (': consistent', ': over-confident',
                                            ': under-confident', ': too few windows')) == 2
     # The fitted YAML is shown, with its values.
-    icr = icr_from_values(read_params_file(out_dir / 'hard_floor.yaml'))
+    icr = icr_from_values(read_params_file(directory / out_dir / 'hard_floor.yaml'))
     assert f'y_left: {icr.y_left!r}' in stdout
 
 
 def test_identified_yaml_is_a_valid_model_near_the_simulated_truth(demo_run):
-    _, out_dir, _ = demo_run
+    directory, out_dir, _ = demo_run
+    out_dir = directory / out_dir
     icr = icr_from_values(read_params_file(out_dir / 'hard_floor.yaml'))
     assert 0.0 < icr.chi <= 1.0
     # A tracked vehicle slips: ICRs outside the track centrelines.
@@ -102,9 +111,9 @@ def test_identified_yaml_is_a_valid_model_near_the_simulated_truth(demo_run):
 
 
 def test_identified_model_beats_ideal_on_every_held_out_path(demo_run):
-    _, out_dir, stdout = demo_run
-    rows = _rows(out_dir)
-    assert len(rows) == 2
+    directory, out_dir, stdout = demo_run
+    rows = _rows(directory / out_dir)
+    assert len(rows) == len(PATHS)
     for row in rows:
         assert float(row['distance_m']) > 1.0
         ideal = float(row['ideal_position_error_m'])
@@ -123,9 +132,10 @@ def test_identified_model_beats_ideal_on_every_held_out_path(demo_run):
     assert f'{mean_ideal:.3f}' in mean_row
 
 
-def test_the_printed_evaluate_model_command_runs_as_written(demo_run, capsys):
+def test_the_printed_evaluate_model_command_runs_as_written(demo_run, capsys, monkeypatch):
     from tracked_kinematics.offline.cli import evaluate_model
-    _, _, stdout = demo_run
+    directory, _, stdout = demo_run
+    monkeypatch.chdir(directory)
     lines = stdout.splitlines()
     at = next(k for k, line in enumerate(lines) if line.startswith('   evaluate_model '))
     end = at
@@ -136,6 +146,33 @@ def test_the_printed_evaluate_model_command_runs_as_written(demo_run, capsys):
     assert evaluate_model.main(words[1:]) == 0
     printed = capsys.readouterr().out
     assert 'published covariance: ' in printed and '\nbest on these bags ' in printed
+
+
+# The demo's figures on its page and in the README, against this run (test/helpers/
+# demo_page.py regenerates the page's block; test_docs.py checks that the comparison can fail).
+
+def test_the_demo_page_shows_what_the_demo_prints(demo_run):
+    from helpers.demo_page import differences, page_block, page_text_block, PAGE, REGENERATE
+    problems = differences(page_text_block(PAGE.read_text()), page_block(demo_run[2]))
+    assert not problems, (f'{PAGE.name} is stale: regenerate its output with '
+                          f'`{REGENERATE}`: ' + '; '.join(problems[:5]))
+
+
+def test_the_readme_demo_figures_are_the_demos(demo_run):
+    from helpers.demo_page import differences, page_block, README
+    demo_block = page_block(demo_run[2])
+    text = README.read_text()
+    section = text[text.index('## What the demo shows'):text.index('## On a robot')]
+    block = re.search(r'^```\w*\n(.*?)^```', section, re.S | re.M).group(1)
+    printed = demo_block.splitlines()
+    for line in block.splitlines():
+        # Each line of the README's excerpt is a line the demo prints, figures included.
+        same = [p for p in printed if not differences(line, p)]
+        assert same, f'README.md: the demo prints no line like {line.strip()!r}'
+    for words in re.findall(r'chi \d\.\d+,\s+e \d\.\d+', section):
+        words = ' '.join(words.split())
+        assert any(not differences(words, found)
+                   for found in re.findall(r'chi \d\.\d+, e \d\.\d+', demo_block)), words
 
 
 def _random_travel(n, seed):

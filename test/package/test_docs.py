@@ -322,38 +322,6 @@ def test_the_docs_check_flags_a_wrong_default_and_range(tmp_path):
                                                            'sprocket_radius']
 
 
-# The demo's figures on its page and in the README: a fresh run of `make demo`'s demo
-# against them (test/helpers/demo_page.py regenerates the page's block).
-
-@pytest.fixture(scope='module')
-def demo_block(tmp_path_factory):
-    from helpers.demo_page import page_block, run_default_demo
-    return page_block(run_default_demo(tmp_path_factory.mktemp('demo')))
-
-
-def test_the_demo_page_shows_what_the_demo_prints(demo_block):
-    from helpers.demo_page import differences, page_text_block, PAGE, REGENERATE
-    problems = differences(page_text_block(PAGE.read_text()), demo_block)
-    assert not problems, (f'{PAGE.relative_to(ROOT)} is stale: regenerate its output with '
-                          f'`{REGENERATE}`: ' + '; '.join(problems[:5]))
-
-
-def test_the_readme_demo_figures_are_the_demos(demo_block):
-    from helpers.demo_page import differences
-    text = README.read_text()
-    section = text[text.index('## What the demo shows'):text.index('## On a robot')]
-    block = FENCED.search(section).group(2)
-    printed = demo_block.splitlines()
-    for line in block.splitlines():
-        # Each line of the README's excerpt is a line the demo prints, figures included.
-        same = [p for p in printed if not differences(line, p)]
-        assert same, f'README.md: the demo prints no line like {line.strip()!r}'
-    for words in re.findall(r'chi \d\.\d+,\s+e \d\.\d+', section):
-        words = ' '.join(words.split())
-        assert any(not differences(words, found)
-                   for found in re.findall(r'chi \d\.\d+, e \d\.\d+', demo_block)), words
-
-
 def test_the_demo_figure_check_can_fail():
     from helpers.demo_page import differences
     line = '   mean                  22.3       60     6.579       87.3    28.3     0.860'
