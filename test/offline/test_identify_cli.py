@@ -484,6 +484,13 @@ def test_recording_in_short_pieces(tmp_path, capsys):
                               'position_p90': None, 'heading_mean': None, 'heading_p90': None}
     assert icr['improvement_pct']['windows'] is None
     assert icr['improvement_pct']['segments']['position'] > 90
+    # The noise model on the windows the pieces hold (it was not written: the node's default
+    # is several times over-confident on such logs), said so.
+    assert values['identification.covariance.window_lengths'] == [0.5, 1.0]
+    assert values['covariance.timing'] > 0.0 and values['covariance.k_left'] > 0.0
+    assert doc['covariance']['window_lengths_s'] == [0.5, 1.0]
+    assert 'no piece of the recordings holds a window of 10 s: fitted on windows of 0.5/1 s' \
+        in stdout
 
 
 def test_noisy_ground_truth_refused_with_its_cause_then_accepted(tmp_path, capsys):

@@ -24,10 +24,30 @@ from tracked_kinematics.core.evaluate import fit_noise, held_out_windows, record
 from tracked_kinematics.core.identify.reference.delays import sensor_delays
 from tracked_kinematics.core.identify.reference.heading_fusion import (
     bias_prior, BIAS_SIGMA_FLOOR, check_gyro_against_pose, fuse_heading, signed_gyro_scale)
-from tracked_kinematics.core.identify.segments import over_jumps
+from tracked_kinematics.core.identify.segments import covered_spans, over_jumps
 
 LENGTHS = (5.0, 10.0)
 """Window lengths the noise model is fitted on, s (evaluate_model's defaults)."""
+SHORTER = ((2.5, 5.0), (1.0, 2.0), (0.5, 1.0))
+"""The window lengths of recordings whose pieces are too short for :data:`LENGTHS`, longest
+first: the first pair whose longer window fits in the longest piece (DRIVE's 2-s training
+windows: 0.5 / 1 s). Without them the covariance of such a log was not written, and the
+node's default was 3-10 times over-confident on the windowed Warthog runs of
+../shared/realdata (mean NEES 9-20 after 0.5-1.5 s, held out); fitted on 0.5 / 1-s windows,
+1.3-4.5."""
+
+
+def fit_lengths(recordings) -> tuple[float, float]:
+    """Return the window lengths to fit the noise model of ``recordings`` on, s."""
+    longest = 0.0
+    for rec in recordings:
+        start, end = covered_spans(rec)
+        if len(start):
+            longest = max(longest, float((end - start).max()))
+    if longest >= LENGTHS[-1]:
+        return LENGTHS
+    return next((pair for pair in SHORTER if pair[-1] <= longest), LENGTHS)
+
 
 SCALE_SPREAD = 0.01
 """A gyro scale is written only when it differs from 1 by more than this and 3 standard errors."""
@@ -75,13 +95,20 @@ def noise_values(found, lengths=LENGTHS) -> tuple[dict, dict]:
     return values, record
 
 
-def _noise_lines(found, held_out: str) -> list[str]:
+def _noise_lines(found, held_out: str, lengths) -> list[str]:
     m = found.model
     held = (f'; held at the prior: {", ".join(found.held)}' if found.held else '')
-    return [f'noise model ({found.errors} errors of {found.windows} windows of '
-            f'{"/".join(f"{w:g}" for w in LENGTHS)} s, ~{found.independent:.0f} independent, '
-            f'{held_out}): track {m.track:.2e} m^2/m, turn {m.turn:.2e} rad^2/rad, slip '
-            f'{m.slip:.2e} m^2/rad, timing {m.timing:.2e} s^2{held}']
+    lines = [f'noise model ({found.errors} errors of {found.windows} windows of '
+             f'{"/".join(f"{w:g}" for w in lengths)} s, ~{found.independent:.0f} independent, '
+             f'{held_out}): track {m.track:.2e} m^2/m, turn {m.turn:.2e} rad^2/rad, slip '
+             f'{m.slip:.2e} m^2/rad, timing {m.timing:.2e} s^2{held}']
+    if tuple(lengths) != LENGTHS:
+        shown = '/'.join(f'{w:g}' for w in lengths)
+        lines.append(f'noise model: no piece of the recordings holds a window of '
+                     f'{LENGTHS[-1]:g} s: fitted on windows of {shown} s, its growth beyond '
+                     f'{lengths[-1]:g} s extrapolated (check it with evaluate_model --window '
+                     f'on longer drives)')
+    return lines
 
 
 MAX_WINDOWS = 3000
@@ -105,20 +132,20 @@ def _thinned(windows):
     return windows.select(keep)
 
 
-def _noise(windows, errors, free, held_out):
+def _noise(windows, errors, free, held_out, lengths=LENGTHS):
     """Fit the noise model to windows; return (values, record, report, lines) or a reason."""
     windows = _thinned(windows)
     try:
         found = fit_noise(windows, free=free, errors=errors)
     except ValueError as err:
         return None, str(err)
-    values, record = noise_values(found)
+    values, record = noise_values(found, lengths)
     record['covariance.held_out'] = held_out
     report = {'model': {t: getattr(found.model, t) for t in COVARIANCE_KEYS},
               'fitted': list(found.fitted), 'held': list(found.held), 'errors': found.errors,
               'windows': int(found.windows), 'independent_windows': float(found.independent),
-              'window_lengths_s': list(LENGTHS), 'held_out': held_out}
-    return (values, record, report, _noise_lines(found, held_out)), ''
+              'window_lengths_s': list(lengths), 'held_out': held_out}
+    return (values, record, report, _noise_lines(found, held_out, lengths)), ''
 
 
 def _not_fitted(reason: str) -> Extras:
@@ -168,10 +195,11 @@ def pose_extras(result, options, track_width: float) -> Extras:
                              check=False).icr
         except (IdentificationError, ValueError):
             return result.icr   # too little in this fold: the full fit's ICRs
-    windows = held_out_windows(recordings, fit_icr, LENGTHS, settings.min_speed,
+    lengths = fit_lengths(recordings)
+    windows = held_out_windows(recordings, fit_icr, lengths, settings.min_speed,
                                track_width)
     done, reason = _noise(windows, 'pose', ('track', 'turn', 'slip', 'timing'),
-                          _held_out_kind(recordings))
+                          _held_out_kind(recordings), lengths)
     if done is None:
         return _not_fitted(reason)
     values, record, report, lines = done
@@ -221,9 +249,10 @@ def reference_extras(fit, recordings, options, track_width: float, base=None) ->
                     gnss_antenna=tuple(options.gnss_antenna)).icr
             except (IdentificationError, ValueError):
                 return fit.icr
-        windows = held_out_windows(shifted, fit_icr, LENGTHS, min_speed, track_width)
+        lengths = fit_lengths(shifted)
+        windows = held_out_windows(shifted, fit_icr, lengths, min_speed, track_width)
         done, reason = _noise(windows, 'pose', ('track', 'turn', 'slip', 'timing'),
-                              _held_out_kind(recordings))
+                              _held_out_kind(recordings), lengths)
         if has_gyro:
             scale_lines, scale_values, scale_record = _gyro_scale(shifted, imu_delay)
             values.update(scale_values)
@@ -245,15 +274,16 @@ def reference_extras(fit, recordings, options, track_width: float, base=None) ->
                                             segment_length=segment_length).icr
             except (IdentificationError, ValueError, KeyError):
                 return fit.icr
+        lengths = fit_lengths(heading)
         if len(heading) >= 2:
-            windows = held_out_windows(heading, fit_icr, LENGTHS, min_speed, track_width)
+            windows = held_out_windows(heading, fit_icr, lengths, min_speed, track_width)
             kind = 'leave one recording out'
         else:
             # One recording: a time block of it has no gyro to calibrate on; the calibration
             # (chi and the scale ratio, from the whole drive) scores it.
-            windows = recording_windows(heading, fit.icr, LENGTHS, min_speed, track_width)
+            windows = recording_windows(heading, fit.icr, lengths, min_speed, track_width)
             kind = 'in sample: one recording'
-        done, reason = _noise(windows, 'heading', ('track', 'turn', 'timing'), kind)
+        done, reason = _noise(windows, 'heading', ('track', 'turn', 'timing'), kind, lengths)
     else:
         done, reason = None, 'no pose and no gyro: positions alone do not time the errors'
     if done is None:
@@ -273,10 +303,10 @@ ICR_X_PRIOR = 0.1
 """Uncertainty of an ``icr.x`` held at the base's, in track widths (the fits of
 ../shared/realdata: 0.08 m on the Warthog, 0.06 m on the Marmotte)."""
 PRIOR_WINDOW = max(LENGTHS)
-"""s: the window length at which the priors' error enters the noise model exactly (shorter
-windows get more than theirs: on the held-out Warthog grass runs 96-99 % of the 5-s windows
-lie inside the 95 % ellipse, 88-97 % of the 10-s ones; 85-95 % with the geometric mean of
-the lengths, 7.1 s)."""
+"""s: the window length at which the priors' error enters the noise model exactly, the longer
+of the windows the model was fitted on (shorter windows get more than theirs: on the
+held-out Warthog grass runs 96-99 % of the 5-s windows lie inside the 95 % ellipse, 88-97 %
+of the 10-s ones)."""
 
 
 def held_priors(fit, track_width: float, values: dict, record: dict, report: dict) -> list:
@@ -286,22 +316,24 @@ def held_priors(fit, track_width: float, values: dict, record: dict, report: dic
     A distance scale held (no pose, GNSS or straight) is off by ``sigma_s`` = :data:`DISTANCE_
     SCALE_PRIOR`: the path keeps its shape and its length is off by ``sigma_s d``, along the
     motion: the ``timing`` term (``timing v v^T`` at both ends of a window) carries that
-    exactly for a window of :data:`PRIOR_WINDOW` s, ``timing += sigma_s^2 T^2 / 2``. An
-    ``icr.x`` held (no positions) moves the path sideways by about ``sigma_x`` per radian
-    turned: ``slip += sigma_x^2 theta_T``, ``theta_T`` the mean angle turned in ``T``. The
-    record says which constants were held and at what uncertainty.
+    exactly for a window of the longer fitted length ``T`` (:data:`PRIOR_WINDOW` on a
+    continuous log), ``timing += sigma_s^2 T^2 / 2``. An ``icr.x`` held (no positions) moves
+    the path sideways by about ``sigma_x`` per radian turned: ``slip += sigma_x^2 theta_T``,
+    ``theta_T`` the mean angle turned in ``T``. The record says which constants were held and
+    at what uncertainty.
     """
     held = list(fit.held)
     lines, priors = [], {}
+    window = max(record.get('covariance.window_lengths', (PRIOR_WINDOW,)))
     data = fit.report.get('data') or {}
     moving_time = data.get('moving_segments', 0) * float(fit.report.get('segment_length', 1.0))
     if 'distance_scale' in held:
         sigma = DISTANCE_SCALE_PRIOR
-        values['covariance.timing'] += sigma ** 2 * PRIOR_WINDOW ** 2 / 2.0
+        values['covariance.timing'] += sigma ** 2 * window ** 2 / 2.0
         priors['distance_scale'] = sigma
     if 'icr.x' in held and moving_time > 0:
         sigma = ICR_X_PRIOR * track_width
-        turned = float(data.get('turned_rad', 0.0)) / moving_time * PRIOR_WINDOW
+        turned = float(data.get('turned_rad', 0.0)) / moving_time * window
         values['covariance.slip'] += sigma ** 2 * turned
         priors['icr.x'] = sigma
     if priors:
@@ -309,7 +341,7 @@ def held_priors(fit, track_width: float, values: dict, record: dict, report: dic
         report['held_prior'] = priors
         lines.append('noise model: the uncertainty of what was held added (' + ', '.join(
             f'{k} +- {v:.3g}' + (' (relative)' if k == 'distance_scale' else ' m')
-            for k, v in priors.items()) + f', exact for windows of {PRIOR_WINDOW:.1f} s): '
+            for k, v in priors.items()) + f', exact for windows of {window:.1f} s): '
             f'timing {values["covariance.timing"]:.2e} s^2, slip '
             f'{values["covariance.slip"]:.2e} m^2/rad written')
     return lines
