@@ -39,6 +39,7 @@ class ImuSample(NamedTuple):
     quaternion: tuple      # orientation (x, y, z, w)
     has_orientation: bool  # orientation_covariance[0] != -1 (REP-145: -1 means none)
     frame_id: str
+    nanosec_valid: bool = True   # header.stamp.nanosec < 1e9 (else no valid time)
 
 
 def stamp_key(msg) -> int:
@@ -86,7 +87,8 @@ class ImuReader:
                              _VECTOR.unpack_from(data, start + _TO_RATE),
                              _QUATERNION.unpack_from(data, start),
                              _DOUBLE.unpack_from(data, start + _TO_COVARIANCE)[0] != -1.0,
-                             data[16:15 + length].decode('utf-8', 'replace'))
+                             data[16:15 + length].decode('utf-8', 'replace'),
+                             nanosec < 1_000_000_000)
         try:
             msg = deserialize_message(data, Imu)
         except Exception:  # noqa: BLE001 -- malformed bytes: the caller reports them
@@ -94,7 +96,7 @@ class ImuReader:
         stamp, w, q = msg.header.stamp, msg.angular_velocity, msg.orientation
         sample = ImuSample(stamp.sec * 1_000_000_000 + stamp.nanosec, (w.x, w.y, w.z),
                            (q.x, q.y, q.z, q.w), msg.orientation_covariance[0] != -1.0,
-                           msg.header.frame_id)
+                           msg.header.frame_id, stamp.nanosec < 1_000_000_000)
         offset = self._offset(data)
         if offset is not None:
             start = offset - _TO_RATE_Z
