@@ -106,6 +106,9 @@ MOUNTINGS = {
                        .as_quat()))),
     # On its side: its x axis up (pitch -pi/2), no orientation.
     'x_up': ((0.0, -0.5 * math.pi, 0.0), lambda r, psi: ((r, 0.0, 0.0), None)),
+    # NED, a one-axis gyro: NaN on x and y (before: 0 * NaN, every sample refused).
+    'ned_z_only': ((math.pi, 0.0, 0.0),
+                   lambda r, psi: ((math.nan, math.nan, -r), yaw_quaternion(0.5 * math.pi - psi))),
 }
 
 

@@ -31,6 +31,9 @@ MAX_TILT = math.radians(60.0)
 #: Largest departure of an orientation's quaternion norm from 1 that is read as a rotation.
 UNIT_TOLERANCE = 0.01
 
+#: Entries of a mount rotation smaller than this are 0 (rounding of a quarter or half turn).
+ZERO = 1e-12
+
 _COS_MAX_TILT = math.cos(MAX_TILT)
 
 
@@ -55,9 +58,13 @@ def mount_rotation(roll: float, pitch: float, yaw: float) -> np.ndarray:
     cr, sr = math.cos(roll), math.sin(roll)
     cp, sp = math.cos(pitch), math.sin(pitch)
     cy, sy = math.cos(yaw), math.sin(yaw)
-    return np.array([[cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+    rows = np.array([[cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
                      [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
                      [-sp, cp * sr, cp * cr]])
+    # sin(pi) is 1.2e-16, not 0: an axis the mount does not read must weigh exactly 0, so
+    # that a NaN the IMU publishes on it (a one-axis gyro) does not spoil the rate.
+    rows[np.abs(rows) < ZERO] = 0.0
+    return rows
 
 
 def _finite(value):
@@ -82,8 +89,9 @@ def heading_rate(omega, mount, quaternion=None, has_orientation=False):
         ``orientation`` (x, y, z, w) of the IMU's frame in the world.
     has_orientation : bool or array_like of bool
         Whether the message carries an orientation (``orientation_covariance[0] != -1``).
-        It is used when, besides, its norm is 1 within :data:`UNIT_TOLERANCE` and it tilts the
-        base by at most :data:`MAX_TILT` from the vertical (either way up: see the module).
+        It is used when, besides, its norm is 1 within :data:`UNIT_TOLERANCE`, it tilts the
+        base by at most :data:`MAX_TILT` from the vertical (either way up: see the module)
+        and the rate it gives is finite (an axis of ``omega`` NaN: the body rate is used).
 
     Returns
     -------
@@ -96,7 +104,9 @@ def heading_rate(omega, mount, quaternion=None, has_orientation=False):
     wx, wy, wz = omega
     rows = mount.tolist() if isinstance(mount, np.ndarray) else mount
     (m00, m01, m02), _, (m20, m21, m22) = rows
-    body = m20 * wx + m21 * wy + m22 * wz
+    # An axis the mount does not read (weight 0) is not read: NaN there gives no NaN here.
+    body = ((m20 * wx if m20 else 0.0) + (m21 * wy if m21 else 0.0)
+            + (m22 * wz if m22 else 0.0))
     if quaternion is None:
         return body, _false_like(body)
     unit, rows_r = _orientation(quaternion, has_orientation)
@@ -110,11 +120,13 @@ def heading_rate(omega, mount, quaternion=None, has_orientation=False):
     h1 = r10 * m00 + r11 * m01 + r12 * m02
     h2 = r20 * m00 + r21 * m01 + r22 * m02
     up = r20 * m20 + r21 * m21 + r22 * m22
-    used = unit & (abs(up) >= _COS_MAX_TILT)
     horizontal = h0 * h0 + h1 * h1
     horizontal = horizontal + (horizontal == 0.0)
     rate = w2 - h2 * (w0 * h0 + w1 * h1) / horizontal
     rate = rate * (1.0 - 2.0 * (up < 0.0))
+    # The orientation's rate needs every axis: where one is not finite, the body rate (which
+    # needs only those the mount reads).
+    used = unit & (abs(up) >= _COS_MAX_TILT) & _finite(rate)
     if isinstance(used, np.ndarray) or isinstance(rate, np.ndarray):
         return np.where(used, rate, body), np.asarray(used) & np.ones_like(rate, dtype=bool)
     return (rate, True) if used else (body, False)
