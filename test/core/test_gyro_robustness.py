@@ -299,3 +299,48 @@ def test_wild_stamps_neither_restart_nor_shut_out_the_gyro(wild, offset):
     h = np.array(h)
     assert h[after][-1] - h[after][0] == pytest.approx(
         heading[after][-1] - heading[after][0], abs=0.03)
+
+
+@pytest.mark.parametrize('offset', [-3.0, -1.0, 1.0, 2.0, 4.5])
+def test_a_gyro_on_a_clock_seconds_off_is_refused_naming_the_clock(offset):
+    # Before: within the 5-s clock limit, a gyro 1-4.5 s ahead was fused (1 s: heading error
+    # 0.29 rad where the encoders alone had 0.14) or refused as 'on another axis' /
+    # 'upside down'; one 1-3 s behind was never used, with OK ('the gyro restarts').
+    t, left, right, w_true, heading = turns(30.0)
+    g_t, g_w = readings(t, w_true)
+    odo = GyroOdometry(MODEL, CONFIG)
+    encoders_alone = GyroOdometry(MODEL, CONFIG)
+    # As they arrive (at the true times), stamped on the IMU's clock.
+    events = sorted([(s, 0, k) for k, s in enumerate(g_t)]
+                    + [(s, 1, k) for k, s in enumerate(t)])
+    for _, kind, k in events:
+        if kind == 0:
+            odo.imu(g_t[k] + offset, g_w[k])
+        else:
+            odo.encoders(t[k], left[k], right[k])
+    h = feed(encoders_alone, t, left, right, (), ())
+    assert odo.source == ENCODERS and odo.level == ERROR
+    assert odo.reason.startswith(f"the gyro's stamps are {offset:+.2g}")
+    assert 'another clock' in odo.reason
+    assert odo.pose[2] == pytest.approx(h[-1], abs=1e-9)
+
+
+def test_samples_ahead_of_an_encoder_backlog_are_no_clock():
+    # An executor busy for 3 s: the encoders' messages of those seconds come late, at once,
+    # after the gyro's (taken as they arrived): the gyro is then seconds ahead of each step
+    # while the backlog clears, which is no clock.
+    t, left, right, w_true, heading = turns(30.0)
+    g_t, g_w = readings(t, w_true)
+    odo = GyroOdometry(MODEL, CONFIG)
+    stall = (t >= 15.0) & (t < 18.0)
+    events = sorted([(s, 0, k) for k, s in enumerate(g_t)]
+                    + [(18.0 if stall[k] else s, 1, k) for k, s in enumerate(t)])
+    levels = []
+    for _, kind, k in events:
+        if kind == 0:
+            odo.imu(g_t[k], g_w[k])
+        else:
+            odo.encoders(t[k], left[k], right[k])
+            levels.append(odo.level)
+    assert ERROR not in levels and odo.source == GYRO
+    assert odo.pose[2] == pytest.approx(heading[-1], abs=0.05)

@@ -112,3 +112,20 @@ def test_wild_imu_stamps_are_dropped_and_named(graph, wild, warning):
     truth = true_heading(AURIGA, t, left, right)
     assert yaws(odom)[-1] - yaws(odom)[0] == pytest.approx(truth[-1] - truth[1], abs=0.03)
     assert g.node.health.report().level == b'\x00'
+
+
+@pytest.mark.parametrize('offset', [-1.0, 2.0])
+def test_an_imu_on_a_clock_seconds_off_is_refused_naming_the_clock(graph, offset):
+    # Before: 2 s ahead, fused on and off (heading 1.4 rad off at the end, OK on
+    # /diagnostics) or refused as 'on another axis'; 1 s behind, never used, with OK.
+    from test_odometry_node_imu_input import imu
+    g = graph()
+    t, left, right, tg, wg = drive(seconds=10.0)
+    # Sent as they come (at their true times), stamped on a clock `offset` s off.
+    odom = g.feed(t, left, right, tg, [imu(s + offset, (0.0, 0.0, w)) for s, w in zip(tg, wg)])
+    assert finite(odom)
+    status = g.node.health.report()
+    assert g.node.odometry.source == 'encoders' and status.level == ERROR
+    # After imu_delay (0.05 s).
+    assert f"the gyro's stamps are {offset - 0.05:+.3g} s" in status.message
+    assert 'another clock' in status.message
