@@ -31,8 +31,9 @@ MAX_TILT = math.radians(60.0)
 #: Largest departure of an orientation's quaternion norm from 1 that is read as a rotation.
 UNIT_TOLERANCE = 0.01
 
-#: Entries of a mount rotation smaller than this are 0 (rounding of a quarter or half turn).
-ZERO = 1e-12
+#: Weight in the body rate below which an axis is not read when it is not finite: a one-axis
+#: gyro's NaN on x and y, with the mount at 0 or a half turn typed as 3.14159 (sin: 2.7e-6).
+MINOR = 0.01
 
 _COS_MAX_TILT = math.cos(MAX_TILT)
 
@@ -58,17 +59,23 @@ def mount_rotation(roll: float, pitch: float, yaw: float) -> np.ndarray:
     cr, sr = math.cos(roll), math.sin(roll)
     cp, sp = math.cos(pitch), math.sin(pitch)
     cy, sy = math.cos(yaw), math.sin(yaw)
-    rows = np.array([[cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+    return np.array([[cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
                      [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
                      [-sp, cp * sr, cp * cr]])
-    # sin(pi) is 1.2e-16, not 0: an axis the mount does not read must weigh exactly 0, so
-    # that a NaN the IMU publishes on it (a one-axis gyro) does not spoil the rate.
-    rows[np.abs(rows) < ZERO] = 0.0
-    return rows
 
 
 def _finite(value):
     return abs(value) < math.inf   # False for NaN; elementwise on arrays
+
+
+def _weighed(m, w):
+    """Return ``m w``; 0 where the axis barely counts (:data:`MINOR`) and ``w`` is not finite."""
+    if abs(m) >= MINOR:
+        return m * w
+    if isinstance(w, np.ndarray):
+        with np.errstate(invalid='ignore'):
+            return np.where(_finite(w), m * w, 0.0)
+    return m * w if _finite(w) else 0.0
 
 
 def heading_rate(omega, mount, quaternion=None, has_orientation=False):
@@ -104,9 +111,7 @@ def heading_rate(omega, mount, quaternion=None, has_orientation=False):
     wx, wy, wz = omega
     rows = mount.tolist() if isinstance(mount, np.ndarray) else mount
     (m00, m01, m02), _, (m20, m21, m22) = rows
-    # An axis the mount does not read (weight 0) is not read: NaN there gives no NaN here.
-    body = ((m20 * wx if m20 else 0.0) + (m21 * wy if m21 else 0.0)
-            + (m22 * wz if m22 else 0.0))
+    body = _weighed(m20, wx) + _weighed(m21, wy) + _weighed(m22, wz)
     if quaternion is None:
         return body, _false_like(body)
     unit, rows_r = _orientation(quaternion, has_orientation)

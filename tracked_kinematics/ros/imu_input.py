@@ -21,7 +21,7 @@ from time import monotonic_ns
 from typing import Any
 
 from tracked_kinematics.core.gyro.samples import ORDER
-from tracked_kinematics.core.imu_frame import heading_rate, mount_rotation, ZERO
+from tracked_kinematics.core.imu_frame import heading_rate, mount_rotation
 from tracked_kinematics.ros.health import WARN
 from tracked_kinematics.ros.imu_reader import ImuReader, ImuSample
 from tracked_kinematics.ros.input_topic import WARN_PERIOD
@@ -56,11 +56,9 @@ def _mount(values: Mapping[str, Any]):
 def _rotation_rows(q) -> tuple:
     """Rows of the rotation matrix of a unit quaternion ``(x, y, z, w)``."""
     x, y, z, w = q
-    rows = ((1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)),
+    return ((1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)),
             (2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)),
             (2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)))
-    # As mount_rotation: an axis the mount does not read weighs exactly 0.
-    return tuple(tuple(0.0 if abs(v) < ZERO else v for v in row) for row in rows)
 
 
 class ImuInput:
