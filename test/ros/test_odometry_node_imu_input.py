@@ -184,8 +184,9 @@ def test_the_frame_id_through_tf_when_there_is_a_transform(graph):
     g.node._imu_input._tf_buffer = Buffer
     t, left, right, tg, reading, _ = drive()
     truth = true_heading(AURIGA, t, left, right)
-    msgs = g.feed(t, left, right, tg, [imu(s, (0.0, 0.0, -r), frame='imu_link')
-                                       for s, r in zip(tg, reading)])
+    # Half of them ROS 1 style, '/imu_link' (tf2 refuses a leading slash): the same frame.
+    msgs = g.feed(t, left, right, tg, [imu(s, (0.0, 0.0, -r), frame='/imu_link'[k % 2:])
+                                       for k, (s, r) in enumerate(zip(tg, reading))])
     assert lookups[0] == ('base_link', 'imu_link') and len(lookups) == 1   # cached
     assert abs(yaws(msgs)[-1] - truth[-1]) < 0.03
     report = {v.key: v.value for v in g.node.health.report().values}

@@ -231,8 +231,9 @@ class ImuInput:
 
     def _mount_of(self, sample: ImuSample):
         """Return the mount rows for a sample: imu_mount.* or TF's; None while TF has none."""
-        frame = sample.frame_id
-        if self._mount_given or not frame or frame == self._base_frame:
+        # A ROS 1 style '/imu_link': tf2 refuses frame ids with a leading slash.
+        frame = sample.frame_id.lstrip('/')
+        if self._mount_given or not frame or frame == self._base_frame.lstrip('/'):
             return self._mount
         mount = self._tf_mounts.get(frame)
         if mount is not None:
