@@ -237,11 +237,21 @@ def foreign_publisher(ros_domain):
     rclpy.try_shutdown(context=context)
 
 
+def no_rate(t):
+    """Return an Imu at ``t`` that says it has no angular velocity (an orientation only)."""
+    msg = imu(t, quaternion=(0.0, 0.0, 0.0, 1.0))
+    msg.angular_velocity_covariance[0] = -1.0
+    return msg
+
+
 @pytest.mark.parametrize('case, reason', [
     ('typo', 'no publisher'),
     ('wrong_type', 'its publishers are of another type (std_msgs/msg/Float64)'),
     ('other_clock', "s from the encoders' time"),
     ('garbage', 'every sample refused by the odometry (the gyro reads a non-finite value)'),
+    # Before: fused at standstill, then refused as 'the yaw rate on another axis'.
+    ('no_rate', 'samples without an angular velocity (their angular_velocity_covariance[0] '
+     'is -1'),
 ])
 def test_an_imu_topic_without_a_usable_sample_warns_with_the_reason(
         graph, case, reason, request):
@@ -253,6 +263,7 @@ def test_an_imu_topic_without_a_usable_sample_warns_with_the_reason(
         'wrong_type': {'imu_topic': None},
         'other_clock': {'imu_stamp': lambda s: s + 1.7e9},
         'garbage': {'imu_msg': lambda s: imu(s, (0.0, 0.0, math.nan))},
+        'no_rate': {'imu_msg': no_rate},
     }[case]
     started = time.monotonic()
     assert pump(g, lambda: g.warned(reason), **kwargs), [s.message for s in g.statuses[-3:]]
@@ -375,6 +386,9 @@ def test_read_sample_reads_what_rclpy_reads(frame):
             if quaternion is not None:
                 np.testing.assert_array_equal(sample.quaternion, quaternion)
         assert len(reader._starts) == 1
+        assert sample.has_rate
+    for _ in range(2):
+        assert not reader.read_sample(serialize_message(no_rate(12.0))).has_rate
     assert reader.read_sample(b'\x00\x01\x00\x00garbage') is None
 
 

@@ -139,7 +139,8 @@ class ImuInput:
         """
         Return ``(t, heading rate)`` of a serialised Imu, or None when it is not to be used now.
 
-        ``t`` in s from ``reader.origin``, rad/s. None for bytes that are not an Imu, a zero
+        ``t`` in s from ``reader.origin``, rad/s. None for bytes that are not an Imu, one
+        without an angular velocity (``angular_velocity_covariance[0]`` -1), a zero
         or negative stamp (or one with ``nanosec`` >= 1e9), a stamp beyond
         :data:`CLOCK_WINDOW` of the encoders' time and no mount yet (TF):
         each counted, the clock's throttled in the log. Before the first encoder step, and
@@ -149,6 +150,10 @@ class ImuInput:
         sample = self.reader.read_sample(data)
         if sample is None:
             return self._skip('unreadable', 'a message that is no sensor_msgs/Imu', True)
+        if not sample.has_rate:
+            return self._skip('unreadable', 'samples without an angular velocity (their '
+                              'angular_velocity_covariance[0] is -1: an orientation-only '
+                              'IMU?)', True)
         if not sample.nanosec_valid:
             return self._skip('clock', 'samples whose stamp has nanosec >= 1e9 (no valid '
                               'time: a driver bug)', True)
