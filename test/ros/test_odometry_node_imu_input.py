@@ -252,6 +252,8 @@ def no_rate(t):
     # Before: fused at standstill, then refused as 'the yaw rate on another axis'.
     ('no_rate', 'samples without an angular velocity (their angular_velocity_covariance[0] '
      'is -1'),
+    # Before: '... refused by the odometry (the gyro restarts (a gap, or time went back))'.
+    ('frozen', 'every sample refused by the odometry (a gyro stamp not after the last one'),
 ])
 def test_an_imu_topic_without_a_usable_sample_warns_with_the_reason(
         graph, case, reason, request):
@@ -264,6 +266,7 @@ def test_an_imu_topic_without_a_usable_sample_warns_with_the_reason(
         'other_clock': {'imu_stamp': lambda s: s + 1.7e9},
         'garbage': {'imu_msg': lambda s: imu(s, (0.0, 0.0, math.nan))},
         'no_rate': {'imu_msg': no_rate},
+        'frozen': {'imu_stamp': lambda s: T0 + 0.5},   # a driver that never advances it
     }[case]
     started = time.monotonic()
     assert pump(g, lambda: g.warned(reason), **kwargs), [s.message for s in g.statuses[-3:]]

@@ -192,7 +192,7 @@ class ImuInput:
         else:
             if not dropped:
                 self.counts['refused'] += 1
-            self._why = f'every sample refused by the odometry ({reason})'
+            self._why = f'every sample refused by the odometry ({ORDER if dropped else reason})'
 
     def _skip(self, kind: str, why: str, warn: bool = False):
         if kind:

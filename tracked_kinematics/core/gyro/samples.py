@@ -28,7 +28,8 @@ SATURATED = 'the gyro is saturated'
 JUMP = 'the gyro jumps'
 STALE = 'the gyro was stale'
 BACK = 'the gyro stamps went back'
-ORDER = 'a gyro stamp out of order (two publishers on the topic, or a wild stamp?)'
+ORDER = ('a gyro stamp not after the last one (two publishers on the topic, a stamp that does '
+         'not advance, or a wild one?)')
 
 
 class GyroSamples:
