@@ -278,7 +278,7 @@ def test_the_reader_takes_the_orientation_only_when_it_turns(field, tmp_path, or
 def test_the_reader_drops_garbage_gyro_samples_and_says_so(field, tmp_path, capsys):
     # Before: the NaN and 1e300 rates reached the fits: identify_icr's pose fit wrote no
     # imu_delay ("gt_yaw has non-finite values"), its gyro fit exited 4 ("the tracks or the
-    # gyro sign swapped?") on 4 garbage samples in 6000.
+    # gyro sign swapped?") on 12 garbage samples in 6000.
     from tracked_kinematics.offline.bags.writer import BagWriter
     run_ = field.run
     path = tmp_path / 'garbage'
