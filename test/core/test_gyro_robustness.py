@@ -260,3 +260,87 @@ def test_the_configs_own_limits_are_checked(name, value):
     # Before: GyroConfig(adapt_prior=0) divided by zero at the first segment.
     with pytest.raises(ValueError, match=name):
         GyroConfig(**{name: value})
+
+
+@pytest.mark.parametrize('wild, offset', [
+    ('one', 4.0), ('one', -3.0), ('one', -7.0), ('second_publisher', 3.0),
+    ('second_publisher', -7.0)])
+def test_wild_stamps_neither_restart_nor_shut_out_the_gyro(wild, offset):
+    # Before: one sample stamped 4 s ahead (within the node's 10-s clock window) shut out
+    # every later sample for 4 s as out of order, /diagnostics OK; one 7 s back restarted
+    # the gyro twice; a second publisher 3 s ahead owned the buffer (its samples used 3 s
+    # early, the true ones dropped).
+    t, left, right, w_true, heading = turns(30.0)
+    g_t, g_w = readings(t, w_true)
+    stamps, g_w = g_t.copy(), g_w.copy()
+    at = np.searchsorted(g_t, 12.0)
+    wild_ones = [at] if wild == 'one' else slice(at, None, 2)
+    stamps[wild_ones] += offset
+    if wild != 'one':
+        g_w[wild_ones] = 1.0    # the other publisher reads something else
+    # Fed as they arrive (at the true times), stamped as they are.
+    events = sorted([(s, 0, k) for k, s in enumerate(g_t)]
+                    + [(s, 1, k) for k, s in enumerate(t)])
+    odo = GyroOdometry(MODEL, CONFIG)
+    h, sources = [], []
+    for _, kind, k in events:
+        if kind == 0:
+            odo.imu(stamps[k], g_w[k])
+        else:
+            odo.encoders(t[k], left[k], right[k])
+            h.append(odo.pose[2])
+            sources.append(odo.source)
+    # The gyro in use throughout once it was: no restart, nothing shut out.
+    first = sources.index(GYRO)
+    assert set(sources[first:]) == {GYRO}
+    # Each wild sample dropped (but the last, held: nothing came after it yet).
+    assert odo.samples.dropped == (1 if wild == 'one' else len(g_t[wild_ones]) - 1)
+    after = t >= 12.0
+    h = np.array(h)
+    assert h[after][-1] - h[after][0] == pytest.approx(
+        heading[after][-1] - heading[after][0], abs=0.03)
+
+
+@pytest.mark.parametrize('offset', [-3.0, -1.0, 1.0, 2.0, 4.5])
+def test_a_gyro_on_a_clock_seconds_off_is_refused_naming_the_clock(offset):
+    # Before: within the 5-s clock limit, a gyro 1-4.5 s ahead was fused (1 s: heading error
+    # 0.29 rad where the encoders alone had 0.14) or refused as 'on another axis' /
+    # 'upside down'; one 1-3 s behind was never used, with OK ('the gyro restarts').
+    t, left, right, w_true, heading = turns(30.0)
+    g_t, g_w = readings(t, w_true)
+    odo = GyroOdometry(MODEL, CONFIG)
+    encoders_alone = GyroOdometry(MODEL, CONFIG)
+    # As they arrive (at the true times), stamped on the IMU's clock.
+    events = sorted([(s, 0, k) for k, s in enumerate(g_t)]
+                    + [(s, 1, k) for k, s in enumerate(t)])
+    for _, kind, k in events:
+        if kind == 0:
+            odo.imu(g_t[k] + offset, g_w[k])
+        else:
+            odo.encoders(t[k], left[k], right[k])
+    h = feed(encoders_alone, t, left, right, (), ())
+    assert odo.source == ENCODERS and odo.level == ERROR
+    assert odo.reason.startswith(f"the gyro's stamps are {offset:+.2g}")
+    assert 'another clock' in odo.reason
+    assert odo.pose[2] == pytest.approx(h[-1], abs=1e-9)
+
+
+def test_samples_ahead_of_an_encoder_backlog_are_no_clock():
+    # An executor busy for 3 s: the encoders' messages of those seconds come late, at once,
+    # after the gyro's (taken as they arrived): the gyro is then seconds ahead of each step
+    # while the backlog clears, which is no clock.
+    t, left, right, w_true, heading = turns(30.0)
+    g_t, g_w = readings(t, w_true)
+    odo = GyroOdometry(MODEL, CONFIG)
+    stall = (t >= 15.0) & (t < 18.0)
+    events = sorted([(s, 0, k) for k, s in enumerate(g_t)]
+                    + [(18.0 if stall[k] else s, 1, k) for k, s in enumerate(t)])
+    levels = []
+    for _, kind, k in events:
+        if kind == 0:
+            odo.imu(g_t[k], g_w[k])
+        else:
+            odo.encoders(t[k], left[k], right[k])
+            levels.append(odo.level)
+    assert ERROR not in levels and odo.source == GYRO
+    assert odo.pose[2] == pytest.approx(heading[-1], abs=0.05)

@@ -116,3 +116,25 @@ def test_an_ned_heading_grows_as_the_enu_one_with_its_mount():
     wrong = orientation_heading(ned, mount_rotation(0.0, 0.0, 0.0))
     np.testing.assert_allclose(np.unwrap(right - psi) - (right[0] - psi[0]), 0.0, atol=1e-12)
     np.testing.assert_allclose(np.unwrap(wrong + psi) - (wrong[0] + psi[0]), 0.0, atol=1e-12)
+
+
+@pytest.mark.parametrize('rpy, sign', [((0.0, 0.0, 0.0), 1.0), ((math.pi, 0.0, 0.0), -1.0),
+                                       ((3.14159, 0.0, 0.0), -1.0), ((0.0, 0.0, 1.0), 1.0)])
+@pytest.mark.parametrize('garbage', [math.nan, math.inf])
+def test_a_garbage_axis_the_mount_does_not_read_spoils_nothing(rpy, sign, garbage):
+    # Before: 0 * NaN: a one-axis gyro publishing NaN on x and y had every sample refused as
+    # non-finite (the node), and identify_icr said "no angular velocity: is
+    # angular_velocity.z filled?".
+    mount = mount_rotation(*rpy)
+    omega = (garbage, garbage, 0.5 * sign)
+    assert heading_rate(omega, mount) == (pytest.approx(0.5), False)
+    # With a level orientation: the orientation's rate needs x and y: the body rate.
+    level = tuple(Rotation.from_euler('xyz', [rpy[0], 0.0, 0.3]).as_quat())
+    assert heading_rate(omega, mount, level, True) == (pytest.approx(0.5), False)
+    # Arrays: the same, where the good samples keep the orientation.
+    omegas = tuple(np.array([v, 0.1]) for v in omega)
+    rates, used = heading_rate(omegas, mount, tuple(np.array([v, v]) for v in level),
+                               np.array([True, True]))
+    assert rates[0] == pytest.approx(0.5) and used.tolist() == [False, True]
+    # The z axis the mount reads: still not finite (refused downstream).
+    assert math.isnan(heading_rate((0.0, 0.0, math.nan), mount)[0])

@@ -275,6 +275,30 @@ def test_the_reader_takes_the_orientation_only_when_it_turns(field, tmp_path, or
         assert rec.gyro_yaw is None
 
 
+def test_the_reader_drops_garbage_gyro_samples_and_says_so(field, tmp_path, capsys):
+    # Before: the NaN and 1e300 rates reached the fits: identify_icr's pose fit wrote no
+    # imu_delay ("gt_yaw has non-finite values"), its gyro fit exited 4 ("the tracks or the
+    # gyro sign swapped?") on 12 garbage samples in 6000.
+    from tracked_kinematics.offline.bags.writer import BagWriter
+    run_ = field.run
+    path = tmp_path / 'garbage'
+    t = run_.t[:1000]
+    rates = run_.twist[:1000, 2].copy()
+    bad = {100: math.nan, 200: 1e300, 300: -math.inf, 400: -1e20}
+    with BagWriter(path) as bag:
+        for k, tk in enumerate(t):
+            stamp = sim.START_NS + int(round(tk * 1e9))
+            bag.write('/joint_states', stamp, bag.joint_state(
+                stamp, sim.JOINTS, run_.joint_position[k].tolist()))
+            bag.write('/imu/data', stamp, bag.imu(stamp, bad.get(k, float(rates[k]))))
+    rec = read_recording(path, EncoderSource(sprocket_radius=0.1), imu_topic='/imu/data')
+    keep = ~np.isin(np.arange(1000), list(bad))
+    np.testing.assert_allclose(rec.gyro_rate, rates[keep], atol=1e-9)
+    assert len(rec.gyro_t) == 996
+    assert ('4 of 1000 Imu messages on /imu/data dropped: their heading rate is not finite'
+            in capsys.readouterr().err)
+
+
 # The IMU's mounting (issue 35 item 3): the tools read the gyro as odometry_node does. ----
 
 

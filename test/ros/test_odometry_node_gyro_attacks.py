@@ -79,3 +79,53 @@ def test_an_upside_down_imu_is_refused_with_an_error(graph):
     icr = g.node.odometry.icr
     assert (icr.y_left, icr.y_right) == pytest.approx((AURIGA.y_left, AURIGA.y_right), abs=1e-12)
     assert float(report['icr.y_left in force (m)']) == pytest.approx(AURIGA.y_left)
+
+
+@pytest.mark.parametrize('wild, warning', [
+    ('nanosec', 'nanosec >= 1e9'),
+    ('negative', 'zero or negative stamp'),
+    ('second_publisher', 'a gyro stamp not after the last one (two publishers on the topic'),
+])
+def test_wild_imu_stamps_are_dropped_and_named(graph, wild, warning):
+    # Before: a stamp with nanosec 4e9 (4 s ahead) shut the gyro out for 4 s with OK on
+    # /diagnostics; a second publisher 3 s ahead owned the buffer (the true samples dropped
+    # in silence); a negative stamp was called a zero one.
+    from test_odometry_node_imu_input import imu
+    g = graph()
+    t, left, right, tg, wg = drive(seconds=10.0)
+    at = int(np.searchsorted(tg, T0 + 5.0))
+    msgs = [imu(s, (0.0, 0.0, w)) for s, w in zip(tg, wg)]
+    if wild == 'nanosec':
+        msgs[at].header.stamp.nanosec = 4_000_000_000
+    elif wild == 'negative':
+        msgs[at].header.stamp.sec = -5
+    else:   # from 5 s on, another publisher's samples 3 s ahead between the true ones
+        msgs = msgs[:at] + [m for s, w, m in zip(tg[at:], wg[at:], msgs[at:])
+                            for m in (m, imu(s + 3.0 + 1e-3, (0.0, 0.0, 1.0)))]
+        tg = np.r_[tg[:at], np.repeat(tg[at:], 2)]
+    seen = []
+    odom = g.feed(t, left, right, tg, msgs, lambda s: seen.append(g.node.odometry.source))
+    assert finite(odom)
+    assert g.stderr.warnings('odometry_node', warning)
+    # The gyro never let go once in use, and turned right.
+    assert set(seen[seen.index('gyro'):]) == {'gyro'}
+    truth = true_heading(AURIGA, t, left, right)
+    assert yaws(odom)[-1] - yaws(odom)[0] == pytest.approx(truth[-1] - truth[1], abs=0.03)
+    assert g.node.health.report().level == b'\x00'
+
+
+@pytest.mark.parametrize('offset', [-1.0, 2.0])
+def test_an_imu_on_a_clock_seconds_off_is_refused_naming_the_clock(graph, offset):
+    # Before: 2 s ahead, fused on and off (heading 1.4 rad off at the end, OK on
+    # /diagnostics) or refused as 'on another axis'; 1 s behind, never used, with OK.
+    from test_odometry_node_imu_input import imu
+    g = graph()
+    t, left, right, tg, wg = drive(seconds=10.0)
+    # Sent as they come (at their true times), stamped on a clock `offset` s off.
+    odom = g.feed(t, left, right, tg, [imu(s + offset, (0.0, 0.0, w)) for s, w in zip(tg, wg)])
+    assert finite(odom)
+    status = g.node.health.report()
+    assert g.node.odometry.source == 'encoders' and status.level == ERROR
+    # After imu_delay (0.05 s).
+    assert f"the gyro's stamps are {offset - 0.05:+.3g} s" in status.message
+    assert 'another clock' in status.message

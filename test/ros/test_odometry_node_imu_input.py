@@ -106,6 +106,9 @@ MOUNTINGS = {
                        .as_quat()))),
     # On its side: its x axis up (pitch -pi/2), no orientation.
     'x_up': ((0.0, -0.5 * math.pi, 0.0), lambda r, psi: ((r, 0.0, 0.0), None)),
+    # NED, a one-axis gyro: NaN on x and y (before: 0 * NaN, every sample refused).
+    'ned_z_only': ((math.pi, 0.0, 0.0),
+                   lambda r, psi: ((math.nan, math.nan, -r), yaw_quaternion(0.5 * math.pi - psi))),
 }
 
 
@@ -181,8 +184,9 @@ def test_the_frame_id_through_tf_when_there_is_a_transform(graph):
     g.node._imu_input._tf_buffer = Buffer
     t, left, right, tg, reading, _ = drive()
     truth = true_heading(AURIGA, t, left, right)
-    msgs = g.feed(t, left, right, tg, [imu(s, (0.0, 0.0, -r), frame='imu_link')
-                                       for s, r in zip(tg, reading)])
+    # Half of them ROS 1 style, '/imu_link' (tf2 refuses a leading slash): the same frame.
+    msgs = g.feed(t, left, right, tg, [imu(s, (0.0, 0.0, -r), frame='/imu_link'[k % 2:])
+                                       for k, (s, r) in enumerate(zip(tg, reading))])
     assert lookups[0] == ('base_link', 'imu_link') and len(lookups) == 1   # cached
     assert abs(yaws(msgs)[-1] - truth[-1]) < 0.03
     report = {v.key: v.value for v in g.node.health.report().values}
@@ -233,11 +237,23 @@ def foreign_publisher(ros_domain):
     rclpy.try_shutdown(context=context)
 
 
+def no_rate(t):
+    """Return an Imu at ``t`` that says it has no angular velocity (an orientation only)."""
+    msg = imu(t, quaternion=(0.0, 0.0, 0.0, 1.0))
+    msg.angular_velocity_covariance[0] = -1.0
+    return msg
+
+
 @pytest.mark.parametrize('case, reason', [
     ('typo', 'no publisher'),
     ('wrong_type', 'its publishers are of another type (std_msgs/msg/Float64)'),
     ('other_clock', "s from the encoders' time"),
     ('garbage', 'every sample refused by the odometry (the gyro reads a non-finite value)'),
+    # Before: fused at standstill, then refused as 'the yaw rate on another axis'.
+    ('no_rate', 'samples without an angular velocity (their angular_velocity_covariance[0] '
+     'is -1'),
+    # Before: '... refused by the odometry (the gyro restarts (a gap, or time went back))'.
+    ('frozen', 'every sample refused by the odometry (a gyro stamp not after the last one'),
 ])
 def test_an_imu_topic_without_a_usable_sample_warns_with_the_reason(
         graph, case, reason, request):
@@ -249,6 +265,8 @@ def test_an_imu_topic_without_a_usable_sample_warns_with_the_reason(
         'wrong_type': {'imu_topic': None},
         'other_clock': {'imu_stamp': lambda s: s + 1.7e9},
         'garbage': {'imu_msg': lambda s: imu(s, (0.0, 0.0, math.nan))},
+        'no_rate': {'imu_msg': no_rate},
+        'frozen': {'imu_stamp': lambda s: T0 + 0.5},   # a driver that never advances it
     }[case]
     started = time.monotonic()
     assert pump(g, lambda: g.warned(reason), **kwargs), [s.message for s in g.statuses[-3:]]
@@ -373,6 +391,9 @@ def test_read_sample_reads_what_rclpy_reads(frame):
             if quaternion is not None:
                 np.testing.assert_array_equal(sample.quaternion, quaternion)
         assert len(reader._starts) == 1
+        assert sample.has_rate
+    for _ in range(2):
+        assert not reader.read_sample(serialize_message(no_rate(12.0))).has_rate
     assert reader.read_sample(b'\x00\x01\x00\x00garbage') is None
 
 

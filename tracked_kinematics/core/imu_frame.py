@@ -31,6 +31,10 @@ MAX_TILT = math.radians(60.0)
 #: Largest departure of an orientation's quaternion norm from 1 that is read as a rotation.
 UNIT_TOLERANCE = 0.01
 
+#: Weight in the body rate below which an axis is not read when it is not finite: a one-axis
+#: gyro's NaN on x and y, with the mount at 0 or a half turn typed as 3.14159 (sin: 2.7e-6).
+MINOR = 0.01
+
 _COS_MAX_TILT = math.cos(MAX_TILT)
 
 
@@ -64,6 +68,16 @@ def _finite(value):
     return abs(value) < math.inf   # False for NaN; elementwise on arrays
 
 
+def _weighed(m, w):
+    """Return ``m w``; 0 where the axis barely counts (:data:`MINOR`) and ``w`` is not finite."""
+    if abs(m) >= MINOR:
+        return m * w
+    if isinstance(w, np.ndarray):
+        with np.errstate(invalid='ignore'):
+            return np.where(_finite(w), m * w, 0.0)
+    return m * w if _finite(w) else 0.0
+
+
 def heading_rate(omega, mount, quaternion=None, has_orientation=False):
     """
     Rate of the heading of ``base_link`` from an IMU sample (or arrays of samples).
@@ -82,8 +96,9 @@ def heading_rate(omega, mount, quaternion=None, has_orientation=False):
         ``orientation`` (x, y, z, w) of the IMU's frame in the world.
     has_orientation : bool or array_like of bool
         Whether the message carries an orientation (``orientation_covariance[0] != -1``).
-        It is used when, besides, its norm is 1 within :data:`UNIT_TOLERANCE` and it tilts the
-        base by at most :data:`MAX_TILT` from the vertical (either way up: see the module).
+        It is used when, besides, its norm is 1 within :data:`UNIT_TOLERANCE`, it tilts the
+        base by at most :data:`MAX_TILT` from the vertical (either way up: see the module)
+        and the rate it gives is finite (an axis of ``omega`` NaN: the body rate is used).
 
     Returns
     -------
@@ -96,7 +111,7 @@ def heading_rate(omega, mount, quaternion=None, has_orientation=False):
     wx, wy, wz = omega
     rows = mount.tolist() if isinstance(mount, np.ndarray) else mount
     (m00, m01, m02), _, (m20, m21, m22) = rows
-    body = m20 * wx + m21 * wy + m22 * wz
+    body = _weighed(m20, wx) + _weighed(m21, wy) + _weighed(m22, wz)
     if quaternion is None:
         return body, _false_like(body)
     unit, rows_r = _orientation(quaternion, has_orientation)
@@ -110,11 +125,13 @@ def heading_rate(omega, mount, quaternion=None, has_orientation=False):
     h1 = r10 * m00 + r11 * m01 + r12 * m02
     h2 = r20 * m00 + r21 * m01 + r22 * m02
     up = r20 * m20 + r21 * m21 + r22 * m22
-    used = unit & (abs(up) >= _COS_MAX_TILT)
     horizontal = h0 * h0 + h1 * h1
     horizontal = horizontal + (horizontal == 0.0)
     rate = w2 - h2 * (w0 * h0 + w1 * h1) / horizontal
     rate = rate * (1.0 - 2.0 * (up < 0.0))
+    # The orientation's rate needs every axis: where one is not finite, the body rate (which
+    # needs only those the mount reads).
+    used = unit & (abs(up) >= _COS_MAX_TILT) & _finite(rate)
     if isinstance(used, np.ndarray) or isinstance(rate, np.ndarray):
         return np.where(used, rate, body), np.asarray(used) & np.ones_like(rate, dtype=bool)
     return (rate, True) if used else (body, False)

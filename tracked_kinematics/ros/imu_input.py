@@ -20,6 +20,7 @@ import math
 from time import monotonic_ns
 from typing import Any
 
+from tracked_kinematics.core.gyro.samples import ORDER
 from tracked_kinematics.core.imu_frame import heading_rate, mount_rotation
 from tracked_kinematics.ros.health import WARN
 from tracked_kinematics.ros.imu_reader import ImuReader, ImuSample
@@ -80,8 +81,9 @@ class ImuInput:
     encoder_ns : int or None
         Stamp of the latest encoder step, ns (set by the node at each step).
     counts : collections.Counter
-        Samples by fate: ``used``, ``refused`` (by the odometry), ``clock``, ``unreadable``,
-        ``waiting`` (held for an encoder step and dropped, or no transform yet).
+        Samples by fate: ``used``, ``refused`` (by the odometry), ``order`` (dropped by it
+        as out of order), ``clock``, ``unreadable``, ``waiting`` (held for an encoder step and
+        dropped, or no transform yet).
 
     """
 
@@ -137,8 +139,10 @@ class ImuInput:
         """
         Return ``(t, heading rate)`` of a serialised Imu, or None when it is not to be used now.
 
-        ``t`` in s from ``reader.origin``, rad/s. None for bytes that are not an Imu, a zero
-        stamp, a stamp beyond :data:`CLOCK_WINDOW` of the encoders' time and no mount yet (TF):
+        ``t`` in s from ``reader.origin``, rad/s. None for bytes that are not an Imu, one
+        without an angular velocity (``angular_velocity_covariance[0]`` -1), a zero
+        or negative stamp (or one with ``nanosec`` >= 1e9), a stamp beyond
+        :data:`CLOCK_WINDOW` of the encoders' time and no mount yet (TF):
         each counted, the clock's throttled in the log. Before the first encoder step, and
         ahead of silent encoders, a sample is held (the last :data:`HELD` of them) for
         :meth:`encoder_step`.
@@ -146,6 +150,13 @@ class ImuInput:
         sample = self.reader.read_sample(data)
         if sample is None:
             return self._skip('unreadable', 'a message that is no sensor_msgs/Imu', True)
+        if not sample.has_rate:
+            return self._skip('unreadable', 'samples without an angular velocity (their '
+                              'angular_velocity_covariance[0] is -1: an orientation-only '
+                              'IMU?)', True)
+        if not sample.nanosec_valid:
+            return self._skip('clock', 'samples whose stamp has nanosec >= 1e9 (no valid '
+                              'time: a driver bug)', True)
         fate = self._stamp_fate(sample.stamp_ns)
         if fate is None:
             return None
@@ -163,15 +174,25 @@ class ImuInput:
             return None
         return t, rate
 
-    def taken(self, accepted: bool, reason: str) -> None:
-        """Note whether the odometry took the sample ``take`` returned (its reason if not)."""
+    def taken(self, accepted: bool, reason: str, dropped: int = 0) -> None:
+        """
+        Note whether the odometry took the sample ``take`` returned (its reason if not).
+
+        ``dropped``: samples the odometry dropped as out of order (this one, or a wild one
+        held before it), counted and warned of (throttled).
+        """
+        if dropped:
+            self.counts['order'] += dropped
+            self._logger.warning(f'{self._topic_name()}: {ORDER}: sample dropped',
+                                 throttle_duration_sec=WARN_PERIOD)
         if accepted:
             self.counts['used'] += 1
             self._usable_ns = monotonic_ns()
             self._why = ''
         else:
-            self.counts['refused'] += 1
-            self._why = f'every sample refused by the odometry ({reason})'
+            if not dropped:
+                self.counts['refused'] += 1
+            self._why = f'every sample refused by the odometry ({ORDER if dropped else reason})'
 
     def _skip(self, kind: str, why: str, warn: bool = False):
         if kind:
@@ -185,8 +206,8 @@ class ImuInput:
     def _stamp_fate(self, stamp_ns: int) -> str | None:
         """Return 'use', 'hold' (for the next encoder step) or None (dropped, counted)."""
         if stamp_ns <= 0:
-            return self._skip('clock', 'samples with a zero stamp (the driver must stamp them)',
-                              True)
+            return self._skip('clock', 'samples with a zero or negative stamp (the driver '
+                              'must stamp them)', True)
         if self.encoder_ns is None:
             now_ns = self._node.get_clock().now().nanoseconds
             if abs(stamp_ns - now_ns) > CLOCK_WINDOW * _NS:
@@ -215,8 +236,9 @@ class ImuInput:
 
     def _mount_of(self, sample: ImuSample):
         """Return the mount rows for a sample: imu_mount.* or TF's; None while TF has none."""
-        frame = sample.frame_id
-        if self._mount_given or not frame or frame == self._base_frame:
+        # A ROS 1 style '/imu_link': tf2 refuses frame ids with a leading slash.
+        frame = sample.frame_id.lstrip('/')
+        if self._mount_given or not frame or frame == self._base_frame.lstrip('/'):
             return self._mount
         mount = self._tf_mounts.get(frame)
         if mount is not None:

@@ -29,6 +29,8 @@ _TO_RATE_Z = 8 * (4 + 9 + 2)
 # From the orientation to orientation_covariance[0], and to angular_velocity.x.
 _TO_COVARIANCE = 8 * 4
 _TO_RATE = 8 * (4 + 9)
+# ... and to angular_velocity_covariance[0].
+_TO_RATE_COVARIANCE = 8 * (4 + 9 + 3)
 
 
 class ImuSample(NamedTuple):
@@ -39,6 +41,8 @@ class ImuSample(NamedTuple):
     quaternion: tuple      # orientation (x, y, z, w)
     has_orientation: bool  # orientation_covariance[0] != -1 (REP-145: -1 means none)
     frame_id: str
+    nanosec_valid: bool = True   # header.stamp.nanosec < 1e9 (else no valid time)
+    has_rate: bool = True        # angular_velocity_covariance[0] != -1 (-1: no rates)
 
 
 def stamp_key(msg) -> int:
@@ -86,7 +90,9 @@ class ImuReader:
                              _VECTOR.unpack_from(data, start + _TO_RATE),
                              _QUATERNION.unpack_from(data, start),
                              _DOUBLE.unpack_from(data, start + _TO_COVARIANCE)[0] != -1.0,
-                             data[16:15 + length].decode('utf-8', 'replace'))
+                             data[16:15 + length].decode('utf-8', 'replace'),
+                             nanosec < 1_000_000_000,
+                             _DOUBLE.unpack_from(data, start + _TO_RATE_COVARIANCE)[0] != -1.0)
         try:
             msg = deserialize_message(data, Imu)
         except Exception:  # noqa: BLE001 -- malformed bytes: the caller reports them
@@ -94,14 +100,17 @@ class ImuReader:
         stamp, w, q = msg.header.stamp, msg.angular_velocity, msg.orientation
         sample = ImuSample(stamp.sec * 1_000_000_000 + stamp.nanosec, (w.x, w.y, w.z),
                            (q.x, q.y, q.z, q.w), msg.orientation_covariance[0] != -1.0,
-                           msg.header.frame_id)
+                           msg.header.frame_id, stamp.nanosec < 1_000_000_000,
+                           msg.angular_velocity_covariance[0] != -1.0)
         offset = self._offset(data)
         if offset is not None:
             start = offset - _TO_RATE_Z
             found = (_VECTOR.unpack_from(data, start + _TO_RATE)
                      + _QUATERNION.unpack_from(data, start)
-                     + _DOUBLE.unpack_from(data, start + _TO_COVARIANCE))
-            wanted = sample.omega + sample.quaternion + (msg.orientation_covariance[0],)
+                     + _DOUBLE.unpack_from(data, start + _TO_COVARIANCE)
+                     + _DOUBLE.unpack_from(data, start + _TO_RATE_COVARIANCE))
+            wanted = sample.omega + sample.quaternion + (msg.orientation_covariance[0],
+                                                         msg.angular_velocity_covariance[0])
             length = _COUNT.unpack_from(data, 12)[0]
             if (all(a == b or (math.isnan(a) and math.isnan(b)) for a, b in zip(found, wanted))
                     and data[16:15 + length].decode('utf-8', 'replace') == sample.frame_id):

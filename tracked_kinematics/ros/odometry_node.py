@@ -268,7 +268,10 @@ class OdometryNode(TableNode):
             self._gyro_sample(sample)
 
     def _gyro_sample(self, sample) -> None:
-        self._imu_input.taken(self.odometry.imu(*sample), self.odometry.reason)
+        samples = self.odometry.samples
+        dropped = samples.dropped
+        self._imu_input.taken(self.odometry.imu(*sample), self.odometry.reason,
+                              samples.dropped - dropped)
         if self.odometry.source != self._source:
             self._switched()
 

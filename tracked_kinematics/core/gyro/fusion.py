@@ -287,24 +287,32 @@ class GyroOdometry(Published):
 
     def _check_clock(self, t1: float) -> bool:
         """
-        Whether the gyro's stamps are on another clock (far from ``t1`` for a while).
+        Whether the gyro's stamps are on another clock (off ``t1`` for a while).
 
-        Judged only on steps after which samples arrived: a gyro that went silent is stale,
-        not on another clock.
+        Off: the newest sample (after ``imu_delay``) more than ``timeout`` behind ``t1`` (as
+        stale) or ahead of it, beyond what ``imu_delay`` leaves, or beyond
+        :func:`.time_limit`. For a while: :data:`CLOCK_TIME` of the gyro's own time, so
+        that samples taken ahead of an encoder backlog (an executor busy) while it clears
+        are no clock. Judged only on steps after which samples arrived: a gyro that went
+        silent is stale, not on another clock.
         """
         arrived = self.samples.arrived
         fresh, self._arrived = arrived != self._arrived, arrived
         if not fresh:
             return bool(self._clock)
+        cfg = self._config
         last = self.samples.last_t
-        far = math.isfinite(last) and abs(last - t1) > time_limit(self._config)
+        lead = last - t1
+        far = math.isfinite(last) and (
+            abs(lead) > time_limit(cfg) or lead > cfg.timeout + max(-cfg.imu_delay, 0.0)
+            or -lead > cfg.timeout + max(cfg.imu_delay, 0.0))
         if not far:
             self._far_since = math.nan
             self._clock = ''
             return False
-        if not math.isfinite(self._far_since) or t1 < self._far_since:
-            self._far_since = t1
-        if t1 - self._far_since >= CLOCK_TIME:
+        if not math.isfinite(self._far_since) or last < self._far_since:
+            self._far_since = last
+        if last - self._far_since >= CLOCK_TIME:
             self._clock = (f"the gyro's stamps are {last - t1:+.3g} s from the encoders' "
                            "(another clock? use_sim_time, the IMU driver's time source, "
                            'imu_delay)')

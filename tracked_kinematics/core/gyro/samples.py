@@ -5,8 +5,12 @@ The integral of the rate is kept relative to where it is used (:meth:`GyroSample
 sums the samples between two times), never as a growing cumulative sum: one implausible
 sample that got through could otherwise leave a sum so large that later increments are
 lost to rounding. Stamps going back by more than :func:`.config.time_limit` restart the
-buffer from the new sample (a bag played in a loop, a simulated clock reset), as the
-encoders restart; a smaller step back is an out-of-order sample, dropped.
+buffer (a bag played in a loop, a simulated clock reset), as the encoders restart; a smaller
+step back is an out-of-order sample, dropped. A sample that would restart the buffer (far
+back, or after a gap of more than ``timeout``) is held until the next one says which it is:
+the next continuing from it confirms the restart; the next continuing the buffer shows it was
+one wild stamp (a second publisher, a corrupt ``nanosec``), dropped, so that it neither
+restarts the gyro nor shuts out the samples that follow it.
 """
 
 from __future__ import annotations
@@ -24,6 +28,8 @@ SATURATED = 'the gyro is saturated'
 JUMP = 'the gyro jumps'
 STALE = 'the gyro was stale'
 BACK = 'the gyro stamps went back'
+ORDER = ('a gyro stamp not after the last one (two publishers on the topic, a stamp that does '
+         'not advance, or a wild one?)')
 
 
 class GyroSamples:
@@ -50,10 +56,13 @@ class GyroSamples:
         self.fault = ''
         self.refused = 0
         self.arrived = 0      # samples received, any
+        self.dropped = 0      # samples dropped as out of order (or wild: see the module)
+        self._held = None     # (ts, w) of a sample that would restart the buffer
 
     def clear(self) -> None:
         """Forget every sample: the integral across the gap is unknown."""
         self._samples.clear()
+        self._held = None
         self.last_t = -math.inf
         self.healthy_since = math.nan
 
@@ -64,8 +73,9 @@ class GyroSamples:
         Returns
         -------
         str
-            '' when taken; 'order' for an out-of-order sample (dropped, no fault); else the
-            fault (the buffer restarts: the integral across it is unknown).
+            '' when taken; 'order' for an out-of-order sample (dropped, counted in
+            ``dropped``, no fault) or one held (see the module); else the fault (the buffer
+            restarts: the integral across it is unknown).
 
         """
         cfg = self.config
@@ -82,15 +92,24 @@ class GyroSamples:
         fault = ''
         if samples:
             last = samples[-1][0]
-            if ts <= last:
-                if last - ts <= time_limit(cfg):
+            if 0.0 <= last - ts <= time_limit(cfg):
+                self._last_w = previous
+                self.dropped += 1
+                self.fault = ORDER
+                return 'order'
+            if ts < last or ts - last > cfg.timeout:
+                held, self._held = self._held, (ts, w)
+                if held is None or not 0.0 < ts - held[0] <= cfg.timeout:
                     self._last_w = previous
-                    return 'order'
-                fault = BACK
+                    self.fault = ORDER
+                    return 'order'      # held: the next sample tells
+                fault = BACK if ts < last else STALE
                 self.clear()
-            elif ts - last > cfg.timeout:
-                fault = STALE
-                self.clear()
+                samples.append(held)
+                self.healthy_since = held[0]
+            if self._held is not None:  # a held sample the stream did not follow: wild
+                self._held = None
+                self.dropped += 1
         samples.append((ts, w))
         self._last_w = w
         if not math.isfinite(self.healthy_since):

@@ -6,7 +6,8 @@ Decode an IMU's gyro and GNSS positions: the references of a robot without groun
 ``base_link`` by the mount ``imu_mount.*``, about the world's vertical where the message
 has an orientation), and the heading of the orientation
 (:func:`~tracked_kinematics.core.imu_frame.orientation_heading`) when every message gives
-one (``orientation_covariance[0] != -1``) and it turns at all. :class:`Gnss`:
+one (``orientation_covariance[0] != -1``) and it turns at all; a message whose heading rate
+is not finite or beyond :data:`MAX_RATE` is dropped, with a warning. :class:`Gnss`:
 sensor_msgs/NavSatFix with ``status.status >= 0``, converted to the east-north plane at the
 first fix by :mod:`tracked_kinematics.core.geodesy`; or nav_msgs/Odometry,
 navsat_transform's, positions only.
@@ -15,6 +16,7 @@ navsat_transform's, positions only.
 from __future__ import annotations
 
 from pathlib import Path
+import sys
 
 import numpy as np
 from tracked_kinematics.core.errors import SensorDataError
@@ -25,6 +27,10 @@ from .columns import Columns, header_stamp, sort_unique
 from .opening import topic_connections
 
 IMU_TYPES = ('sensor_msgs/msg/Imu',)
+
+#: rad/s: a heading rate at or beyond this is no measurement (a hundred times any ground
+#: vehicle's: odometry_node's imu_saturation gate, 10 by default, may be set higher).
+MAX_RATE = 1e3
 GNSS_TYPES = ('sensor_msgs/msg/NavSatFix', 'nav_msgs/msg/Odometry')
 
 
@@ -57,8 +63,17 @@ class Imu:
             raise SensorDataError(f'{self.path}: no Imu messages on {self.topic}')
         data = sort_unique(data)
         t, omega, quaternion, given = data[:, 0], data[:, 1:4].T, data[:, 4:8].T, data[:, 8] > 0
-        rate, _ = heading_rate(tuple(omega), self.mount, tuple(quaternion), given)
-        yaw = orientation_heading(tuple(quaternion), self.mount, given)
+        with np.errstate(invalid='ignore', over='ignore'):   # garbage: dropped below
+            rate, _ = heading_rate(tuple(omega), self.mount, tuple(quaternion), given)
+            yaw = orientation_heading(tuple(quaternion), self.mount, given)
+        # A garbage sample (NaN, 1e300) would poison every fit that integrates the rate.
+        # None plausible: left to the fits, which say the gyro gives no angular velocity.
+        plausible = np.abs(rate) < MAX_RATE
+        if np.any(plausible) and not np.all(plausible):
+            print(f'{self.path}: warning: {np.count_nonzero(~plausible)} of {len(rate)} Imu '
+                  f'messages on {self.topic} dropped: their heading rate is not finite or '
+                  f'beyond {MAX_RATE:g} rad/s (a driver fault)', file=sys.stderr)
+            t, rate, yaw = t[plausible], rate[plausible], yaw[plausible]
         # An orientation that never turns (a driver filling identity with covariance 0 instead
         # of -1) is no heading.
         turns = np.all(np.isfinite(yaw)) and np.ptp(np.unwrap(yaw)) > 1e-3
