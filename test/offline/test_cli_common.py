@@ -1,12 +1,14 @@
 """run_main: the package's errors are one line and a status; anything else is a traceback."""
 
 import errno
+import json
 import os
 import re
 import signal
 import subprocess
 import sys
 
+import numpy as np
 import pytest
 from tracked_kinematics.core.errors import (
     ExcitationError, FitError, IdentificationError, InvalidParameters, PlanningError,
@@ -177,3 +179,15 @@ def test_window_selection_options_default_to_the_moving_windows_of_the_core():
     assert common.min_speed(parser.parse_args([])) == MIN_SPEED == common.MIN_SPEED
     assert common.min_speed(parser.parse_args(['--min-speed', '0.3'])) == 0.3
     assert common.min_speed(parser.parse_args(['--all-windows', '--min-speed', '0.3'])) is None
+
+
+def test_a_report_is_strict_json_whatever_its_numbers():
+    # A score with nothing to score was written as NaN or Infinity (identify_icr's
+    # choice.pose_alone_m once): no JSON, which strict parsers (jq, JavaScript) refuse.
+    from tracked_kinematics.offline.tooling import report_json
+    text = report_json({'inf': float('inf'), 'nan': np.float64('nan'), 'n': np.int64(3),
+                        'ok': np.bool_(True), 'rows': np.array([1.5, -np.inf]),
+                        'nested': [{'x': (np.float32(0.25), None)}]})
+    assert json.loads(text, parse_constant=lambda name: pytest.fail(name)) == {
+        'inf': None, 'nan': None, 'n': 3, 'ok': True, 'rows': [1.5, None],
+        'nested': [{'x': [0.25, None]}]}

@@ -160,7 +160,30 @@ def imu_mount_of(option, files) -> tuple[float, float, float]:
     return found[0][1] if found else (0.0, 0.0, 0.0)
 
 
+def _strict(value):
+    """Return ``value`` for strict JSON: numpy as Python, a non-finite number as None."""
+    if isinstance(value, dict):
+        return {k: _strict(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_strict(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return _strict(value.tolist())
+    if isinstance(value, bool | np.bool_):
+        return bool(value)
+    if isinstance(value, int | np.integer):
+        return int(value)
+    if isinstance(value, float | np.floating):
+        return float(value) if np.isfinite(value) else None
+    return value
+
+
 def report_json(report) -> str:
-    """Return a JSON report as text (numpy arrays as lists, numpy scalars as floats)."""
-    return json.dumps(report, indent=2, default=lambda o: o.tolist()
-                      if isinstance(o, np.ndarray) else float(o)) + '\n'
+    """
+    Return a JSON report as text: strict JSON, which every parser reads.
+
+    numpy arrays as lists, numpy scalars as Python numbers, and a number that is not finite
+    (a score with nothing to score, an unbounded error) as ``null``: Python's ``NaN`` and
+    ``Infinity`` are no JSON.
+    """
+    return json.dumps(_strict(report), indent=2, allow_nan=False,
+                      default=lambda o: float(o)) + '\n'
