@@ -287,7 +287,7 @@ def test_fit_recovers_timing_from_errors_drawn_from_the_model():
     windows = noise.ErrorWindows(e, bases, np.full(len(start), 10.0), start * DT,
                                  np.zeros(len(start), np.intp))
     fit = noise.fit_noise(windows, width=10.0, dof=None)
-    assert fit.fitted == nm.TERMS
+    assert fit.fitted == nm.FITTED and fit.held == ()
     assert fit.model.timing == pytest.approx(0.01, rel=0.5)
     assert fit.model.track == pytest.approx(2e-3, rel=0.5)
 
@@ -422,3 +422,24 @@ def test_one_recording_is_held_out_block_by_block():
     assert len(windows) > 50
     # The odometry is the drive itself: no error, whatever the block.
     assert np.abs(windows.errors).max() < 1e-9
+
+
+def test_the_scale_term_is_the_displacement_s_at_any_window_length():
+    # A distance scale off by s stretches the path: each window's displacement p is off by
+    # s p, whatever its length (through the timing term, constant in the length, it was
+    # right for one length only). The same in the published covariance of a pose since reset.
+    rng = np.random.default_rng(3)
+    d_left, d_right = manoeuvres(120.0, rng)
+    only = nm.NoiseModel(track=0.0, scale=0.05 ** 2, floor=0.0)
+    for length in (50, 400):
+        start = np.arange(0, len(d_left) - length, 97)
+        bases, motion = nm.window_bases(ICR, d_left, d_right, np.full(len(d_left), DT), start,
+                                        start + length)
+        cov = np.einsum('wmij,m->wij', bases, only.constants)
+        p = motion[:, :2]
+        np.testing.assert_allclose(cov[:, :2, :2], 0.05 ** 2 * p[:, :, None] * p[:, None, :],
+                                   atol=1e-12)
+        assert np.all(cov[:, 2, :] == 0.0) and np.all(cov[:, :, 2] == 0.0)
+    upper = nm.published_covariance((0.0,) * 6, (3.0, -4.0, 0.7), (0.0, 0.0, 0.0),
+                                    (0.0, 0.0, 0.0), only)
+    assert upper == pytest.approx((0.0225, -0.03, 0.0, 0.04, 0.0, 0.0))

@@ -85,11 +85,11 @@ def test_gyro_alone_fits_what_the_heading_determines_and_holds_slip(bags, tmp_pa
     assert values['identification.covariance.errors'] == 'heading'
     assert values['identification.covariance.held'] == ['slip']
     # The prior's slip, and the held icr.x's uncertainty (0.1 track width) on top of it;
-    # the held distance scale's (5 %) in the timing term.
+    # the held distance scale's (5 %) in its own term.
     assert values['covariance.slip'] > 2e-2
     assert values['identification.covariance.held_prior'] == ['distance_scale +- 0.05',
                                                               'icr.x +- 0.042']
-    assert values['covariance.timing'] >= 0.05 ** 2 * 50.0 / 2.0
+    assert values['covariance.scale'] == pytest.approx(0.05 ** 2)
     assert report['covariance']['held'] == ['slip']
     assert 'held at the prior: slip' in text
     assert 'the uncertainty of what was held added' in text

@@ -12,7 +12,10 @@ carry independent zero-mean errors of covariance::
 
 and, not accumulated, the odometry is off in time by a zero-mean error of variance
 ``timing`` (s^2) at each end of an interval: the pose covariance of an interval gets
-``timing v v^T`` for the pose rate ``v`` (fixed frame) at its end, and at its start.
+``timing v v^T`` for the pose rate ``v`` (fixed frame) at its end, and at its start; and its
+distance scale is off by a relative error of variance ``scale``, the same over the whole
+interval (fully correlated): the position covariance gets ``scale p p^T`` for the
+displacement ``p`` since the interval's start.
 
 - ``track`` (m^2/m): each track's travel is a random walk in the distance it travelled,
   Kelly's "Linearized error propagation in odometry" (IJRR 23(2), 2004), the model of
@@ -28,6 +31,12 @@ and, not accumulated, the odometry is off in time by a zero-mean error of varian
 - ``timing`` (s^2): the encoder speeds arrive held (the Warthog's change about 8 times a
   second) and a reference's stamps carry a varying latency; an error of the time shifts
   the pose along its rate. Also our own choice.
+- ``scale`` (1, relative variance): a distance scale the calibration could not determine
+  (no pose, GNSS or straight: identify_icr holds it at the nominal one and writes its prior
+  uncertainty here) keeps the path's shape and stretches it: an error ``sigma_s p`` of the
+  displacement ``p``, whatever the window's length (the ``timing`` term, constant in the
+  length, carried it exactly for one length only: 4 times too much after 5 s for 10 s).
+  Not accumulated per step; fitted only where asked (:func:`.evaluate.noise.fit_noise`).
 
 The pose covariance is propagated through the ICR kinematics along the path, linearised as
 Kelly does (:func:`propagate_body`, one step, and its float form for the node,
@@ -60,8 +69,10 @@ CHI2_95 = 5.991464547107979
 CHI2_1_50 = 0.454936423119572
 CHI2_1_95 = 3.841458820694124
 
-TERMS = ('track', 'turn', 'slip', 'timing')
+TERMS = ('track', 'turn', 'slip', 'timing', 'scale')
 """The constants of the model, in the order of :func:`window_bases`' bases."""
+FITTED = TERMS[:4]
+"""The terms :func:`.evaluate.noise.fit_noise` fits by default (``scale`` is a prior's)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -84,6 +95,9 @@ class NoiseModel:
     floor : float
         Variance added per step to each body increment (m^2, m^2, rad^2), so that the
         covariance stays positive definite at a standstill.
+    scale : float
+        Relative variance of the distance scale, the same over an interval: the position
+        covariance gets ``scale p p^T`` for the displacement ``p`` since its start (1).
 
     Raises
     ------
@@ -97,6 +111,7 @@ class NoiseModel:
     slip: float = 0.0
     timing: float = 0.0
     floor: float = 1e-9
+    scale: float = 0.0
 
     def __post_init__(self):
         for f in fields(self):
@@ -132,7 +147,7 @@ class NoiseModel:
         """
         s = _step_covariances(icr, np.atleast_1d(np.asarray(d_left, float)),
                               np.atleast_1d(np.asarray(d_right, float)))
-        s = np.einsum('m,nmij->nij', self.constants[:3], s)
+        s = np.einsum('m,nmij->nij', self.constants[:3], s)   # track, turn, slip
         s += self.floor * np.eye(3)
         return s if np.ndim(d_left) else s[0]
 
@@ -327,17 +342,22 @@ def timing_covariance(model: NoiseModel, v_x: float, v_y: float, w: float):
 
 def published_covariance(upper, pose, twist, start_twist, model: NoiseModel | None):
     """
-    Return the pose covariance published: ``upper`` plus the time error at both ends.
+    Return the pose covariance published: ``upper``, the time error at both ends, the scale.
 
     The time error (variance ``model.timing``, s^2) at the end moves the pose by its fixed-
     frame rate (``twist`` rotated by ``pose``'s heading); at the start (the reset) it moves
     the start pose by ``start_twist`` and turns it by ``w0 dt``, which swings the whole
     displacement ``(x, y)`` since: ``(u_x - w0 y, u_y + w0 x, w0)`` (the lever arm). Both
-    independent, not accumulated. ``model`` None: ``upper`` unchanged.
+    independent, not accumulated. A distance scale off by a relative error of variance
+    ``model.scale`` moves ``(x, y)`` by ``scale (x, y)(x, y)^T`` (the pose is since the reset).
+    ``model`` None: ``upper`` unchanged.
     """
-    if model is None or not model.timing > 0.0:
+    if model is None or not (model.timing > 0.0 or model.scale > 0.0):
         return upper
     x, y, theta = pose
+    k = model.scale
+    upper = (upper[0] + k * x * x, upper[1] + k * x * y, upper[2], upper[3] + k * y * y,
+             upper[4], upper[5])
     v_x, v_y, w = twist
     c, s = math.cos(theta), math.sin(theta)
     end = timing_covariance(model, c * v_x - s * v_y, s * v_x + c * v_y, w)
@@ -442,6 +462,11 @@ def window_bases(icr: IcrParams, d_left, d_right, dt, start, end):
             u[:, 0] -= rate[step, 2] * lever_y
             u[:, 1] += rate[step, 2] * lever_x
         bases[:, k] += u[:, :, None] * u[:, None, :]
+    # Scale: the displacement over the window, fully correlated (published_covariance's).
+    k = TERMS.index('scale')
+    bases[:, k, 0, 0] = lever_x * lever_x
+    bases[:, k, 0, 1] = bases[:, k, 1, 0] = lever_x * lever_y
+    bases[:, k, 1, 1] = lever_y * lever_y
     # To the frame of the window's start heading.
     h0 = heading[start]
     c0, s0 = np.cos(h0), np.sin(h0)

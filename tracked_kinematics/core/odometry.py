@@ -47,8 +47,9 @@ class Published:
     _last_twist = (0.0, 0.0, 0.0)
 
     def set_timing(self, model: NoiseModel | None) -> None:
-        """Publish with the ``timing`` term of ``model`` (none when None or 0)."""
-        self.timing = model if model is not None and model.timing > 0.0 else None
+        """Publish with the ``timing`` and ``scale`` terms of ``model`` (none when None or 0)."""
+        self.timing = (model if model is not None and (model.timing > 0.0 or model.scale > 0.0)
+                       else None)
 
     def reset(self) -> None:
         """Return the pose to zero with zero covariance; the time error at the start stays."""

@@ -403,7 +403,7 @@ def _model_entry(candidate, by_name, runs) -> dict:
             'from_file': {k: k in model.values for k in ('imu_delay', 'gyro_scale')}}
     elif candidate.name != 'ideal' and not online:
         entry['noise'] = {**{t: getattr(model.noise, t) for t in ('track', 'turn', 'slip',
-                                                                  'timing')},
+                                                                  'timing', 'scale')},
                           'from_file': any(k.startswith('covariance.') for k in model.values)}
     return entry
 

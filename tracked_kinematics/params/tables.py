@@ -253,6 +253,11 @@ NOISE_PARAMS: tuple[ParamSpec, ...] = (
               'Variance of the time of the odometry: the published pose covariance adds it '
               'times the current rates squared (0: off)', 's^2', non_negative,
               low=0.0, high=1.0),
+    ParamSpec('covariance.scale', _prior('scale'),
+              'Relative variance of the distance scale: the published position covariance adds '
+              'it times the displacement since the start or the last reset squared (identify_icr '
+              'writes the prior of a scale it could not fit; 0: off)', '', non_negative,
+              low=0.0, high=1.0),
 )
 """The noise model's constants (identify_icr fits them; odometry_node and evaluate_model read
 them: :func:`.values.noise_model_from_values`)."""

@@ -187,4 +187,5 @@ def noise_model_from_values(values: Mapping[str, Any]) -> NoiseModel:
     value = {spec.name: float(values.get(spec.name, spec.default)) for spec in NOISE_PARAMS}
     return NoiseModel(track=0.5 * (value['covariance.k_left'] + value['covariance.k_right']),
                       turn=value['covariance.turn'], slip=value['covariance.slip'],
-                      timing=value['covariance.timing'], floor=value['covariance.floor'])
+                      timing=value['covariance.timing'], floor=value['covariance.floor'],
+                      scale=value['covariance.scale'])

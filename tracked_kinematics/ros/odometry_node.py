@@ -62,10 +62,10 @@ def _noise(values: Mapping[str, Any]) -> TrackNoise:
 
 
 def _terms(values: Mapping[str, Any]) -> NoiseModel:
-    """Return the turn, slip and timing terms (the tracks' are :func:`_noise`'s)."""
+    """Return the turn, slip, timing and scale terms (the tracks' are :func:`_noise`'s)."""
     return NoiseModel(track=0.0, turn=values['covariance.turn'],
                       slip=values['covariance.slip'], timing=values['covariance.timing'],
-                      floor=0.0)
+                      floor=0.0, scale=values['covariance.scale'])
 
 
 gyro_config = gyro_config_from_values

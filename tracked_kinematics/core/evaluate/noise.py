@@ -19,8 +19,8 @@ import numpy as np
 from .pieces import cut, moving_windows, odometry
 from ..identify.holdout import crop_recording
 from ..kinematics import IcrParams
-from ..noise_model import (consistency, covariances, heading_consistency, NoiseModel, PRIOR,
-                           TERMS, window_bases)
+from ..noise_model import (consistency, covariances, FITTED, heading_consistency, NoiseModel,
+                           PRIOR, TERMS, window_bases)
 
 
 @dataclass(frozen=True)
@@ -311,7 +311,7 @@ def _negative_log_posterior(log_c, prior_c, free, groups, width, dof):
     return total + 0.5 * np.sum((log_c - np.log(prior_c[free])) ** 2) / (width * width)
 
 
-def fit_noise(windows: ErrorWindows, prior: NoiseModel | None = None, free=TERMS,
+def fit_noise(windows: ErrorWindows, prior: NoiseModel | None = None, free=FITTED,
               errors: str = 'pose', width: float = PRIOR_WIDTH,
               dof: float | None = DOF) -> NoiseFit:
     """
@@ -336,7 +336,8 @@ def fit_noise(windows: ErrorWindows, prior: NoiseModel | None = None, free=TERMS
         Centre of the prior, and the value of the terms not fitted; default
         :data:`..noise_model.PRIOR`.
     free : sequence of str
-        The terms fitted (of :data:`..noise_model.TERMS`).
+        The terms fitted (of :data:`..noise_model.TERMS`; by default all but ``scale``,
+        which a calibration's prior gives).
     errors : str
         What is compared (:data:`ERRORS`): ``'pose'``, position and heading (a pose
         reference: the heading errors inform ``turn``, which the positions hardly do),
@@ -374,7 +375,9 @@ def fit_noise(windows: ErrorWindows, prior: NoiseModel | None = None, free=TERMS
     index = np.array([TERMS.index(t) for t in free], np.intp)
     if np.any(prior_c[index] <= 0.0):
         raise ValueError('a fitted term needs a prior value > 0')
-    held = tuple(t for t in TERMS if t not in free)
+    # The scale of a prior without one is off, not held.
+    held = tuple(t for t in TERMS if t not in free
+                 and not (t == 'scale' and prior_c[TERMS.index(t)] == 0.0))
     part = ERRORS[errors]
     groups = []
     for length, n_eff in windows.independent_by_length().items():

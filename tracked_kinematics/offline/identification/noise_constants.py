@@ -7,7 +7,8 @@ held_out_windows`: leave one recording out with several, held-out time blocks wi
 :func:`tracked_kinematics.core.evaluate.fit_noise`): against a pose, on the final pose errors;
 against the gyro alone, on the heading errors (``track``, ``turn``, ``timing``; ``slip`` held).
 They are written as odometry_node reads them (``covariance.k_left``, ``covariance.k_right``: the
-track random walk; ``covariance.turn``, ``covariance.slip``, ``covariance.timing``), with their
+track random walk; ``covariance.turn``, ``covariance.slip``, ``covariance.timing``; and
+``covariance.scale``, the prior of a distance scale held: :func:`held_priors`), with their
 provenance under ``identification.covariance.*``. The gyro's ``imu_delay`` and, with a pose,
 its ``gyro_scale`` (:func:`tracked_kinematics.core.gyro.fit_gyro_scale`) are written at
 the top level. docs/tools/identify_icr.md, "The noise model and the gyro".
@@ -54,7 +55,7 @@ SCALE_SPREAD = 0.01
 
 COVARIANCE_KEYS = {'track': ('covariance.k_left', 'covariance.k_right'),
                    'turn': ('covariance.turn',), 'slip': ('covariance.slip',),
-                   'timing': ('covariance.timing',)}
+                   'timing': ('covariance.timing',), 'scale': ('covariance.scale',)}
 """The terrain file's (odometry_node's) names of each constant of the noise model."""
 
 
@@ -303,10 +304,11 @@ ICR_X_PRIOR = 0.1
 """Uncertainty of an ``icr.x`` held at the base's, in track widths (the fits of
 ../shared/realdata: 0.08 m on the Warthog, 0.06 m on the Marmotte)."""
 PRIOR_WINDOW = max(LENGTHS)
-"""s: the window length at which the priors' error enters the noise model exactly, the longer
-of the windows the model was fitted on (shorter windows get more than theirs: on the
-held-out Warthog grass runs 96-99 % of the 5-s windows lie inside the 95 % ellipse, 88-97 %
-of the 10-s ones)."""
+"""s: the window length at which the ``icr.x`` prior's error enters the noise model exactly,
+the longer of the windows the model was fitted on (shorter windows get more than theirs). The
+distance scale's enters every window exactly (``covariance.scale``); through the ``timing``
+term, constant in the length and exact at 10 s, it gave 5-s windows 4 times theirs: 99-100 %
+of the held-out Warthog grass runs' 5-s windows inside the 95 % ellipse."""
 
 
 def held_priors(fit, track_width: float, values: dict, record: dict, report: dict) -> list:
@@ -314,10 +316,9 @@ def held_priors(fit, track_width: float, values: dict, record: dict, report: dic
     Add the uncertainty of what a reference calibration held to the noise model; its lines.
 
     A distance scale held (no pose, GNSS or straight) is off by ``sigma_s`` = :data:`DISTANCE_
-    SCALE_PRIOR`: the path keeps its shape and its length is off by ``sigma_s d``, along the
-    motion: the ``timing`` term (``timing v v^T`` at both ends of a window) carries that
-    exactly for a window of the longer fitted length ``T`` (:data:`PRIOR_WINDOW` on a
-    continuous log), ``timing += sigma_s^2 T^2 / 2``. An ``icr.x`` held (no positions) moves
+    SCALE_PRIOR`: the path keeps its shape and its displacement ``p`` is off by ``sigma_s p``,
+    fully correlated over a window: ``covariance.scale += sigma_s^2`` (the noise model's
+    ``scale`` term, exact for a window of any length). An ``icr.x`` held (no positions) moves
     the path sideways by about ``sigma_x`` per radian turned: ``slip += sigma_x^2 theta_T``,
     ``theta_T`` the mean angle turned in ``T``. The record says which constants were held and
     at what uncertainty.
@@ -329,7 +330,7 @@ def held_priors(fit, track_width: float, values: dict, record: dict, report: dic
     moving_time = data.get('moving_segments', 0) * float(fit.report.get('segment_length', 1.0))
     if 'distance_scale' in held:
         sigma = DISTANCE_SCALE_PRIOR
-        values['covariance.timing'] += sigma ** 2 * window ** 2 / 2.0
+        values['covariance.scale'] = values.get('covariance.scale', 0.0) + sigma ** 2
         priors['distance_scale'] = sigma
     if 'icr.x' in held and moving_time > 0:
         sigma = ICR_X_PRIOR * track_width
@@ -341,8 +342,8 @@ def held_priors(fit, track_width: float, values: dict, record: dict, report: dic
         report['held_prior'] = priors
         lines.append('noise model: the uncertainty of what was held added (' + ', '.join(
             f'{k} +- {v:.3g}' + (' (relative)' if k == 'distance_scale' else ' m')
-            for k, v in priors.items()) + f', exact for windows of {window:.1f} s): '
-            f'timing {values["covariance.timing"]:.2e} s^2, slip '
+            for k, v in priors.items()) + f', icr.x exact for windows of {window:.1f} s): '
+            f'scale {values.get("covariance.scale", 0.0):.2e}, slip '
             f'{values["covariance.slip"]:.2e} m^2/rad written')
     return lines
 
