@@ -117,18 +117,20 @@ def heading_rate(omega, mount, quaternion=None, has_orientation=False):
     unit, rows_r = _orientation(quaternion, has_orientation)
     (r00, r01, r02), (r10, r11, r12), (r20, r21, r22) = rows_r
     # The angular velocity in the world (the mount cancels), the base's x axis in the world
-    # (R m_row0), the world z component of the base's z axis (R m_row2).
-    w0 = r00 * wx + r01 * wy + r02 * wz
-    w1 = r10 * wx + r11 * wy + r12 * wz
-    w2 = r20 * wx + r21 * wy + r22 * wz
-    h0 = r00 * m00 + r01 * m01 + r02 * m02
-    h1 = r10 * m00 + r11 * m01 + r12 * m02
-    h2 = r20 * m00 + r21 * m01 + r22 * m02
-    up = r20 * m20 + r21 * m21 + r22 * m22
-    horizontal = h0 * h0 + h1 * h1
-    horizontal = horizontal + (horizontal == 0.0)
-    rate = w2 - h2 * (w0 * h0 + w1 * h1) / horizontal
-    rate = rate * (1.0 - 2.0 * (up < 0.0))
+    # (R m_row0), the world z component of the base's z axis (R m_row2). A garbage axis
+    # (inf, NaN) makes the rate NaN, which is caught below: no RuntimeWarning on the way.
+    with np.errstate(invalid='ignore', over='ignore'):
+        w0 = r00 * wx + r01 * wy + r02 * wz
+        w1 = r10 * wx + r11 * wy + r12 * wz
+        w2 = r20 * wx + r21 * wy + r22 * wz
+        h0 = r00 * m00 + r01 * m01 + r02 * m02
+        h1 = r10 * m00 + r11 * m01 + r12 * m02
+        h2 = r20 * m00 + r21 * m01 + r22 * m02
+        up = r20 * m20 + r21 * m21 + r22 * m22
+        horizontal = h0 * h0 + h1 * h1
+        horizontal = horizontal + (horizontal == 0.0)
+        rate = w2 - h2 * (w0 * h0 + w1 * h1) / horizontal
+        rate = rate * (1.0 - 2.0 * (up < 0.0))
     # The orientation's rate needs every axis: where one is not finite, the body rate (which
     # needs only those the mount reads).
     used = unit & (abs(up) >= _COS_MAX_TILT) & _finite(rate)
