@@ -12,6 +12,7 @@ from tracked_kinematics.core.integration import relative_pose
 from tracked_kinematics.core.models import ConstantIcr, IdealDiffDrive
 from tracked_kinematics.offline.bag_simulation import simulate_bag, START_NS, truth_path
 from tracked_kinematics.offline.cli import icr_map, simulate_bag as simulate_cli
+from tracked_kinematics.offline.outputs import PROBE_MARK
 from tracked_kinematics.offline.vehicle_file import load_vehicle, shipped_vehicles
 from tracked_kinematics.params import icr_from_values, read_params_file
 
@@ -332,7 +333,10 @@ def start_long_run(tmp_path):
     proc = subprocess.Popen([str(BIN / 'simulate_bag'), 'bag', '--vehicle', 'packbot',
                              '--duration', '1500'], cwd=tmp_path, stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True)
-    writing = wait_for(lambda: any(p.name.startswith('.bag.tmp-') for p in tmp_path.iterdir()))
+    # The bag's temporary directory, not the writability probe (``.bag.tmp-check-...``) that
+    # comes and goes before it: a kill between the two found nothing left (a loaded machine).
+    writing = wait_for(lambda: any(p.name.startswith('.bag.tmp-') and PROBE_MARK not in p.name
+                                   for p in tmp_path.iterdir()))
     return proc, writing
 
 
