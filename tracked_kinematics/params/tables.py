@@ -268,8 +268,9 @@ GYRO_PARAMS: tuple[ParamSpec, ...] = (
               'rad/s/sqrt(Hz)', non_negative, low=0.0, high=1.0),
     ParamSpec('imu_delay', _DEFAULT_GYRO.imu_delay,
               "Time by which the gyro's stamps are late on the encoders' (identify_icr's "
-              'imu_delay; negative: the encoders trail the gyro)', 's', finite,
-              low=-5.0, high=5.0),
+              'imu_delay, which it searches in [-0.5, 1] s; negative: the encoders trail the '
+              'gyro; beyond 1 s the two clocks are not synchronised)', 's', finite,
+              low=-1.0, high=1.0),
     ParamSpec('gyro_scale', _DEFAULT_GYRO.gyro_scale,
               'Gyro scale: measured rate over true rate', '', positive, low=0.5, high=2.0),
     ParamSpec('imu_timeout', _DEFAULT_GYRO.timeout,
