@@ -24,6 +24,7 @@ from tracked_kinematics.core.evaluate.consistency import (
 from tracked_kinematics.core.evaluate.verdict import MIN_WINDOWS
 from tracked_kinematics.core.kinematics import IcrParams
 from tracked_kinematics.offline.errors import UsageError
+from tracked_kinematics.offline.tooling import json_ready
 from tracked_kinematics.params import (
     drivetrain_from_values, gyro_config_from_values, icr_from_values, noise_model_from_values,
     NOISE_PARAMS, read_params_file, values_from_drivetrain)
@@ -302,8 +303,8 @@ def evaluate_models(references: References, models, settings: ev.Settings, *,
     if references.reference == 'pose':
         normalised = _consistency(evaluation, models, candidates, settings,
                                   [d.recording for d in references.data])
-    content = _finite(_content(references, models, evaluation, candidates, runs, settings,
-                               sprocket_radius, command_source))
+    content = json_ready(_content(references, models, evaluation, candidates, runs, settings,
+                                  sprocket_radius, command_source))
     content['settings']['fuse_imu_topic'] = fuse_imu if isinstance(fuse_imu, str) else None
     if references.reference == 'imu':
         content = _heading_only(content)
@@ -351,20 +352,6 @@ def _icr_summary(icr: IcrParams) -> dict:
     return {'track_width': icr.track_width, 'y_left': icr.y_left, 'y_right': icr.y_right,
             'x': icr.x, 'scale_left': icr.scale_left, 'scale_right': icr.scale_right,
             'chi': icr.chi, 'eccentricity': icr.eccentricity}
-
-
-def _finite(value):
-    """JSON without NaN or inf: non-finite floats become null, numpy values plain ones."""
-    if isinstance(value, dict):
-        return {k: _finite(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_finite(v) for v in value]
-    if isinstance(value, (np.floating, float)):
-        value = float(value)
-        return value if math.isfinite(value) else None
-    if isinstance(value, np.integer):
-        return int(value)
-    return value
 
 
 def _model_entry(candidate, by_name, runs) -> dict:

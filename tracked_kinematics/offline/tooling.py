@@ -160,14 +160,14 @@ def imu_mount_of(option, files) -> tuple[float, float, float]:
     return found[0][1] if found else (0.0, 0.0, 0.0)
 
 
-def _strict(value):
+def json_ready(value):
     """Return ``value`` for strict JSON: numpy as Python, a non-finite number as None."""
     if isinstance(value, dict):
-        return {k: _strict(v) for k, v in value.items()}
+        return {k: json_ready(v) for k, v in value.items()}
     if isinstance(value, list | tuple):
-        return [_strict(v) for v in value]
+        return [json_ready(v) for v in value]
     if isinstance(value, np.ndarray):
-        return _strict(value.tolist())
+        return json_ready(value.tolist())
     if isinstance(value, bool | np.bool_):
         return bool(value)
     if isinstance(value, int | np.integer):
@@ -185,5 +185,5 @@ def report_json(report) -> str:
     (a score with nothing to score, an unbounded error) as ``null``: Python's ``NaN`` and
     ``Infinity`` are no JSON.
     """
-    return json.dumps(_strict(report), indent=2, allow_nan=False,
+    return json.dumps(json_ready(report), indent=2, allow_nan=False,
                       default=lambda o: float(o)) + '\n'
