@@ -54,7 +54,7 @@ from the same ``S`` (:meth:`NoiseModel.twist`), as :mod:`.covariance` does for i
 
 from __future__ import annotations
 
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, fields, replace
 import math
 
 import numpy as np
@@ -121,6 +121,16 @@ class NoiseModel:
             if not math.isfinite(value) or value < 0.0:
                 raise ValueError(f'{f.name} must be finite and >= 0, got {value!r}')
             object.__setattr__(self, f.name, float(value))
+
+    def without_tracks(self) -> NoiseModel:
+        """
+        Return the model without its track terms (``track`` and ``floor`` 0).
+
+        The node and evaluate_model keep the tracks' random walk in a
+        :class:`.covariance.TrackNoise` of its own (each track's constant) and publish the
+        turn, slip, timing and scale terms of this one beside it.
+        """
+        return replace(self, track=0.0, floor=0.0)
 
     @property
     def constants(self) -> np.ndarray:

@@ -29,7 +29,8 @@ from tracked_kinematics.core.integration import quaternion_from_yaw
 from tracked_kinematics.core.kinematics import eccentricity, IcrParams, steering_efficiency
 from tracked_kinematics.core.noise_model import NoiseModel
 from tracked_kinematics.core.odometry import Odometry
-from tracked_kinematics.params import gyro_config_from_values, icr_from_values, TERRAIN_PARAMS
+from tracked_kinematics.params import (gyro_config_from_values, icr_from_values,
+                                       noise_model_from_values, TERRAIN_PARAMS)
 from tracked_kinematics.params.node_tables import NODE_PARAMS
 from tracked_kinematics.ros.encoder_input import (
     check_encoder_values, EncoderInput, WARN_PERIOD)
@@ -63,9 +64,7 @@ def _noise(values: Mapping[str, Any]) -> TrackNoise:
 
 def _terms(values: Mapping[str, Any]) -> NoiseModel:
     """Return the turn, slip, timing and scale terms (the tracks' are :func:`_noise`'s)."""
-    return NoiseModel(track=0.0, turn=values['covariance.turn'],
-                      slip=values['covariance.slip'], timing=values['covariance.timing'],
-                      floor=0.0, scale=values['covariance.scale'])
+    return noise_model_from_values(values).without_tracks()
 
 
 gyro_config = gyro_config_from_values

@@ -212,7 +212,7 @@ def gyro_window_consistency(recordings, pieces, icr: IcrParams, config: GyroConf
         As :func:`window_consistency`.
 
     """
-    terms = NoiseModel(0.0, model.turn, model.slip, model.timing, 0.0, model.scale)
+    terms = model.without_tracks()
     out = {}
     for length in lengths:
         errors, covs = [], []
