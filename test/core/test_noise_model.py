@@ -321,6 +321,7 @@ def test_fit_refuses_nothing_to_fit():
 WARTHOG = [n for n in realdata.BAGS if n.startswith('warthog')]
 
 
+@pytest.mark.long   # through the tools, the same folds: test_realdata_consistency
 def test_fitted_on_two_warthog_runs_covers_the_third():
     # Each Warthog run held out in turn: the ICRs identified on the two others (as
     # identify_icr does), the noise fitted on them (each scored with the ICRs of the other),

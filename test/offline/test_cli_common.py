@@ -2,7 +2,6 @@
 
 import errno
 import json
-import os
 import re
 import signal
 import subprocess
@@ -127,7 +126,7 @@ def test_a_signal_removes_what_was_staged(tmp_path, capsys, signum, status, mess
         with Outputs() as outputs:
             outputs.add('--output', tmp_path / 'o.yaml')
             outputs.write_text('--output', 'x: 1\n')
-            os.kill(os.getpid(), signum)
+            signal.raise_signal(signum)
             raise AssertionError('the signal did not arrive')
     previous = signal.getsignal(signal.SIGTERM)
     assert run_main('tool', run, None) == status
@@ -155,7 +154,7 @@ def test_a_second_signal_does_not_interrupt_the_clean_up(tmp_path, capsys, monke
     real = outputs_module._discard
 
     def discard_after_another_signal(tmp, directory):
-        os.kill(os.getpid(), signal.SIGINT)   # impatient Ctrl-C during the clean-up
+        signal.raise_signal(signal.SIGINT)   # impatient Ctrl-C during the clean-up
         real(tmp, directory)
     monkeypatch.setattr(outputs_module, '_discard', discard_after_another_signal)
 
@@ -164,7 +163,7 @@ def test_a_second_signal_does_not_interrupt_the_clean_up(tmp_path, capsys, monke
             for name in ('a.yaml', 'b.json'):
                 outputs.add(name, tmp_path / name)
                 outputs.write_text(name, 'x')
-            os.kill(os.getpid(), signal.SIGTERM)
+            signal.raise_signal(signal.SIGTERM)
     assert run_main('tool', run, None) == 143
     assert capsys.readouterr().err == 'tool: error: terminated by SIGTERM\n'
     assert list(tmp_path.iterdir()) == []

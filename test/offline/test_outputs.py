@@ -320,7 +320,7 @@ def test_a_signal_during_the_start_check_leaves_nothing(tmp_path, monkeypatch):
 
     def then_interrupt(*args, **kwargs):
         made = real(*args, **kwargs)
-        os.kill(os.getpid(), signal.SIGINT)
+        signal.raise_signal(signal.SIGINT)
         return made
     monkeypatch.setattr(outputs_module.tempfile, 'mkstemp', then_interrupt)
     with pytest.raises(KeyboardInterrupt):

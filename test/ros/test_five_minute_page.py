@@ -43,6 +43,7 @@ def test_the_section_is_what_the_walk_runs():
 
 @pytest.mark.ros
 @pytest.mark.slow
+@pytest.mark.long   # 24 s of CPU; test_calibration_drive drives the same loop in make test
 def test_the_simulator_walk_ends_with_a_terrain_file(tmp_path):
     setup, *nodes, deadman = simulator_commands()
     env = {**os.environ, 'PATH': f'{BIN}{os.pathsep}{os.environ["PATH"]}',

@@ -1,6 +1,5 @@
 """ros/main.run: --help, one FATAL line and exit 2 for any start-up failure, typo warnings."""
 
-import os
 import signal
 import time
 
@@ -306,7 +305,7 @@ class _Recorder(Node):
         self.log.append('tick')
         if self._left > 0:
             self._left -= 1
-            os.kill(os.getpid(), signal.SIGINT)
+            signal.raise_signal(signal.SIGINT)
 
     def destroy_node(self):
         self.log.append(('destroyed, context ok', self.context.ok()))

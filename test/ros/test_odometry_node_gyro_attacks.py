@@ -47,7 +47,10 @@ def test_stamps_going_back_with_the_imu_on(graph):
     assert turned == pytest.approx(truth[-1] - truth[1], abs=0.05)
 
 
-@pytest.mark.parametrize('value', [1e20, 1e200, math.nan, math.inf, -1e308])
+@pytest.mark.parametrize('value', [
+    1e20, math.nan,
+    # The gates refuse these as they refuse 1e20 and NaN: make stress sends them too.
+    *(pytest.param(v, marks=pytest.mark.long) for v in (1e200, math.inf, -1e308))])
 def test_one_garbage_sample(graph, value):
     # Before: 1e200 raised OverflowError (the node died), 1e20 froze the heading for good.
     g = graph()

@@ -99,7 +99,7 @@ def test_recovers_delay_accel_limit_and_time_constant():
     assert isinstance(fit.drivetrain.loop, FirstOrderLag)
 
 
-@pytest.mark.parametrize('noise', [0.01, 0.03])
+@pytest.mark.parametrize('noise', [0.01, pytest.param(0.03, marks=pytest.mark.long)])
 def test_noise_leaves_the_parameters_and_rms_at_the_noise_level(noise):
     fit = fit_drivetrain(recording(AURIGA, duration=40.0, noise=noise, seed=3), dt=0.01)
     p = fit.parameters
