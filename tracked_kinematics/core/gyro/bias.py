@@ -19,8 +19,11 @@ radian turned (``adapt_turn``), ``b`` drifts as a random walk (``bias_time``).
 
 A standstill teaches only what agrees with zero motion: its blocks are checked, cumulated
 since the last checkpoint, against the prediction before them (the encoders' creep enters
-through ``a``); a standstill whose mean rate disagrees beyond three standard deviations
-(a turntable, a push) is undone and learns nothing. The noise density is measured from the
+through ``a``), and each block against the standstill's earlier blocks (which needs no
+prior); a standstill whose mean rate disagrees beyond three standard deviations (a
+turntable, a push) is undone and learns nothing: back to its last checkpoint, or to its
+start where the bias was too little known there to tell which of its rates is the bias. The
+noise density is measured from the
 differences of consecutive blocks, which no bias enters (a block's spread about a mean that
 includes it is biased low: 0.70x on four blocks).
 """
@@ -105,6 +108,7 @@ class TurnBias:
         self.still_refused = False
         self._still_reset()
         self._checkpoint = None
+        self._start = None
 
     # Results ---------------------------------------------------------------------------
 
@@ -210,6 +214,7 @@ class TurnBias:
         self._block = [0.0, 0.0, 0.0]    # a, d, y of the current block
         self._since = [0.0, 0.0, 0.0]    # the same since the checkpoint
         self._previous = None            # the previous block's (mean rate, duration)
+        self._level = [0.0, 0.0]         # rate x s and s of the standstill's blocks so far
 
     def still(self, a: float, d: float, y: float) -> None:
         """Observe a standstill step, after ``still_time``: creep ``a`` m, ``d`` s, ``y`` rad."""
@@ -217,6 +222,8 @@ class TurnBias:
             return
         if self._checkpoint is None:
             self._checkpoint = (self.x.copy(), self.p.copy(), self._noise2, self._blocks)
+            if self._start is None:
+                self._start = self._checkpoint
         block = self._block
         block[0] += a
         block[1] += d
@@ -234,12 +241,19 @@ class TurnBias:
         nu = since[2] - float(h @ x0)
         s = float(h @ p0 @ h) + self.noise ** 2 * since[1] + (BIAS_STEP * since[1]) ** 2
         if nu * nu > STILL_GATE * STILL_GATE * s:
-            # It turns while the tracks stand still: undo what this standstill taught.
-            x0, p0, self._noise2, self._blocks = self._checkpoint
-            self.x, self.p = x0.copy(), p0.copy()
-            self.still_refused = True
+            # It turns while the tracks stand still (against what was known before).
+            self._refuse(abs(nu) / since[1])
             return
         mean = (y - self.k * a) / d
+        level, self._level = self._level, [self._level[0] + mean * d, self._level[1] + d]
+        if level[1] > 0.0:
+            # Against this standstill's own blocks so far, whatever was known before: a
+            # turntable in the first seconds of a node with no bias prior.
+            step = mean - level[0] / level[1]
+            var = self.noise ** 2 * (1.0 / d + 1.0 / level[1]) + BIAS_STEP ** 2
+            if step * step > STILL_GATE * STILL_GATE * var:
+                self._refuse(abs(step))
+                return
         previous, self._previous = self._previous, (mean, d)
         if previous is not None:
             # Differences of consecutive blocks: free of the bias, whatever it is.
@@ -252,8 +266,24 @@ class TurnBias:
             self._checkpoint = None
             self._since = [0.0, 0.0, 0.0]
 
+    def _refuse(self, step: float) -> None:
+        """
+        Undo what this standstill taught, ``step`` rad/s the rate it changed by.
+
+        What it taught since its last checkpoint; all it taught where the bias at its start
+        was too little known to tell the rate it kept from this one (a turntable from the
+        start: which of the two is the bias, nothing says; the motion that follows will).
+        """
+        start = self._start
+        if STILL_GATE * math.sqrt(max(float(start[1][1, 1]), 0.0)) > step:
+            self._checkpoint = start
+        x0, p0, self._noise2, self._blocks = self._checkpoint
+        self.x, self.p = x0.copy(), p0.copy()
+        self.still_refused = True
+
     def moving(self) -> None:
         """End the standstill: keep what it taught (if it agreed with zero motion)."""
         self._checkpoint = None
+        self._start = None
         self.still_refused = False
         self._still_reset()
