@@ -1,0 +1,197 @@
+"""
+Benchmark: what the gyro-aided covariance is made of on held-out runs, how far its coverage moves.
+
+The published covariance of odometry_node with ``imu_topic`` (evaluate_model ``--fuse-imu``'s
+``+imu`` row: the terrain file's noise model without its track terms, the tracks' random walk,
+the gyro's heading with its bias, the time error at both ends), replayed with ``~/reset``
+every 5 s and 10 s on held-out data, as :func:`..core.evaluate.consistency.
+gyro_window_consistency` does, with four reset schedules a quarter window apart (the first
+reset at a piece's start, then 1/4, 1/2 and 3/4 of a window later). Printed per case and
+window length: the share of the windows inside the 50 % / 95 % ellipses per schedule and
+pooled, the mean NEES, the mean squared error against the mean trace, and each term's share of
+the mean trace (each term replayed alone; ``gyro`` is the heading's share from the gyro's noise,
+bias and scale, with no term of the file).
+
+Cases (identify_icr's pose fit, which finds the gyro, through its command line): ``snow``, the
+Marmotte's run fitted on its first 55 % and scored on the rest (test/offline/
+test_realdata_consistency.py's protocol); ``snow_reversed``, fitted on the last 45 % and scored
+on the first 55 %; ``grass``, each Warthog grass run scored with a file fitted on the two
+others (pooled). docs/nodes/odometry_node.md, "Consistency of the published covariance", has
+the figures.
+
+Run: ``python benchmarks/bench_gyro_covariance.py [REALDATA_FOLDER] [CASE ...]``.
+"""
+
+import contextlib
+from dataclasses import replace
+import io
+from pathlib import Path
+import sys
+import tempfile
+from types import SimpleNamespace
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT / 'test'))
+
+from helpers.realdata import split_bag  # noqa: E402 -- the test helpers, from the tree
+import numpy as np  # noqa: E402
+from tracked_kinematics.core import evaluate as ev  # noqa: E402
+from tracked_kinematics.core.covariance import TrackNoise  # noqa: E402
+from tracked_kinematics.core.evaluate.consistency import reset_windows  # noqa: E402
+from tracked_kinematics.core.gyro import replay  # noqa: E402
+from tracked_kinematics.core.noise_model import consistency, NoiseModel  # noqa: E402
+from tracked_kinematics.offline.bags import (  # noqa: E402
+    EncoderSource, GroundTruthSource, read_recording)
+from tracked_kinematics.offline.cli import identify_icr  # noqa: E402
+from tracked_kinematics.offline.model_evaluation import (  # noqa: E402
+    pose_references, TerrainModel, track_noise_of)
+
+MARMOTTE = ('marmotte_snow_2024-01-25_12h15_part1', 0.116702, 0.592723)
+GRASS = ('warthog_grass_2024-07-18_16h59', 'warthog_grass_2024-07-29_14h04',
+         'warthog_grass_2024-08-08_16h11')
+WARTHOG = (0.3, 1.08)
+CASES = ('snow', 'snow_reversed', 'grass')
+LENGTHS = (5.0, 10.0)
+OFFSETS = (0.0, 0.25, 0.5, 0.75)
+MIN_SPEED = 0.1
+TRAIN_SHARE = 0.55
+TERMS = ('turn', 'slip', 'timing', 'scale')
+
+
+def folds(case, base: Path, tmp: Path):
+    """Yield (training bags, held-out bag, sprocket radius, track width) of a case."""
+    if case == 'grass':
+        for held in GRASS:
+            yield [base / n for n in GRASS if n != held], base / held, *WARTHOG
+        return
+    name, radius, width = MARMOTTE
+    first, rest = split_bag(base / name, tmp, TRAIN_SHARE)
+    if case == 'snow':
+        yield [first], rest, radius, width
+    else:
+        yield [rest], first, radius, width
+
+
+def fit(train, out: Path, radius, width) -> Path:
+    """Return the terrain file identify_icr's pose fit writes for the training bags."""
+    with contextlib.redirect_stdout(io.StringIO()) as printed:
+        status = identify_icr.main([*map(str, train), '--ground-truth-topic', '/icp/pose',
+                                    '--sprocket-radius', str(radius), '--track-width',
+                                    str(width), '--output', str(out)])
+    if status != 0:
+        raise RuntimeError(printed.getvalue())
+    return out
+
+
+def held_out(bag, terrain: Path, radius, width):
+    """Return the held-out recording (the pose's delay removed), its pieces and the model."""
+    recording = read_recording(bag, EncoderSource(sprocket_radius=radius),
+                               ground_truth=GroundTruthSource('/icp/pose'),
+                               imu_topic='/imu/data')
+    data = pose_references([bag], [(recording, None)], 'auto').data[0]
+    model = TerrainModel(terrain)
+    settings = ev.Settings(LENGTHS, track_width=width, min_speed=MIN_SPEED)
+    pieces = ev.evaluate([data], [ev.Candidate(model.name, model.icr, model.drivetrain)],
+                         settings).pieces
+    return data.recording, pieces, model
+
+
+def motion(start, end):
+    """Return the motion from poses ``start`` to ``end`` (W, 3) in the frame of the start."""
+    c, s = np.cos(start[:, 2]), np.sin(start[:, 2])
+    dx, dy = end[:, 0] - start[:, 0], end[:, 1] - start[:, 1]
+    return np.column_stack([c * dx + s * dy, -s * dx + c * dy, end[:, 2] - start[:, 2]])
+
+
+def truth_at(piece, times):
+    """Return the piece's ground truth at ``times``: (T, 3)."""
+    return np.column_stack([np.interp(times, piece.t, piece.truth[:, k]) for k in range(3)])
+
+
+def windows(rec, pieces, model, length, offset, noise, terms):
+    """
+    Replay the gyro-aided odometry reset every ``length`` s, from ``offset`` s into each piece.
+
+    Returns the final position errors (W, 2) and the published position covariances (W, 2, 2).
+    """
+    late = [SimpleNamespace(t=p.t[p.t >= p.t[0] + offset]) for p in pieces]
+    start, end, resets = reset_windows(rec.enc_t, rec.left, rec.right,
+                                       [p for p in late if len(p.t) > 1], length, MIN_SPEED)
+    if len(start) == 0:
+        return np.zeros((0, 2)), np.zeros((0, 2, 2))
+    poses, _, odo = replay(rec.enc_t, rec.left, rec.right, rec.gyro_t, rec.gyro_rate,
+                           model.icr, model.gyro, resets=resets, noise=noise, terms=terms)
+    errors, covs = [], []
+    for piece in pieces:
+        inside = (rec.enc_t[start] >= piece.t[0]) & (rec.enc_t[end] <= piece.t[-1])
+        a, b = start[inside], end[inside]
+        truth = motion(truth_at(piece, rec.enc_t[a]), truth_at(piece, rec.enc_t[b]))
+        errors.append(poses[b, :2] - truth[:, :2])
+        p = odo.published[b]
+        covs.append(np.stack([np.stack([p[:, 0], p[:, 1]], -1),
+                              np.stack([p[:, 1], p[:, 3]], -1)], -2))
+    return np.concatenate(errors), np.concatenate(covs)
+
+
+def shares(scored, length):
+    """Return each term's share of the mean trace on the first schedule, in %."""
+    none = NoiseModel(track=0.0, floor=0.0)
+    still = TrackNoise(0.0, 0.0, 0.0)
+    traces = {}
+    for rec, pieces, model in scored:
+        terms = model.noise.without_tracks()
+        alone = {'gyro': (still, none), 'tracks': (track_noise_of(model.values), none)}
+        alone.update({t: (still, replace(none, **{t: getattr(terms, t)})) for t in TERMS})
+        gyro = windows(rec, pieces, model, length, 0.0, still, none)[1]
+        for name, (noise, term) in alone.items():
+            cov = windows(rec, pieces, model, length, 0.0, noise, term)[1]
+            if name != 'gyro':
+                cov = cov - gyro
+            traces.setdefault(name, []).append(np.trace(cov, axis1=1, axis2=2))
+    total = sum(np.concatenate(t).mean() for t in traces.values())
+    return {name: 100.0 * np.concatenate(t).mean() / total for name, t in traces.items()}
+
+
+def run_case(case, base: Path, tmp: Path):
+    scored = []
+    tmp = tmp / case
+    tmp.mkdir()
+    for k, (train, test, radius, width) in enumerate(folds(case, base, tmp)):
+        terrain = fit(train, tmp / f'{case}{k}.yaml', radius, width)
+        scored.append(held_out(test, terrain, radius, width))
+    for length in LENGTHS:
+        cells, everything = [], []
+        for offset in OFFSETS:
+            found = [windows(rec, pieces, model, length, offset * length,
+                             track_noise_of(model.values), model.noise.without_tracks())
+                     for rec, pieces, model in scored]
+            e = np.concatenate([f[0] for f in found])
+            p = np.concatenate([f[1] for f in found])
+            everything.append((e, p))
+            c = consistency(e, p)
+            cells.append(f'{100 * c["inside_50"]:3.0f} / {100 * c["inside_95"]:3.0f}')
+        e = np.concatenate([f[0] for f in everything])
+        p = np.concatenate([f[1] for f in everything])
+        c = consistency(e, p)
+        ratio = np.mean(np.sum(e * e, 1)) / np.mean(np.trace(p, axis1=1, axis2=2))
+        part = ', '.join(f'{n} {s:.1f}' for n, s in shares(scored, length).items())
+        print(f'{case} {length:g} s: schedules {" | ".join(cells)} %; pooled '
+              f'{100 * c["inside_50"]:.0f} / {100 * c["inside_95"]:.0f} %, NEES '
+              f'{c["mean_nees"]:.2f} ({c["windows"]} windows), |e|^2 / trace {ratio:.2f}; '
+              f'% of the trace: {part}', flush=True)
+
+
+def main():
+    """Run the cases given (all by default)."""
+    given = [a for a in sys.argv[1:] if not a.startswith('--')]
+    base = Path(given[0]) if given and Path(given[0]).is_dir() else \
+        ROOT.parent / 'shared' / 'realdata'
+    cases = [a for a in given if a in CASES] or list(CASES)
+    with tempfile.TemporaryDirectory() as tmp:
+        for case in cases:
+            run_case(case, base, Path(tmp))
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())
