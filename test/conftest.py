@@ -2,10 +2,17 @@
 
 import gc
 import os
+import signal
 
 from helpers import domains
 from hypothesis import settings
 import pytest
+
+# A suite started in the background of a script (`make test &`) inherits SIGINT ignored, as
+# POSIX shells start background jobs, and Python keeps it so; the tests of Ctrl-C (and the
+# processes they start) need Python's default handler, as a terminal gives it.
+if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+    signal.signal(signal.SIGINT, signal.default_int_handler)
 
 # No discovery beyond this machine, and no static peers, for every test and its subprocesses.
 os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'

@@ -2,10 +2,10 @@
 Signals in the offline tools, in-process: each window a signal could once land in (issue 20).
 
 The signal is raised in this thread (``signal.raise_signal``: ``os.kill`` to the process may
-be delivered to another of its threads, a DDS thread of an earlier test, and reach the main
-thread late) at the exact step; Python runs the handler at the next bytecode, so each test
-places it where the old code lost track of a file. test_stop_at_any_instant.py does the same
-from outside, at instants spread over the tools' lives.
+be delivered to another of its threads, a DDS thread of an earlier test) at the exact step;
+Python runs the handler at the next bytecode, so each test places it where the old code lost
+track of a file. test_stop_at_any_instant.py does the same from outside, at instants spread
+over the tools' lives.
 """
 
 import json

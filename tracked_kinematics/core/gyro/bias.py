@@ -19,12 +19,12 @@ radian turned (``adapt_turn``), ``b`` drifts as a random walk (``bias_time``).
 
 A standstill teaches only what agrees with zero motion: its blocks are checked, cumulated
 since the last checkpoint, against the prediction before them (the encoders' creep enters
-through ``a``), and each block against the standstill's earlier blocks (which needs no
-prior); a standstill whose mean rate disagrees beyond three standard deviations (a
-turntable, a push) is undone and learns nothing: back to its last checkpoint, or to its
-start where the bias was too little known there to tell which of its rates is the bias. The
-noise density is measured from the
-differences of consecutive blocks, which no bias enters (a block's spread about a mean that
+through ``a``), and each block against the standstill's blocks of the :data:`CHECKPOINT`
+seconds before it (which needs no prior); a standstill whose mean rate disagrees beyond three
+standard deviations (a turntable, a push) is undone and learns nothing: back to its last
+checkpoint, or to its start where the bias was too little known there to tell which of its
+rates is the bias. The noise density is measured from the differences of consecutive blocks,
+which no bias enters (a block's spread about a mean that
 includes it is biased low: 0.70x on four blocks).
 """
 
@@ -214,7 +214,7 @@ class TurnBias:
         self._block = [0.0, 0.0, 0.0]    # a, d, y of the current block
         self._since = [0.0, 0.0, 0.0]    # the same since the checkpoint
         self._previous = None            # the previous block's (mean rate, duration)
-        self._level = [0.0, 0.0]         # rate x s and s of the standstill's blocks so far
+        self._recent = []                # (mean rate, s) of the standstill's last blocks
 
     def still(self, a: float, d: float, y: float) -> None:
         """Observe a standstill step, after ``still_time``: creep ``a`` m, ``d`` s, ``y`` rad."""
@@ -245,15 +245,19 @@ class TurnBias:
             self._refuse(abs(nu) / since[1])
             return
         mean = (y - self.k * a) / d
-        level, self._level = self._level, [self._level[0] + mean * d, self._level[1] + d]
-        if level[1] > 0.0:
-            # Against this standstill's own blocks so far, whatever was known before: a
-            # turntable in the first seconds of a node with no bias prior.
-            step = mean - level[0] / level[1]
-            var = self.noise ** 2 * (1.0 / d + 1.0 / level[1]) + BIAS_STEP ** 2
+        recent = self._recent
+        if recent:
+            # Against this standstill's blocks of the last CHECKPOINT seconds, whatever was
+            # known before: a turntable in the first seconds of a node with no bias prior.
+            span = sum(e for _, e in recent)
+            step = mean - sum(m * e for m, e in recent) / span
+            var = self.noise ** 2 * (1.0 / d + 1.0 / span) + BIAS_STEP ** 2
             if step * step > STILL_GATE * STILL_GATE * var:
                 self._refuse(abs(step))
                 return
+        recent.append((mean, d))
+        while sum(e for _, e in recent[1:]) >= CHECKPOINT - SUM_TOLERANCE:
+            recent.pop(0)
         previous, self._previous = self._previous, (mean, d)
         if previous is not None:
             # Differences of consecutive blocks: free of the bias, whatever it is.
