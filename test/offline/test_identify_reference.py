@@ -235,6 +235,9 @@ def test_a_measured_straight_fixes_the_distance_scale(field, table, tmp_path, ca
     assert 0.5 * (values['scale.left'] + values['scale.right']) == pytest.approx(
         0.5 * (true.scale_left + true.scale_right), rel=0.005)
     assert 'straight drive:' in text
+    # A straight does not time the gyro: its delay, not determined, is not written (0 before).
+    assert values['identification.imu_delay_method'] == 'not determined'
+    assert 'imu_delay' not in values
 
 
 def test_gnss_as_odometry_of_navsat_transform(table, tmp_path, capsys):

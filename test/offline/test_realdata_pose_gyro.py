@@ -26,6 +26,7 @@ from tracked_kinematics.offline.identification.poses import icr_from_poses
 from tracked_kinematics.offline.model_evaluation import (
     evaluate_models, pose_references, TerrainModel)
 from tracked_kinematics.offline.terrain_file import terrain_text
+from tracked_kinematics.params import read_params_file
 
 GRASS = [n for n in realdata.BAGS if n.startswith('warthog_grass')]
 WIDTH, RADIUS = 1.08, 0.3
@@ -130,3 +131,28 @@ def test_imu_delay_the_same_on_firm_ground_and_refused_on_ice():
     ice, lines = delays['ice']
     assert ice is None
     assert any('the tracks slip too much to time the gyro' in line for line in lines)
+
+
+def test_a_gyro_only_fit_on_ice_refuses_the_gyro_it_cannot_time(tmp_path, capsys):
+    # The gyro is the reference there: timed against the slipping tracks (+0.49 s +- 0.083 s)
+    # it was used and written (exit 0) before. Segments of 0.5 s: the bag's 2-s pieces hold
+    # too few turns of 1 s to determine chi.
+    bag = str(realdata.bag('warthog_ice_2024-07-30_16h30_part1'))
+    common = [bag, '--imu-topic', GYRO, '--sprocket-radius', str(RADIUS), '--track-width',
+              str(WIDTH), '--segment-length', '0.5']
+    out = tmp_path / 'ice.yaml'
+    status = identify_icr.main(common + ['--output', str(out)])
+    _, err = capsys.readouterr()
+    assert status == 3
+    assert err.startswith('identify_icr: error: the gyro cannot be timed: imu_delay +0.4')
+    assert err.count('\n') == 1
+    assert 'the tracks slip too much' in err and 'give --imu-delay, measured on firm ground' \
+        in err
+    assert not out.exists()
+    # Given (firm ground's), it is used and written as given.
+    status = identify_icr.main(common + ['--imu-delay', '-0.13', '--output', str(out)])
+    _, err = capsys.readouterr()
+    assert status == 0, err
+    values = read_params_file(out)
+    assert values['imu_delay'] == -0.13
+    assert values['identification.imu_delay_method'] == 'given'

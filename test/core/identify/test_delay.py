@@ -133,3 +133,19 @@ def test_any_injected_delay_is_recovered(injected, seed, gt_rate, enc_rate):
     found = ident.estimate_delay([late(rec, injected)])
     assert found.determined
     assert found.delay == pytest.approx(injected, abs=0.002)
+
+
+def test_a_gyro_delay_is_known_given_or_within_its_limit():
+    from tracked_kinematics.core.identify.reference.delays import (
+        IMU_DELAY_STD_LIMIT, imu_delay_problem)
+    known = ident.DelayEstimate(-0.13, 0.003, 'jackknife', correlation={'heading': 0.99})
+    assert imu_delay_problem(known) == ''
+    assert imu_delay_problem(ident.fixed_delay(0.5)) == ''
+    # Warthog ice (../shared/realdata): slip, not the clock.
+    slip = ident.DelayEstimate(0.487, 0.083, 'jackknife', correlation={'heading': 0.88})
+    assert imu_delay_problem(slip) == ('+0.487 s +- 0.083 s (need +- 0.02 s; heading r 0.88): '
+                                       'the tracks slip too much to time the gyro against them')
+    edge = ident.DelayEstimate(0.1, IMU_DELAY_STD_LIMIT * 1.01, 'curvature')
+    assert 'slip' in imu_delay_problem(edge)
+    none = ident.DelayEstimate(0.0, np.inf, determined=False, problem='too few intervals')
+    assert imu_delay_problem(none) == 'not determined (too few intervals)'

@@ -10,9 +10,10 @@ diff_drive_controller on held-out time blocks, and writes a terrain parameter fi
 
 Exit status: 0 success; 2 bad input (missing bag, topic, joint or transform; unreadable
 bag; invalid option; an output path that may not be written); 3 too little motion, turning
-or straight driving to identify the model, or a parameter determined but uncertain (without
---accept-uncertain); 4 the fit did not converge or gave an invalid model; 130 / 143
-interrupted (SIGINT / SIGTERM). The outputs (YAML, report, plot) are written together at the
+or straight driving to identify the model, a parameter determined but uncertain (without
+--accept-uncertain), or a gyro reference that cannot be timed (give --imu-delay); 4 the fit
+did not converge or gave an invalid model; 130 / 143 interrupted (SIGINT / SIGTERM). The
+outputs (YAML, report, plot) are written together at the
 end or not at all (docs/output-files.md).
 
 Documentation: docs/tools/identify_icr.md; the models it fits: docs/model.md; the terrain

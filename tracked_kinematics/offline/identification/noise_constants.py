@@ -22,7 +22,7 @@ import math
 from tracked_kinematics.core import identify as ident
 from tracked_kinematics.core.errors import IdentificationError
 from tracked_kinematics.core.evaluate import fit_noise, held_out_windows, recording_windows
-from tracked_kinematics.core.identify.reference.delays import sensor_delays
+from tracked_kinematics.core.identify.reference.delays import imu_delay_problem, sensor_delays
 from tracked_kinematics.core.identify.reference.heading_fusion import (
     bias_prior, BIAS_SIGMA_FLOOR, check_gyro_against_pose, fuse_heading, signed_gyro_scale)
 from tracked_kinematics.core.identify.segments import covered_spans, over_jumps
@@ -214,7 +214,8 @@ def reference_extras(fit, recordings, options, track_width: float, base=None) ->
     With a pose among the references, the noise model is fitted to the pose errors (each
     held-out part scored with the ICRs calibrated without it) and the gyro's scale against the
     pose's heading; with the gyro alone, to the heading errors against the gyro (``slip``
-    held: a gyro does not see it). ``imu_delay`` is written whenever there is a gyro.
+    held: a gyro does not see it). ``imu_delay`` is written whenever there is a gyro timed
+    (:func:`~tracked_kinematics.core.identify.reference.delays.imu_delay_problem`).
 
     Parameters
     ----------
@@ -236,7 +237,7 @@ def reference_extras(fit, recordings, options, track_width: float, base=None) ->
     has_pose = fit.report.get('pose_delay') is not None
     segment_length = float(options.identify.segment_length or 1.0)
     min_speed = options.identify.min_speed
-    if has_gyro:
+    if has_gyro and not imu_delay_problem(fit.imu_delay):
         values['imu_delay'] = float(fit.imu_delay.delay)
     if has_pose:
         shifted = _per_bag_delay(recordings, float(fit.pose_delay.delay))
@@ -348,13 +349,6 @@ def held_priors(fit, track_width: float, values: dict, record: dict, report: dic
     return lines
 
 
-IMU_DELAY_STD_LIMIT = 0.02
-"""s: the largest standard error of an estimated ``imu_delay`` that is written. On the windowed
-Warthog bags of ../shared/realdata the gyro is timed to 0.001-0.003 s on sand, asphalt and
-gravel (-0.13 s); on ice, where the body follows the spinning wheels late, to 0.083 s at
-+0.49 s (heading r 0.88 against 0.99): that is slip, not the clock."""
-
-
 def gyro_extras(recordings, topic: str, imu_delay='auto'):
     """
     Return the gyro's constants of a pose identification whose bags also carry a gyro.
@@ -382,17 +376,12 @@ def gyro_extras(recordings, topic: str, imu_delay='auto'):
         return Extras(record={'gyro_topic': topic, 'imu_delay_method': f'not determined: {err}'},
                       lines=(f'gyro {topic}: delay not determined ({err}); imu_delay not '
                              'written',)), None
-    if not imu.determined:
-        return Extras(record={'gyro_topic': topic, 'imu_delay_method': 'not determined'},
-                      lines=(f'gyro {topic}: delay not determined ({imu.problem}); imu_delay '
-                             'not written',)), None
-    if imu.uncertainty != 'given' and not imu.std <= IMU_DELAY_STD_LIMIT:
-        why = (f'{imu.delay:+.3f} s +- {imu.std:.3f} s, heading r '
-               f'{imu.correlation.get("heading", float("nan")):.2f}: the tracks slip too much '
-               'to time the gyro against them; give --imu-delay, measured on firm ground')
-        return Extras(record={'gyro_topic': topic, 'imu_delay_method': f'not determined: {why}'},
-                      lines=(f'gyro {topic}: delay not determined ({why}); no gyro constant '
-                             'written',)), None
+    problem = imu_delay_problem(imu)
+    if problem:
+        return Extras(record={'gyro_topic': topic,
+                              'imu_delay_method': f'not used: {problem}'},
+                      lines=(f'gyro {topic}: imu_delay {problem}; give --imu-delay, measured '
+                             'on firm ground; no gyro constant written',)), None
     imu_delay = float(imu.delay)
     shifted = _per_bag_delay(list(recordings), float(pose.delay))
     scale, std = _fitted_scale(shifted, imu_delay)

@@ -65,7 +65,7 @@ def icr_from_references(recordings, options, track_width: float, sprocket_radius
         recordings, track_width, base=_held_base(base, options.model),
         imu_delay=options.imu_delay, pose_delay=options.identify.ground_truth_delay,
         segment_length=segment_length, straight_distance=options.straight_distance,
-        gnss_antenna=tuple(options.gnss_antenna))
+        gnss_antenna=tuple(options.gnss_antenna), strict_imu_delay=True)
     icr = fit.icr
     extras = {'model': 'icr_scales', 'method': 'reference', 'date': date, 'bags': bags,
               'reference': fit.reference, 'determined': list(fit.determined),

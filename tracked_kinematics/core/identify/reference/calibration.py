@@ -13,13 +13,13 @@ import math
 
 import numpy as np
 
-from .delays import delay_report, sensor_delays
+from .delays import delay_report, imu_delay_problem, sensor_delays
 from .heading_fit import fit_heading, HeadingFit
 from .headings import heading_data, HeadingData
 from .positions import DistanceFit, fit_distance
 from .recordings import (calibration_quantities, check_gyro, check_saturation, clean_gyro,
                          QUANTITIES, ReferenceFit)
-from ...errors import FitError, SensorDataError
+from ...errors import ExcitationError, FitError, SensorDataError
 from ...kinematics import IcrParams
 from ...recording import Recording
 
@@ -130,7 +130,7 @@ def fit_recordings(recordings, track_width: float, *, base: IcrParams | None = N
                    imu_delay='auto', pose_delay='auto', segment_length: float = 1.0,
                    straight_distance: float | None = None,
                    position_window: float | None = None, hold=(),
-                   gnss_antenna=(0.0, 0.0)) -> ReferenceFit:
+                   gnss_antenna=(0.0, 0.0), strict_imu_delay: bool = False) -> ReferenceFit:
     """
     Calibrate from gyro, pose and/or positions over several recordings.
 
@@ -158,11 +158,16 @@ def fit_recordings(recordings, track_width: float, *, base: IcrParams | None = N
         Quantities of :data:`QUANTITIES` to hold at ``base`` even where determined.
     gnss_antenna : pair of float
         Antenna in base_link, m (unknown, its lever arm would be fitted as ``icr.x``).
+    strict_imu_delay : bool
+        Refuse a gyro delay estimated but not known to :data:`.delays.IMU_DELAY_STD_LIMIT`
+        (:func:`.delays.imu_delay_problem`) instead of fitting with it; one not determined
+        (no timing in the data: a straight) is taken as 0, as without it.
 
     Raises
     ------
     SensorDataError, ExcitationError, FitError
-        Unusable sensor data, too little excitation, an invalid result.
+        Unusable sensor data, too little excitation (with ``strict_imu_delay``, a gyro not
+        timed), an invalid result.
 
     """
     # 1. The data, checked.
@@ -172,6 +177,10 @@ def fit_recordings(recordings, track_width: float, *, base: IcrParams | None = N
     straight = straight_distance is not None
     # 2. The delays.
     imu, pose = sensor_delays(recs, imu_delay, pose_delay)
+    problem = imu_delay_problem(imu) if strict_imu_delay and imu.determined else ''
+    if problem:
+        raise ExcitationError(f'the gyro cannot be timed: imu_delay {problem}; give '
+                              '--imu-delay, measured on firm ground')
     # 3. The heading segments.
     headings = heading_data(recs, imu.delay, pose.delay, segment_length, straight)
     # 4. The heading: u, v and the biases.

@@ -44,6 +44,33 @@ def _delay_of_pose(rec_list, pose_delay):
     return estimate_delay(rec_list)
 
 
+IMU_DELAY_STD_LIMIT = 0.02
+"""s: the largest standard error of an estimated ``imu_delay`` used as known. On the windowed
+Warthog bags of ../shared/realdata the gyro is timed to 0.001-0.003 s on sand, asphalt and
+gravel (-0.13 s); on ice, where the body follows the spinning wheels late, to 0.083 s at
++0.49 s (heading r 0.88 against 0.99): that is slip, not the clock."""
+
+
+def imu_delay_problem(imu: DelayEstimate) -> str:
+    """
+    Return why the gyro's delay cannot be used as known, or '' when it can.
+
+    A delay given is known; an estimated one when it is determined and its standard error is at
+    most :data:`IMU_DELAY_STD_LIMIT`. Timed against the tracks, the gyro's delay absorbs the
+    body's lag behind slipping tracks: a clock offset it is not.
+    """
+    if imu.uncertainty == 'given':
+        return ''
+    if not imu.determined:
+        return f'not determined ({imu.problem})'
+    if imu.std <= IMU_DELAY_STD_LIMIT:
+        return ''
+    heading = imu.correlation.get('heading', math.nan)
+    return (f'{imu.delay:+.3f} s +- {imu.std:.3f} s (need +- {IMU_DELAY_STD_LIMIT:g} s; '
+            f'heading r {heading:.2f}): the tracks slip too much to time the gyro against '
+            'them')
+
+
 def sensor_delays(recs, imu_delay, pose_delay):
     """
     Return the delays of the gyro and of the pose behind the encoders, estimated or given.
