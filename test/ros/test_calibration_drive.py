@@ -58,11 +58,18 @@ class Drive:
         end = time.monotonic() + seconds
         while time.monotonic() < end:
             if self.robot.tick(DT, **step) and hold:
-                self.robot.deadman(True)
+                # A press that went stale before the drive started (this process stalled
+                # past deadman_timeout on a loaded machine) latches it (rule 7): the user
+                # lets go and presses again, as the drive asks.
+                self.robot.deadman(not self._latched_before_start())
             self.executor.spin_once(timeout_sec=0.005)
             if until is not None and until():
                 return True
         return False
+
+    def _latched_before_start(self):
+        supervisor = self.node.supervisor
+        return supervisor.state == 'idle' and supervisor._d.deadman == 'latched'
 
     def call(self, name):
         client = self.clients[name]
