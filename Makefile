@@ -26,9 +26,12 @@ demo: setup
 # Three workers on two cores, each test file whole on one (its module fixtures built once):
 # a fifth of the suite's time is ROS tests waiting on other processes, which a third worker
 # fills (a fresh clone: 6.8 min with the set-up, 8.5 min with two). Every test holds a ROS
-# domain of its own across processes.
+# domain of its own across processes. The suite starts some 150 Python processes (console
+# scripts, nodes): with PYTHONDONTWRITEBYTECODE set (as on some CI images) each compiled
+# the package anew, 0.4 s of its 1 s of imports, and each worker rewrote every test module;
+# the suite writes its bytecode caches (__pycache__, ignored by git) whatever the caller set.
 test: setup
-	$(PY) -m pytest -n 3 --dist loadfile
+	env -u PYTHONDONTWRITEBYTECODE $(PY) -m pytest -n 3 --dist loadfile
 
 stress: setup
 	$(PY) tools/stress.py --runs $(or $(RUNS),2) --stops $(or $(STOPS),40)
