@@ -18,7 +18,8 @@ there. Why: the reference's direction of travel is 16-42 deg (std) from what its
 says (course minus half the turn, windows of 0.3 m or more); the encoders' heading error
 follows it (correlation +0.44-0.59), the gyro's much less (-0.42-+0.24). On ice the node's
 heading is the encoders' (10.7 / 22.1 deg, the plain gyro 5.3 / 8.1): its bias found in
-motion, -0.19 rad/s, is the tracks' slip.
+motion, -0.19 rad/s, is not the gyro's (its mean rate is the tracks' within 0.001 rad/s):
+the in-motion fit trades the bias for the tracks' veer per metre (+0.051 rad/m).
 
 Run: ``python benchmarks/bench_gyro_short_pieces.py [REALDATA_FOLDER] [SET ...]``.
 """
