@@ -172,6 +172,16 @@ def test_options_without_a_heading_reference_are_refused(field, tmp_path, capsys
     assert status == 2 and match in err
 
 
+def test_an_imu_delay_the_node_would_refuse_is_refused(tmp_path, capsys):
+    # odometry_node's imu_delay is in [-1, 1] s; the option was [-5, 5] s: a file with 3 s
+    # would have been written, and refused where it is used.
+    with pytest.raises(SystemExit) as stop:
+        identify_icr.main(['unused', '--imu-topic', '/imu/data', '--imu-delay', '3',
+                           '--output', str(tmp_path / 'o.yaml'), *VEHICLE])
+    assert stop.value.code == 2
+    assert 'argument --imu-delay: must be in [-1, 1] s, got 3' in capsys.readouterr().err
+
+
 def test_evaluate_model_scores_heading_only_against_a_gyro(field, tmp_path, capsys):
     from tracked_kinematics.offline.cli import evaluate_model
     model = tmp_path / 'imu.yaml'

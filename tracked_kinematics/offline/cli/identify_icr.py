@@ -36,6 +36,7 @@ from tracked_kinematics.offline.cli.common import (
 from tracked_kinematics.offline.identification import (
     fit, FitOptions, MODELS as MODEL_CHOICES, TOOL as PROG, write_fit)
 from tracked_kinematics.offline.outputs import Outputs
+from tracked_kinematics.params import GYRO_PARAMS
 
 DEFAULT = IdentifyOptions()
 """The defaults of the fit options."""
@@ -60,10 +61,14 @@ def _heading_weight(text: str):
     return None if text == 'auto' else _HEADING_WEIGHT(text)
 
 
+#: s: odometry_node's range of ``imu_delay`` (a file with more would be refused there).
+IMU_DELAY_RANGE = next((spec.low, spec.high) for spec in GYRO_PARAMS if spec.name == 'imu_delay')
+
+
 def _delay(text: str):
     if text == 'auto':
         return text
-    return bounded(-5.0, 5.0, 's')(text)
+    return bounded(*IMU_DELAY_RANGE, 's')(text)
 
 
 def build_parser() -> argparse.ArgumentParser:
