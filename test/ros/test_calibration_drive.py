@@ -145,11 +145,13 @@ def test_idle_until_start_and_zero_meanwhile(drive):
     d = drive()
     d.run(0.5)
     assert not d.moving() and d.node.supervisor.state == 'idle'
-    assert d.status and d.status[-1]['state'] == 'idle'
+    # The status is another topic than the commands: waited for, not assumed delivered first
+    # (it came after the first moving command once, beside two busy loops).
+    assert spin_until(d.executor, lambda: d.status and d.status[-1]['state'] == 'idle', 5.0)
     result = d.call('start')
     assert result.success, result.message
     assert d.run(2.0, until=d.moving)
-    assert d.status[-1]['state'] == 'running'
+    assert spin_until(d.executor, lambda: d.status[-1]['state'] == 'running', 5.0), d.status
 
 
 def test_deadman_release_zeroes_the_next_command(drive):
@@ -222,7 +224,8 @@ def test_stop_service_mid_step(drive):
     # The service answer comes after the zero command was published.
     assert spin_until(d.executor, lambda: not d.moving(), 1.0)
     d.run(0.5)
-    assert not d.moving() and d.status[-1]['state'] == 'stopped'
+    assert not d.moving()
+    assert spin_until(d.executor, lambda: d.status[-1]['state'] == 'stopped', 5.0), d.status
     assert not d.call('start').success
 
 
@@ -233,7 +236,9 @@ def test_pause_and_resume(drive):
     assert d.run(3.0, until=d.moving)
     assert d.call('pause').success
     d.run(0.5)
-    assert not d.moving() and d.status[-1]['reason'] == 'paused by ~/pause'
+    assert not d.moving()
+    assert spin_until(d.executor, lambda: d.status[-1]['reason'] == 'paused by ~/pause',
+                      5.0), d.status
     assert d.call('start').success
     assert d.run(3.0, until=d.moving)
 
