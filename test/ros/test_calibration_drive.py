@@ -392,6 +392,7 @@ def test_console_script_publishes_zero_when_signalled(ros_context, executor, tmp
         robot.node.destroy_node()
 
 
+@pytest.mark.long   # the fit's cancel is test_calibration_files'; 18 s of a signalled fit
 def test_a_signal_while_fitting_leaves_nothing_behind(ros_context, executor, tmp_path):
     robot = FakeRobot(ros_context, executor, namespace=NS)
     status = []
