@@ -33,7 +33,7 @@ from types import SimpleNamespace
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT / 'test'))
 
-from helpers.realdata import split_bag  # noqa: E402 -- the test helpers, from the tree
+from helpers.realdata import from_argv, split_bag  # noqa: E402 -- the test helpers, from the tree
 import numpy as np  # noqa: E402
 from tracked_kinematics.core import evaluate as ev  # noqa: E402
 from tracked_kinematics.core.covariance import TrackNoise  # noqa: E402
@@ -183,10 +183,7 @@ def run_case(case, base: Path, tmp: Path):
 
 def main():
     """Run the cases given (all by default)."""
-    given = [a for a in sys.argv[1:] if not a.startswith('--')]
-    base = Path(given[0]) if given and Path(given[0]).is_dir() else \
-        ROOT.parent / 'shared' / 'realdata'
-    cases = [a for a in given if a in CASES] or list(CASES)
+    base, cases = from_argv(sys.argv[1:], CASES)
     with tempfile.TemporaryDirectory() as tmp:
         for case in cases:
             run_case(case, base, Path(tmp))

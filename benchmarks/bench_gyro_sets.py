@@ -27,7 +27,7 @@ import tempfile
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT / 'test'))
 
-from helpers.realdata import split_bag  # noqa: E402 -- the test helpers, from the tree
+from helpers.realdata import from_argv, split_bag  # noqa: E402 -- the test helpers, from the tree
 from tracked_kinematics.core import evaluate as ev  # noqa: E402
 from tracked_kinematics.core import identify as ident  # noqa: E402
 from tracked_kinematics.offline.bags import (  # noqa: E402
@@ -157,10 +157,7 @@ def run_set(label, base: Path, tmp: Path):
 
 def main():
     """Run the sets given (all by default)."""
-    given = [a for a in sys.argv[1:] if not a.startswith('--')]
-    base = Path(given[0]) if given and Path(given[0]).is_dir() else \
-        ROOT.parent / 'shared' / 'realdata'
-    labels = [a for a in given if a in SETS] or list(SETS)
+    base, labels = from_argv(sys.argv[1:], SETS)
     with tempfile.TemporaryDirectory() as tmp:
         for label in labels:
             run_set(label, base, Path(tmp))

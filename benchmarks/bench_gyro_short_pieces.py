@@ -35,7 +35,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / 'test'))
 
 import bench_gyro_sets as sets  # noqa: E402,I100 -- the sets, split and fit options
-from helpers.realdata import split_bag  # noqa: E402
+from helpers.realdata import from_argv, split_bag  # noqa: E402
 from tracked_kinematics.core import evaluate as ev  # noqa: E402
 from tracked_kinematics.core.evaluate.metrics import relative_errors  # noqa: E402
 from tracked_kinematics.core.evaluate.pieces import icr_increments  # noqa: E402
@@ -152,10 +152,7 @@ def run_set(label, base: Path, tmp: Path):
 
 def main():
     """Run the windowed sets given (all four by default)."""
-    given = [a for a in sys.argv[1:] if not a.startswith('--')]
-    base = Path(given[0]) if given and Path(given[0]).is_dir() else \
-        sets.ROOT.parent / 'shared' / 'realdata'
-    labels = [a for a in given if a in sets.WINDOWED] or list(sets.WINDOWED)
+    base, labels = from_argv(sys.argv[1:], sets.WINDOWED)
     for label in labels:
         with tempfile.TemporaryDirectory() as tmp:
             run_set(label, base, Path(tmp))

@@ -29,6 +29,19 @@ def folder():
     return path if (path / 'README.md').is_file() else None
 
 
+def from_argv(argv, names):
+    """
+    Return the real-data folder and the names chosen on a benchmark's command line.
+
+    A directory among ``argv`` is the folder (else :func:`folder`, else ../shared/realdata);
+    the arguments among ``names`` are chosen, all of ``names`` when none is.
+    """
+    given = [a for a in argv if not a.startswith('--')]
+    base = Path(given[0]) if given and Path(given[0]).is_dir() else \
+        folder() or REPOSITORY.parent / 'shared' / 'realdata'
+    return base, [a for a in given if a in names] or list(names)
+
+
 def bag(name):
     """Return the path of one real bag; skip the test when the real data are not here."""
     base = folder()

@@ -133,6 +133,11 @@ class NoiseModel:
         return replace(self, track=0.0, floor=0.0)
 
     @property
+    def beside_the_steps(self) -> bool:
+        """Return whether ``timing`` or ``scale`` is on: added where published, not per step."""
+        return self.timing > 0.0 or self.scale > 0.0
+
+    @property
     def constants(self) -> np.ndarray:
         """Return the constants of :data:`TERMS`, in that order."""
         return np.array([getattr(self, t) for t in TERMS])
@@ -362,7 +367,7 @@ def published_covariance(upper, pose, twist, start_twist, model: NoiseModel | No
     ``model.scale`` moves ``(x, y)`` by ``scale (x, y)(x, y)^T`` (the pose is since the reset).
     ``model`` None: ``upper`` unchanged.
     """
-    if model is None or not (model.timing > 0.0 or model.scale > 0.0):
+    if model is None or not model.beside_the_steps:
         return upper
     x, y, theta = pose
     k = model.scale

@@ -48,8 +48,7 @@ class Published:
 
     def set_timing(self, model: NoiseModel | None) -> None:
         """Publish with the ``timing`` and ``scale`` terms of ``model`` (none when None or 0)."""
-        self.timing = (model if model is not None and (model.timing > 0.0 or model.scale > 0.0)
-                       else None)
+        self.timing = model if model is not None and model.beside_the_steps else None
 
     def reset(self) -> None:
         """Return the pose to zero with zero covariance; the time error at the start stays."""

@@ -23,6 +23,7 @@ from tracked_kinematics.core.evaluate.consistency import (
     gyro_track, gyro_window_consistency, window_consistency)
 from tracked_kinematics.core.evaluate.verdict import MIN_WINDOWS
 from tracked_kinematics.core.kinematics import IcrParams
+from tracked_kinematics.core.noise_model import TERMS
 from tracked_kinematics.offline.errors import UsageError
 from tracked_kinematics.offline.tooling import json_ready
 from tracked_kinematics.params import (
@@ -389,8 +390,7 @@ def _model_entry(candidate, by_name, runs) -> dict:
             'source_at_end': [o.source for o in odos],
             'from_file': {k: k in model.values for k in ('imu_delay', 'gyro_scale')}}
     elif candidate.name != 'ideal' and not online:
-        entry['noise'] = {**{t: getattr(model.noise, t) for t in ('track', 'turn', 'slip',
-                                                                  'timing', 'scale')},
+        entry['noise'] = {**{t: getattr(model.noise, t) for t in TERMS},
                           'from_file': any(k.startswith('covariance.') for k in model.values)}
     return entry
 

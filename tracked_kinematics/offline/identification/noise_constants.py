@@ -26,6 +26,7 @@ from tracked_kinematics.core.identify.reference.delays import imu_delay_problem,
 from tracked_kinematics.core.identify.reference.heading_fusion import (
     bias_prior, BIAS_SIGMA_FLOOR, check_gyro_against_pose, fuse_heading, signed_gyro_scale)
 from tracked_kinematics.core.identify.segments import covered_spans, over_jumps
+from tracked_kinematics.core.noise_model import FITTED
 
 LENGTHS = (5.0, 10.0)
 """Window lengths the noise model is fitted on, s (evaluate_model's defaults)."""
@@ -199,8 +200,7 @@ def pose_extras(result, options, track_width: float) -> Extras:
     lengths = fit_lengths(recordings)
     windows = held_out_windows(recordings, fit_icr, lengths, settings.min_speed,
                                track_width)
-    done, reason = _noise(windows, 'pose', ('track', 'turn', 'slip', 'timing'),
-                          _held_out_kind(recordings), lengths)
+    done, reason = _noise(windows, 'pose', FITTED, _held_out_kind(recordings), lengths)
     if done is None:
         return _not_fitted(reason)
     values, record, report, lines = done
@@ -253,8 +253,7 @@ def reference_extras(fit, recordings, options, track_width: float, base=None) ->
                 return fit.icr
         lengths = fit_lengths(shifted)
         windows = held_out_windows(shifted, fit_icr, lengths, min_speed, track_width)
-        done, reason = _noise(windows, 'pose', ('track', 'turn', 'slip', 'timing'),
-                              _held_out_kind(recordings), lengths)
+        done, reason = _noise(windows, 'pose', FITTED, _held_out_kind(recordings), lengths)
         if has_gyro:
             scale_lines, scale_values, scale_record = _gyro_scale(shifted, imu_delay)
             values.update(scale_values)
