@@ -182,6 +182,26 @@ def test_an_imu_delay_the_node_would_refuse_is_refused(tmp_path, capsys):
     assert 'argument --imu-delay: must be in [-1, 1] s, got 3' in capsys.readouterr().err
 
 
+def test_evaluate_model_takes_the_same_imu_delay(field, tmp_path, capsys):
+    # evaluate_model --imu-delay: the gyro reference's delay, in the node's range as above.
+    from tracked_kinematics.offline.cli import evaluate_model
+    common = [str(field.bag), '--params', str(field.truth), '--sprocket-radius', '0.1']
+    with pytest.raises(SystemExit) as stop:
+        evaluate_model.main([*common, '--imu-topic', '/imu/data', '--imu-delay', '3'])
+    assert stop.value.code == 2
+    assert 'argument --imu-delay: must be in [-1, 1] s, got 3' in capsys.readouterr().err
+    # Without the gyro as the reference there is nothing for it to time.
+    status = evaluate_model.main([*common, '--ground-truth-topic', '/ground_truth/pose',
+                                  '--imu-delay', '0.08'])
+    assert status == 2
+    assert '--imu-delay goes with --imu-topic' in capsys.readouterr().err
+    report = tmp_path / 'r.json'
+    assert evaluate_model.main([*common, '--imu-topic', '/imu/data', '--imu-delay',
+                                str(LATENCY), '--report', str(report)]) == 0, \
+        capsys.readouterr().err
+    assert json.loads(report.read_text())['recordings'][0]['imu_delay_s'] == LATENCY
+
+
 def test_evaluate_model_scores_heading_only_against_a_gyro(field, tmp_path, capsys):
     from tracked_kinematics.offline.cli import evaluate_model
     model = tmp_path / 'imu.yaml'

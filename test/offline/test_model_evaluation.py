@@ -301,3 +301,12 @@ def test_the_error_plot_fits_the_calibrated_models_not_the_ideal_drive(scored):
     lengths = alone.axes[0].get_lines()[0].get_xdata()
     curve = error_curves(scored.evaluation, ['ideal'], lengths, 0.1)['ideal'][0]
     assert alone.axes[0].get_ylim()[1] >= np.nanmax(curve)
+
+
+def test_a_gyro_reference_takes_a_given_delay(gyro_drive, tmp_path):
+    # evaluate_model --imu-delay: where the tracks slip too much to time the gyro (refused,
+    # test_realdata_pose_gyro.py), the delay measured on firm ground is given.
+    references = gyro_references([tmp_path / 'run1'], [gyro_drive], B, imu_delay=0.12)
+    assert references.records[0]['imu_delay_s'] == 0.12
+    assert references.account.startswith('none (gyro reference); the gyro: ')
+    assert 'given' in references.account

@@ -17,7 +17,7 @@ import pytest
 from tracked_kinematics.core import evaluate as ev
 from tracked_kinematics.core.identify.procedure import IdentifyOptions
 from tracked_kinematics.offline.bags import EncoderSource, GroundTruthSource, read_recording
-from tracked_kinematics.offline.cli import identify_icr
+from tracked_kinematics.offline.cli import evaluate_model, identify_icr
 from tracked_kinematics.offline.identification.api import FitOptions
 from tracked_kinematics.offline.identification.combined import (
     icr_from_pose_and_gyro, time_split)
@@ -156,3 +156,18 @@ def test_a_gyro_only_fit_on_ice_refuses_the_gyro_it_cannot_time(tmp_path, capsys
     values = read_params_file(out)
     assert values['imu_delay'] == -0.13
     assert values['identification.imu_delay_method'] == 'given'
+
+
+def test_evaluate_model_refuses_a_gyro_reference_it_cannot_time(tmp_path, capsys):
+    # The same rule as identify_icr's: scored against the gyro timed +0.49 s late on ice, every
+    # heading error would be the gyro's, not the file's.
+    terrain = tmp_path / 'warthog.yaml'
+    terrain.write_text('/**:\n  ros__parameters:\n'
+                       f'    track_width: {WIDTH}\n    sprocket_radius: {RADIUS}\n')
+    argv = [str(realdata.bag('warthog_ice_2024-07-30_16h30_part1')), '--imu-topic', GYRO,
+            '--params', str(terrain), '--window', '1']
+    status = evaluate_model.main(argv)
+    _, err = capsys.readouterr()
+    assert status == 3
+    assert err.startswith('evaluate_model: error: the gyro cannot be timed: imu_delay +0.4')
+    assert err.count('\n') == 1 and 'give --imu-delay, measured on firm ground' in err

@@ -163,18 +163,24 @@ def pose_references(bags, found, delay='auto') -> References:
     return References(tuple(data), tuple(records), account)
 
 
-def gyro_references(bags, found, track_width: float) -> References:
+def gyro_references(bags, found, track_width: float, imu_delay='auto') -> References:
     """
     Make the gyro of each recording a heading-only reference: its bias and delay removed.
 
     ``found`` are the recordings read with the gyro
     (:func:`tracked_kinematics.offline.bags.read_recording`); ``track_width`` (m) is the
-    ideal drive the gyro fit starts from. Raises ExcitationError when the drives cannot time
-    and de-bias the gyro.
+    ideal drive the gyro fit starts from; ``imu_delay`` the gyro's delay behind the encoders
+    (s), or ``'auto'`` to estimate it as identify_icr does, by the same rule
+    (:func:`tracked_kinematics.core.identify.reference.delays.imu_delay_problem`): a delay
+    the slipping tracks cannot time is refused, not scored with. Raises ExcitationError when
+    the drives cannot time and de-bias the gyro.
     """
     try:
-        gyro = ident.fit_recordings(found, track_width)
+        gyro = ident.fit_recordings(found, track_width, imu_delay=imu_delay,
+                                    strict_imu_delay=True)
     except ExcitationError as err:
+        if str(err).startswith('the gyro cannot be timed'):
+            raise
         raise ExcitationError(f'the gyro cannot be timed and de-biased: {err}') from None
     delay = gyro.imu_delay
     data, records = [], []

@@ -88,6 +88,8 @@ class DelayEstimate:
         """One line for a report: the delay and its standard error, or why there is none."""
         if not self.determined:
             return f'not determined ({self.problem})'
+        if self.uncertainty == 'given':
+            return f'{self.delay:.3f} s (given)'
         how = (f'jackknife over {self.windows} windows' if self.uncertainty == 'jackknife'
                else 'curvature of the correlation peak')
         corr = ', '.join(f'{k} r {v:.2f}' for k, v in self.correlation.items())

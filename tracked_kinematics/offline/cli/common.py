@@ -26,7 +26,8 @@ from tracked_kinematics.offline.tooling import (  # noqa: F401 (the tools import
     checked_encoders, error_line, EXIT_EXCITATION, EXIT_FIT, EXIT_INPUT, exit_status,
     imu_mount_of, read_base_file, refuse_another_vehicle, report_json, require_vehicle, warn,
     warn_unknown_terrain_keys)
-from tracked_kinematics.params import ENCODER_INPUT_DEFAULTS, INPUT_MODES, SIDE_TOPICS
+from tracked_kinematics.params import (
+    ENCODER_INPUT_DEFAULTS, GYRO_PARAMS, INPUT_MODES, SIDE_TOPICS)
 
 EXIT_INTERRUPTED = 130
 """Exit status after Ctrl-C (SIGINT); after SIGTERM or SIGHUP it is 128 + the signal."""
@@ -262,6 +263,25 @@ def add_imu_mount_argument(group, files: str) -> None:
                        help="the IMU's frame in base_link as a URDF joint's rpy, rad "
                        "(odometry_node's imu_mount.*; 3.14159 0 0: z down, or NED); the gyro "
                        f'is read as the node reads it. Default {files}, else 0 0 0')
+
+
+#: s: odometry_node's range of ``imu_delay`` (a file with more would be refused there).
+IMU_DELAY_RANGE = next((spec.low, spec.high) for spec in GYRO_PARAMS if spec.name == 'imu_delay')
+
+
+def imu_delay(text: str):
+    """Parse ``auto`` or a delay in :data:`IMU_DELAY_RANGE`, s."""
+    if text == 'auto':
+        return text
+    return bounded(*IMU_DELAY_RANGE, 's')(text)
+
+
+def add_imu_delay_argument(group) -> None:
+    """Add ``--imu-delay auto|SECONDS``: the gyro's delay behind the encoders, given or auto."""
+    group.add_argument('--imu-delay', type=imu_delay, default='auto', metavar='auto|SECONDS',
+                       help='delay of the IMU stamps behind the encoders: auto estimates it '
+                       '(refused where the tracks slip too much to time it: give the one '
+                       'measured on firm ground)')
 
 
 def add_sprocket_radius_argument(group) -> None:

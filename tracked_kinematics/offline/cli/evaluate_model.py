@@ -19,7 +19,8 @@ commands.
 
 Exit status, as identify_icr: 0 success; 2 bad input (missing bag, topic or joint; unreadable
 bag or terrain file; invalid option; an output that may not be written); 3 too little data
-(no gap-free stretch of encoders and ground truth).
+(no gap-free stretch of encoders and ground truth; with ``--imu-topic``, a gyro the tracks
+cannot time: give ``--imu-delay``).
 
 Documentation: docs/tools/evaluate_model.md (every figure of the report and how it is
 computed).
@@ -36,7 +37,8 @@ import numpy as np
 from tracked_kinematics.core import evaluate as ev
 from tracked_kinematics.offline.bags import read_recording
 from tracked_kinematics.offline.cli.common import (
-    add_command_arguments, add_ground_truth_arguments, add_imu_mount_argument,
+    add_command_arguments, add_ground_truth_arguments, add_imu_delay_argument,
+    add_imu_mount_argument,
     add_vehicle_groups, add_window_selection_arguments, command_source, encoder_source,
     ground_truth_source, identification_parser, imu_mount_of, positive, require_vehicle,
     run_main)
@@ -67,6 +69,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument('--imu-topic', default=None, metavar='TOPIC',
                         help='instead of a ground-truth pose, a gyro (sensor_msgs/Imu): scores '
                         'heading only; the position figures are null')
+    add_imu_delay_argument(parser)
     parser.add_argument('--fuse-imu', default=None, metavar='TOPIC',
                         help='also score each terrain file gyro-aided (row <name>+imu): the '
                         "gyro's heading, as odometry_node with imu_topic (sensor_msgs/Imu)")
@@ -151,6 +154,9 @@ def _check_options(args) -> None:
     if bool(args.ground_truth_topic) == bool(args.imu_topic):
         raise UsageError('give --ground-truth-topic (a pose) or --imu-topic (a gyro, heading '
                          'only), one of them')
+    if args.imu_delay != 'auto' and not args.imu_topic:
+        raise UsageError('--imu-delay goes with --imu-topic (the gyro as the reference); '
+                         "--fuse-imu's gyro is timed by each terrain file's imu_delay")
     if args.imu_topic and args.online:
         raise UsageError('--online needs --ground-truth-topic (the estimator uses poses)')
     if args.imu_topic and args.fuse_imu:
@@ -173,7 +179,7 @@ def _read(args, track_width, radius, imu_mount) -> References:
     if args.imu_topic:
         found = [read_recording(bag, encoders, imu_topic=args.imu_topic, progress=progress,
                                 imu_mount=imu_mount) for bag in args.bags]
-        return gyro_references(args.bags, found, track_width)
+        return gyro_references(args.bags, found, track_width, args.imu_delay)
     # One pass over each bag: the pose, the commands and, with --fuse-imu, the gyro.
     streams = {'ground_truth': ground_truth_source(args), 'imu_topic': args.fuse_imu,
                'commands': command_source(args, track_width)}

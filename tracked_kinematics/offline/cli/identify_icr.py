@@ -28,15 +28,14 @@ import sys
 from tracked_kinematics.core import identify as ident
 from tracked_kinematics.core.identify.procedure import IdentifyOptions
 from tracked_kinematics.offline.cli.common import (
-    add_base_file_argument, add_ground_truth_arguments, add_imu_mount_argument,
-    add_output_argument, add_plot_output, add_report_arguments, add_vehicle_groups,
-    add_window_selection_arguments, bounded, encoder_settings, ground_truth_source,
-    identification_parser, min_speed, names, refuse_another_vehicle, run_main, warn,
-    write_together)
+    add_base_file_argument, add_ground_truth_arguments, add_imu_delay_argument,
+    add_imu_mount_argument, add_output_argument, add_plot_output, add_report_arguments,
+    add_vehicle_groups, add_window_selection_arguments, bounded, encoder_settings,
+    ground_truth_source, identification_parser, min_speed, names, refuse_another_vehicle,
+    run_main, warn, write_together)
 from tracked_kinematics.offline.identification import (
     fit, FitOptions, MODELS as MODEL_CHOICES, TOOL as PROG, write_fit)
 from tracked_kinematics.offline.outputs import Outputs
-from tracked_kinematics.params import GYRO_PARAMS
 
 DEFAULT = IdentifyOptions()
 """The defaults of the fit options."""
@@ -61,16 +60,6 @@ def _heading_weight(text: str):
     return None if text == 'auto' else _HEADING_WEIGHT(text)
 
 
-#: s: odometry_node's range of ``imu_delay`` (a file with more would be refused there).
-IMU_DELAY_RANGE = next((spec.low, spec.high) for spec in GYRO_PARAMS if spec.name == 'imu_delay')
-
-
-def _delay(text: str):
-    if text == 'auto':
-        return text
-    return bounded(*IMU_DELAY_RANGE, 's')(text)
-
-
 def build_parser() -> argparse.ArgumentParser:
     """Return the command line of identify_icr."""
     parser = identification_parser(PROG, __doc__, EPILOG,
@@ -86,8 +75,7 @@ def build_parser() -> argparse.ArgumentParser:
                      help='sensor_msgs/Imu: the gyro as the heading reference (alone or with '
                      '--ground-truth-topic); fits chi and the scale ratio, holds the rest')
     add_imu_mount_argument(ref, "--params' imu_mount.*")
-    ref.add_argument('--imu-delay', type=_delay, default='auto', metavar='auto|SECONDS',
-                     help='delay of the IMU stamps behind the encoders: auto estimates it')
+    add_imu_delay_argument(ref)
     ref.add_argument('--gnss-topic', default=None, metavar='TOPIC',
                      help='sensor_msgs/NavSatFix (status >= 0) or nav_msgs/Odometry: '
                      'positions for the distance scale (and icr.x where its noise allows)')
