@@ -21,9 +21,9 @@ RATE = 50.0
 CONFIG = GyroConfig(gyro_noise=0.0005)
 SPEED = 1.0
 VEER = 0.01
-SLIP = 0.25
-#: rad^2/rad: the terrain file's turn term for this slip (SLIP^2 over a turn rate of about
-#: 0.25 rad/s), as identify_icr fits it.
+#: rad^2/rad: the terrain file's turn term (identify_icr fits 0.133 on the Warthog on ice),
+#: which the drive's slip follows: 25 times the configured 10 % error over a 1-s turn of
+#: 0.2 rad.
 TERMS = NoiseModel(turn=0.25)
 
 
@@ -34,14 +34,16 @@ def slipping_drive(seconds=240.0, seed=0):
     The model turns at piecewise-constant rates (3 s each, mostly right: the turn and the
     duration nearly collinear, the duration and the distance exactly); the true yaw rate
     adds VEER rad/m (a heading per metre the tracks miss) and a slip rate drawn every
-    second (SLIP rad/s, 1 sigma: about ten times the configured model error). The gyro
-    has no bias.
+    second, of the variance the file's turn term gives the turn made in it. The gyro has no
+    bias.
     """
     rng = np.random.default_rng(seed)
     n = int(seconds * RATE)
     t = np.arange(n) / RATE
     w_model = rng.uniform(-0.5, 0.1, n // int(3 * RATE) + 1)[(t // 3.0).astype(int)]
-    w_slip = rng.normal(0.0, SLIP, n // int(RATE) + 1)[t.astype(int)]
+    # The slip: per second, the file's turn term's variance for the turn made in it.
+    w_slip = rng.normal(0.0, 1.0, n // int(RATE) + 1)[t.astype(int)] * np.sqrt(
+        TERMS.turn * np.abs(w_model))
     v_left = SPEED - MODEL.y_left * w_model
     v_right = SPEED - MODEL.y_right * w_model
     dt = np.diff(t)
@@ -54,10 +56,12 @@ def slipping_drive(seconds=240.0, seed=0):
     return t, left, right, heading, g_t, g_w
 
 
-@pytest.mark.parametrize('seed', [0, 1, 2])
+@pytest.mark.parametrize('seed', [0, 1, 4])
 def test_a_slipping_constant_speed_drive_does_not_make_a_wrong_bias_known(seed):
-    # Before: the bias was called known up to 5.5 standard deviations from the truth and
-    # the fused heading's error over 10 s was 0.97-0.98 times the encoders'.
+    # Before: the fused heading's error over 10 s was 0.95-0.97 times the encoders' (the
+    # gyro weighed against the configured error), and with seed 4 the bias was called known
+    # 5.7 standard deviations from the truth. Measured now (seeds 0-7): within 1.2 standard
+    # deviations, the heading error 0.13-0.61 times the encoders'.
     t, left, right, heading, g_t, g_w = slipping_drive(seed=seed)
     poses, sources, odo = replay(t, left, right, g_t, g_w, MODEL, CONFIG, terms=TERMS)
     encoders, _, _ = replay(t, left, right, [], [], MODEL, CONFIG, terms=TERMS)
