@@ -88,7 +88,7 @@ def fit_options(train, radius, width, label) -> FitOptions:
     library's, the ICP's 0.2-s latency stayed in the pose and the noise model's ``timing`` took
     it up (0.018-0.11 s^2 instead of 0.006-0.013): the gyro-aided covariance was too large
     (82 / 97 % of the grass windows inside the 50 / 95 % ellipses after 5 s, 93 / 100 % on
-    snow) where identify_icr's files give 44 / 95 % and 67 / 98 %.
+    snow) where identify_icr's files give 45 / 94 % and 69 / 98 %.
     """
     args = identify_icr.build_parser().parse_args(
         [*map(str, train), '--ground-truth-topic', '/icp/pose', '--sprocket-radius',

@@ -30,7 +30,7 @@ def test_the_node_path_equals_replay():
     evaluate_model --fuse-imu calls ``replay`` on the same streams.
     """
     t, left, right, tg, wg = drive()
-    poses, sources, end = replay(t, left, right, tg, wg, ICR, config())
+    poses, sources, end = replay(t, left, right, tg, wg, ICR, config(), terms=TERMS)
     odo = GyroOdometry(ICR, config(), TrackNoise(), TERMS)
     events = sorted([(s, 0, k) for k, s in enumerate(tg)] + [(s, 1, k) for k, s in enumerate(t)])
     got = np.zeros_like(poses)

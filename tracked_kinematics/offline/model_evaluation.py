@@ -291,7 +291,7 @@ def evaluate_models(references: References, models, settings: ev.Settings, *,
     for m in models:
         candidates.append(ev.Candidate(m.name, m.icr, m.drivetrain))
         if fuse_imu:
-            replays = [gyro_track(d.recording, m.icr, m.gyro) for d in references.data]
+            replays = [gyro_track(d.recording, m.icr, m.gyro, m.noise) for d in references.data]
             runs[f'{m.name}+imu'] = replays
             candidates.append(ev.Candidate(f'{m.name}+imu', m.icr, m.drivetrain,
                                            tracks=tuple((t, p) for t, p, _ in replays)))

@@ -25,13 +25,15 @@ from ..kinematics import IcrParams
 from ..noise_model import consistency, covariances, NoiseModel, window_bases
 
 
-def gyro_track(recording: Recording, icr: IcrParams, config: GyroConfig):
+def gyro_track(recording: Recording, icr: IcrParams, config: GyroConfig,
+               terms: NoiseModel | None = None):
     """
     Replay the gyro-aided odometry over a recording with a gyro.
 
     The messages are taken in the order of their stamps (:func:`replay`), the steps at the
     encoder stamps as the node takes them; the poses are interpolated at the ground-truth
-    times too (the grid the pieces are scored on).
+    times too (the grid the pieces are scored on). ``terms``: the terrain file's noise
+    model, whose turn term is the model's heading error in the fusion, as the node's.
 
     Returns
     -------
@@ -47,7 +49,8 @@ def gyro_track(recording: Recording, icr: IcrParams, config: GyroConfig):
     # The steps are the encoders' (as odometry_node takes them); the poses in between are
     # interpolated, not integrated: an extra short step would move the fusion's thresholds.
     enc_poses, _, odo = replay(rec.enc_t, rec.left, rec.right, rec.gyro_t, rec.gyro_rate,
-                               icr, config)
+                               icr, config,
+                               terms=None if terms is None else terms.without_tracks())
     if rec.gt_t is not None and len(rec.gt_t):
         inside = rec.gt_t[(rec.gt_t >= rec.enc_t[0]) & (rec.gt_t <= rec.enc_t[-1])]
         grid = np.union1d(rec.enc_t, inside)

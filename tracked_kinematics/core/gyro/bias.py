@@ -9,13 +9,21 @@ metres (``a = D_r - D_l``, scaled travel) is, to the model's slip error and the 
 
 with ``b`` the bias (rad/s) and ``v`` the heading per metre ``s`` driven that the tracks miss
 (a scale mismatch of the two sides: true motion, which the gyro sees; without it a veer on
-straights passes for a bias). :class:`TurnBias` is a Kalman filter of ``(k, b, v)``: a prior on
-``k`` from the terrain file (``adapt_prior``, relative) and on ``b`` (``gyro_bias`` with
-``gyro_bias_sigma``, or none), segments of motion and blocks of standstill as observations.
+straights passes for a bias), a first-order Gauss-Markov process about zero (spread
+:data:`VEER_PRIOR`, memory :data:`VEER_MEMORY` metres): at a constant speed ``d`` and ``s``
+are collinear and only that prior splits their sum. :class:`TurnBias` is a Kalman filter
+of ``(k, b, v)``: a prior on ``k`` from the terrain file (``adapt_prior``, relative) and
+on ``b`` (``gyro_bias`` with ``gyro_bias_sigma``, or none), segments of motion and blocks
+of standstill as observations.
 So the bias is estimated in motion as well as at standstill, with its uncertainty; where
 ``a`` and ``d`` are collinear (a drive on one-sided curvature from the start) the two stay
 correlated and ``b``'s variance large: the bias is not called known. ``k`` forgets per
-radian turned (``adapt_turn``), ``b`` drifts as a random walk (``bias_time``).
+radian turned (``adapt_turn``), ``b`` drifts as a random walk (``bias_time``). The segments'
+noise is the model's expected heading error (the configured one and the terrain file's turn
+term) times the variance factor their residuals measure; when the factor grows, what the
+earlier segments taught is scaled with it (:meth:`TurnBias.variance_factor`): a terrain that
+slips far more than expected (ice) leaves the bias as uncertain as it is, not decided by
+the first few segments.
 
 A standstill teaches only what agrees with zero motion: its blocks are checked, cumulated
 since the last checkpoint, against the prediction before them (the encoders' creep enters
@@ -98,10 +106,12 @@ class TurnBias:
         self.k0 = k0
         sigma_b = config.gyro_bias_sigma if config.gyro_bias_sigma > 0.0 else BIAS_UNKNOWN
         self._prior_kk = (config.adapt_prior * k0) ** 2
+        self._prior_bb = sigma_b * sigma_b
         self.x = np.array([k0, config.gyro_bias, 0.0])
         self.p = np.diag([self._prior_kk, sigma_b * sigma_b, VEER_PRIOR ** 2])
         self.turned = 0.0
         self._nis = 1.0
+        self._model_rate = None
         self._segments = 0
         self._noise2 = 0.0
         self._blocks = 0
@@ -162,7 +172,15 @@ class TurnBias:
         q = self.noise
         p = self.p
         p[1, 1] = min(p[1, 1] + q * q * dt / (self.config.bias_time ** 2), BIAS_UNKNOWN ** 2)
-        p[2, 2] = min(p[2, 2] + VEER_PRIOR ** 2 * abs(distance) / VEER_MEMORY, VEER_PRIOR ** 2)
+        # The veer: a first-order Gauss-Markov process about zero (memory VEER_MEMORY
+        # metres, stationary spread VEER_PRIOR), not a random walk: where the duration and
+        # the distance are collinear (a constant speed) nothing else keeps it, and the
+        # bias, near zero.
+        fade = math.exp(-abs(distance) / VEER_MEMORY)
+        self.x[2] *= fade
+        p[2, :] *= fade
+        p[:, 2] *= fade
+        p[2, 2] += (1.0 - fade * fade) * VEER_PRIOR ** 2
         grow = math.exp(min(abs(turned) / self.config.adapt_turn, 50.0))
         if grow > 1.0 and p[0, 0] > 0.0:
             kk = min(p[0, 0] * grow, max(self._prior_kk, p[0, 0]))
@@ -206,7 +224,55 @@ class TurnBias:
         # must not make the filter overconfident), forgetting beyond NIS_MEMORY.
         self._segments += 1
         weight = 1.0 / min(self._segments + NIS_PRIOR, NIS_MEMORY)
+        before = self.variance_factor
         self._nis = max(MIN_NIS, self._nis + weight * (nis - self._nis))
+        self._rescale(self.variance_factor / before)
+        if h[1] > 0.0:
+            self._model_rate = (model_var / h[1] if self._model_rate is None else
+                                self._model_rate + weight * (model_var / h[1]
+                                                             - self._model_rate))
+
+    @property
+    def model_rate_var(self) -> float:
+        """
+        Return rad^2/s: the model's heading variance per second of motion, as the gyro saw it.
+
+        The running mean of the segments' expected model variance per second (the same
+        memory as the variance factor), times :attr:`variance_factor`; 0 before a segment.
+        """
+        return 0.0 if self._model_rate is None else self._model_rate * self.variance_factor
+
+    @property
+    def variance_factor(self) -> float:
+        """
+        Return the segments' residual variance over the configured one, at least 1.
+
+        The a posteriori variance factor of the motion's weighted regression (the residuals'
+        variance per unit weight, which scales the estimate's covariance, as scipy's
+        ``curve_fit`` does without ``absolute_sigma``), from the running mean of the
+        normalised innovations: the tracks' heading error as the gyro sees it, relative to
+        the one expected (``model_yaw_rel_std``, ``model_yaw_var_per_m`` and the terrain
+        file's turn term).
+        """
+        return max(1.0, self._nis)
+
+    def _rescale(self, factor: float) -> None:
+        """
+        Scale the turn gain's and the bias's covariance by ``factor``, at most to their priors.
+
+        The segments were taken with the variance factor of their time: when it grows, what
+        they taught is known less (and the next segments weigh as much as the earlier ones,
+        instead of the first few of a terrain whose slip is far above the file's deciding
+        the bias for good). Scaled as ``D P D`` (positive diagonal ``D``): the correlations
+        are kept. The veer is not scaled: what holds it is its prior, no segment's.
+        """
+        if factor == 1.0:
+            return
+        p = self.p
+        caps = (max(self._prior_kk, p[0, 0]), max(self._prior_bb, p[1, 1]))
+        d = np.array([math.sqrt(factor * min(1.0, cap / (factor * v))) if v > 0.0 else 1.0
+                      for v, cap in zip(np.diag(p), caps)] + [1.0])
+        self.p = p * np.outer(d, d)
 
     # Standstill ------------------------------------------------------------------------
 

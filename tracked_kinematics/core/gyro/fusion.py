@@ -10,16 +10,20 @@ is (odometry_node holds either). Per encoder step ``[t0, t1]`` with scaled trave
 - the gyro's, ``dpsi_g = (Y - b (t1 - t0)) / gyro_scale``, ``Y`` the integral of the rate
   over the step on the encoders' clock (:mod:`.samples`), ``b`` the bias (:mod:`.bias`);
 - their fusion, one scalar Kalman update of the heading increment, ``dpsi = dpsi_e +
-  K (dpsi_g - dpsi_e)``, ``K = var_e / (var_e + var_g)``, ``var_e = (model_yaw_rel_std
-  dpsi_e)^2 + model_yaw_var_per_m d`` and ``var_g = (q^2 dt + s_b^2 dt T) / gyro_scale^2 +
-  (scale_std dpsi_g)^2``: ``q`` the noise density, ``s_b`` the bias's standard deviation,
-  whose error is common to all steps of the horizon ``T`` (``bias_horizon``);
+  K (dpsi_g - dpsi_e)``, ``K = var_e / (var_e + var_g)``, ``var_e = F ((model_yaw_rel_std
+  dpsi_e)^2 + turn |dpsi_e| + model_yaw_var_per_m d)`` (``turn`` the terrain file's,
+  ``F`` the variance factor the gyro measured, :mod:`.bias`) and ``var_g = (q^2 dt +
+  s_b^2 dt T) / gyro_scale^2 + (scale_std dpsi_g)^2``: ``q`` the noise density, ``s_b``
+  the bias's standard deviation, whose error is common to all steps of the horizon ``T``
+  (``bias_horizon``);
 - the position along the exact arc of ``(dx, dy, dpsi)``, ``dx = (D_l + D_r) / 2 + c dpsi``,
   ``dy = -x dpsi`` (eqs. 8-9, ``c = (y_left + y_right) / 2``), as :mod:`..odometry`.
 
 The gyro is used only while its samples are healthy (:mod:`.samples`), it agrees with the
 tracks (:mod:`.agreement`: refused, with an error, when it turns the other way, at another
-scale, or on another clock) and its bias is known to ``bias_std``. The pose covariance
+scale, or on another clock) and its bias is known well enough
+(:attr:`GyroOdometry.bias_known`: to ``bias_std``, or where its error over the horizon
+weighs less than the tracks' measured heading error). The pose covariance
 carries the bias's error through the steps (its cross-covariance with the pose).
 docs/nodes/odometry_node.md has the story and the measured figures.
 """
@@ -188,8 +192,18 @@ class GyroOdometry(Published):
 
     @property
     def bias_known(self) -> bool:
-        """Whether the bias is known to ``bias_std``."""
-        return self.filter.bias_std <= self._config.bias_std
+        """
+        Whether the bias is known well enough to use the gyro.
+
+        To ``bias_std``, or to where its error over the horizon ``T`` (``bias_horizon``)
+        weighs less than the tracks' in the fusion at the drive's typical step:
+        ``s_b^2 T <= m``, ``m`` the model's heading variance per second the gyro measured
+        (:attr:`.TurnBias.model_rate_var`). Where the tracks slip far more than configured
+        (ice) a bias known to a few 0.01 rad/s still makes the gyro's heading the better one.
+        """
+        sb2 = self.filter.bias_var
+        return (sb2 <= self._config.bias_std ** 2
+                or sb2 * self._config.bias_horizon <= self.filter.model_rate_var)
 
     @property
     def gyro_noise(self) -> float:
@@ -389,7 +403,8 @@ class GyroOdometry(Published):
     def _segment_noise(self, a, d, distance):
         """Return the model's heading variance over a segment and the gyro's raw one."""
         cfg = self._config
-        model_var = ((cfg.model_yaw_rel_std * a / self._spread0) ** 2
+        turned = a / self._spread0
+        model_var = ((cfg.model_yaw_rel_std * turned) ** 2 + self.terms.turn * abs(turned)
                      + cfg.model_yaw_var_per_m * distance)
         return model_var, cfg.gyro_scale ** 2 * model_var + self.filter.noise ** 2 * d
 
@@ -553,16 +568,21 @@ class GyroOdometry(Published):
         """
         Return the model's heading variance over a step: its slip, and what the gyro showed.
 
-        ``model_yaw_rel_std`` of the increment, and, once the gyro agrees with the tracks,
-        the turn gain it measured against the spread in force (``k W / gyro_scale - 1``: the
-        model's systematic error when the slip is not adapted), plus the veer per metre.
+        ``model_yaw_rel_std`` of the increment, the terrain file's turn term (rad^2 per rad,
+        :func:`..noise_model.turn_slip`) and the veer per metre, times the variance factor
+        the gyro measured against them in motion (:attr:`.TurnBias.variance_factor`, at
+        least 1), and, once the gyro agrees with the tracks, the turn gain it measured
+        against the spread in force (``k W / gyro_scale - 1``: the model's systematic error
+        when the slip is not adapted).
         """
         cfg = self._config
-        rel2 = cfg.model_yaw_rel_std ** 2
+        factor = self.filter.variance_factor
+        rel2 = factor * cfg.model_yaw_rel_std ** 2
         if self.check.verdict == AGREES:
             off = self.filter.k * self._spread / cfg.gyro_scale - 1.0
             rel2 += off * off
-        return rel2 * dpsi_e * dpsi_e + cfg.model_yaw_var_per_m * 0.5 * big
+        return (rel2 * dpsi_e * dpsi_e + factor * (self.terms.turn * abs(dpsi_e)
+                                                   + cfg.model_yaw_var_per_m * 0.5 * big))
 
     # Outputs ---------------------------------------------------------------------------
 

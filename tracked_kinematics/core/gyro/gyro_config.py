@@ -85,7 +85,8 @@ class GyroConfig:
     adapt_prior : float
         Relative uncertainty (1 sigma) of the file's turn gain ``1 / (y_left - y_right)``.
     bias_std : float
-        rad/s: the gyro is used once the bias is known to this (1 sigma).
+        rad/s: the gyro is used once the bias is known to this (1 sigma), or sooner where
+        the tracks' measured heading error outweighs the bias's (``GyroOdometry.bias_known``).
     bias_horizon : float
         s over which a bias error counts in the fusion's weight (the odometry's horizon).
 
