@@ -27,8 +27,9 @@ from tracked_kinematics.core.noise_model import TERMS
 from tracked_kinematics.offline.errors import UsageError
 from tracked_kinematics.offline.tooling import json_ready
 from tracked_kinematics.params import (
-    drivetrain_from_values, gyro_config_from_values, icr_from_values, noise_model_from_values,
-    NOISE_PARAMS, read_params_file, values_from_drivetrain)
+    drivetrain_from_values, gyro_config_from_values, gyro_noise_model_from_values,
+    icr_from_values, noise_model_from_values, NOISE_PARAMS, read_params_file,
+    values_from_drivetrain)
 
 TOOL = 'evaluate_model'
 CLOSE = 0.05
@@ -65,6 +66,7 @@ class TerrainModel:
         # As odometry_node reads them, checked by its table.
         try:
             self.noise = noise_model_from_values(self.values)
+            self.gyro_noise = gyro_noise_model_from_values(self.values)
             self.gyro = gyro_config_from_values(self.values)
         except ValueError as err:
             raise InvalidParameters(f'{path}: {err}') from None
@@ -330,7 +332,8 @@ def _consistency(evaluation, models, candidates, settings, recordings) -> dict:
         if gyro:
             found = gyro_window_consistency(recordings, evaluation.pieces, c.icr, model.gyro,
                                             track_noise_of(model.values), model.noise,
-                                            settings.windows, settings.min_speed)
+                                            settings.windows, settings.min_speed,
+                                            model.gyro_noise)
         else:
             found = window_consistency(evaluation.pieces, evaluation.paths[c.name], c.icr,
                                        model.noise, settings.windows, settings.min_speed)
