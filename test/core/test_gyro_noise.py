@@ -33,7 +33,7 @@ def test_drift_adds_the_squared_displacement_on_both_axes():
 
 
 def drive(seconds=30.0, rate=20.0):
-    """A curve then a straight, the gyro agreeing with the tracks: (enc_t, left, right, g)."""
+    """Return a curve then a straight, the gyro agreeing: (enc_t, left, right, rate)."""
     t = np.arange(0.0, seconds, 1.0 / rate)
     v_l = np.where(t < seconds / 2, 0.3, 0.5)
     v_r = np.where(t < seconds / 2, 0.7, 0.5)
@@ -71,7 +71,7 @@ def test_the_gyro_aided_terms_are_published_while_the_heading_is_the_gyros():
 
 
 def windows_from(constants, n=4000, seed=3):
-    """Windows whose errors are drawn from ``fixed + sum c_m A_m``, random shapes."""
+    """Return windows whose errors are drawn from ``fixed + sum c_m A_m``, random shapes."""
     rng = np.random.default_rng(seed)
     fixed = np.zeros((n, 2, 2))
     fixed[:, 0, 0] = fixed[:, 1, 1] = 1e-4
