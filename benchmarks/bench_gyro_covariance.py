@@ -2,8 +2,10 @@
 Benchmark: what the gyro-aided covariance is made of on held-out runs, how far its coverage moves.
 
 The published covariance of odometry_node with ``imu_topic`` (evaluate_model ``--fuse-imu``'s
-``+imu`` row: the terrain file's noise model without its track terms, the tracks' random walk,
-the gyro's heading with its bias, the time error at both ends), replayed with ``~/reset``
+``+imu`` row: the terrain file's noise model without its track terms, with the gyro-aided
+odometry's own ``slip``, ``timing`` and ``drift`` (``covariance.gyro_aided.*``, which identify_icr
+fits on the training data's gyro-aided windows), the tracks' random walk, the gyro's heading
+with its bias, the time error at both ends), replayed with ``~/reset``
 every 5 s and 10 s on held-out data, as :func:`..core.evaluate.consistency.
 gyro_window_consistency` does, with four reset schedules a quarter window apart (the first
 reset at a piece's start, then 1/4, 1/2 and 3/4 of a window later). Printed per case and
