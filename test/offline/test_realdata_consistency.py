@@ -152,6 +152,8 @@ def test_the_marmottes_gyro_aided_covariance_from_a_pose_fit_holds_on_its_held_o
                                 '0.116702', '--fuse-imu', '/imu/data',
                                 '--report', str(report)]) == 0
     models = json.loads(report.read_text())['models']
+    used = models['pose+imu']['gyro']['noise']
+    assert used['from_file'] and used['drift'] == values['covariance.gyro_aided.drift']
     for window in ('5', '10'):
         c = models['pose+imu']['odometry']['windows'][window]['consistency']
         assert c['windows'] >= 25, c

@@ -21,6 +21,7 @@ from tracked_kinematics.core.errors import ExcitationError, InvalidParameters
 from tracked_kinematics.core.estimate.config import EstimatorConfig
 from tracked_kinematics.core.evaluate.consistency import (
     gyro_track, gyro_window_consistency, window_consistency)
+from tracked_kinematics.core.evaluate.gyro_noise import GYRO_TERMS
 from tracked_kinematics.core.evaluate.verdict import MIN_WINDOWS
 from tracked_kinematics.core.kinematics import IcrParams
 from tracked_kinematics.core.noise_model import TERMS
@@ -391,7 +392,10 @@ def _model_entry(candidate, by_name, runs) -> dict:
             'noise_rad_per_sqrt_s': [o.gyro_noise for o in odos],
             'switches': [o.switches for o in odos],
             'source_at_end': [o.source for o in odos],
-            'from_file': {k: k in model.values for k in ('imu_delay', 'gyro_scale')}}
+            'from_file': {k: k in model.values for k in ('imu_delay', 'gyro_scale')},
+            'noise': {**{t: getattr(model.gyro_noise, t) for t in GYRO_TERMS},
+                      'from_file': any(k.startswith('covariance.gyro_aided.')
+                                       for k in model.values)}}
     elif candidate.name != 'ideal' and not online:
         entry['noise'] = {**{t: getattr(model.noise, t) for t in TERMS},
                           'from_file': any(k.startswith('covariance.') for k in model.values)}
