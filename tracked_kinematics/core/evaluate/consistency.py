@@ -20,7 +20,7 @@ import numpy as np
 from .pieces import moving_windows
 from .verdict import covariance_verdict, disjoint_windows
 from ..covariance import TrackNoise
-from ..gyro import GyroConfig, replay
+from ..gyro import GYRO, GyroConfig, replay
 from ..identify import Recording
 from ..kinematics import IcrParams
 from ..noise_model import consistency, covariances, NoiseModel, window_bases
@@ -200,6 +200,8 @@ def gyro_reset_windows(recording: Recording, pieces, icr: IcrParams, config: Gyr
         The position covariance published at each window's end, m^2.
     poses : ndarray, shape (W, 3)
         The odometry's pose at each window's end, since its start.
+    gyro : ndarray of bool, shape (W,)
+        Whether the heading at each window's end is the gyro's.
 
     """
     rec = recording
@@ -208,11 +210,11 @@ def gyro_reset_windows(recording: Recording, pieces, icr: IcrParams, config: Gyr
                                        [p for p in late if len(p.t) > 1], float(length),
                                        min_speed)
     if len(start) == 0:
-        return np.zeros((0, 2)), np.zeros((0, 2, 2)), np.zeros((0, 3))
-    poses, _, odo = replay(rec.enc_t, rec.left, rec.right, rec.gyro_t, rec.gyro_rate, icr,
-                           config, resets=resets, noise=noise, terms=terms,
-                           gyro_terms=gyro_terms)
-    errors, covs, ends = [], [], []
+        return _no_windows()
+    poses, sources, odo = replay(rec.enc_t, rec.left, rec.right, rec.gyro_t, rec.gyro_rate,
+                                 icr, config, resets=resets, noise=noise, terms=terms,
+                                 gyro_terms=gyro_terms)
+    errors, covs, ends, gyro = [], [], [], []
     for piece in pieces:
         inside = (rec.enc_t[start] >= piece.t[0]) & (rec.enc_t[end] <= piece.t[-1])
         if not np.any(inside):
@@ -226,9 +228,15 @@ def gyro_reset_windows(recording: Recording, pieces, icr: IcrParams, config: Gyr
         covs.append(np.stack([np.stack([p[:, 0], p[:, 1]], -1),
                               np.stack([p[:, 1], p[:, 3]], -1)], -2))
         ends.append(poses[b])
+        gyro.append(sources[b] == GYRO)
     if not errors:
-        return np.zeros((0, 2)), np.zeros((0, 2, 2)), np.zeros((0, 3))
-    return np.concatenate(errors), np.concatenate(covs), np.concatenate(ends)
+        return _no_windows()
+    return (np.concatenate(errors), np.concatenate(covs), np.concatenate(ends),
+            np.concatenate(gyro))
+
+
+def _no_windows():
+    return np.zeros((0, 2)), np.zeros((0, 2, 2)), np.zeros((0, 3)), np.zeros(0, dtype=bool)
 
 
 def gyro_window_consistency(recordings, pieces, icr: IcrParams, config: GyroConfig,
@@ -277,8 +285,8 @@ def gyro_window_consistency(recordings, pieces, icr: IcrParams, config: GyroConf
             mine = [p for p in pieces if p.recording == r]
             if not mine or rec.gyro_t is None:
                 continue
-            e, p, _ = gyro_reset_windows(rec, mine, icr, config, noise, terms, gyro_terms,
-                                         float(length), min_speed)
+            e, p, _, _ = gyro_reset_windows(rec, mine, icr, config, noise, terms,
+                                            gyro_terms, float(length), min_speed)
             if len(e):
                 errors.append(e)
                 covs.append(p)

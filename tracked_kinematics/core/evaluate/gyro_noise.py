@@ -78,6 +78,9 @@ def gyro_windows(recordings, pieces, icr: IcrParams, config: GyroConfig, noise: 
     """
     Return the gyro-aided odometry's windows on recordings, with their covariance bases.
 
+    Only the windows at whose end the heading is the gyro's (the node publishes the gyro-aided
+    constants there; elsewhere the encoders').
+
     Parameters
     ----------
     recordings : sequence of Recording
@@ -107,17 +110,19 @@ def gyro_windows(recordings, pieces, icr: IcrParams, config: GyroConfig, noise: 
         for w in lengths:
             for offset in offsets:
                 args = (rec, mine, icr, config, noise, terms)
-                e, p0, poses = gyro_reset_windows(*args, base, w, min_speed, offset * w)
-                if not len(e):
+                e, p0, poses, gyro = gyro_reset_windows(*args, base, w, min_speed,
+                                                        offset * w)
+                if not np.any(gyro):
                     continue
                 each = [gyro_reset_windows(*args, u, w, min_speed, offset * w)[1] - p0
                         for u in unit]
                 # drift: |p|^2 I where the heading is the gyro's (published_covariance).
                 each.append(np.sum(poses[:, :2] ** 2, 1)[:, None, None] * np.eye(2))
-                errors.append(e)
-                fixed.append(p0)
-                bases.append(np.stack(each, 1))
-                length.append(np.full(len(e), float(w)))
+                # The windows that end with the heading the gyro's: what the constants are for.
+                errors.append(e[gyro])
+                fixed.append(p0[gyro])
+                bases.append(np.stack(each, 1)[gyro])
+                length.append(np.full(int(np.sum(gyro)), float(w)))
     if not errors:
         return GyroWindows(np.zeros((0, 2)), np.zeros((0, 2, 2)),
                            np.zeros((0, len(GYRO_TERMS), 2, 2)), np.zeros(0), len(offsets))
