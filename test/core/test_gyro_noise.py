@@ -121,3 +121,48 @@ def test_a_file_without_the_gyro_aided_keys_publishes_as_before():
 def test_bad_gyro_aided_values_are_refused_by_name(key, value):
     with pytest.raises(InvalidParameters, match=key.replace('.', r'\.')):
         gyro_noise_model_from_values({key: value})
+
+
+def recording(gyro_sign=1.0, seconds=120.0, rate=20.0):
+    """Return a drive of curves, straights and pivots, its pose exact, its gyro ``sign`` x."""
+    from tracked_kinematics.core.identify import Recording
+    rng = np.random.default_rng(5)
+    speeds = []
+    while len(speeds) < seconds * rate:
+        v = rng.uniform(0.2, 0.6)
+        speeds += [rng.choice([(v, v), (0.5 * v, v), (-v, v), (v, -v)])] * int(rate * 4)
+    speeds = np.array(speeds[:int(seconds * rate)])
+    t = np.arange(len(speeds)) / rate
+    d = np.vstack([[0.0, 0.0], speeds[1:] / rate])
+    w = (speeds[:, 1] - speeds[:, 0]) / 0.7
+    heading = np.concatenate([[0.0], np.cumsum(0.5 * (w[1:] + w[:-1]) / rate)])
+    mid = np.concatenate([[0.0], 0.5 * (heading[1:] + heading[:-1])])
+    ds = 0.5 * (d[:, 0] + d[:, 1])
+    x, y = np.cumsum(ds * np.cos(mid)), np.cumsum(ds * np.sin(mid))
+    return Recording(t, np.cumsum(d[:, 0]), np.cumsum(d[:, 1]), t[::2], x[::2], y[::2],
+                     heading[::2], gyro_t=t, gyro_rate=gyro_sign * w)
+
+
+@pytest.mark.parametrize('sign', [1.0, -1.0])
+def test_only_windows_that_end_on_the_gyro_are_fitted_on(sign):
+    from tracked_kinematics.core.evaluate import cut
+    from tracked_kinematics.core.evaluate.gyro_noise import gyro_windows
+    from tracked_kinematics.core.covariance import TrackNoise
+    rec = recording(sign)
+    pieces = cut(rec, 0, True, 0.7).pieces
+    model = NoiseModel(slip=0.01, timing=0.001)
+    windows = gyro_windows([rec], pieces, ICR, GyroConfig(gyro_bias_sigma=0.001),
+                           TrackNoise(), model, (5.0, 10.0), 0.1)
+    if sign < 0:
+        # A gyro turning the other way is refused: the heading is the encoders', nothing to
+        # fit the gyro-aided constants on.
+        assert len(windows) == 0
+        with pytest.raises(ValueError, match='too few'):
+            fit_gyro_noise(windows, model)
+        return
+    assert len(windows) >= 4 * (20 + 10)
+    assert windows.bases.shape == (len(windows), len(GYRO_TERMS), 2, 2)
+    # The drift basis is |p|^2 on both axes; the gyro's heading is the truth's: small errors.
+    np.testing.assert_allclose(windows.bases[:, 2, 0, 0], windows.bases[:, 2, 1, 1])
+    assert np.all(windows.bases[:, 2, 0, 1] == 0.0)
+    assert np.abs(windows.errors).max() < 0.2
