@@ -2,8 +2,10 @@
 Benchmark: what the gyro-aided covariance is made of on held-out runs, how far its coverage moves.
 
 The published covariance of odometry_node with ``imu_topic`` (evaluate_model ``--fuse-imu``'s
-``+imu`` row: the terrain file's noise model without its track terms, the tracks' random walk,
-the gyro's heading with its bias, the time error at both ends), replayed with ``~/reset``
+``+imu`` row: the terrain file's noise model without its track terms, with the gyro-aided
+odometry's own ``slip``, ``timing`` and ``drift`` (``covariance.gyro_aided.*``, which identify_icr
+fits on the training data's gyro-aided windows), the tracks' random walk, the gyro's heading
+with its bias, the time error at both ends), replayed with ``~/reset``
 every 5 s and 10 s on held-out data, as :func:`..core.evaluate.consistency.
 gyro_window_consistency` does, with four reset schedules a quarter window apart (the first
 reset at a piece's start, then 1/4, 1/2 and 3/4 of a window later). Printed per case and
@@ -28,7 +30,6 @@ import io
 from pathlib import Path
 import sys
 import tempfile
-from types import SimpleNamespace
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT / 'test'))
@@ -37,8 +38,7 @@ from helpers.realdata import from_argv, split_bag  # noqa: E402 -- the test help
 import numpy as np  # noqa: E402
 from tracked_kinematics.core import evaluate as ev  # noqa: E402
 from tracked_kinematics.core.covariance import TrackNoise  # noqa: E402
-from tracked_kinematics.core.evaluate.consistency import reset_windows  # noqa: E402
-from tracked_kinematics.core.gyro import replay  # noqa: E402
+from tracked_kinematics.core.evaluate.consistency import gyro_reset_windows  # noqa: E402
 from tracked_kinematics.core.noise_model import consistency, NoiseModel  # noqa: E402
 from tracked_kinematics.offline.bags import (  # noqa: E402
     EncoderSource, GroundTruthSource, read_recording)
@@ -55,7 +55,7 @@ LENGTHS = (5.0, 10.0)
 OFFSETS = (0.0, 0.25, 0.5, 0.75)
 MIN_SPEED = 0.1
 TRAIN_SHARE = 0.55
-TERMS = ('turn', 'slip', 'timing', 'scale')
+TERMS = ('turn', 'slip', 'timing', 'scale', 'drift')
 
 
 def folds(case, base: Path, tmp: Path):
@@ -96,41 +96,16 @@ def held_out(bag, terrain: Path, radius, width):
     return data.recording, pieces, model
 
 
-def motion(start, end):
-    """Return the motion from poses ``start`` to ``end`` (W, 3) in the frame of the start."""
-    c, s = np.cos(start[:, 2]), np.sin(start[:, 2])
-    dx, dy = end[:, 0] - start[:, 0], end[:, 1] - start[:, 1]
-    return np.column_stack([c * dx + s * dy, -s * dx + c * dy, end[:, 2] - start[:, 2]])
-
-
-def truth_at(piece, times):
-    """Return the piece's ground truth at ``times``: (T, 3)."""
-    return np.column_stack([np.interp(times, piece.t, piece.truth[:, k]) for k in range(3)])
-
-
-def windows(rec, pieces, model, length, offset, noise, terms):
+def windows(rec, pieces, model, length, offset, noise, terms, gyro_terms=None):
     """
     Replay the gyro-aided odometry reset every ``length`` s, from ``offset`` s into each piece.
 
-    Returns the final position errors (W, 2) and the published position covariances (W, 2, 2).
+    ``gyro_terms``: the terms while the heading is the gyro's (default ``terms``). Returns the
+    final position errors (W, 2) and the published position covariances (W, 2, 2), as
+    :func:`gyro_window_consistency` scores them.
     """
-    late = [SimpleNamespace(t=p.t[p.t >= p.t[0] + offset]) for p in pieces]
-    start, end, resets = reset_windows(rec.enc_t, rec.left, rec.right,
-                                       [p for p in late if len(p.t) > 1], length, MIN_SPEED)
-    if len(start) == 0:
-        return np.zeros((0, 2)), np.zeros((0, 2, 2))
-    poses, _, odo = replay(rec.enc_t, rec.left, rec.right, rec.gyro_t, rec.gyro_rate,
-                           model.icr, model.gyro, resets=resets, noise=noise, terms=terms)
-    errors, covs = [], []
-    for piece in pieces:
-        inside = (rec.enc_t[start] >= piece.t[0]) & (rec.enc_t[end] <= piece.t[-1])
-        a, b = start[inside], end[inside]
-        truth = motion(truth_at(piece, rec.enc_t[a]), truth_at(piece, rec.enc_t[b]))
-        errors.append(poses[b, :2] - truth[:, :2])
-        p = odo.published[b]
-        covs.append(np.stack([np.stack([p[:, 0], p[:, 1]], -1),
-                              np.stack([p[:, 1], p[:, 3]], -1)], -2))
-    return np.concatenate(errors), np.concatenate(covs)
+    return gyro_reset_windows(rec, pieces, model.icr, model.gyro, noise, terms, gyro_terms,
+                              length, MIN_SPEED, offset)[:2]
 
 
 def shares(scored, length):
@@ -139,7 +114,7 @@ def shares(scored, length):
     still = TrackNoise(0.0, 0.0, 0.0)
     traces = {}
     for rec, pieces, model in scored:
-        terms = model.noise.without_tracks()
+        terms = model.gyro_noise.without_tracks()
         alone = {'gyro': (still, none), 'tracks': (track_noise_of(model.values), none)}
         alone.update({t: (still, replace(none, **{t: getattr(terms, t)})) for t in TERMS})
         gyro = windows(rec, pieces, model, length, 0.0, still, none)[1]
@@ -163,7 +138,8 @@ def run_case(case, base: Path, tmp: Path):
         cells, everything = [], []
         for offset in OFFSETS:
             found = [windows(rec, pieces, model, length, offset * length,
-                             track_noise_of(model.values), model.noise.without_tracks())
+                             track_noise_of(model.values), model.noise.without_tracks(),
+                             model.gyro_noise.without_tracks())
                      for rec, pieces, model in scored]
             e = np.concatenate([f[0] for f in found])
             p = np.concatenate([f[1] for f in found])

@@ -64,6 +64,10 @@ def test_each_file_is_scored_from_the_encoders_and_gyro_aided(fused):
     assert entry['gyro']['bias_rad_s'][0] == pytest.approx(0.0105, abs=0.002)
     assert report['models']['told']['noise']['turn'] == 1e-3
     assert report['models']['naive']['noise']['from_file'] is False
+    # No covariance.gyro_aided.* in the file: the gyro-aided row uses the encoders' terms.
+    assert entry['gyro']['noise']['from_file'] is False
+    assert entry['gyro']['noise']['slip'] == report['models']['told']['noise']['slip']
+    assert entry['gyro']['noise']['drift'] == 0.0
 
 
 def test_the_files_gyro_constants_are_used(fused):

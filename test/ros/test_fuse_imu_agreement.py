@@ -46,7 +46,12 @@ def offline(tmp_path_factory):
     argv = [result.bag, '--ground-truth-topic', GT, '--ground-truth-delay', '0', '--params',
             terrain, '--fuse-imu', IMU, '--tum', root / 'tum']
     assert cli.main([str(a) for a in argv]) == 0
-    return {'bag': Path(result.bag), 'terrain': terrain,
+    # The same file with the gyro-aided odometry's own noise constants (identify_icr's).
+    gyro_aided = root / 'gyro_aided.yaml'
+    gyro_aided.write_text(terrain.read_text().replace(
+        'ros__parameters:\n', 'ros__parameters:\n    covariance.gyro_aided.slip: 0.03\n'
+        '    covariance.gyro_aided.timing: 0.02\n    covariance.gyro_aided.drift: 0.004\n', 1))
+    return {'bag': Path(result.bag), 'terrain': terrain, 'gyro_aided': gyro_aided,
             'tum': np.loadtxt(root / 'tum' / 'piece000.terrain+imu.tum'),
             'encoders': np.loadtxt(root / 'tum' / 'piece000.terrain.tum')}
 
@@ -81,9 +86,9 @@ def relative(t, x, y, theta, t0):
                             theta - th0])
 
 
-def node_on_the_terrain(offline, ros_context, executor):
+def node_on_the_terrain(offline, ros_context, executor, terrain='terrain'):
     """Start odometry_node with the simulated terrain file and imu_topic; drivers, odom."""
-    values = {k: v for k, v in read_params_file(offline['terrain']).items()
+    values = {k: v for k, v in read_params_file(offline[terrain]).items()
               if not k.startswith(NOT_PARAMETERS)}
     node = OdometryNode(context=ros_context, parameter_overrides=[
         Parameter(k, value=v) for k, v in {**values, 'imu_topic': 'imu'}.items()])
@@ -146,15 +151,15 @@ def test_the_node_publishes_evaluate_models_gyro_aided_trajectory(
     assert np.abs(model[:, 2] - got[:, 2]).max() > 1e-3
 
 
+@pytest.mark.parametrize('terrain', ['terrain', 'gyro_aided'])
 def test_the_covariance_published_is_the_one_evaluate_model_scores(
-        offline, ros_context, executor):
+        offline, ros_context, executor, terrain):
     """Issue 35: one covariance. The node reset every 5 s, and core's replay with resets."""
     from std_srvs.srv import Trigger
     from tracked_kinematics.core.gyro import replay
-    from tracked_kinematics.core.noise_model import NoiseModel
     from tracked_kinematics.offline.model_evaluation import TerrainModel, track_noise_of
 
-    node, encoders, imu, odom = node_on_the_terrain(offline, ros_context, executor)
+    node, encoders, imu, odom = node_on_the_terrain(offline, ros_context, executor, terrain)
     client = encoders.node.create_client(Trigger, 'odometry_node/reset')
     assert spin_until(executor, lambda: node.count_subscribers('odom') >= 1)
     assert client.wait_for_service(timeout_sec=2.0)
@@ -182,14 +187,22 @@ def test_the_covariance_published_is_the_one_evaluate_model_scores(
         k += 1
     assert spin_until(executor, lambda: len(odom) >= len(enc) - 1)
 
-    model = TerrainModel(offline['terrain'])
-    terms = NoiseModel(0.0, model.noise.turn, model.noise.slip, model.noise.timing, 0.0)
-    _, _, odo = replay(enc_t, left, right, [(ns - origin) * 1e-9 for ns, _ in gyro],
-                       [m.angular_velocity.z for _, m in gyro], model.icr, model.gyro,
-                       resets=resets, noise=track_noise_of(model.values), terms=terms)
+    # As evaluate_model's gyro_window_consistency replays it (the file's terms, and the
+    # gyro-aided ones while the heading is the gyro's).
+    model = TerrainModel(offline[terrain])
+
+    def scored_with(gyro_terms):
+        _, _, odo = replay(enc_t, left, right, [(ns - origin) * 1e-9 for ns, _ in gyro],
+                           [m.angular_velocity.z for _, m in gyro], model.icr, model.gyro,
+                           resets=resets, noise=track_noise_of(model.values),
+                           terms=model.noise.without_tracks(), gyro_terms=gyro_terms)
+        return odo.published[ends][:, [0, 1, 3]]
     ends = np.flatnonzero(resets)
     published = np.array([[odom[i - 1].pose.covariance[j] for j in (0, 1, 7)] for i in ends])
-    scored = odo.published[ends][:, [0, 1, 3]]
+    scored = scored_with(model.gyro_noise.without_tracks())
     assert node.odometry.source == 'gyro'
     assert len(ends) >= 2 and np.all(scored[:, 0] > 0.0)
     np.testing.assert_allclose(published, scored, rtol=1e-6, atol=1e-12)
+    if terrain == 'gyro_aided':
+        # The gyro-aided constants count: the file's own terms alone publish less.
+        assert np.all(scored_with(None)[:, 0] < 0.9 * scored[:, 0])

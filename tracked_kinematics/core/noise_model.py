@@ -37,6 +37,13 @@ displacement ``p`` since the interval's start.
   displacement ``p``, whatever the window's length (the ``timing`` term, constant in the
   length, carried it exactly for one length only: 4 times too much after 5 s for 10 s).
   Not accumulated per step; fitted only where asked (:func:`.evaluate.noise.fit_noise`).
+- ``drift`` (1, relative variance): the displacement ``p`` since the interval's start is off
+  by ``s p + beta perp(p)``, a distance scale ``s`` and a crab angle ``beta`` (the direction
+  of travel off the heading) each of variance ``drift``, constant over the interval: the
+  position covariance gets ``drift |p|^2 I``. For the gyro-aided odometry, whose heading
+  the gyro gives and whose errors grow as the square of the window (issue 35): its own
+  constants are fitted on gyro-aided windows (:mod:`.evaluate.gyro_noise`); the encoders'
+  model has none. Our own choice, not an equation of the papers.
 
 The pose covariance is propagated through the ICR kinematics along the path, linearised as
 Kelly does (:func:`propagate_body`, one step, and its float form for the node,
@@ -98,6 +105,9 @@ class NoiseModel:
     scale : float
         Relative variance of the distance scale, the same over an interval: the position
         covariance gets ``scale p p^T`` for the displacement ``p`` since its start (1).
+    drift : float
+        Relative variance of the displacement's length and direction, the same over an
+        interval: the position covariance gets ``drift |p|^2 I`` (1).
 
     Raises
     ------
@@ -112,6 +122,7 @@ class NoiseModel:
     timing: float = 0.0
     floor: float = 1e-9
     scale: float = 0.0
+    drift: float = 0.0
 
     def __post_init__(self):
         for f in fields(self):
@@ -134,8 +145,8 @@ class NoiseModel:
 
     @property
     def beside_the_steps(self) -> bool:
-        """Return whether ``timing`` or ``scale`` is on: added where published, not per step."""
-        return self.timing > 0.0 or self.scale > 0.0
+        """Return whether ``timing``, ``scale`` or ``drift`` is on: added where published."""
+        return self.timing > 0.0 or self.scale > 0.0 or self.drift > 0.0
 
     @property
     def constants(self) -> np.ndarray:
@@ -364,15 +375,17 @@ def published_covariance(upper, pose, twist, start_twist, model: NoiseModel | No
     the start pose by ``start_twist`` and turns it by ``w0 dt``, which swings the whole
     displacement ``(x, y)`` since: ``(u_x - w0 y, u_y + w0 x, w0)`` (the lever arm). Both
     independent, not accumulated. A distance scale off by a relative error of variance
-    ``model.scale`` moves ``(x, y)`` by ``scale (x, y)(x, y)^T`` (the pose is since the reset).
-    ``model`` None: ``upper`` unchanged.
+    ``model.scale`` moves ``(x, y)`` by ``scale (x, y)(x, y)^T`` (the pose is since the reset),
+    a scale and crab angle of variance ``model.drift`` by ``drift (x^2 + y^2) I``. ``model``
+    None: ``upper`` unchanged.
     """
     if model is None or not model.beside_the_steps:
         return upper
     x, y, theta = pose
     k = model.scale
-    upper = (upper[0] + k * x * x, upper[1] + k * x * y, upper[2], upper[3] + k * y * y,
-             upper[4], upper[5])
+    d = model.drift * (x * x + y * y)
+    upper = (upper[0] + k * x * x + d, upper[1] + k * x * y, upper[2],
+             upper[3] + k * y * y + d, upper[4], upper[5])
     v_x, v_y, w = twist
     c, s = math.cos(theta), math.sin(theta)
     end = timing_covariance(model, c * v_x - s * v_y, s * v_x + c * v_y, w)

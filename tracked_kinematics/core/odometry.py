@@ -41,14 +41,25 @@ class Published:
     """
 
     timing: NoiseModel | None = None
+    gyro_timing: NoiseModel | None = None
     source = 'encoders'
     reason = 'imu_topic is empty'
     level = 'ok'
     _last_twist = (0.0, 0.0, 0.0)
 
-    def set_timing(self, model: NoiseModel | None) -> None:
-        """Publish with the ``timing`` and ``scale`` terms of ``model`` (none when None or 0)."""
+    def set_timing(self, model: NoiseModel | None, gyro: NoiseModel | None = None) -> None:
+        """
+        Publish with the ``timing``, ``scale`` and ``drift`` terms of ``model`` (none: None, 0).
+
+        ``gyro``: those published while the heading is the gyro's (default ``model``'s).
+        """
         self.timing = model if model is not None and model.beside_the_steps else None
+        gyro = model if gyro is None else gyro
+        self.gyro_timing = gyro if gyro is not None and gyro.beside_the_steps else None
+
+    def timing_now(self) -> NoiseModel | None:
+        """Return the terms published beside the steps now (the encoders': ``timing``)."""
+        return self.timing
 
     def reset(self) -> None:
         """Return the pose to zero with zero covariance; the time error at the start stays."""
@@ -71,7 +82,7 @@ class Published:
         if all(map(math.isfinite, twist)):
             self._last_twist = twist
         covariance = published_covariance(self.covariance_upper, self.pose, twist,
-                                          self._start_twist, self.timing)
+                                          self._start_twist, self.timing_now())
         return self.pose, covariance, twist, twist_covariance
 
     @staticmethod

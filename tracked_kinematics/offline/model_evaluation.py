@@ -21,14 +21,16 @@ from tracked_kinematics.core.errors import ExcitationError, InvalidParameters
 from tracked_kinematics.core.estimate.config import EstimatorConfig
 from tracked_kinematics.core.evaluate.consistency import (
     gyro_track, gyro_window_consistency, window_consistency)
+from tracked_kinematics.core.evaluate.gyro_noise import GYRO_TERMS
 from tracked_kinematics.core.evaluate.verdict import MIN_WINDOWS
 from tracked_kinematics.core.kinematics import IcrParams
 from tracked_kinematics.core.noise_model import TERMS
 from tracked_kinematics.offline.errors import UsageError
 from tracked_kinematics.offline.tooling import json_ready
 from tracked_kinematics.params import (
-    drivetrain_from_values, gyro_config_from_values, icr_from_values, noise_model_from_values,
-    NOISE_PARAMS, read_params_file, values_from_drivetrain)
+    drivetrain_from_values, gyro_config_from_values, gyro_noise_model_from_values,
+    icr_from_values, noise_model_from_values, NOISE_PARAMS, read_params_file,
+    values_from_drivetrain)
 
 TOOL = 'evaluate_model'
 CLOSE = 0.05
@@ -65,6 +67,7 @@ class TerrainModel:
         # As odometry_node reads them, checked by its table.
         try:
             self.noise = noise_model_from_values(self.values)
+            self.gyro_noise = gyro_noise_model_from_values(self.values)
             self.gyro = gyro_config_from_values(self.values)
         except ValueError as err:
             raise InvalidParameters(f'{path}: {err}') from None
@@ -336,7 +339,8 @@ def _consistency(evaluation, models, candidates, settings, recordings) -> dict:
         if gyro:
             found = gyro_window_consistency(recordings, evaluation.pieces, c.icr, model.gyro,
                                             track_noise_of(model.values), model.noise,
-                                            settings.windows, settings.min_speed)
+                                            settings.windows, settings.min_speed,
+                                            model.gyro_noise)
         else:
             found = window_consistency(evaluation.pieces, evaluation.paths[c.name], c.icr,
                                        model.noise, settings.windows, settings.min_speed)
@@ -394,7 +398,10 @@ def _model_entry(candidate, by_name, runs) -> dict:
             'noise_rad_per_sqrt_s': [o.gyro_noise for o in odos],
             'switches': [o.switches for o in odos],
             'source_at_end': [o.source for o in odos],
-            'from_file': {k: k in model.values for k in ('imu_delay', 'gyro_scale')}}
+            'from_file': {k: k in model.values for k in ('imu_delay', 'gyro_scale')},
+            'noise': {**{t: getattr(model.gyro_noise, t) for t in GYRO_TERMS},
+                      'from_file': any(k.startswith('covariance.gyro_aided.')
+                                       for k in model.values)}}
     elif candidate.name != 'ideal' and not online:
         entry['noise'] = {**{t: getattr(model.noise, t) for t in TERMS},
                           'from_file': any(k.startswith('covariance.') for k in model.values)}

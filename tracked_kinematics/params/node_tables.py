@@ -19,7 +19,7 @@ from tracked_kinematics.core.sim.terrains import TERRAINS
 from .spec import (Derived, described_as, each, finite, frame_id, node_name, non_negative,
                    one_of, ParamSpec, positive, ros_name, zero_or_at_least)
 from .tables import (COMMAND_LIMIT_PARAMS, DRIVETRAIN_PARAMS, ENCODER_INPUT_PARAMS,
-                     GYRO_PARAMS, NOISE_PARAMS, TERRAIN_PARAMS)
+                     GYRO_NOISE_PARAMS, GYRO_PARAMS, NOISE_PARAMS, TERRAIN_PARAMS)
 
 
 # odometry_node
@@ -55,6 +55,7 @@ ODOMETRY_PARAMS: tuple[ParamSpec, ...] = (
               "heading ('' = off: the encoders alone)", check=_topic_or_empty, read_only=True),
     *IMU_MOUNT_PARAMS,
     *GYRO_PARAMS,
+    *GYRO_NOISE_PARAMS,
     ParamSpec('push_to', [],
               'Nodes (cmd_vel_translator) whose icr.* parameters are set to the adapted ICRs: '
               'valid node names, optionally with their namespace', check=each(node_name)),

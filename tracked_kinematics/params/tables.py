@@ -262,6 +262,35 @@ NOISE_PARAMS: tuple[ParamSpec, ...] = (
 """The noise model's constants (identify_icr fits them; odometry_node and evaluate_model read
 them: :func:`.values.noise_model_from_values`)."""
 
+
+@described_as("-1 (the encoders' value) or >= 0")
+def _encoders_or_non_negative(value) -> str | None:
+    """Check: -1 (unset: the encoders' constant) or a finite number >= 0."""
+    if value == -1.0 and not isinstance(value, bool):
+        return None
+    problem = non_negative(value)
+    return problem and f"must be -1 (the encoders' value) or >= 0, got {value!r}"
+
+
+GYRO_NOISE_PARAMS: tuple[ParamSpec, ...] = (
+    ParamSpec('covariance.gyro_aided.slip', -1.0,
+              "covariance.slip while the heading is the gyro's (identify_icr fits it on the "
+              "gyro-aided odometry's windows; -1: covariance.slip)", 'm^2/rad',
+              _encoders_or_non_negative, low=-1.0, high=10.0),
+    ParamSpec('covariance.gyro_aided.timing', -1.0,
+              "covariance.timing while the heading is the gyro's (-1: covariance.timing)",
+              's^2', _encoders_or_non_negative, low=-1.0, high=1.0),
+    ParamSpec('covariance.gyro_aided.drift', 0.0,
+              "Relative variance of the displacement's length and direction since the start "
+              "or the last reset while the heading is the gyro's: the published position "
+              'covariance adds it times the displacement squared on each axis (a distance '
+              'scale and a crab angle that persist; identify_icr fits it; 0: off)', '',
+              non_negative, low=0.0, high=1.0),
+)
+"""The gyro-aided odometry's own noise constants (identify_icr fits them on the gyro-aided
+windows of a pose fit whose bags carry a gyro; odometry_node with ``imu_topic`` and evaluate_model
+``--fuse-imu`` read them: :func:`.values.gyro_noise_model_from_values`)."""
+
 GYRO_PARAMS: tuple[ParamSpec, ...] = (
     ParamSpec('covariance.gyro_noise', _DEFAULT_GYRO.gyro_noise,
               'White rate noise of the gyro, used until 2 s of standstill have measured it',

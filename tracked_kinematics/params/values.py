@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Mapping
+from dataclasses import replace
 import math
 import re
 from typing import Any
@@ -16,7 +17,8 @@ from tracked_kinematics.core.noise_model import NoiseModel
 
 from .spec import check_values, missing_message, resolve
 from .tables import (COMMAND_LIMIT_PARAMS, DECELERATION_LIMITS, DRIVETRAIN_DEFAULTS,
-                     DRIVETRAIN_PARAMS, GYRO_PARAMS, LIMIT_FIELDS, NOISE_PARAMS, TERRAIN_PARAMS)
+                     DRIVETRAIN_PARAMS, GYRO_NOISE_PARAMS, GYRO_PARAMS, LIMIT_FIELDS,
+                     NOISE_PARAMS, TERRAIN_PARAMS)
 
 
 _DRIVE_FIELDS = {'time_constant': 'drivetrain.time_constant', 'delay': 'drivetrain.delay',
@@ -189,3 +191,20 @@ def noise_model_from_values(values: Mapping[str, Any]) -> NoiseModel:
                       turn=value['covariance.turn'], slip=value['covariance.slip'],
                       timing=value['covariance.timing'], floor=value['covariance.floor'],
                       scale=value['covariance.scale'])
+
+
+def gyro_noise_model_from_values(values: Mapping[str, Any]) -> NoiseModel:
+    """
+    Return the noise model odometry_node publishes with while its heading is the gyro's.
+
+    :func:`noise_model_from_values` with the keys of :data:`.tables.GYRO_NOISE_PARAMS` that are
+    set (-1, or missing: the encoders' ``slip`` and ``timing``; ``drift`` 0): a file without
+    them publishes as before. Raises :class:`InvalidParameters` naming a value refused.
+    """
+    model = noise_model_from_values(values)
+    problems = check_values(GYRO_NOISE_PARAMS, values)
+    if problems:
+        raise InvalidParameters('; '.join(problems))
+    set_ = {spec.name.rsplit('.', 1)[1]: float(values.get(spec.name, spec.default))
+            for spec in GYRO_NOISE_PARAMS}
+    return replace(model, **{term: value for term, value in set_.items() if value != -1.0})

@@ -29,8 +29,8 @@ from tracked_kinematics.core.integration import quaternion_from_yaw
 from tracked_kinematics.core.kinematics import eccentricity, IcrParams, steering_efficiency
 from tracked_kinematics.core.noise_model import NoiseModel
 from tracked_kinematics.core.odometry import Odometry
-from tracked_kinematics.params import (gyro_config_from_values, icr_from_values,
-                                       noise_model_from_values, TERRAIN_PARAMS)
+from tracked_kinematics.params import (gyro_config_from_values, gyro_noise_model_from_values,
+                                       icr_from_values, noise_model_from_values, TERRAIN_PARAMS)
 from tracked_kinematics.params.node_tables import NODE_PARAMS
 from tracked_kinematics.ros.encoder_input import (
     check_encoder_values, EncoderInput, WARN_PERIOD)
@@ -65,6 +65,11 @@ def _noise(values: Mapping[str, Any]) -> TrackNoise:
 def _terms(values: Mapping[str, Any]) -> NoiseModel:
     """Return the turn, slip, timing and scale terms (the tracks' are :func:`_noise`'s)."""
     return noise_model_from_values(values).without_tracks()
+
+
+def _gyro_terms(values: Mapping[str, Any]) -> NoiseModel:
+    """Return the terms while the heading is the gyro's (``covariance.gyro_aided.*``)."""
+    return gyro_noise_model_from_values(values).without_tracks()
 
 
 gyro_config = gyro_config_from_values
@@ -311,7 +316,8 @@ class OdometryNode(TableNode):
         """Take (new) parameter values into use from the next encoder step on."""
         odometry = self.odometry
         terms = _terms(values)
-        odometry.set_timing(terms)
+        gyro_terms = _gyro_terms(values) if self._gyro else None
+        odometry.set_timing(terms, gyro_terms)
         if self._imu_input is not None:
             self._imu_input.configure(values)
         if self._gyro:
@@ -321,7 +327,7 @@ class OdometryNode(TableNode):
                 if self._pusher is not None:
                     self._pusher.pushed = self._model_icrs()
             odometry.config = gyro_config(values)
-            odometry.set_noise(_noise(values), terms)
+            odometry.set_noise(_noise(values), terms, gyro_terms)
         else:
             odometry.set_model(self._icr(values), _noise(values), terms)
         if self.encoder is not None:

@@ -13,13 +13,14 @@ docs/tools/evaluate_model.md, "Consistency".
 
 from __future__ import annotations
 
+from types import SimpleNamespace
 
 import numpy as np
 
 from .pieces import moving_windows
 from .verdict import covariance_verdict, disjoint_windows
 from ..covariance import TrackNoise
-from ..gyro import GyroConfig, replay
+from ..gyro import GYRO, GyroConfig, replay
 from ..identify import Recording
 from ..kinematics import IcrParams
 from ..noise_model import consistency, covariances, NoiseModel, window_bases
@@ -182,15 +183,75 @@ def _truth_at(piece, times):
     return np.column_stack([np.interp(times, piece.t, piece.truth[:, k]) for k in range(3)])
 
 
+def gyro_reset_windows(recording: Recording, pieces, icr: IcrParams, config: GyroConfig,
+                       noise: TrackNoise, terms: NoiseModel, gyro_terms: NoiseModel | None,
+                       length: float, min_speed: float | None, offset: float = 0.0):
+    """
+    Replay a recording through the gyro-aided odometry reset every ``length`` s; its windows.
+
+    As odometry_node with ``~/reset`` every ``length`` s (:func:`reset_windows`, the first
+    reset ``offset`` s into each piece), fed as :func:`..gyro.replay` feeds it, with the
+    covariance's ``noise``, ``terms`` (the encoders') and ``gyro_terms`` (while the heading is
+    the gyro's; None: ``terms``).
+
+    Returns
+    -------
+    errors : ndarray, shape (W, 2)
+        Final position error of each window against the ground truth's motion, m, in the
+        frame of its start.
+    covariances : ndarray, shape (W, 2, 2)
+        The position covariance published at each window's end, m^2.
+    poses : ndarray, shape (W, 3)
+        The odometry's pose at each window's end, since its start.
+    gyro : ndarray of bool, shape (W,)
+        Whether the heading at each window's end is the gyro's.
+
+    """
+    rec = recording
+    late = [SimpleNamespace(t=p.t[p.t >= p.t[0] + offset]) for p in pieces]
+    start, end, resets = reset_windows(rec.enc_t, rec.left, rec.right,
+                                       [p for p in late if len(p.t) > 1], float(length),
+                                       min_speed)
+    if len(start) == 0:
+        return _no_windows()
+    poses, sources, odo = replay(rec.enc_t, rec.left, rec.right, rec.gyro_t, rec.gyro_rate,
+                                 icr, config, resets=resets, noise=noise, terms=terms,
+                                 gyro_terms=gyro_terms)
+    errors, covs, ends, gyro = [], [], [], []
+    for piece in pieces:
+        inside = (rec.enc_t[start] >= piece.t[0]) & (rec.enc_t[end] <= piece.t[-1])
+        if not np.any(inside):
+            continue
+        a, b = start[inside], end[inside]
+        truth = _motion(np.vstack([_truth_at(piece, rec.enc_t[a]),
+                                   _truth_at(piece, rec.enc_t[b])]),
+                        np.arange(len(a)), len(a) + np.arange(len(a)))
+        errors.append(poses[b, :2] - truth[:, :2])
+        p = odo.published[b]
+        covs.append(np.stack([np.stack([p[:, 0], p[:, 1]], -1),
+                              np.stack([p[:, 1], p[:, 3]], -1)], -2))
+        ends.append(poses[b])
+        gyro.append(sources[b] == GYRO)
+    if not errors:
+        return _no_windows()
+    return (np.concatenate(errors), np.concatenate(covs), np.concatenate(ends),
+            np.concatenate(gyro))
+
+
+def _no_windows():
+    return np.zeros((0, 2)), np.zeros((0, 2, 2)), np.zeros((0, 3)), np.zeros(0, dtype=bool)
+
+
 def gyro_window_consistency(recordings, pieces, icr: IcrParams, config: GyroConfig,
                             noise: TrackNoise, model: NoiseModel, lengths,
-                            min_speed: float | None) -> dict:
+                            min_speed: float | None,
+                            gyro_model: NoiseModel | None = None) -> dict:
     """
     Consistency of the covariance the gyro-aided odometry_node publishes, reset every window.
 
     Each recording is replayed through :class:`..gyro.GyroOdometry` as the node is fed, with
-    a reset at the start of each window (:func:`reset_windows`); the covariance scored is the
-    one the node publishes at the window's end (:meth:`..gyro.GyroOdometry.publish`: the
+    a reset at the start of each window (:func:`gyro_reset_windows`); the covariance scored is
+    the one the node publishes at the window's end (:meth:`..gyro.GyroOdometry.publish`: the
     propagated covariance with the bias's share, and the time error at both ends), the error
     that of its pose against the ground truth's motion over the window.
 
@@ -208,6 +269,9 @@ def gyro_window_consistency(recordings, pieces, icr: IcrParams, config: GyroConf
         Window lengths, s.
     min_speed : float or None
         As :func:`.pieces.moving_windows`.
+    gyro_model : NoiseModel, optional
+        The terms while the heading is the gyro's (the terrain file's ``covariance.gyro_aided.*``:
+        :func:`tracked_kinematics.params.gyro_noise_model_from_values`); None: ``model``'s.
 
     Returns
     -------
@@ -216,6 +280,7 @@ def gyro_window_consistency(recordings, pieces, icr: IcrParams, config: GyroConf
 
     """
     terms = model.without_tracks()
+    gyro_terms = None if gyro_model is None else gyro_model.without_tracks()
     out = {}
     for length in lengths:
         errors, covs = [], []
@@ -223,24 +288,11 @@ def gyro_window_consistency(recordings, pieces, icr: IcrParams, config: GyroConf
             mine = [p for p in pieces if p.recording == r]
             if not mine or rec.gyro_t is None:
                 continue
-            start, end, resets = reset_windows(rec.enc_t, rec.left, rec.right, mine,
-                                               float(length), min_speed)
-            if len(start) == 0:
-                continue
-            poses, _, odo = replay(rec.enc_t, rec.left, rec.right, rec.gyro_t, rec.gyro_rate,
-                                   icr, config, resets=resets, noise=noise, terms=terms)
-            for piece in mine:
-                inside = (rec.enc_t[start] >= piece.t[0]) & (rec.enc_t[end] <= piece.t[-1])
-                if not np.any(inside):
-                    continue
-                a, b = start[inside], end[inside]
-                truth = _motion(np.vstack([_truth_at(piece, rec.enc_t[a]),
-                                           _truth_at(piece, rec.enc_t[b])]),
-                                np.arange(len(a)), len(a) + np.arange(len(a)))
-                errors.append(poses[b, :2] - truth[:, :2])
-                p = odo.published[b]
-                covs.append(np.stack([np.stack([p[:, 0], p[:, 1]], -1),
-                                      np.stack([p[:, 1], p[:, 3]], -1)], -2))
+            e, p, _, _ = gyro_reset_windows(rec, mine, icr, config, noise, terms,
+                                            gyro_terms, float(length), min_speed)
+            if len(e):
+                errors.append(e)
+                covs.append(p)
         # Back-to-back windows: each one independent of the others.
         out[float(length)] = _scored(errors, covs, sum(len(e) for e in errors))
     return out

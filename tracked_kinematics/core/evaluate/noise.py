@@ -280,7 +280,7 @@ DOF = 10.0
 """Degrees of freedom of the Student-t likelihood of :func:`fit_noise`."""
 
 
-def _negative_log_likelihoods(errors, covariances, dof) -> np.ndarray:
+def negative_log_likelihoods(errors, covariances, dof) -> np.ndarray:
     """
     Return ``-2 log p`` of each window's error but for constants: Gaussian or Student-t.
 
@@ -305,7 +305,7 @@ def _negative_log_posterior(log_c, prior_c, free, groups, width, dof):
     for weight, errors, bases in groups:
         cov = np.einsum('wmij,m->wij', bases, c) + 1e-12 * np.eye(errors.shape[1])
         try:
-            total += 0.5 * weight * np.mean(_negative_log_likelihoods(errors, cov, dof))
+            total += 0.5 * weight * np.mean(negative_log_likelihoods(errors, cov, dof))
         except np.linalg.LinAlgError:
             return np.inf
     return total + 0.5 * np.sum((log_c - np.log(prior_c[free])) ** 2) / (width * width)

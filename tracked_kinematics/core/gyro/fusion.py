@@ -78,7 +78,7 @@ class GyroOdometry(Published):
         The terrain's ICR model (ICRs and encoder scales).
     config : GyroConfig, optional
         How the gyro is read, trusted and checked; default ``GyroConfig()``.
-    noise, terms : optional
+    noise, terms, gyro_terms : optional
         The covariance's track noise and turn/slip terms (:meth:`set_noise`).
 
     Attributes
@@ -102,11 +102,12 @@ class GyroOdometry(Published):
     """
 
     def __init__(self, icr: IcrParams, config: GyroConfig | None = None,
-                 noise: TrackNoise | None = None, terms: NoiseModel | None = None):
+                 noise: TrackNoise | None = None, terms: NoiseModel | None = None,
+                 gyro_terms: NoiseModel | None = None):
         self._config = config or GyroConfig()
         self.samples = GyroSamples(self._config)
         self._bias_share = PoseBiasCross()
-        self.set_noise(noise, terms)
+        self.set_noise(noise, terms, gyro_terms)
         self.filter = None
         self.set_model(icr)
         self.reset()
@@ -138,11 +139,21 @@ class GyroOdometry(Published):
     def config(self, config: GyroConfig) -> None:
         self._config = self.samples.config = self.filter.config = config
 
-    def set_noise(self, noise: TrackNoise | None = None,
-                  terms: NoiseModel | None = None) -> None:
-        """Use this track noise (default ``TrackNoise()``) and turn/slip terms (none)."""
+    def set_noise(self, noise: TrackNoise | None = None, terms: NoiseModel | None = None,
+                  gyro_terms: NoiseModel | None = None) -> None:
+        """
+        Use this track noise (default ``TrackNoise()``) and turn/slip terms (none).
+
+        ``gyro_terms``: the slip term while the heading is the gyro's (default ``terms``; the
+        terrain file's ``covariance.gyro_aided.*``, fitted on gyro-aided windows).
+        """
         self.noise = noise if noise is not None else TrackNoise()
         self.terms = terms if terms is not None else NoiseModel(track=0.0, floor=0.0)
+        self.gyro_terms = gyro_terms if gyro_terms is not None else self.terms
+
+    def timing_now(self) -> NoiseModel | None:
+        """Return the terms published beside the steps: the gyro-aided ones from the gyro."""
+        return self.gyro_timing if self.source == GYRO else self.timing
 
     def set_model(self, icr: IcrParams) -> None:
         """Use another terrain model from the next step on; keep the bias and the noise."""
@@ -537,7 +548,8 @@ class GyroOdometry(Published):
         increment's error per rad/s of bias error).
         """
         var_left, var_right = self.noise.travel_variances(d_left, d_right)
-        position, heading = turn_slip(self.terms, self.model.track_width, dx, dpsi)
+        terms = self.gyro_terms if source == GYRO else self.terms
+        position, heading = turn_slip(terms, self.model.track_width, dx, dpsi)
         c, x = self._offset, self.model.x
         if source == GYRO:
             m = self.model
@@ -601,8 +613,9 @@ class GyroOdometry(Published):
             dx / duration, dy / duration, dpsi / duration)
         rate = 1.0 / duration if duration > 0.0 else 1.0
         var_left, var_right = twist_variances(self.noise, abs_left * rate, abs_right * rate)
-        position, heading = turn_slip(self.terms, self.model.track_width,
-                                      twist[0] * TWIST_TIME, twist[2] * TWIST_TIME)
+        position, heading = turn_slip(self.gyro_terms if self.source == GYRO else self.terms,
+                                      self.model.track_width, twist[0] * TWIST_TIME,
+                                      twist[2] * TWIST_TIME)
         scale = 1.0 / (TWIST_TIME * TWIST_TIME)
         position *= scale
         if self.source == GYRO:

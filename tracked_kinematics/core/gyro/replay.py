@@ -17,7 +17,8 @@ from ..kinematics import IcrParams
 
 
 def replay(enc_t, left, right, gyro_t, gyro_rate, icr: IcrParams,
-           config: GyroConfig | None = None, resets=None, noise=None, terms=None):
+           config: GyroConfig | None = None, resets=None, noise=None, terms=None,
+           gyro_terms=None):
     """
     Replay a recording through :class:`GyroOdometry` as a node would receive it.
 
@@ -37,9 +38,10 @@ def replay(enc_t, left, right, gyro_t, gyro_rate, icr: IcrParams,
         How the gyro is read; default ``GyroConfig()``.
     resets : array_like of bool, shape (N,), optional
         Reset the odometry (odometry_node's ``~/reset``) after publishing at these samples.
-    noise, terms : optional
-        The covariance's noise (:meth:`GyroOdometry.set_noise`); ``terms.timing`` is
-        published (:meth:`GyroOdometry.set_timing`).
+    noise, terms, gyro_terms : optional
+        The covariance's noise (:meth:`GyroOdometry.set_noise`); ``terms.timing`` (and
+        ``gyro_terms``' while the heading is the gyro's) is published
+        (:meth:`GyroOdometry.set_timing`).
 
     Returns
     -------
@@ -57,8 +59,8 @@ def replay(enc_t, left, right, gyro_t, gyro_rate, icr: IcrParams,
     events = np.concatenate([gyro_t, enc_t])
     order = np.argsort(events, kind='stable').tolist()
     n_gyro = len(gyro_t)
-    odo = GyroOdometry(icr, config, noise, terms)
-    odo.set_timing(terms)
+    odo = GyroOdometry(icr, config, noise, terms, gyro_terms)
+    odo.set_timing(terms, gyro_terms)
     poses = np.zeros((len(enc_t), 3))
     published = np.zeros((len(enc_t), 6))
     sources = np.full(len(enc_t), ENCODERS, dtype=object)

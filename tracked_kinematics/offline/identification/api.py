@@ -29,7 +29,7 @@ from tracked_kinematics.params import (
     check_values, icr_from_values, TERRAIN_DEFAULTS, TERRAIN_PARAMS)
 
 from .combined import icr_from_pose_and_gyro
-from .noise_constants import add_extras, gyro_extras
+from .noise_constants import add_extras, gyro_aided_extras, gyro_extras
 from .poses import icr_from_poses
 from .references import icr_from_references
 from .report import FitResult, TOOL
@@ -181,12 +181,17 @@ def _with_gyro(found: FitResult, recordings) -> FitResult:
         empty = next((r.name for r in recordings if r.gyro_t is None), None)
         if empty is not None:
             raise SensorDataError(f'{empty}: no Imu messages on {topic}')
-        extras = gyro_extras(recordings, topic)[0]
+        extras, gyro = gyro_extras(recordings, topic)
     except (SensorDataError, IdentificationError, ValueError) as err:
         return replace(found, lines=found.lines + (
             f'gyro {topic}: not used ({err}); imu_delay and gyro_scale not written',))
     values, report, lines = dict(found.values), dict(found.report), list(found.lines)
     add_extras(values, report, lines, extras)
+    if gyro is not None and 'covariance.k_left' in values:
+        # The gyro-aided odometry's own noise model, on its own windows (issue 35).
+        add_extras(values, report, lines, gyro_aided_extras(
+            values, gyro[0], float(found.report['track_width']),
+            found.identification.min_speed))
     return replace(found, values=values, report=report, lines=tuple(lines))
 
 

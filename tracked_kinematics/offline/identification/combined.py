@@ -26,7 +26,7 @@ from tracked_kinematics.core import identify as ident
 from tracked_kinematics.core.errors import IdentificationError
 from tracked_kinematics.core.identify.reference.heading_fusion import fuse_heading
 
-from .noise_constants import add_extras, gyro_extras
+from .noise_constants import add_extras, gyro_aided_extras, gyro_extras
 from .poses import icr_from_poses
 
 MARGIN = 0.02
@@ -173,4 +173,8 @@ def icr_from_pose_and_gyro(recordings, options, topic: str, track_width: float,
     add_extras(values, report, lines, replace(extras, lines=tuple(choice) + extras.lines))
     if gyro is not None:
         values['identification.reference'] = 'pose+imu' if chosen is not recordings else 'pose'
+        if found.identification is not None and 'covariance.k_left' in values:
+            # The gyro-aided odometry's own noise model, on its windows against the pose.
+            add_extras(values, report, lines, gyro_aided_extras(
+                values, gyro[0], track_width, found.identification.min_speed))
     return replace(found, values=values, report=report, lines=tuple(lines))

@@ -20,13 +20,17 @@ from dataclasses import dataclass, field
 import math
 
 from tracked_kinematics.core import identify as ident
+from tracked_kinematics.core.covariance import TrackNoise
 from tracked_kinematics.core.errors import IdentificationError
-from tracked_kinematics.core.evaluate import fit_noise, held_out_windows, recording_windows
+from tracked_kinematics.core.evaluate import cut, fit_noise, held_out_windows, recording_windows
+from tracked_kinematics.core.evaluate.gyro_noise import fit_gyro_noise, GYRO_TERMS, gyro_windows
 from tracked_kinematics.core.identify.reference.delays import imu_delay_problem, sensor_delays
 from tracked_kinematics.core.identify.reference.heading_fusion import (
     bias_prior, BIAS_SIGMA_FLOOR, check_gyro_against_pose, fuse_heading, signed_gyro_scale)
 from tracked_kinematics.core.identify.segments import covered_spans, over_jumps
 from tracked_kinematics.core.noise_model import FITTED
+from tracked_kinematics.params import (gyro_config_from_values, icr_from_values,
+                                       noise_model_from_values, NOISE_PARAMS)
 
 LENGTHS = (5.0, 10.0)
 """Window lengths the noise model is fitted on, s (evaluate_model's defaults)."""
@@ -402,6 +406,55 @@ def gyro_extras(recordings, topic: str, imu_delay='auto'):
     lines = (f'gyro {topic}: imu_delay {imu_delay:+.3f} s', *scale_lines, bias_line)
     return (Extras({'imu_delay': imu_delay, **scale_values, **bias_values}, record, report,
                    lines), (shifted, imu_delay, written))
+
+
+GYRO_AIDED_KEYS = {t: f'covariance.gyro_aided.{t}' for t in GYRO_TERMS}
+"""The terrain file's names of the gyro-aided odometry's own constants (odometry_node's)."""
+
+
+def gyro_aided_extras(values: dict, recordings, track_width: float,
+                      min_speed: float | None) -> Extras:
+    """
+    Fit the gyro-aided odometry's own noise constants on its windows of the recordings.
+
+    ``values`` are the terrain file's so far (ICRs, noise model, gyro constants), read as
+    odometry_node reads them; ``recordings`` those of :func:`gyro_extras` (the pose's delay
+    taken off). The odometry is replayed as the node runs with ``imu_topic``, reset every 5
+    and 10 s from four schedules (:func:`tracked_kinematics.core.evaluate.gyro_noise.
+    gyro_windows`), and ``slip``, ``timing`` and ``drift`` fitted to the windows' final
+    position errors (:func:`~tracked_kinematics.core.evaluate.gyro_noise.fit_gyro_noise`):
+    written as ``covariance.gyro_aided.*``. In sample: the ICRs are the ones fitted on the
+    same recordings (the gyro gives the heading, which held-out ICRs would change most).
+    """
+    recordings = list(recordings)
+    lengths = fit_lengths(recordings)
+    # The tracks' random walk as the node reads it (its defaults for the keys not written).
+    tracks = {spec.name: float(values.get(spec.name, spec.default)) for spec in NOISE_PARAMS}
+    try:
+        pieces = [p for k, rec in enumerate(recordings)
+                  for p in cut(rec, k, True, track_width).pieces]
+        windows = gyro_windows(recordings, pieces, icr_from_values(values),
+                               gyro_config_from_values(values),
+                               TrackNoise(tracks['covariance.k_left'],
+                                          tracks['covariance.k_right'],
+                                          tracks['covariance.floor']),
+                               noise_model_from_values(values), lengths, min_speed)
+        model = fit_gyro_noise(windows, noise_model_from_values(values))
+    except (KeyError, ValueError) as err:
+        return Extras(record={'covariance.gyro_aided.not_fitted': str(err)},
+                      lines=(f'gyro-aided noise model: not fitted ({err}); '
+                             'covariance.gyro_aided.* not written',))
+    found = {key: float(getattr(model, t)) for t, key in GYRO_AIDED_KEYS.items()}
+    shown = '/'.join(f'{w:g}' for w in lengths)
+    n = len(windows) // windows.schedules
+    return Extras(found, {'covariance.gyro_aided.windows': n,
+                          'covariance.gyro_aided.window_lengths': [float(w) for w in lengths],
+                          'covariance.gyro_aided.held_out': 'in sample'},
+                  {'covariance_gyro_aided': {**{t: getattr(model, t) for t in GYRO_TERMS},
+                                             'windows': n, 'window_lengths_s': list(lengths)}},
+                  (f'gyro-aided noise model (position errors of ~{n} windows of {shown} s, '
+                   f'the node reset every window, in sample): slip {model.slip:.2e} m^2/rad, '
+                   f'timing {model.timing:.2e} s^2, drift {model.drift:.2e}',))
 
 
 def _bias(recordings, imu_delay: float, scale: float):
