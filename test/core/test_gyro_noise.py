@@ -146,7 +146,7 @@ def recording(gyro_sign=1.0, seconds=120.0, rate=20.0):
 @pytest.mark.parametrize('sign', [1.0, -1.0])
 def test_only_windows_that_end_on_the_gyro_are_fitted_on(sign):
     from tracked_kinematics.core.evaluate import cut
-    from tracked_kinematics.core.evaluate.gyro_noise import gyro_windows
+    from tracked_kinematics.core.evaluate.gyro_noise import gyro_windows, RESET_OFFSETS
     from tracked_kinematics.core.covariance import TrackNoise
     rec = recording(sign)
     pieces = cut(rec, 0, True, 0.7).pieces
@@ -160,9 +160,32 @@ def test_only_windows_that_end_on_the_gyro_are_fitted_on(sign):
         with pytest.raises(ValueError, match='too few'):
             fit_gyro_noise(windows, model)
         return
-    assert len(windows) >= 4 * (20 + 10)
+    assert len(windows) >= len(RESET_OFFSETS) * (20 + 10)
     assert windows.bases.shape == (len(windows), len(GYRO_TERMS), 2, 2)
     # The drift basis is |p|^2 on both axes; the gyro's heading is the truth's: small errors.
     np.testing.assert_allclose(windows.bases[:, 2, 0, 0], windows.bases[:, 2, 1, 1])
     assert np.all(windows.bases[:, 2, 0, 1] == 0.0)
     assert np.abs(windows.errors).max() < 0.2
+
+
+def test_the_timing_basis_is_the_replay_with_unit_timing():
+    # gyro_windows takes timing's share from the base replay (what the terms beside the steps
+    # add at each window's end) instead of replaying with timing 1: the same numbers.
+    from dataclasses import replace
+    from tracked_kinematics.core.evaluate import cut
+    from tracked_kinematics.core.evaluate.consistency import gyro_reset_windows
+    from tracked_kinematics.core.covariance import TrackNoise
+    rec = recording(1.0)
+    pieces = cut(rec, 0, True, 0.7).pieces
+    terms = NoiseModel(slip=0.01, timing=0.001).without_tracks()
+    base = replace(terms, slip=0.02, timing=0.0, drift=0.0)
+    args = (rec, pieces, ICR, GyroConfig(gyro_bias_sigma=0.001), TrackNoise(), terms)
+    found = gyro_reset_windows(*args, base, 5.0, 0.1, 1.0,
+                               unit=NoiseModel(track=0.0, floor=0.0, timing=1.0))
+    timed = gyro_reset_windows(*args, replace(base, timing=1.0), 5.0, 0.1, 1.0)
+    assert np.sum(found.gyro) >= 20
+    np.testing.assert_array_equal(found.errors, timed.errors)
+    np.testing.assert_allclose(found.unit[found.gyro],
+                               (timed.covariances - found.covariances)[found.gyro],
+                               rtol=1e-9, atol=1e-15)
+    assert np.trace(found.unit[found.gyro].sum(0)) > 0.0    # not trivially equal: both zero

@@ -138,7 +138,7 @@ def test_the_marmottes_gyro_aided_covariance_from_a_pose_fit_holds_on_its_held_o
     # ellipses (above both target bands, 35-65 / 85-98 %), 61 / 97 % of 31 of 10 s. With the
     # gyro-aided odometry's own constants (covariance.gyro_aided.*, fitted on its windows of
     # the first 55 %) and the fusion of issue 35 item 4: 62 / 95 % and 61 / 90 %; four reset
-    # schedules 57 / 94 % and 55 / 91 %, the split the other way round 46 / 93 % and 36 / 94 %
+    # schedules 58 / 94 % and 55 / 92 %, the split the other way round 43 / 90 % and 35 / 92 %
     # (benchmarks/bench_gyro_covariance.py).
     train, test = realdata.split_bag(realdata.bag(MARMOTTE), tmp_path, 0.55)
     vehicle = ['--sprocket-radius', '0.116702', '--track-width', '0.592723']

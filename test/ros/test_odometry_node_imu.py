@@ -15,7 +15,8 @@ from std_msgs.msg import Float64MultiArray
 from tracked_kinematics.core.covariance import message_twist_covariance, TrackNoise
 from tracked_kinematics.core.gyro import replay
 from tracked_kinematics.core.odometry import Odometry
-from tracked_kinematics.params import (gyro_config_from_values, icr_from_values,
+from tracked_kinematics.params import (gyro_config_from_values, gyro_noise_model_from_values,
+                                       icr_from_values, noise_model_from_values,
                                        read_params_file)
 from tracked_kinematics.ros.odometry_node import OdometryNode
 from tracked_kinematics.ros.parameters import ParameterError
@@ -123,8 +124,11 @@ def test_gyro_heading_matches_replay_and_the_truth(graph):
     # parameters: evaluate_model --fuse-imu's path.
     # The stamps as the node reads them: integer nanoseconds, in seconds.
     ns = (lambda times: np.round(np.asarray(times) * 1e9) * 1e-9)
+    values = g.node.params.values
     poses, sources, end = replay(ns(t), left, right, ns(tg), wg, AURIGA,
-                                 gyro_config_from_values(g.node.params.values))
+                                 gyro_config_from_values(values),
+                                 terms=noise_model_from_values(values).without_tracks(),
+                                 gyro_terms=gyro_noise_model_from_values(values).without_tracks())
     got = np.array([[m.pose.pose.position.x, m.pose.pose.position.y] for m in msgs])
     np.testing.assert_allclose(got, poses[1:, :2], atol=1e-6)
     np.testing.assert_allclose(yaws(msgs), poses[1:, 2], atol=1e-6)

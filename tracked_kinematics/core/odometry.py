@@ -85,6 +85,15 @@ class Published:
                                           self._start_twist, self.timing_now())
         return self.pose, covariance, twist, twist_covariance
 
+    def beside_the_steps(self, twist, model: NoiseModel):
+        """
+        Return what ``model``'s timing, scale and drift would add to the covariance published now.
+
+        ``twist``: the one :meth:`publish` just returned. The published covariance is affine in
+        these terms, so a fit of theirs replays the steps once (:func:`.gyro.replay`).
+        """
+        return published_covariance(_ZERO_COVARIANCE, self.pose, twist, self._start_twist, model)
+
     @staticmethod
     def _wrapped(theta: float) -> float:
         """Bring a heading that grew beyond :data:`_HEADING_WRAP` back into [-pi, pi]."""

@@ -14,6 +14,7 @@ docs/tools/evaluate_model.md, "Consistency".
 from __future__ import annotations
 
 from types import SimpleNamespace
+from typing import NamedTuple
 
 import numpy as np
 
@@ -183,19 +184,12 @@ def _truth_at(piece, times):
     return np.column_stack([np.interp(times, piece.t, piece.truth[:, k]) for k in range(3)])
 
 
-def gyro_reset_windows(recording: Recording, pieces, icr: IcrParams, config: GyroConfig,
-                       noise: TrackNoise, terms: NoiseModel, gyro_terms: NoiseModel | None,
-                       length: float, min_speed: float | None, offset: float = 0.0):
+class ResetWindows(NamedTuple):
     """
-    Replay a recording through the gyro-aided odometry reset every ``length`` s; its windows.
+    The windows of :func:`gyro_reset_windows`.
 
-    As odometry_node with ``~/reset`` every ``length`` s (:func:`reset_windows`, the first
-    reset ``offset`` s into each piece), fed as :func:`..gyro.replay` feeds it, with the
-    covariance's ``noise``, ``terms`` (the encoders') and ``gyro_terms`` (while the heading is
-    the gyro's; None: ``terms``).
-
-    Returns
-    -------
+    Attributes
+    ----------
     errors : ndarray, shape (W, 2)
         Final position error of each window against the ground truth's motion, m, in the
         frame of its start.
@@ -205,7 +199,30 @@ def gyro_reset_windows(recording: Recording, pieces, icr: IcrParams, config: Gyr
         The odometry's pose at each window's end, since its start.
     gyro : ndarray of bool, shape (W,)
         Whether the heading at each window's end is the gyro's.
+    unit : ndarray, shape (W, 2, 2), or None
+        With ``unit`` given: what its timing, scale and drift add to each covariance.
 
+    """
+
+    errors: np.ndarray
+    covariances: np.ndarray
+    poses: np.ndarray
+    gyro: np.ndarray
+    unit: np.ndarray | None = None
+
+
+def gyro_reset_windows(recording: Recording, pieces, icr: IcrParams, config: GyroConfig,
+                       noise: TrackNoise, terms: NoiseModel, gyro_terms: NoiseModel | None,
+                       length: float, min_speed: float | None, offset: float = 0.0,
+                       unit: NoiseModel | None = None) -> ResetWindows:
+    """
+    Replay a recording through the gyro-aided odometry reset every ``length`` s; its windows.
+
+    As odometry_node with ``~/reset`` every ``length`` s (:func:`reset_windows`, the first
+    reset ``offset`` s into each piece), fed as :func:`..gyro.replay` feeds it, with the
+    covariance's ``noise``, ``terms`` (the encoders') and ``gyro_terms`` (while the heading is
+    the gyro's; None: ``terms``). ``unit``: also what this model's terms beside the steps
+    (timing, scale, drift) would add at each window's end, from the same replay.
     """
     rec = recording
     late = [SimpleNamespace(t=p.t[p.t >= p.t[0] + offset]) for p in pieces]
@@ -213,11 +230,11 @@ def gyro_reset_windows(recording: Recording, pieces, icr: IcrParams, config: Gyr
                                        [p for p in late if len(p.t) > 1], float(length),
                                        min_speed)
     if len(start) == 0:
-        return _no_windows()
+        return _no_windows(unit)
     poses, sources, odo = replay(rec.enc_t, rec.left, rec.right, rec.gyro_t, rec.gyro_rate,
                                  icr, config, resets=resets, noise=noise, terms=terms,
-                                 gyro_terms=gyro_terms)
-    errors, covs, ends, gyro = [], [], [], []
+                                 gyro_terms=gyro_terms, unit=unit)
+    errors, covs, units, ends, gyro = [], [], [], [], []
     for piece in pieces:
         inside = (rec.enc_t[start] >= piece.t[0]) & (rec.enc_t[end] <= piece.t[-1])
         if not np.any(inside):
@@ -227,19 +244,26 @@ def gyro_reset_windows(recording: Recording, pieces, icr: IcrParams, config: Gyr
                                    _truth_at(piece, rec.enc_t[b])]),
                         np.arange(len(a)), len(a) + np.arange(len(a)))
         errors.append(poses[b, :2] - truth[:, :2])
-        p = odo.published[b]
-        covs.append(np.stack([np.stack([p[:, 0], p[:, 1]], -1),
-                              np.stack([p[:, 1], p[:, 3]], -1)], -2))
+        covs.append(_position(odo.published[b]))
+        if unit is not None:
+            units.append(_position(odo.unit_published[b]))
         ends.append(poses[b])
         gyro.append(sources[b] == GYRO)
     if not errors:
-        return _no_windows()
-    return (np.concatenate(errors), np.concatenate(covs), np.concatenate(ends),
-            np.concatenate(gyro))
+        return _no_windows(unit)
+    return ResetWindows(np.concatenate(errors), np.concatenate(covs), np.concatenate(ends),
+                        np.concatenate(gyro), np.concatenate(units) if units else None)
 
 
-def _no_windows():
-    return np.zeros((0, 2)), np.zeros((0, 2, 2)), np.zeros((0, 3)), np.zeros(0, dtype=bool)
+def _position(upper):
+    """Return the position blocks (W, 2, 2) of upper triangles (W, 6)."""
+    return np.stack([np.stack([upper[:, 0], upper[:, 1]], -1),
+                     np.stack([upper[:, 1], upper[:, 3]], -1)], -2)
+
+
+def _no_windows(unit=None):
+    return ResetWindows(np.zeros((0, 2)), np.zeros((0, 2, 2)), np.zeros((0, 3)),
+                        np.zeros(0, dtype=bool), None if unit is None else np.zeros((0, 2, 2)))
 
 
 def gyro_window_consistency(recordings, pieces, icr: IcrParams, config: GyroConfig,
@@ -288,11 +312,11 @@ def gyro_window_consistency(recordings, pieces, icr: IcrParams, config: GyroConf
             mine = [p for p in pieces if p.recording == r]
             if not mine or rec.gyro_t is None:
                 continue
-            e, p, _, _ = gyro_reset_windows(rec, mine, icr, config, noise, terms,
-                                            gyro_terms, float(length), min_speed)
-            if len(e):
-                errors.append(e)
-                covs.append(p)
+            found = gyro_reset_windows(rec, mine, icr, config, noise, terms, gyro_terms,
+                                       float(length), min_speed)
+            if len(found.errors):
+                errors.append(found.errors)
+                covs.append(found.covariances)
         # Back-to-back windows: each one independent of the others.
         out[float(length)] = _scored(errors, covs, sum(len(e) for e in errors))
     return out

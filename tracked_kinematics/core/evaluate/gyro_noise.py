@@ -30,7 +30,7 @@ from ..noise_model import NoiseModel
 
 GYRO_TERMS = ('slip', 'timing', 'drift')
 """The constants fitted on gyro-aided windows, in the order of :attr:`GyroWindows.bases`."""
-RESET_OFFSETS = (0.0, 0.25, 0.5, 0.75)
+RESET_OFFSETS = (0.0, 0.5)
 """The reset schedules replayed: the first reset this share of a window into each piece."""
 MIN_WINDOWS = 20
 """Fewest gyro-aided windows of each length a fit needs (else :func:`fit_gyro_noise` refuses)."""
@@ -101,7 +101,11 @@ def gyro_windows(recordings, pieces, icr: IcrParams, config: GyroConfig, noise: 
     """
     terms = model.without_tracks()
     base = replace(terms, **dict.fromkeys(GYRO_TERMS, 0.0))
-    unit = [replace(base, **{t: 1.0}) for t in GYRO_TERMS if t != 'drift']
+    # The covariance is affine in the constants: slip's share needs a replay of its own (it
+    # is propagated through the steps), timing's and drift's are what the terms beside the
+    # steps add at each window's end, taken from the base replay (unit_published).
+    slip = replace(base, slip=1.0)
+    unit = NoiseModel(track=0.0, floor=0.0, timing=1.0)
     errors, fixed, bases, length = [], [], [], []
     for r, rec in enumerate(recordings):
         mine = [p for p in pieces if p.recording == r]
@@ -110,16 +114,17 @@ def gyro_windows(recordings, pieces, icr: IcrParams, config: GyroConfig, noise: 
         for w in lengths:
             for offset in offsets:
                 args = (rec, mine, icr, config, noise, terms)
-                e, p0, poses, gyro = gyro_reset_windows(*args, base, w, min_speed,
-                                                        offset * w)
+                found = gyro_reset_windows(*args, base, w, min_speed, offset * w, unit=unit)
+                gyro = found.gyro
                 if not np.any(gyro):
                     continue
-                each = [gyro_reset_windows(*args, u, w, min_speed, offset * w)[1] - p0
-                        for u in unit]
-                # drift: |p|^2 I where the heading is the gyro's (published_covariance).
-                each.append(np.sum(poses[:, :2] ** 2, 1)[:, None, None] * np.eye(2))
+                p0 = found.covariances
+                each = [gyro_reset_windows(*args, slip, w, min_speed, offset * w).covariances
+                        - p0, found.unit,
+                        # drift: |p|^2 I where the heading is the gyro's (published_covariance).
+                        np.sum(found.poses[:, :2] ** 2, 1)[:, None, None] * np.eye(2)]
                 # The windows that end with the heading the gyro's: what the constants are for.
-                errors.append(e[gyro])
+                errors.append(found.errors[gyro])
                 fixed.append(p0[gyro])
                 bases.append(np.stack(each, 1)[gyro])
                 length.append(np.full(int(np.sum(gyro)), float(w)))

@@ -18,7 +18,7 @@ from ..kinematics import IcrParams
 
 def replay(enc_t, left, right, gyro_t, gyro_rate, icr: IcrParams,
            config: GyroConfig | None = None, resets=None, noise=None, terms=None,
-           gyro_terms=None):
+           gyro_terms=None, unit=None):
     """
     Replay a recording through :class:`GyroOdometry` as a node would receive it.
 
@@ -42,6 +42,9 @@ def replay(enc_t, left, right, gyro_t, gyro_rate, icr: IcrParams,
         The covariance's noise (:meth:`GyroOdometry.set_noise`); ``terms.timing`` (and
         ``gyro_terms``' while the heading is the gyro's) is published
         (:meth:`GyroOdometry.set_timing`).
+    unit : NoiseModel, optional
+        Also return what this model's timing, scale and drift would add to each published
+        covariance (``odometry.unit_published``; :meth:`GyroOdometry.beside_the_steps`).
 
     Returns
     -------
@@ -51,7 +54,8 @@ def replay(enc_t, left, right, gyro_t, gyro_rate, icr: IcrParams,
         The source of each step's heading.
     odometry : GyroOdometry
         The state at the end; ``odometry.published`` (N, 6): the published pose covariance
-        after each encoder sample (upper triangle, before any reset there).
+        after each encoder sample (upper triangle, before any reset there); with ``unit``,
+        ``odometry.unit_published`` (N, 6) likewise.
 
     """
     enc_t = np.asarray(enc_t, float)
@@ -63,6 +67,7 @@ def replay(enc_t, left, right, gyro_t, gyro_rate, icr: IcrParams,
     odo.set_timing(terms, gyro_terms)
     poses = np.zeros((len(enc_t), 3))
     published = np.zeros((len(enc_t), 6))
+    unit_published = None if unit is None else np.zeros((len(enc_t), 6))
     sources = np.full(len(enc_t), ENCODERS, dtype=object)
     gt, gr = gyro_t.tolist(), np.asarray(gyro_rate, float).tolist()
     et, el, er = enc_t.tolist(), np.asarray(left, float).tolist(), \
@@ -74,13 +79,16 @@ def replay(enc_t, left, right, gyro_t, gyro_rate, icr: IcrParams,
             continue
         k = e - n_gyro
         odo.encoders(et[k], el[k], er[k])
-        pose, covariance, _, _ = odo.publish()
+        pose, covariance, twist, _ = odo.publish()
         poses[k] = pose
         published[k] = covariance
+        if unit is not None:
+            unit_published[k] = odo.beside_the_steps(twist, unit)
         sources[k] = odo.source
         if reset[k]:
             odo.reset()
     odo.published = published
+    odo.unit_published = unit_published
     return poses, sources, odo
 
 

@@ -420,7 +420,7 @@ def gyro_aided_extras(values: dict, recordings, track_width: float,
     ``values`` are the terrain file's so far (ICRs, noise model, gyro constants), read as
     odometry_node reads them; ``recordings`` those of :func:`gyro_extras` (the pose's delay
     taken off). The odometry is replayed as the node runs with ``imu_topic``, reset every 5
-    and 10 s from four schedules (:func:`tracked_kinematics.core.evaluate.gyro_noise.
+    and 10 s from two schedules (:func:`tracked_kinematics.core.evaluate.gyro_noise.
     gyro_windows`), and ``slip``, ``timing`` and ``drift`` fitted to the windows' final
     position errors (:func:`~tracked_kinematics.core.evaluate.gyro_noise.fit_gyro_noise`):
     written as ``covariance.gyro_aided.*``. In sample: the ICRs are the ones fitted on the
