@@ -168,9 +168,10 @@ def test_only_windows_that_end_on_the_gyro_are_fitted_on(sign):
     assert np.abs(windows.errors).max() < 0.2
 
 
-def test_the_timing_basis_is_the_replay_with_unit_timing():
-    # gyro_windows takes timing's share from the base replay (what the terms beside the steps
-    # add at each window's end) instead of replaying with timing 1: the same numbers.
+def test_the_shares_of_timing_and_slip_are_those_of_replays_with_one_more_unit():
+    # gyro_windows takes timing's and slip's shares from one replay (what the terms beside the
+    # steps add at each window's end; the slip share propagated beside the covariance)
+    # instead of replaying with one more of each: the same numbers.
     from dataclasses import replace
     from tracked_kinematics.core.evaluate import cut
     from tracked_kinematics.core.evaluate.consistency import gyro_reset_windows
@@ -181,11 +182,15 @@ def test_the_timing_basis_is_the_replay_with_unit_timing():
     base = replace(terms, slip=0.02, timing=0.0, drift=0.0)
     args = (rec, pieces, ICR, GyroConfig(gyro_bias_sigma=0.001), TrackNoise(), terms)
     found = gyro_reset_windows(*args, base, 5.0, 0.1, 1.0,
-                               unit=NoiseModel(track=0.0, floor=0.0, timing=1.0))
-    timed = gyro_reset_windows(*args, replace(base, timing=1.0), 5.0, 0.1, 1.0)
-    assert np.sum(found.gyro) >= 20
-    np.testing.assert_array_equal(found.errors, timed.errors)
-    np.testing.assert_allclose(found.unit[found.gyro],
-                               (timed.covariances - found.covariances)[found.gyro],
-                               rtol=1e-9, atol=1e-15)
-    assert np.trace(found.unit[found.gyro].sum(0)) > 0.0    # not trivially equal: both zero
+                               unit=NoiseModel(track=0.0, floor=0.0, timing=1.0),
+                               slip_share=True)
+    gyro = found.gyro
+    assert np.sum(gyro) >= 20
+    # And slip's share, propagated beside the covariance, is the replay with one more slip.
+    for share, more in ((found.unit, replace(base, timing=1.0)),
+                        (found.slip, replace(base, slip=1.02))):
+        other = gyro_reset_windows(*args, more, 5.0, 0.1, 1.0)
+        np.testing.assert_array_equal(found.errors, other.errors)
+        np.testing.assert_allclose(share[gyro], (other.covariances - found.covariances)[gyro],
+                                   rtol=1e-9, atol=1e-15)
+        assert np.trace(share[gyro].sum(0)) > 0.0    # not trivially equal: both zero

@@ -201,6 +201,8 @@ class ResetWindows(NamedTuple):
         Whether the heading at each window's end is the gyro's.
     unit : ndarray, shape (W, 2, 2), or None
         With ``unit`` given: what its timing, scale and drift add to each covariance.
+    slip : ndarray, shape (W, 2, 2), or None
+        With ``slip_share``: what one unit of the gyro-aided slip term adds to each.
 
     """
 
@@ -209,12 +211,14 @@ class ResetWindows(NamedTuple):
     poses: np.ndarray
     gyro: np.ndarray
     unit: np.ndarray | None = None
+    slip: np.ndarray | None = None
 
 
 def gyro_reset_windows(recording: Recording, pieces, icr: IcrParams, config: GyroConfig,
                        noise: TrackNoise, terms: NoiseModel, gyro_terms: NoiseModel | None,
                        length: float, min_speed: float | None, offset: float = 0.0,
-                       unit: NoiseModel | None = None) -> ResetWindows:
+                       unit: NoiseModel | None = None,
+                       slip_share: bool = False) -> ResetWindows:
     """
     Replay a recording through the gyro-aided odometry reset every ``length`` s; its windows.
 
@@ -222,7 +226,9 @@ def gyro_reset_windows(recording: Recording, pieces, icr: IcrParams, config: Gyr
     reset ``offset`` s into each piece), fed as :func:`..gyro.replay` feeds it, with the
     covariance's ``noise``, ``terms`` (the encoders') and ``gyro_terms`` (while the heading is
     the gyro's; None: ``terms``). ``unit``: also what this model's terms beside the steps
-    (timing, scale, drift) would add at each window's end, from the same replay.
+    (timing, scale, drift) would add at each window's end, from the same replay;
+    ``slip_share``: also what one unit of ``gyro_terms.slip`` adds
+    (:attr:`..gyro.GyroOdometry.slip_share`).
     """
     rec = recording
     late = [SimpleNamespace(t=p.t[p.t >= p.t[0] + offset]) for p in pieces]
@@ -230,11 +236,11 @@ def gyro_reset_windows(recording: Recording, pieces, icr: IcrParams, config: Gyr
                                        [p for p in late if len(p.t) > 1], float(length),
                                        min_speed)
     if len(start) == 0:
-        return _no_windows(unit)
+        return _no_windows(unit, slip_share)
     poses, sources, odo = replay(rec.enc_t, rec.left, rec.right, rec.gyro_t, rec.gyro_rate,
                                  icr, config, resets=resets, noise=noise, terms=terms,
-                                 gyro_terms=gyro_terms, unit=unit)
-    errors, covs, units, ends, gyro = [], [], [], [], []
+                                 gyro_terms=gyro_terms, unit=unit, slip_share=slip_share)
+    errors, covs, units, slips, ends, gyro = [], [], [], [], [], []
     for piece in pieces:
         inside = (rec.enc_t[start] >= piece.t[0]) & (rec.enc_t[end] <= piece.t[-1])
         if not np.any(inside):
@@ -247,12 +253,15 @@ def gyro_reset_windows(recording: Recording, pieces, icr: IcrParams, config: Gyr
         covs.append(_position(odo.published[b]))
         if unit is not None:
             units.append(_position(odo.unit_published[b]))
+        if slip_share:
+            slips.append(_position(odo.slip_published[b]))
         ends.append(poses[b])
         gyro.append(sources[b] == GYRO)
     if not errors:
-        return _no_windows(unit)
+        return _no_windows(unit, slip_share)
     return ResetWindows(np.concatenate(errors), np.concatenate(covs), np.concatenate(ends),
-                        np.concatenate(gyro), np.concatenate(units) if units else None)
+                        np.concatenate(gyro), np.concatenate(units) if units else None,
+                        np.concatenate(slips) if slips else None)
 
 
 def _position(upper):
@@ -261,9 +270,10 @@ def _position(upper):
                      np.stack([upper[:, 1], upper[:, 3]], -1)], -2)
 
 
-def _no_windows(unit=None):
+def _no_windows(unit=None, slip_share=False):
     return ResetWindows(np.zeros((0, 2)), np.zeros((0, 2, 2)), np.zeros((0, 3)),
-                        np.zeros(0, dtype=bool), None if unit is None else np.zeros((0, 2, 2)))
+                        np.zeros(0, dtype=bool), None if unit is None else np.zeros((0, 2, 2)),
+                        np.zeros((0, 2, 2)) if slip_share else None)
 
 
 def gyro_window_consistency(recordings, pieces, icr: IcrParams, config: GyroConfig,

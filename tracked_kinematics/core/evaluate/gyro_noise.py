@@ -101,10 +101,9 @@ def gyro_windows(recordings, pieces, icr: IcrParams, config: GyroConfig, noise: 
     """
     terms = model.without_tracks()
     base = replace(terms, **dict.fromkeys(GYRO_TERMS, 0.0))
-    # The covariance is affine in the constants: slip's share needs a replay of its own (it
-    # is propagated through the steps), timing's and drift's are what the terms beside the
-    # steps add at each window's end, taken from the base replay (unit_published).
-    slip = replace(base, slip=1.0)
+    # The covariance is affine in the constants, and the path does not depend on them: one
+    # replay gives slip's share (propagated beside the covariance: slip_share), and timing's
+    # and drift's, what the terms beside the steps add at each window's end.
     unit = NoiseModel(track=0.0, floor=0.0, timing=1.0)
     errors, fixed, bases, length = [], [], [], []
     for r, rec in enumerate(recordings):
@@ -114,13 +113,13 @@ def gyro_windows(recordings, pieces, icr: IcrParams, config: GyroConfig, noise: 
         for w in lengths:
             for offset in offsets:
                 args = (rec, mine, icr, config, noise, terms)
-                found = gyro_reset_windows(*args, base, w, min_speed, offset * w, unit=unit)
+                found = gyro_reset_windows(*args, base, w, min_speed, offset * w, unit=unit,
+                                           slip_share=True)
                 gyro = found.gyro
                 if not np.any(gyro):
                     continue
                 p0 = found.covariances
-                each = [gyro_reset_windows(*args, slip, w, min_speed, offset * w).covariances
-                        - p0, found.unit,
+                each = [found.slip, found.unit,
                         # drift: |p|^2 I where the heading is the gyro's (published_covariance).
                         np.sum(found.poses[:, :2] ** 2, 1)[:, None, None] * np.eye(2)]
                 # The windows that end with the heading the gyro's: what the constants are for.

@@ -44,6 +44,9 @@ from ..kinematics import IcrParams
 from ..noise_model import NoiseModel, propagate_step, turn_slip, turn_slip_step
 from ..odometry import MAX_STEP_TRAVEL, Published
 
+#: One unit of the slip term alone (:attr:`GyroOdometry.slip_share`).
+UNIT_SLIP = NoiseModel(track=0.0, floor=0.0, slip=1.0)
+
 #: Smallest steering efficiency the adaptation goes to (the identification's bound).
 MIN_CHI = 0.2
 
@@ -154,6 +157,18 @@ class GyroOdometry(Published):
     def timing_now(self) -> NoiseModel | None:
         """Return the terms published beside the steps: the gyro-aided ones from the gyro."""
         return self.gyro_timing if self.source == GYRO else self.timing
+
+    slip_share = None
+    """
+    With :meth:`track_slip_share`: the pose covariance (upper triangle) one unit of
+    ``gyro_terms.slip`` adds since the reset, propagated through the same steps (the covariance
+    is linear in it, and nothing else depends on it): a fit of the gyro-aided constants
+    replays once (:func:`..evaluate.gyro_noise.gyro_windows`). None otherwise.
+    """
+
+    def track_slip_share(self) -> None:
+        """Carry :attr:`slip_share` from now on (zero now and at each reset)."""
+        self.slip_share = (0.0,) * 6
 
     def set_model(self, icr: IcrParams) -> None:
         """Use another terrain model from the next step on; keep the bias and the noise."""
@@ -551,6 +566,8 @@ class GyroOdometry(Published):
         terms = self.gyro_terms if source == GYRO else self.terms
         position, heading = turn_slip(terms, self.model.track_width, dx, dpsi)
         c, x = self._offset, self.model.x
+        if self.slip_share is not None:
+            self._carry_slip_share(source, dx, dpsi, delta_x, delta_y, jacobian)
         if source == GYRO:
             m = self.model
             var_t = 0.25 * (m.scale_left ** 2 * var_left + m.scale_right ** 2 * var_right)
@@ -564,6 +581,16 @@ class GyroOdometry(Published):
                 covariance = turn_slip_step(covariance, position, heading, jacobian)
         return saturate(self._bias_share.step(covariance, delta_x, delta_y, jacobian,
                                               bias_gain, (c, -x, 1.0), self.filter.bias_var))
+
+    def _carry_slip_share(self, source, dx, dpsi, delta_x, delta_y, jacobian) -> None:
+        """Propagate :attr:`slip_share` over a step as :meth:`_propagate` does the covariance."""
+        if source == GYRO:
+            position = turn_slip(UNIT_SLIP, self.model.track_width, dx, dpsi)[0]
+            self.slip_share = propagate_step(self.slip_share, delta_x, delta_y, jacobian,
+                                             (position, 0.0, 0.0, position, 0.0, 0.0))
+        else:   # the encoders' steps carry the encoders' slip: the share only moves
+            self.slip_share = propagate(self.slip_share, delta_x, delta_y,
+                                        ((0.0, 0.0), (0.0, 0.0), (0.0, 0.0)), 0.0, 0.0)
 
     @staticmethod
     def _plausible(dpsi_g, dpsi_e) -> bool:
@@ -643,4 +670,6 @@ class GyroOdometry(Published):
         self.twist_covariance = (0.0,) * 6
         self._bias_share.reset()
         self._window = [0.0] * 6
+        if self.slip_share is not None:
+            self.slip_share = (0.0,) * 6
         super().reset()

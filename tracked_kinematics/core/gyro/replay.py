@@ -18,7 +18,7 @@ from ..kinematics import IcrParams
 
 def replay(enc_t, left, right, gyro_t, gyro_rate, icr: IcrParams,
            config: GyroConfig | None = None, resets=None, noise=None, terms=None,
-           gyro_terms=None, unit=None):
+           gyro_terms=None, unit=None, slip_share: bool = False):
     """
     Replay a recording through :class:`GyroOdometry` as a node would receive it.
 
@@ -45,6 +45,9 @@ def replay(enc_t, left, right, gyro_t, gyro_rate, icr: IcrParams,
     unit : NoiseModel, optional
         Also return what this model's timing, scale and drift would add to each published
         covariance (``odometry.unit_published``; :meth:`GyroOdometry.beside_the_steps`).
+    slip_share : bool
+        Also return what one unit of the gyro-aided slip term adds to each
+        (``odometry.slip_published``; :attr:`GyroOdometry.slip_share`).
 
     Returns
     -------
@@ -55,7 +58,8 @@ def replay(enc_t, left, right, gyro_t, gyro_rate, icr: IcrParams,
     odometry : GyroOdometry
         The state at the end; ``odometry.published`` (N, 6): the published pose covariance
         after each encoder sample (upper triangle, before any reset there); with ``unit``,
-        ``odometry.unit_published`` (N, 6) likewise.
+        ``odometry.unit_published`` (N, 6) likewise, and with ``slip_share``
+        ``odometry.slip_published``.
 
     """
     enc_t = np.asarray(enc_t, float)
@@ -68,6 +72,9 @@ def replay(enc_t, left, right, gyro_t, gyro_rate, icr: IcrParams,
     poses = np.zeros((len(enc_t), 3))
     published = np.zeros((len(enc_t), 6))
     unit_published = None if unit is None else np.zeros((len(enc_t), 6))
+    slip_published = np.zeros((len(enc_t), 6)) if slip_share else None
+    if slip_share:
+        odo.track_slip_share()
     sources = np.full(len(enc_t), ENCODERS, dtype=object)
     gt, gr = gyro_t.tolist(), np.asarray(gyro_rate, float).tolist()
     et, el, er = enc_t.tolist(), np.asarray(left, float).tolist(), \
@@ -84,11 +91,14 @@ def replay(enc_t, left, right, gyro_t, gyro_rate, icr: IcrParams,
         published[k] = covariance
         if unit is not None:
             unit_published[k] = odo.beside_the_steps(twist, unit)
+        if slip_share:
+            slip_published[k] = odo.slip_share
         sources[k] = odo.source
         if reset[k]:
             odo.reset()
     odo.published = published
     odo.unit_published = unit_published
+    odo.slip_published = slip_published
     return poses, sources, odo
 
 
