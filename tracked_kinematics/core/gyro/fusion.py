@@ -158,6 +158,10 @@ class GyroOdometry(Published):
         """Return the terms published beside the steps: the gyro-aided ones from the gyro."""
         return self.gyro_timing if self.source == GYRO else self.timing
 
+    def _terms_for(self, source: str) -> NoiseModel:
+        """Return the turn and slip terms of a step whose heading came from ``source``."""
+        return self.gyro_terms if source == GYRO else self.terms
+
     slip_share = None
     """
     With :meth:`track_slip_share`: the pose covariance (upper triangle) one unit of
@@ -563,8 +567,8 @@ class GyroOdometry(Published):
         increment's error per rad/s of bias error).
         """
         var_left, var_right = self.noise.travel_variances(d_left, d_right)
-        terms = self.gyro_terms if source == GYRO else self.terms
-        position, heading = turn_slip(terms, self.model.track_width, dx, dpsi)
+        position, heading = turn_slip(self._terms_for(source), self.model.track_width, dx,
+                                      dpsi)
         c, x = self._offset, self.model.x
         if self.slip_share is not None:
             self._carry_slip_share(source, dx, dpsi, delta_x, delta_y, jacobian)
@@ -584,13 +588,11 @@ class GyroOdometry(Published):
 
     def _carry_slip_share(self, source, dx, dpsi, delta_x, delta_y, jacobian) -> None:
         """Propagate :attr:`slip_share` over a step as :meth:`_propagate` does the covariance."""
-        if source == GYRO:
-            position = turn_slip(UNIT_SLIP, self.model.track_width, dx, dpsi)[0]
-            self.slip_share = propagate_step(self.slip_share, delta_x, delta_y, jacobian,
-                                             (position, 0.0, 0.0, position, 0.0, 0.0))
-        else:   # the encoders' steps carry the encoders' slip: the share only moves
-            self.slip_share = propagate(self.slip_share, delta_x, delta_y,
-                                        ((0.0, 0.0), (0.0, 0.0), (0.0, 0.0)), 0.0, 0.0)
+        # The encoders' steps carry the encoders' slip: there the share only moves.
+        position = (turn_slip(UNIT_SLIP, self.model.track_width, dx, dpsi)[0]
+                    if source == GYRO else 0.0)
+        self.slip_share = propagate_step(self.slip_share, delta_x, delta_y, jacobian,
+                                         (position, 0.0, 0.0, position, 0.0, 0.0))
 
     @staticmethod
     def _plausible(dpsi_g, dpsi_e) -> bool:
@@ -640,9 +642,8 @@ class GyroOdometry(Published):
             dx / duration, dy / duration, dpsi / duration)
         rate = 1.0 / duration if duration > 0.0 else 1.0
         var_left, var_right = twist_variances(self.noise, abs_left * rate, abs_right * rate)
-        position, heading = turn_slip(self.gyro_terms if self.source == GYRO else self.terms,
-                                      self.model.track_width, twist[0] * TWIST_TIME,
-                                      twist[2] * TWIST_TIME)
+        position, heading = turn_slip(self._terms_for(self.source), self.model.track_width,
+                                      twist[0] * TWIST_TIME, twist[2] * TWIST_TIME)
         scale = 1.0 / (TWIST_TIME * TWIST_TIME)
         position *= scale
         if self.source == GYRO:
