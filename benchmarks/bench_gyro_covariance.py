@@ -44,7 +44,8 @@ from tracked_kinematics.offline.bags import (  # noqa: E402
     EncoderSource, GroundTruthSource, read_recording)
 from tracked_kinematics.offline.cli import identify_icr  # noqa: E402
 from tracked_kinematics.offline.model_evaluation import (  # noqa: E402
-    pose_references, TerrainModel, track_noise_of)
+    pose_references, TerrainModel)
+from tracked_kinematics.params import track_noise_from_values  # noqa: E402
 
 MARMOTTE = ('marmotte_snow_2024-01-25_12h15_part1', 0.116702, 0.592723)
 GRASS = ('warthog_grass_2024-07-18_16h59', 'warthog_grass_2024-07-29_14h04',
@@ -115,7 +116,7 @@ def shares(scored, length):
     traces = {}
     for rec, pieces, model in scored:
         terms = model.gyro_noise.without_tracks()
-        alone = {'gyro': (still, none), 'tracks': (track_noise_of(model.values), none)}
+        alone = {'gyro': (still, none), 'tracks': (track_noise_from_values(model.values), none)}
         alone.update({t: (still, replace(none, **{t: getattr(terms, t)})) for t in TERMS})
         gyro = windows(rec, pieces, model, length, 0.0, still, none)[1]
         for name, (noise, term) in alone.items():
@@ -138,7 +139,7 @@ def run_case(case, base: Path, tmp: Path):
         cells, everything = [], []
         for offset in OFFSETS:
             found = [windows(rec, pieces, model, length, offset * length,
-                             track_noise_of(model.values), model.noise.without_tracks(),
+                             track_noise_from_values(model.values), model.noise.without_tracks(),
                              model.gyro_noise.without_tracks())
                      for rec, pieces, model in scored]
             e = np.concatenate([f[0] for f in found])

@@ -20,7 +20,7 @@ from sensor_msgs.msg import Imu, JointState
 from tracked_kinematics.core.sim.sensors import GyroModel
 from tracked_kinematics.offline.bag_simulation import simulate_bag
 from tracked_kinematics.offline.cli import evaluate_model as cli
-from tracked_kinematics.params import read_params_file
+from tracked_kinematics.params import read_params_file, track_noise_from_values
 from tracked_kinematics.ros.odometry_node import OdometryNode
 
 pytestmark = pytest.mark.ros
@@ -157,7 +157,7 @@ def test_the_covariance_published_is_the_one_evaluate_model_scores(
     """Issue 35: one covariance. The node reset every 5 s, and core's replay with resets."""
     from std_srvs.srv import Trigger
     from tracked_kinematics.core.gyro import replay
-    from tracked_kinematics.offline.model_evaluation import TerrainModel, track_noise_of
+    from tracked_kinematics.offline.model_evaluation import TerrainModel
 
     node, encoders, imu, odom = node_on_the_terrain(offline, ros_context, executor, terrain)
     client = encoders.node.create_client(Trigger, 'odometry_node/reset')
@@ -194,7 +194,7 @@ def test_the_covariance_published_is_the_one_evaluate_model_scores(
     def scored_with(gyro_terms):
         _, _, odo = replay(enc_t, left, right, [(ns - origin) * 1e-9 for ns, _ in gyro],
                            [m.angular_velocity.z for _, m in gyro], model.icr, model.gyro,
-                           resets=resets, noise=track_noise_of(model.values),
+                           resets=resets, noise=track_noise_from_values(model.values),
                            terms=model.noise.without_tracks(), gyro_terms=gyro_terms)
         return odo.published[ends][:, [0, 1, 3]]
     ends = np.flatnonzero(resets)

@@ -16,7 +16,6 @@ from pathlib import Path
 import numpy as np
 from tracked_kinematics.core import evaluate as ev
 from tracked_kinematics.core import identify as ident
-from tracked_kinematics.core.covariance import TrackNoise
 from tracked_kinematics.core.errors import ExcitationError, InvalidParameters
 from tracked_kinematics.core.estimate.config import EstimatorConfig
 from tracked_kinematics.core.evaluate.consistency import (
@@ -29,7 +28,7 @@ from tracked_kinematics.offline.errors import UsageError
 from tracked_kinematics.offline.tooling import json_ready
 from tracked_kinematics.params import (
     drivetrain_from_values, gyro_config_from_values, gyro_noise_model_from_values,
-    icr_from_values, noise_model_from_values, NOISE_PARAMS, read_params_file,
+    icr_from_values, noise_model_from_values, read_params_file, track_noise_from_values,
     values_from_drivetrain)
 
 TOOL = 'evaluate_model'
@@ -338,7 +337,7 @@ def _consistency(evaluation, models, candidates, settings, recordings) -> dict:
             continue
         if gyro:
             found = gyro_window_consistency(recordings, evaluation.pieces, c.icr, model.gyro,
-                                            track_noise_of(model.values), model.noise,
+                                            track_noise_from_values(model.values), model.noise,
                                             settings.windows, settings.min_speed,
                                             model.gyro_noise)
         else:
@@ -349,14 +348,6 @@ def _consistency(evaluation, models, candidates, settings, recordings) -> dict:
             windows[ev.window_key(length)]['consistency'] = result['consistency']
         out[c.name] = {length: result['normalised'] for length, result in found.items()}
     return out
-
-
-def track_noise_of(values) -> TrackNoise:
-    """Return the tracks' random walk odometry_node publishes with, from a terrain file."""
-    value = {spec.name: float(values.get(spec.name, spec.default)) for spec in NOISE_PARAMS
-             if spec.name in ('covariance.k_left', 'covariance.k_right', 'covariance.floor')}
-    return TrackNoise(value['covariance.k_left'], value['covariance.k_right'],
-                      value['covariance.floor'])
 
 
 def _icr_summary(icr: IcrParams) -> dict:

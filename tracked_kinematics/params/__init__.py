@@ -15,7 +15,8 @@ from .tables import (COMMAND_LIMIT_PARAMS, DRIVETRAIN_DEFAULTS, DRIVETRAIN_PARAM
                      unknown_terrain_parameters)
 from .values import (drivetrain_from_values, gyro_config_from_values,
                      gyro_noise_model_from_values, icr_from_values, limits_from_values,
-                     noise_model_from_values, values_from_drivetrain, values_from_icr)
+                     noise_model_from_values, track_noise_from_values, values_from_drivetrain,
+                     values_from_icr)
 
 __all__ = [
     'COMMAND_LIMIT_PARAMS', 'DRIVETRAIN_DEFAULTS', 'DRIVETRAIN_PARAMS', 'Derived',
@@ -26,7 +27,8 @@ __all__ = [
     'gyro_config_from_values', 'gyro_noise_model_from_values', 'icr_from_values', 'in_range',
     'limit_value', 'limits_from_values', 'missing_message', 'nest', 'node_name',
     'noise_model_from_values', 'non_negative', 'one_of', 'params_text', 'positive',
-    'read_params_file', 'resolve', 'ros_name', 'typos', 'unknown_parameters',
+    'read_params_file', 'resolve', 'ros_name', 'track_noise_from_values', 'typos',
+    'unknown_parameters',
     'unknown_terrain_parameters', 'values_from_drivetrain', 'values_from_icr', 'write_params_file',
     'zero_or_at_least',
 ]

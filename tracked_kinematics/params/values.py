@@ -9,6 +9,7 @@ import re
 from typing import Any
 
 from tracked_kinematics.core.command import CommandLimits
+from tracked_kinematics.core.covariance import TrackNoise
 from tracked_kinematics.core.drivetrain import DriveTrain, FirstOrderLag, PidMotor
 from tracked_kinematics.core.errors import InvalidParameters
 from tracked_kinematics.core.gyro import GyroConfig
@@ -191,6 +192,19 @@ def noise_model_from_values(values: Mapping[str, Any]) -> NoiseModel:
                       turn=value['covariance.turn'], slip=value['covariance.slip'],
                       timing=value['covariance.timing'], floor=value['covariance.floor'],
                       scale=value['covariance.scale'])
+
+
+def track_noise_from_values(values: Mapping[str, Any]) -> TrackNoise:
+    """
+    Return the tracks' random walk odometry_node publishes with, from a terrain file.
+
+    ``covariance.k_left``, ``covariance.k_right`` and ``covariance.floor`` (the node's
+    defaults for the missing ones).
+    """
+    value = {spec.name: float(values.get(spec.name, spec.default)) for spec in NOISE_PARAMS
+             if spec.name in ('covariance.k_left', 'covariance.k_right', 'covariance.floor')}
+    return TrackNoise(value['covariance.k_left'], value['covariance.k_right'],
+                      value['covariance.floor'])
 
 
 def gyro_noise_model_from_values(values: Mapping[str, Any]) -> NoiseModel:

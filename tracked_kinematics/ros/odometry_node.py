@@ -22,7 +22,7 @@ from rclpy.exceptions import InvalidHandle
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import Imu
 from std_msgs.msg import Float64MultiArray, MultiArrayDimension
-from tracked_kinematics.core.covariance import message_twist_covariance, TrackNoise
+from tracked_kinematics.core.covariance import message_twist_covariance
 from tracked_kinematics.core.gyro import ENCODERS, ERROR as GYRO_ERROR, GYRO, GyroOdometry
 from tracked_kinematics.core.gyro import NOT_A_FAULT
 from tracked_kinematics.core.integration import quaternion_from_yaw
@@ -30,7 +30,8 @@ from tracked_kinematics.core.kinematics import eccentricity, IcrParams, steering
 from tracked_kinematics.core.noise_model import NoiseModel
 from tracked_kinematics.core.odometry import Odometry
 from tracked_kinematics.params import (gyro_config_from_values, gyro_noise_model_from_values,
-                                       icr_from_values, noise_model_from_values, TERRAIN_PARAMS)
+                                       icr_from_values, noise_model_from_values,
+                                       TERRAIN_PARAMS, track_noise_from_values)
 from tracked_kinematics.params.node_tables import NODE_PARAMS
 from tracked_kinematics.ros.encoder_input import (
     check_encoder_values, EncoderInput, WARN_PERIOD)
@@ -57,13 +58,8 @@ _NOT_A_FAULT = NOT_A_FAULT
 PARAMS = NODE_PARAMS[NODE_NAME]
 
 
-def _noise(values: Mapping[str, Any]) -> TrackNoise:
-    return TrackNoise(values['covariance.k_left'], values['covariance.k_right'],
-                      values['covariance.floor'])
-
-
 def _terms(values: Mapping[str, Any]) -> NoiseModel:
-    """Return the turn, slip, timing and scale terms (the tracks' are :func:`_noise`'s)."""
+    """Return the turn, slip, timing and scale terms (the tracks' are the random walk's)."""
     return noise_model_from_values(values).without_tracks()
 
 
@@ -125,11 +121,12 @@ class OdometryNode(TableNode):
 
     def _start(self, values: Mapping[str, Any]) -> None:
         self._gyro = bool(values['imu_topic'])
+        noise = track_noise_from_values(values)
         if self._gyro:
-            self.odometry = GyroOdometry(self._icr(values), gyro_config(values),
-                                         _noise(values), _terms(values))
+            self.odometry = GyroOdometry(self._icr(values), gyro_config(values), noise,
+                                         _terms(values))
         else:
-            self.odometry = Odometry(self._icr(values), _noise(values), _terms(values))
+            self.odometry = Odometry(self._icr(values), noise, _terms(values))
         self._source = ENCODERS
         self._pusher = None
         self.imu = None
@@ -327,9 +324,9 @@ class OdometryNode(TableNode):
                 if self._pusher is not None:
                     self._pusher.pushed = self._model_icrs()
             odometry.config = gyro_config(values)
-            odometry.set_noise(_noise(values), terms, gyro_terms)
+            odometry.set_noise(track_noise_from_values(values), terms, gyro_terms)
         else:
-            odometry.set_model(self._icr(values), _noise(values), terms)
+            odometry.set_model(self._icr(values), track_noise_from_values(values), terms)
         if self.encoder is not None:
             self.encoder.configure(values)
         rate = values['publish_rate']

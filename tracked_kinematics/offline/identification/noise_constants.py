@@ -20,7 +20,6 @@ from dataclasses import dataclass, field
 import math
 
 from tracked_kinematics.core import identify as ident
-from tracked_kinematics.core.covariance import TrackNoise
 from tracked_kinematics.core.errors import IdentificationError
 from tracked_kinematics.core.evaluate import cut, fit_noise, held_out_windows, recording_windows
 from tracked_kinematics.core.evaluate.gyro_noise import fit_gyro_noise, GYRO_TERMS, gyro_windows
@@ -30,7 +29,7 @@ from tracked_kinematics.core.identify.reference.heading_fusion import (
 from tracked_kinematics.core.identify.segments import covered_spans, over_jumps
 from tracked_kinematics.core.noise_model import FITTED
 from tracked_kinematics.params import (gyro_config_from_values, icr_from_values,
-                                       noise_model_from_values, NOISE_PARAMS)
+                                       noise_model_from_values, track_noise_from_values)
 
 LENGTHS = (5.0, 10.0)
 """Window lengths the noise model is fitted on, s (evaluate_model's defaults)."""
@@ -428,16 +427,12 @@ def gyro_aided_extras(values: dict, recordings, track_width: float,
     """
     recordings = list(recordings)
     lengths = fit_lengths(recordings)
-    # The tracks' random walk as the node reads it (its defaults for the keys not written).
-    tracks = {spec.name: float(values.get(spec.name, spec.default)) for spec in NOISE_PARAMS}
     try:
         pieces = [p for k, rec in enumerate(recordings)
                   for p in cut(rec, k, True, track_width).pieces]
         windows = gyro_windows(recordings, pieces, icr_from_values(values),
                                gyro_config_from_values(values),
-                               TrackNoise(tracks['covariance.k_left'],
-                                          tracks['covariance.k_right'],
-                                          tracks['covariance.floor']),
+                               track_noise_from_values(values),
                                noise_model_from_values(values), lengths, min_speed)
         model = fit_gyro_noise(windows, noise_model_from_values(values))
     except (KeyError, ValueError) as err:
