@@ -17,32 +17,43 @@ from .integration import integrate
 from .kinematics import IcrParams
 
 
-def _icr_twist(v_left, v_right, y_left, y_right, x):
+def _icr_twist(v_left, v_right, y_left, y_right, x, with_speeds=True):
     """
     Twist (..., 3) and its derivatives in ``(y_left, y_right, x)`` and in ``(V_l, V_r)``.
 
     Martinez eqs. (7)-(9) in the ROS frame:
-    ``v_x = (V_r y_left - V_l y_right) / (y_left - y_right)``.
+    ``v_x = (V_r y_left - V_l y_right) / (y_left - y_right)``. The derivatives are filled in
+    place (the identification's Jacobian calls this at every evaluation); ``with_speeds``
+    False: None for the speeds' (those models hold the scales).
     """
     span = y_left - y_right
     w = (v_right - v_left) / span
     v_x = (v_right * y_left - v_left * y_right) / span
-    v_y = -x * w
-    twist = np.stack(np.broadcast_arrays(v_x, v_y, w), axis=-1)
+    shape = np.broadcast_shapes(np.shape(w), np.shape(v_x), np.shape(x))
+    twist = np.empty(shape + (3,))
+    twist[..., 0] = v_x
+    twist[..., 1] = -x * w
+    twist[..., 2] = w
     dw_dyl = -w / span
     dw_dyr = w / span
-    zero = np.zeros_like(w)
-    d_icr = np.stack([
-        np.stack(np.broadcast_arrays(-w * y_right / span, w * y_left / span, zero), -1),
-        np.stack(np.broadcast_arrays(-x * dw_dyl, -x * dw_dyr, -w), -1),
-        np.stack(np.broadcast_arrays(dw_dyl, dw_dyr, zero), -1),
-    ], axis=-2)
+    d_icr = np.zeros(shape + (3, 3))
+    d_icr[..., 0, 0] = -w * y_right / span
+    d_icr[..., 0, 1] = w * y_left / span
+    d_icr[..., 1, 0] = -x * dw_dyl
+    d_icr[..., 1, 1] = -x * dw_dyr
+    d_icr[..., 1, 2] = -w
+    d_icr[..., 2, 0] = dw_dyl
+    d_icr[..., 2, 1] = dw_dyr
+    if not with_speeds:
+        return twist, d_icr, None
     inv = 1.0 / span
-    d_speeds = np.stack([
-        np.stack(np.broadcast_arrays(-y_right * inv + zero, y_left * inv + zero), -1),
-        np.stack(np.broadcast_arrays(x * inv + zero, -x * inv + zero), -1),
-        np.stack(np.broadcast_arrays(-inv + zero, inv + zero), -1),
-    ], axis=-2)
+    d_speeds = np.empty(shape + (3, 2))
+    d_speeds[..., 0, 0] = -y_right * inv
+    d_speeds[..., 0, 1] = y_left * inv
+    d_speeds[..., 1, 0] = x * inv
+    d_speeds[..., 1, 1] = -x * inv
+    d_speeds[..., 2, 0] = -inv
+    d_speeds[..., 2, 1] = inv
     return twist, d_icr, d_speeds
 
 
@@ -322,11 +333,14 @@ class ConstantIcr(MotionModel):
         v_left = np.atleast_1d(np.asarray(v_left, float))
         v_right = np.atleast_1d(np.asarray(v_right, float))
         twist, d_icr, d_speeds = _icr_twist(scale_left * v_left, scale_right * v_right,
-                                            p[0], p[1], p[2])
+                                            p[0], p[1], p[2], self.with_scales)
         if not self.with_scales:
             return twist, d_icr
-        d_scales = d_speeds * np.stack([v_left, v_right], axis=-1)[..., None, :]
-        return twist, np.concatenate([d_icr, d_scales], axis=-1)
+        jac = np.empty(d_icr.shape[:-1] + (5,))
+        jac[..., :3] = d_icr
+        jac[..., 3] = d_speeds[..., 0] * v_left[..., None]
+        jac[..., 4] = d_speeds[..., 1] * v_right[..., None]
+        return twist, jac
 
     def as_icr(self, p):
         p = np.asarray(p, float)
@@ -483,7 +497,7 @@ class AdaptiveIcr(MotionModel):
         v_right = np.atleast_1d(np.asarray(v_right, float))
         accel, curv = self.features(v_left, v_right)
         y_left, y_right, x, clipped = self._floored_icr(p, v_left, v_right)
-        twist, d_icr, _ = _icr_twist(v_left, v_right, y_left, y_right, x)
+        twist, d_icr, _ = _icr_twist(v_left, v_right, y_left, y_right, x, False)
         # Chain rule through d(y_left, y_right, x) / dp, which is sparse: y_left depends on
         # p1, p2 (times |a|, |k|), y_right on p3, p4 (times -|a|, -|k|), x on p5, p6. Where
         # the span floor acted, y_left and y_right no longer depend on p.

@@ -118,20 +118,21 @@ class SegmentProblem:
         s, c, ds, dc = _chord_coefficients(u[:, 2])
         heading = th - u[:, 2]
         cos_h, sin_h = np.cos(heading), np.sin(heading)
-        # World-frame chord derivative R(th_k) dc_k/du_k, as coefficients of du_k/dp.
+        # World-frame chord derivative R(th_k) dc_k/du_k, as coefficients of du_k/dp; the
+        # per-step terms are m_k du_k/dp, one batched (5 x 3) (3 x P) product.
         a_th = ds * u[:, 0] - dc * u[:, 1]
         b_th = dc * u[:, 0] + ds * u[:, 1]
-        coef = np.stack([cos_h * s - sin_h * c, -cos_h * c - sin_h * s,
-                         cos_h * a_th - sin_h * b_th, sin_h * s + cos_h * c,
-                         -sin_h * c + cos_h * s, sin_h * a_th + cos_h * b_th, x, y],
-                        axis=1)[:, :, None]
-        du_x, du_y, g = du[:, 0, :], du[:, 1, :], du[:, 2, :]
-        terms = np.empty((len(u), 5, len(p)))
-        terms[:, 0] = coef[:, 0] * du_x + coef[:, 1] * du_y + coef[:, 2] * g
-        terms[:, 1] = coef[:, 3] * du_x + coef[:, 4] * du_y + coef[:, 5] * g
-        terms[:, 2] = g
-        terms[:, 3] = coef[:, 6] * g
-        terms[:, 4] = coef[:, 7] * g
+        m = np.zeros((len(u), 5, 3))
+        m[:, 0, 0] = cos_h * s - sin_h * c
+        m[:, 0, 1] = -cos_h * c - sin_h * s
+        m[:, 0, 2] = cos_h * a_th - sin_h * b_th
+        m[:, 1, 0] = sin_h * s + cos_h * c
+        m[:, 1, 1] = -sin_h * c + cos_h * s
+        m[:, 1, 2] = sin_h * a_th + cos_h * b_th
+        m[:, 2, 2] = 1.0
+        m[:, 3, 2] = x
+        m[:, 4, 2] = y
+        terms = np.matmul(m, du)
         w_x, w_y, g_sum, xg, yg = np.moveaxis(self.segments.per_segment(terms), 1, 0)
         b = self._last
         # J (P_b G - sum P_k g_k), J (v_x, v_y) = (-v_y, v_x)
