@@ -328,7 +328,7 @@ def _simulated_run(spec: VehicleFile, manoeuvres, duration, seed, rate, setpoint
                       len(cmd) - 1)
     if table is None:
         try:
-            table = TwistTable(veh)
+            table = TwistTable.of(veh)
         except RuntimeError as err:   # the stationary solver fails for this vehicle
             raise InvalidParameters(f'{spec.path}: {err}') from None
     return simulate(robot, cmd[held], dt, table, ground_truth, rng)

@@ -65,7 +65,7 @@ class Terrains:
         self.check(name)
         if name not in self._tables:
             vehicle = self.known[name].apply(self.spec.robot.vehicle)
-            self._tables[name] = TwistTable(vehicle)
+            self._tables[name] = TwistTable.of(vehicle)
         return self._tables[name]
 
 

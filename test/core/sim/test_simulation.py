@@ -23,6 +23,23 @@ def tables():
     return {AURIGA: TwistTable(AURIGA), LOADED: TwistTable(LOADED)}
 
 
+def test_a_vehicles_default_table_is_built_once_and_shared(tables, monkeypatch):
+    table = TwistTable.of(replace(AURIGA))        # an equal vehicle, another object
+    assert TwistTable.of(AURIGA) is table
+    assert TwistTable.of(LOADED) is not table
+    v_left, v_right = np.linspace(-1.0, 1.0, 9), np.linspace(1.0, -0.5, 9)
+    np.testing.assert_array_equal(np.stack(table(v_left, v_right)),
+                                  np.stack(tables[AURIGA](v_left, v_right)))
+
+    def built(*args, **kwargs):
+        raise AssertionError('a second table of the vehicle was built')
+
+    # A simulation given no table takes the shared one.
+    monkeypatch.setattr(TwistTable, '__init__', built)
+    run = simulate(Robot(AURIGA), np.full((3, 2), 0.5), DT)
+    assert run.pose[-1, 0] > 0.0
+
+
 @pytest.fixture(scope='module')
 def commands():
     return manoeuvre('mixed', 60.0, DT, 0.42, 1.0, np.random.default_rng(7))

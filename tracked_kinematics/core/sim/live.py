@@ -134,7 +134,7 @@ class LiveSimulator:
             raise ValueError(f'dt must be a finite number > 0 s, got {dt!r}')
         self.robot = robot
         self.dt = dt
-        self.table = table if table is not None else TwistTable(robot.vehicle)
+        self.table = table if table is not None else TwistTable.of(robot.vehicle)
         self._drives = DriveTrainStepper(robot.drivetrain, dt)
         self._scale = (robot.encoders.scale_left, robot.encoders.scale_right)
         self.steps = 0

@@ -222,7 +222,7 @@ def _run(args, out) -> int:
             with outputs.path('--bag') as tmp:
                 count = write_bag(tmp, plan, icr, args.storage)
         if '--plot' in outputs:
-            table = TwistTable(robot.vehicle)
+            table = TwistTable.of(robot.vehicle)
             driven = execute(robot, plan, table)
             pos, yaw = final_error(driven, plan.goal)
             print(f'simulated with the dynamics of {vehicle.name}: final pose {pos * 100:.1f} '
@@ -248,7 +248,7 @@ def main(argv=None) -> int:
 
 
 def _compare(robot, name, limits, speed, dt, out=sys.stdout) -> int:
-    table = TwistTable(robot.vehicle)
+    table = TwistTable.of(robot.vehicle)
     models = identify_on_sweep(robot, table, dt)
     print(f'vehicle {name}: models fitted on a simulated Fink & Stump sweep', file=out)
     for short, (model, p) in models.items():

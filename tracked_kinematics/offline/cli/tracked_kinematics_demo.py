@@ -368,7 +368,7 @@ def run(args, out) -> int:
 def _steps(args, out, spec, terrain, overrides, outputs: DemoDirectory, start) -> int:
     print(f'{PROG}: {spec.name} on {terrain} ({spec.path}), seed {args.seed}; '
           f'outputs in {outputs.directory}/', file=out)
-    table = TwistTable(spec.robot.vehicle)
+    table = TwistTable.of(spec.robot.vehicle)
     sim = _simulate_step(args, out, spec, terrain, overrides, outputs, table)
     status = _identify_step(out, spec, terrain, outputs, sim)
     if status != 0:
