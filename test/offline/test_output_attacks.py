@@ -233,7 +233,7 @@ def test_demo_output_directory_attacks(tmp_path, capsys, make, pattern):
 @pytest.mark.parametrize('tool, target, argv', [
     ('simulate_bag', 'simulate', ['{tmp}/bag', '--vehicle', 'packbot', '--duration', '1']),
     ('icr_map', 'icr_map', ['packbot', '--n', '3', '--output', '{tmp}/o.yaml']),
-    ('tracked_kinematics_demo', 'TwistTable', ['--output', '{tmp}/demo']),
+    ('tracked_kinematics_demo', 'TwistTable.of', ['--output', '{tmp}/demo']),
 ])
 def test_a_bug_is_a_traceback_and_still_leaves_nothing(tool, target, argv, tmp_path, capsys,
                                                        monkeypatch):
@@ -246,7 +246,10 @@ def test_a_bug_is_a_traceback_and_still_leaves_nothing(tool, target, argv, tmp_p
 
     def bug(*args, **kwargs):
         raise ValueError('bug')
-    monkeypatch.setattr(where, target, bug)
+    *owner, name = target.split('.')
+    for part in owner:
+        where = getattr(where, part)
+    monkeypatch.setattr(where, name, bug)
     with pytest.raises(ValueError, match='^bug$'):
         module.main([a.format(tmp=tmp_path) for a in argv])
     assert capsys.readouterr().err == ''
