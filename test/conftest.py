@@ -53,7 +53,7 @@ def ros_context(ros_domain, monkeypatch):
     rclpy.init(context=context, domain_id=ros_domain)
     # A node the test left behind (a failed start in a helper, say) is destroyed here, while
     # its context is still up, not by a collection after the shutdown. Each node is noted as
-    # it is made: a full gc.collect() here cost 0.1 s a test, some 35 s of the suite's CPU.
+    # it is made: a full gc.collect() here cost up to 0.1 s a test, 10-35 s of the suite's CPU.
     made = []
     init = Node.__init__
 
