@@ -6,6 +6,7 @@ heading is the gyro's, their fit on windows drawn from known constants, and the 
 file's ``covariance.gyro_aided.*`` keys (a file without them publishes as before).
 """
 
+from dataclasses import replace
 import math
 
 import numpy as np
@@ -172,7 +173,6 @@ def test_the_shares_of_timing_and_slip_are_those_of_replays_with_one_more_unit()
     # gyro_windows takes timing's and slip's shares from one replay (what the terms beside the
     # steps add at each window's end; the slip share propagated beside the covariance)
     # instead of replaying with one more of each: the same numbers.
-    from dataclasses import replace
     from tracked_kinematics.core.evaluate import cut
     from tracked_kinematics.core.evaluate.consistency import gyro_reset_windows
     from tracked_kinematics.core.covariance import TrackNoise
@@ -194,3 +194,30 @@ def test_the_shares_of_timing_and_slip_are_those_of_replays_with_one_more_unit()
         np.testing.assert_allclose(share[gyro], (other.covariances - found.covariances)[gyro],
                                    rtol=1e-9, atol=1e-15)
         assert np.trace(share[gyro].sum(0)) > 0.0    # not trivially equal: both zero
+
+
+def test_a_replay_that_publishes_at_some_samples_is_the_full_one_there():
+    # gyro_reset_windows wants the covariances at the windows' ends only: the others are
+    # not computed, and the path, the sources and the wanted covariances are unchanged.
+    t, left, right, w = drive()
+    terms = NoiseModel(track=0.0, slip=0.01, timing=0.001, floor=0.0)
+    unit = NoiseModel(track=0.0, floor=0.0, timing=1.0)
+    resets = np.zeros(len(t), dtype=bool)
+    resets[::40] = True
+    kwargs = {'terms': terms, 'gyro_terms': replace(terms, drift=0.002), 'resets': resets,
+              'unit': unit, 'slip_share': True}
+    config = GyroConfig(gyro_bias_sigma=0.001)
+    full = replay(t, left, right, t, w, ICR, config, **kwargs)
+    some = replay(t, left, right, t, w, ICR, config, published_at=resets, **kwargs)
+    np.testing.assert_array_equal(some[0], full[0])
+    np.testing.assert_array_equal(some[1], full[1])
+    assert 'gyro' in set(full[1][resets]) and 'encoders' in set(full[1][resets])
+    for name in ('published', 'unit_published', 'slip_published'):
+        got, expected = getattr(some[2], name), getattr(full[2], name)
+        np.testing.assert_array_equal(got[resets], expected[resets])
+        assert np.all(np.isnan(got[~resets])), name
+        assert np.any(expected[resets] != 0.0), name    # not trivially equal
+    # What the odometry holds at the end is the same (the last sample is not wanted).
+    assert not resets[-1]
+    assert some[2].pose == full[2].pose
+    assert some[2].covariance_upper == full[2].covariance_upper

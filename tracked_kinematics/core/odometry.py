@@ -70,17 +70,21 @@ class Published:
         # (the last twist published), in the new frame (heading 0).
         self._start_twist = self._last_twist
 
-    def publish(self):
+    def publish(self, covariance: bool = True):
         """
         Return what is published now: ``(pose, pose covariance, twist, twist covariance)``.
 
         The twist is the mean since the last call (``take_twist``); the pose covariance the
         propagated one plus the time error at both ends of the interval since the last reset
-        (:func:`.noise_model.published_covariance`).
+        (:func:`.noise_model.published_covariance`). ``covariance`` False: the twist is
+        taken as for a message, but neither covariance is computed (None), for a replay
+        that scores only some of its samples (:func:`.gyro.replay`'s ``published_at``).
         """
-        twist, twist_covariance = self.take_twist()
+        twist, twist_covariance = self.take_twist(covariance)
         if all(map(math.isfinite, twist)):
             self._last_twist = twist
+        if not covariance:
+            return self.pose, None, twist, None
         covariance = published_covariance(self.covariance_upper, self.pose, twist,
                                           self._start_twist, self.timing_now())
         return self.pose, covariance, twist, twist_covariance
@@ -200,25 +204,27 @@ class Odometry(Published):
         window[5] += dt
         return True
 
-    def take_twist(self):
+    def take_twist(self, covariance: bool = True):
         """
         Mean body twist (m/s, m/s, rad/s) since the last call, and its covariance's upper triangle.
 
         The twist of the summed travel over the window's duration; the covariance is that of
-        :func:`.covariance.twist_variances` (rate-independent) plus the floor on ``v_y``. The
-        window then restarts.
+        :func:`.covariance.twist_variances` (rate-independent) plus the floor on ``v_y``
+        (``covariance`` False: None). The window then restarts.
         """
         d_left, d_right, abs_left, abs_right, samples, duration = self._window
         self._clear_window()
         if samples == 0:
             duration = 1.0
-        var_left, var_right = twist_variances(self.noise, abs_left / duration,
-                                              abs_right / duration)
         (b0l, b0r), (b1l, b1r), (b2l, b2r) = self._body
         v_left = d_left / duration
         v_right = d_right / duration
         twist = (b0l * v_left + b0r * v_right, b1l * v_left + b1r * v_right,
                  b2l * v_left + b2r * v_right)
+        if not covariance:
+            return twist, None
+        var_left, var_right = twist_variances(self.noise, abs_left / duration,
+                                              abs_right / duration)
         xx, xy, xt, yy, yt, tt = twist_covariance(self._body, var_left, var_right, TWIST_TIME)
         if self.terms is not None:
             # The turn and slip terms of the mean twist over TWIST_TIME: S(v T) / T^2.

@@ -52,7 +52,8 @@ def gyro_track(recording: Recording, icr: IcrParams, config: GyroConfig,
     # interpolated, not integrated: an extra short step would move the fusion's thresholds.
     enc_poses, _, odo = replay(rec.enc_t, rec.left, rec.right, rec.gyro_t, rec.gyro_rate,
                                icr, config,
-                               terms=None if terms is None else terms.without_tracks())
+                               terms=None if terms is None else terms.without_tracks(),
+                               published_at=np.zeros(len(rec.enc_t), dtype=bool))
     if rec.gt_t is not None and len(rec.gt_t):
         inside = rec.gt_t[(rec.gt_t >= rec.enc_t[0]) & (rec.gt_t <= rec.enc_t[-1])]
         grid = np.union1d(rec.enc_t, inside)
@@ -237,9 +238,12 @@ def gyro_reset_windows(recording: Recording, pieces, icr: IcrParams, config: Gyr
                                        min_speed)
     if len(start) == 0:
         return _no_windows(unit, slip_share)
+    ends = np.zeros(len(rec.enc_t), dtype=bool)
+    ends[end] = True
     poses, sources, odo = replay(rec.enc_t, rec.left, rec.right, rec.gyro_t, rec.gyro_rate,
                                  icr, config, resets=resets, noise=noise, terms=terms,
-                                 gyro_terms=gyro_terms, unit=unit, slip_share=slip_share)
+                                 gyro_terms=gyro_terms, unit=unit, slip_share=slip_share,
+                                 published_at=ends)
     errors, covs, units, slips, ends, gyro = [], [], [], [], [], []
     for piece in pieces:
         inside = (rec.enc_t[start] >= piece.t[0]) & (rec.enc_t[end] <= piece.t[-1])

@@ -627,19 +627,22 @@ class GyroOdometry(Published):
 
     # Outputs ---------------------------------------------------------------------------
 
-    def take_twist(self):
+    def take_twist(self, covariance: bool = True):
         """
         Return the mean twist ``(v_x, v_y, w)`` since the last call and its covariance.
 
         As :meth:`.Odometry.take_twist`: the covariance is that of the mean twist over
         :data:`..covariance.TWIST_TIME`, from the tracks' and the turn and slip terms, with
         ``w`` the gyro's (its noise, its bias's and its scale's uncertainty) when the heading
-        is the gyro's. The window then restarts.
+        is the gyro's (``covariance`` False: None, and :attr:`twist_covariance` is still the
+        last one computed). The window then restarts.
         """
         dx, dy, dpsi, duration, abs_left, abs_right = self._window
         self._window = [0.0] * 6
         twist = (0.0, 0.0, 0.0) if duration <= 0.0 else (
             dx / duration, dy / duration, dpsi / duration)
+        if not covariance:
+            return twist, None
         rate = 1.0 / duration if duration > 0.0 else 1.0
         var_left, var_right = twist_variances(self.noise, abs_left * rate, abs_right * rate)
         position, heading = turn_slip(self._terms_for(self.source), self.model.track_width,

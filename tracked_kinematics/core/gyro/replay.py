@@ -18,7 +18,7 @@ from ..kinematics import IcrParams
 
 def replay(enc_t, left, right, gyro_t, gyro_rate, icr: IcrParams,
            config: GyroConfig | None = None, resets=None, noise=None, terms=None,
-           gyro_terms=None, unit=None, slip_share: bool = False):
+           gyro_terms=None, unit=None, slip_share: bool = False, published_at=None):
     """
     Replay a recording through :class:`GyroOdometry` as a node would receive it.
 
@@ -48,6 +48,11 @@ def replay(enc_t, left, right, gyro_t, gyro_rate, icr: IcrParams,
     slip_share : bool
         Also return what one unit of the gyro-aided slip term adds to each
         (``odometry.slip_published``; :attr:`GyroOdometry.slip_share`).
+    published_at : array_like of bool, shape (N,), optional
+        The samples whose published covariances are wanted (the ends of the windows scored):
+        elsewhere they are NaN, and not computed (``publish(covariance=False)``: the twist is
+        taken all the same, so the path and the wanted ones are those of a full replay).
+        Default: every sample.
 
     Returns
     -------
@@ -80,19 +85,26 @@ def replay(enc_t, left, right, gyro_t, gyro_rate, icr: IcrParams,
     et, el, er = enc_t.tolist(), np.asarray(left, float).tolist(), \
         np.asarray(right, float).tolist()
     reset = [False] * len(et) if resets is None else np.asarray(resets, bool).tolist()
+    wanted = [True] * len(et) if published_at is None else \
+        np.asarray(published_at, bool).tolist()
+    if published_at is not None:
+        for out in (published, unit_published, slip_published):
+            if out is not None:
+                out.fill(np.nan)
     for e in order:
         if e < n_gyro:
             odo.imu(gt[e], gr[e])
             continue
         k = e - n_gyro
         odo.encoders(et[k], el[k], er[k])
-        pose, covariance, twist, _ = odo.publish()
+        pose, covariance, twist, _ = odo.publish(wanted[k])
         poses[k] = pose
-        published[k] = covariance
-        if unit is not None:
-            unit_published[k] = odo.beside_the_steps(twist, unit)
-        if slip_share:
-            slip_published[k] = odo.slip_share
+        if wanted[k]:
+            published[k] = covariance
+            if unit is not None:
+                unit_published[k] = odo.beside_the_steps(twist, unit)
+            if slip_share:
+                slip_published[k] = odo.slip_share
         sources[k] = odo.source
         if reset[k]:
             odo.reset()

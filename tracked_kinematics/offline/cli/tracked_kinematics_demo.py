@@ -233,7 +233,7 @@ def heldout_path(k: int, args, overrides, table, identified: IcrParams,
                            f'{len(run.t)}')
     ideal = IcrParams.ideal(identified.track_width)
     aided, _, _ = replay(rec.enc_t, rec.left, rec.right, rec.gyro_t, rec.gyro_rate, identified,
-                         gyro)
+                         gyro, published_at=np.zeros(len(rec.enc_t), dtype=bool))
     return PathResult(name, manoeuvres, seed, run.duration, run.distance, run.pose,
                       dead_reckon(ideal, rec.left, rec.right),
                       dead_reckon(identified, rec.left, rec.right), aided, rec)
