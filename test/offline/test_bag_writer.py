@@ -44,3 +44,19 @@ def test_round_trip(tmp_path, storage):
 def test_unknown_storage(tmp_path):
     with pytest.raises(ValueError, match='storage must be one of'):
         BagWriter(tmp_path / 'x', 'parquet')
+
+
+@pytest.mark.parametrize('storage', ['mcap', 'rosbag1'])
+def test_the_writers_of_a_ros_version_share_its_typestore(tmp_path, storage):
+    # The serialisers a typestore generates are made once per process, not once per bag.
+    suffix = '.bag' if storage == 'rosbag1' else ''
+    paths = [tmp_path / f'a{suffix}', tmp_path / f'b{suffix}']
+    writers = [BagWriter(p, storage) for p in paths]
+    assert writers[0].typestore is writers[1].typestore
+    for k, (writer, path) in enumerate(zip(writers, paths)):
+        with writer as bag:
+            bag.write('/tf', 5, bag.tf_message(5, 'map', 'base_link', 1.0 + k, 0.0, 0.0))
+        with AnyReader([path]) as reader:
+            (conn, _, raw), = reader.messages()
+            msg = reader.deserialize(raw, conn.msgtype)
+        assert msg.transforms[0].transform.translation.x == 1.0 + k

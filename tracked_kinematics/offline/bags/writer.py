@@ -12,6 +12,7 @@ without its ``metadata.yaml`` at the target.
 
 from __future__ import annotations
 
+import functools
 from pathlib import Path
 
 import numpy as np
@@ -20,6 +21,23 @@ from tracked_kinematics.core.integration import quaternion_from_yaw, split_stamp
 from tracked_kinematics.offline.errors import BagError, UsageError
 
 STORAGES = ('sqlite3', 'mcap', 'rosbag1')
+
+
+@functools.lru_cache(maxsize=None)
+def _typestore(ros1: bool):
+    """
+    Return the typestore of a ROS version, made once per process.
+
+    A typestore generates the serialiser of each message type on first use: a new one per
+    bag made every writer generate them again (a third of writing a short bag).
+    """
+    if not ros1:
+        return get_typestore(Stores.ROS2_JAZZY)
+    store = get_typestore(Stores.ROS1_NOETIC)
+    # Noetic's store has no tf2_msgs; its definition is one line.
+    store.register(get_types_from_msg('geometry_msgs/TransformStamped[] transforms',
+                                      'tf2_msgs/msg/TFMessage'))
+    return store
 
 
 class BagWriter:
@@ -54,10 +72,7 @@ class BagWriter:
         self.storage = storage
         if storage == 'rosbag1':
             from rosbags.rosbag1 import Writer
-            self.typestore = get_typestore(Stores.ROS1_NOETIC)
-            # Noetic's store has no tf2_msgs; its definition is one line.
-            self.typestore.register(get_types_from_msg(
-                'geometry_msgs/TransformStamped[] transforms', 'tf2_msgs/msg/TFMessage'))
+            self.typestore = _typestore(True)
             from rosbags.rosbag1 import WriterError
             try:
                 self._writer = Writer(self.path)
@@ -65,7 +80,7 @@ class BagWriter:
                 raise BagError(f'cannot write bag {self.path}: {err}') from None
         else:
             from rosbags.rosbag2 import StoragePlugin, Writer
-            self.typestore = get_typestore(Stores.ROS2_JAZZY)
+            self.typestore = _typestore(False)
             plugin = StoragePlugin.MCAP if storage == 'mcap' else StoragePlugin.SQLITE3
             from rosbags.rosbag2 import WriterError
             try:
