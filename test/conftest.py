@@ -25,8 +25,11 @@ os.environ.pop('ROS_STATIC_PEERS', None)
 LONG = os.environ.get('TRACKED_KINEMATICS_LONG') == '1'
 
 # Property tests are about correctness, not speed: no per-example deadline on a busy CI box.
-settings.register_profile('tracked', deadline=None, max_examples=200)
-settings.load_profile('tracked')
+# make test draws hypothesis's default 100 examples per property, make stress 500 (a test
+# that sets its own max_examples keeps it).
+settings.register_profile('tracked', deadline=None, max_examples=100)
+settings.register_profile('tracked-long', deadline=None, max_examples=500)
+settings.load_profile('tracked-long' if LONG else 'tracked')
 
 
 @pytest.fixture(autouse=True)
