@@ -285,17 +285,52 @@ def negative_log_likelihoods(errors, covariances, dof) -> np.ndarray:
     Return ``-2 log p`` of each window's error but for constants: Gaussian or Student-t.
 
     With ``dof``, a multivariate Student-t whose covariance is ``covariances`` (its scale
-    matrix ``covariances (dof - 2) / dof``); None: a Gaussian.
+    matrix ``covariances (dof - 2) / dof``); None: a Gaussian. LinAlgError for a covariance
+    that is not positive definite (or not finite).
     """
     if dof is not None:
         covariances = covariances * ((dof - 2.0) / dof)
-    chol = np.linalg.cholesky(covariances)
-    z = np.linalg.solve(chol, errors[..., None])[..., 0]
-    q = np.sum(z * z, 1)
-    log_det = 2.0 * np.sum(np.log(np.diagonal(chol, axis1=1, axis2=2)), axis=1)
+    if errors.shape[1] <= 3:
+        log_det, q = _small_cholesky(errors, covariances)
+    else:
+        chol = np.linalg.cholesky(covariances)
+        if not np.all(np.isfinite(chol)):    # LAPACK lets a NaN through
+            raise np.linalg.LinAlgError('the covariance is not finite')
+        z = np.linalg.solve(chol, errors[..., None])[..., 0]
+        q = np.sum(z * z, 1)
+        log_det = 2.0 * np.sum(np.log(np.diagonal(chol, axis1=1, axis2=2)), axis=1)
     if dof is None:
         return log_det + q
     return log_det + (dof + errors.shape[1]) * np.log1p(q / dof)
+
+
+def _small_cholesky(errors, covariances):
+    """
+    Return ``log det P`` and ``e^T P^-1 e`` of each window for 1, 2 or 3 dimensions.
+
+    The Cholesky factor ``P = L L^T`` and ``z = L^-1 e`` written out element by element over
+    all windows at once (numpy's batched ``cholesky`` and ``solve`` call LAPACK once per
+    3 x 3: the noise fit evaluates this some 200 times); LinAlgError, as ``cholesky``, for a
+    matrix that is not positive definite.
+    """
+    n = errors.shape[1]
+    a, e = covariances, errors
+    pivots, z, rows = [], [], []
+    for i in range(n):
+        row = []
+        for j in range(i):
+            acc = a[:, i, j] - sum(row[k] * rows[j][k] for k in range(j))
+            row.append(acc / pivots[j])
+        d = a[:, i, i] - sum(v * v for v in row)
+        if not np.all(d > 0.0):
+            raise np.linalg.LinAlgError('the covariance is not positive definite')
+        pivot = np.sqrt(d)
+        z.append((e[:, i] - sum(row[k] * z[k] for k in range(i))) / pivot)
+        pivots.append(pivot)
+        rows.append(row)
+    q = sum(v * v for v in z)
+    log_det = 2.0 * sum(np.log(v) for v in pivots)
+    return log_det, q
 
 
 def _negative_log_posterior(log_c, prior_c, free, groups, width, dof):
