@@ -238,12 +238,12 @@ def gyro_reset_windows(recording: Recording, pieces, icr: IcrParams, config: Gyr
                                        min_speed)
     if len(start) == 0:
         return _no_windows(unit, slip_share)
-    ends = np.zeros(len(rec.enc_t), dtype=bool)
-    ends[end] = True
+    scored = np.zeros(len(rec.enc_t), dtype=bool)
+    scored[end] = True
     poses, sources, odo = replay(rec.enc_t, rec.left, rec.right, rec.gyro_t, rec.gyro_rate,
                                  icr, config, resets=resets, noise=noise, terms=terms,
                                  gyro_terms=gyro_terms, unit=unit, slip_share=slip_share,
-                                 published_at=ends)
+                                 published_at=scored)
     errors, covs, units, slips, ends, gyro = [], [], [], [], [], []
     for piece in pieces:
         inside = (rec.enc_t[start] >= piece.t[0]) & (rec.enc_t[end] <= piece.t[-1])

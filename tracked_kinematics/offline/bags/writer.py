@@ -29,7 +29,7 @@ def _typestore(ros1: bool):
     Return the typestore of a ROS version, made once per process.
 
     A typestore generates the serialiser of each message type on first use: a new one per
-    bag made every writer generate them again (a third of writing a short bag).
+    bag made every writer generate them again (half the CPU of writing a short bag).
     """
     if not ros1:
         return get_typestore(Stores.ROS2_JAZZY)
