@@ -52,7 +52,6 @@ class Terrains:
         own = Terrain(spec.terrain, vehicle.mu_x, vehicle.mu_y,
                       f'the friction of the vehicle file {spec.path}')
         self.known = {**TERRAINS, own.name: own}
-        self._tables: dict[str, TwistTable] = {}
 
     def check(self, name: str) -> None:
         """Raise ValueError naming the known terrains when ``name`` is not one."""
@@ -61,12 +60,9 @@ class Terrains:
                              f'{", ".join(sorted(self.known))})')
 
     def table(self, name: str) -> TwistTable:
-        """Return the dynamics of the vehicle on terrain ``name`` (cached)."""
+        """Return the dynamics of the vehicle on terrain ``name`` (built once: TwistTable.of)."""
         self.check(name)
-        if name not in self._tables:
-            vehicle = self.known[name].apply(self.spec.robot.vehicle)
-            self._tables[name] = TwistTable.of(vehicle)
-        return self._tables[name]
+        return TwistTable.of(self.known[name].apply(self.spec.robot.vehicle))
 
 
 def _stamp(msg_stamp, t: float) -> None:
