@@ -290,28 +290,21 @@ def negative_log_likelihoods(errors, covariances, dof) -> np.ndarray:
     """
     if dof is not None:
         covariances = covariances * ((dof - 2.0) / dof)
-    if errors.shape[1] <= 3:
-        log_det, q = _small_cholesky(errors, covariances)
-    else:
-        chol = np.linalg.cholesky(covariances)
-        if not np.all(np.isfinite(chol)):    # LAPACK lets a NaN through
-            raise np.linalg.LinAlgError('the covariance is not finite')
-        z = np.linalg.solve(chol, errors[..., None])[..., 0]
-        q = np.sum(z * z, 1)
-        log_det = 2.0 * np.sum(np.log(np.diagonal(chol, axis1=1, axis2=2)), axis=1)
+    log_det, q = _cholesky_terms(errors, covariances)
     if dof is None:
         return log_det + q
     return log_det + (dof + errors.shape[1]) * np.log1p(q / dof)
 
 
-def _small_cholesky(errors, covariances):
+def _cholesky_terms(errors, covariances):
     """
-    Return ``log det P`` and ``e^T P^-1 e`` of each window for 1, 2 or 3 dimensions.
+    Return ``log det P`` and ``e^T P^-1 e`` of each window.
 
-    The Cholesky factor ``P = L L^T`` and ``z = L^-1 e`` written out element by element over
-    all windows at once (numpy's batched ``cholesky`` and ``solve`` call LAPACK once per
-    3 x 3: the noise fit evaluates this some 200 times); LinAlgError, as ``cholesky``, for a
-    matrix that is not positive definite.
+    The Cholesky factor ``P = L L^T`` and ``z = L^-1 e`` element by element over all windows
+    at once (the windows' are 1-3-dimensional; numpy's batched ``cholesky`` and ``solve``
+    call LAPACK once per 3 x 3, and the noise fit evaluates this some 200 times);
+    LinAlgError for a matrix that is not positive definite, or not finite (where LAPACK
+    lets a NaN through).
     """
     n = errors.shape[1]
     a, e = covariances, errors
